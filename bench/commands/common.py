@@ -1,0 +1,47 @@
+"""Helpers shared by CLI commands: the store, progress display, printing outcomes."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+
+from bench.store import RunStore
+
+
+def open_store(args) -> RunStore:
+    return RunStore(args.store)
+
+
+@contextlib.contextmanager
+def progress_bar(enabled: bool):
+    """A rich progress bar on stderr; yields a ``progress(done, total, message)`` callable."""
+    if not enabled:
+        yield lambda done, total, message="": None
+        return
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(),
+                  TextColumn("{task.percentage:>5.1f} %"), TimeElapsedColumn(),
+                  console=_stderr_console(), transient=False) as bar:
+        task = bar.add_task("starting", total=1.0)
+
+        def update(done: float, total: float, message: str = "") -> None:
+            bar.update(task, completed=done, total=total, description=message or "working")
+
+        yield update
+
+
+def _stderr_console():
+    from rich.console import Console
+
+    return Console(file=sys.stderr)
+
+
+def print_outcome(outcome) -> None:
+    print(f"run {outcome.run_id}: {outcome.status.upper()}"
+          + (f" — {outcome.reason}" if outcome.reason else ""))
+    for m in outcome.measurements:
+        lim = f"[{'' if m.limit.low is None else f'{m.limit.low:g}'} .. " \
+              f"{'' if m.limit.high is None else f'{m.limit.high:g}'}]"
+        print(f"  {m.name:<22} {m.value:>14.6g} {m.unit:<9} {lim:<18} {m.outcome}")
+    print(f"stored in {outcome.store_path} (bench runs show {outcome.run_id})")

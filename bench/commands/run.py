@@ -1,0 +1,57 @@
+"""``bench run startup``: run a procedure on a station and store the run."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from bench.commands.common import open_store, progress_bar, print_outcome
+from bench.procedure import execute
+from bench.station import Station, resolve_station
+
+
+def register(sub) -> None:
+    run = sub.add_parser("run", help="run a procedure on a station")
+    procs = run.add_subparsers(dest="procedure", metavar="PROCEDURE")
+    procs.required = True
+    p = procs.add_parser("startup", help="start-up acquisition of a quartz accelerometer "
+                         "(Document A, step 1)")
+    _common(p)
+    p.add_argument("--duration-s", type=float, default=1800.0, help="trace after power-on [1800]")
+    p.add_argument("--rate-hz", type=float, default=100.0, help="output sample rate [100]")
+    p.add_argument("--off-wait-s", type=float, default=600.0,
+                   help="cool-down with the supply off before the cold start [600]")
+    p.set_defaults(func=run_startup)
+
+
+def _common(p) -> None:
+    p.add_argument("--station", default="sim", help="'sim' (built-in simulated station) or a "
+                   "station TOML file [sim]")
+    p.add_argument("--unit", default=None, help="unit serial number")
+    p.add_argument("--seed", type=int, default=None, help="seed of the simulated world")
+    p.add_argument("--json", action="store_true", help="print the outcome as JSON")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run_startup(args) -> int:
+    from procedures.startup import StartupAcquisition, StartupParameters
+
+    if args.seed is not None and not 0 <= args.seed < 2**63:
+        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
+    params = StartupParameters(duration_s=args.duration_s, rate_hz=args.rate_hz,
+                               off_wait_s=args.off_wait_s)
+    procedure = StartupAcquisition(params)  # validates before any instrument is touched
+    config = resolve_station(args.station)
+    store = open_store(args)
+    unit = args.unit or ("QA-SIM-0001" if config.simulated else None)
+    seed = args.seed if args.seed is not None else (0 if config.simulated else None)
+    with Station(config, seed=seed, unit_serial=unit) as station, \
+            progress_bar(not args.no_progress and not args.json) as progress:
+        outcome = execute(procedure, station, store, unit_serial=unit, seed=seed,
+                          progress=progress)
+    if args.json:
+        json.dump(outcome.to_dict(), sys.stdout, indent=2)
+        print()
+    else:
+        print_outcome(outcome)
+    return {"passed": 0, "completed": 0, "failed": 1}.get(outcome.status, 2)

@@ -1,0 +1,99 @@
+"""``bench runs list | show ID | export ID --format csv|hdf5``."""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import asdict
+from pathlib import Path
+
+from bench.commands.common import open_store
+
+
+def register(sub) -> None:
+    runs = sub.add_parser("runs", help="list, show and export stored runs")
+    cmds = runs.add_subparsers(dest="runs_command", metavar="SUBCOMMAND")
+    cmds.required = True
+    ls = cmds.add_parser("list", help="stored runs, newest first")
+    ls.add_argument("--limit", type=int, default=20)
+    ls.add_argument("--json", action="store_true")
+    ls.set_defaults(func=list_runs)
+    show = cmds.add_parser("show", help="one run: metadata, streams, events, measurements")
+    show.add_argument("run_id")
+    show.add_argument("--json", action="store_true")
+    show.set_defaults(func=show_run)
+    exp = cmds.add_parser("export", help="export a run's data")
+    exp.add_argument("run_id")
+    exp.add_argument("--format", choices=("csv", "hdf5"), default="csv")
+    exp.add_argument("--out", default=None, help="output folder (csv) or file (hdf5)")
+    exp.set_defaults(func=export_run)
+
+
+def list_runs(args) -> int:
+    if args.limit < 1:
+        raise ValueError(f"--limit {args.limit} must be ≥ 1")
+    runs = open_store(args).list_runs(limit=args.limit)
+    if args.json:
+        json.dump([_info(r) for r in runs], sys.stdout, indent=2, default=str)
+        print()
+        return 0
+    if not runs:
+        print("no runs stored yet (try: bench run startup)")
+        return 0
+    print(f"{'id':<22} {'procedure':<11} {'unit':<14} {'status':<9} {'started (UTC)':<20} reason")
+    for r in runs:
+        print(f"{r.id:<22} {r.procedure:<11} {str(r.unit_serial or '-'):<14} {r.status:<9} "
+              f"{str(r.started_utc)[:19]:<20} {r.reason or ''}")
+    return 0
+
+
+def _info(r) -> dict:
+    d = asdict(r)
+    return d
+
+
+def show_run(args) -> int:
+    store = open_store(args)
+    info = store.get_run(args.run_id)
+    streams = store.streams(args.run_id)
+    events = store.events(args.run_id)
+    if args.json:
+        doc = _info(info)
+        doc["streams"] = {k: asdict(v) if hasattr(v, "__dataclass_fields__") else v
+                          for k, v in streams.items()}
+        doc["events"] = [asdict(e) if hasattr(e, "__dataclass_fields__") else e for e in events]
+        json.dump(doc, sys.stdout, indent=2, default=str)
+        print()
+        return 0
+    print(f"run        {info.id}\nprocedure  {info.procedure}\nunit       {info.unit_serial}\n"
+          f"status     {info.status}" + (f" — {info.reason}" if info.reason else "") +
+          f"\nstarted    {info.started_utc}\nended      {info.ended_utc}\nseed       {info.seed}\n"
+          f"code       {info.code_version}\nlast good sample at t = {info.last_sample_t_s} s")
+    print("streams:")
+    for name, s in streams.items():
+        print(f"  {name:<14} {getattr(s, 'n_rows', '?'):>10} rows  "
+              f"{', '.join(f'{c} [{u}]' for c, u in getattr(s, 'columns', {}).items())}")
+    measurements = {k[len('measurement.'):]: v for k, v in (info.results or {}).items()
+                    if k.startswith("measurement.")}
+    if measurements:
+        print("measurements:")
+        for name, m in measurements.items():
+            print(f"  {name:<22} {m['value']:>14.6g} {m['unit']:<9} {m['outcome']}")
+    print(f"events: {len(events)}")
+    for e in events[:20]:
+        print(f"  t={e.t_s:>10.3f} s  {e.kind:<14} {e.message}")
+    return 0
+
+
+def export_run(args) -> int:
+    from bench.export import export_csv, export_hdf5
+
+    store = open_store(args)
+    store.get_run(args.run_id)  # clear error for an unknown id
+    if args.format == "csv":
+        paths = export_csv(store, args.run_id, Path(args.out or f"export-{args.run_id}"))
+    else:
+        paths = [export_hdf5(store, args.run_id, Path(args.out or f"{args.run_id}.h5"))]
+    for p in paths:
+        print(p)
+    return 0

@@ -1,0 +1,44 @@
+"""``bench sim serve``: serve the simulated station's instruments until interrupted."""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+
+
+def register(sub) -> None:
+    sim = sub.add_parser("sim", help="the simulated station")
+    cmds = sim.add_subparsers(dest="sim_command", metavar="SUBCOMMAND")
+    cmds.required = True
+    serve = cmds.add_parser("serve", help="serve the simulated instruments on TCP and print "
+                            "one JSON line per instrument")
+    serve.add_argument("--station", default=None, help="station TOML with a [simulation] table")
+    serve.add_argument("--seed", type=int, default=0)
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="address to listen on [127.0.0.1]; anything else warns")
+    serve.set_defaults(func=serve_sim)
+
+
+def serve_sim(args) -> int:
+    from bench.station import load_station
+    from sim.station import SimStationConfig, SimulatedStation
+
+    options = {}
+    if args.station:
+        options = dict(load_station(args.station).simulation or {})
+    options.update(seed=args.seed, host=args.host)
+    station = SimulatedStation(SimStationConfig(**options))
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"bench: warning: listening on {args.host}: reachable from the network",
+              file=sys.stderr)
+    station.start()
+    for e in station.endpoints:
+        print(json.dumps({"name": e.name, "kind": e.kind, "resource": e.resource}), flush=True)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    stop.wait()
+    station.stop()
+    return 0

@@ -1,0 +1,245 @@
+"""Station configuration and opening a station (simulated or real) for a procedure.
+
+A station is a TOML file::
+
+    [station]
+    name = "lab-3 start-up rig"
+    clock = "wall"                       # or the VISA address of a sim-control endpoint
+
+    [instruments.dmm]                    # name -> driver kind, address, options
+    driver = "keysight_34465a"
+    address = "TCPIP::192.168.1.20::5025::SOCKET"
+    visa_backend = "@py"                 # any VISA backend: "@py", "@ivi", a pyvisa-sim YAML "@sim"
+
+    [wiring]
+    sampling_resistor_ohm = 5000.0
+    positive_rail_channel = 2
+    negative_rail_channel = 3
+
+The built-in station ``sim`` starts the simulated world in-process on free loopback ports
+and fills in the addresses; a ``[simulation]`` table in a station file does the same with
+its own settings (seed, latitude, resistor, accelerometer overrides).  The same procedure
+runs on either.
+"""
+
+from __future__ import annotations
+
+import importlib
+import tomllib
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bench.clock import Clock, SimulatedClock, WallClock
+
+#: driver kind -> "module:Class"; a driver takes an open pyvisa resource and a name
+DRIVERS = {
+    "keysight_34465a": "instruments.multimeter:Keysight34465A",
+    "keysight_e36312a": "instruments.power_supply:KeysightE36312A",
+    "acutrol_turntable": "instruments.turntable:DualAxisTurntable",
+}
+DEFAULT_WIRING = {
+    "sampling_resistor_ohm": 5000.0,
+    "temp_resistor_ohm": 10000.0,
+    "positive_rail_channel": 2,
+    "negative_rail_channel": 3,
+    "rail_voltage_v": 15.0,
+    "rail_current_limit_a": 0.1,
+}
+
+
+class StationError(ValueError):
+    """A station file or address that cannot be used (message names the value)."""
+
+
+@dataclass
+class InstrumentConfig:
+    name: str
+    driver: str
+    address: str
+    visa_backend: str = "@py"
+    timeout_ms: int = 10000
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class StationConfig:
+    name: str
+    instruments: dict[str, InstrumentConfig]
+    clock: str = "wall"  # "wall" or the VISA address of a sim-control endpoint
+    clock_backend: str = "@py"
+    wiring: dict[str, Any] = field(default_factory=lambda: dict(DEFAULT_WIRING))
+    simulation: dict[str, Any] | None = None  # present → start an embedded simulated world
+
+    @property
+    def simulated(self) -> bool:
+        return self.simulation is not None or self.clock != "wall"
+
+
+def _require(table: dict, key: str, kind: type, where: str):
+    if key not in table:
+        raise StationError(f"{where}: missing '{key}'")
+    value = table[key]
+    if not isinstance(value, kind):
+        raise StationError(f"{where}: '{key}' = {value!r} must be a {kind.__name__}")
+    return value
+
+
+def parse_station(data: dict, source: str = "<station>") -> StationConfig:
+    """Validate a station table (as read from TOML) into a :class:`StationConfig`."""
+    top = data.get("station", {})
+    instruments: dict[str, InstrumentConfig] = {}
+    for name, table in data.get("instruments", {}).items():
+        where = f"{source}: [instruments.{name}]"
+        driver = _require(table, "driver", str, where)
+        if driver not in DRIVERS:
+            raise StationError(f"{where}: driver {driver!r} not in {sorted(DRIVERS)}")
+        address = table.get("address", "")
+        if not isinstance(address, str):
+            raise StationError(f"{where}: address {address!r} must be a VISA resource string")
+        timeout = table.get("timeout_ms", 10000)
+        if not isinstance(timeout, int) or not 100 <= timeout <= 600000:
+            raise StationError(f"{where}: timeout_ms {timeout!r} not in 100..600000")
+        instruments[name] = InstrumentConfig(
+            name, driver, address, table.get("visa_backend", "@py"), timeout,
+            {k: v for k, v in table.items()
+             if k not in ("driver", "address", "visa_backend", "timeout_ms")})
+    wiring = dict(DEFAULT_WIRING)
+    for key, value in data.get("wiring", {}).items():
+        if key not in DEFAULT_WIRING:
+            raise StationError(f"{source}: [wiring] {key!r} not in {sorted(DEFAULT_WIRING)}")
+        if not isinstance(value, (int, float)) or value <= 0:
+            raise StationError(f"{source}: [wiring] {key} = {value!r} must be a positive number")
+        wiring[key] = value
+    simulation = data.get("simulation")
+    if simulation is not None and not isinstance(simulation, dict):
+        raise StationError(f"{source}: [simulation] must be a table")
+    clock = top.get("clock", "wall")
+    if not isinstance(clock, str):
+        raise StationError(f"{source}: [station] clock {clock!r} must be 'wall' or a VISA address")
+    return StationConfig(top.get("name", Path(source).stem), instruments, clock,
+                         top.get("clock_backend", "@py"), wiring, simulation)
+
+
+def load_station(path: str | Path) -> StationConfig:
+    path = Path(path)
+    if not path.is_file():
+        raise StationError(f"station file {str(path)!r} not found (or use --station sim)")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise StationError(f"station file {str(path)!r} is not valid TOML: {exc}") from None
+    return parse_station(data, str(path))
+
+
+def _driver_class(kind: str):
+    module, cls = DRIVERS[kind].split(":")
+    return getattr(importlib.import_module(module), cls)
+
+
+class Station:
+    """Open drivers and clock of a station; closes everything (and the embedded sim) on exit."""
+
+    def __init__(self, config: StationConfig, *, seed: int | None = None,
+                 unit_serial: str | None = None) -> None:
+        self.config = config
+        self.seed = seed
+        self.unit_serial = unit_serial
+        self.instruments: dict[str, Any] = {}
+        self.clock: Clock = WallClock()
+        self.sim = None  # the embedded simulated station, if any
+        self._stack = ExitStack()
+
+    def __enter__(self) -> "Station":
+        try:
+            self._open()
+        except BaseException:
+            self._stack.close()
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stack.close()
+
+    def _open(self) -> None:
+        import pyvisa  # imported here so `bench --help` stays fast
+
+        cfg = self.config
+        if cfg.simulation is not None:
+            cfg = self._start_embedded(cfg)
+        managers: dict[str, Any] = {}
+
+        def manager(backend: str):
+            if backend not in managers:
+                managers[backend] = pyvisa.ResourceManager(backend)
+                self._stack.callback(managers[backend].close)
+            return managers[backend]
+
+        from instruments.base import open_resource  # noqa: PLC0415
+
+        for name, inst in cfg.instruments.items():
+            try:
+                resource = open_resource(inst.address, backend=inst.visa_backend,
+                                         timeout_ms=inst.timeout_ms,
+                                         resource_manager=manager(inst.visa_backend))
+            except Exception as exc:
+                raise StationError(f"cannot open instrument {name!r} at {inst.address!r}: {exc}") from exc
+            self._stack.callback(resource.close)
+            self.instruments[name] = _driver_class(inst.driver)(resource, name=name)
+        if cfg.clock != "wall":
+            res = open_resource(cfg.clock, backend=cfg.clock_backend, timeout_ms=600000,
+                                resource_manager=manager(cfg.clock_backend))
+            self._stack.callback(res.close)
+            self.clock = SimulatedClock(res)
+        self.config = cfg
+
+    def _start_embedded(self, cfg: StationConfig) -> StationConfig:
+        from sim.station import SimStationConfig, SimulatedStation  # noqa: PLC0415
+
+        sim_opts = dict(cfg.simulation or {})
+        if self.seed is not None:
+            sim_opts["seed"] = self.seed
+        if self.unit_serial is not None:
+            sim_opts["unit_serial"] = self.unit_serial
+        for key in ("sampling_resistor_ohm", "temp_resistor_ohm",
+                    "positive_rail_channel", "negative_rail_channel"):
+            sim_opts.setdefault(key, cfg.wiring[key])
+        try:
+            sim_cfg = SimStationConfig(**sim_opts)
+        except TypeError as exc:
+            raise StationError(f"[simulation]: {exc}") from None
+        self.sim = SimulatedStation(sim_cfg)
+        self.sim.start()
+        self._stack.callback(self.sim.stop)
+        res = self.sim.resources()
+        drivers = {"dmm": "keysight_34465a", "dmm_temp": "keysight_34465a",
+                   "supply": "keysight_e36312a", "turntable": "acutrol_turntable"}
+        instruments = {n: InstrumentConfig(n, d, res[n]) for n, d in drivers.items()}
+        return StationConfig("sim", instruments, res["sim"], "@py", cfg.wiring, cfg.simulation)
+
+    def snapshot(self) -> dict[str, Any]:
+        """Each instrument's identity and settings, for the run record."""
+        snap: dict[str, Any] = {"name": self.config.name, "simulated": self.config.simulated,
+                                "wiring": self.config.wiring, "instruments": {}}
+        for name, driver in self.instruments.items():
+            entry: dict[str, Any] = {"address": self.config.instruments[name].address,
+                                     "driver": self.config.instruments[name].driver}
+            try:
+                entry.update(driver.snapshot())
+            except Exception as exc:  # a snapshot must never stop a run from being recorded
+                entry["error"] = str(exc)
+            snap["instruments"][name] = entry
+        if self.sim is not None:
+            snap["simulation"] = {"seed": self.sim.config.seed,
+                                  "unit_serial": self.sim.config.unit_serial}
+        return snap
+
+
+def builtin_sim_config() -> StationConfig:
+    return StationConfig("sim", {}, "wall", "@py", dict(DEFAULT_WIRING), simulation={})
+
+
+def resolve_station(spec: str) -> StationConfig:
+    """``sim`` → the built-in simulated station; anything else is a station TOML file."""
+    return builtin_sim_config() if spec == "sim" else load_station(spec)

@@ -1,0 +1,456 @@
+"""SCPI instrument base: declarative settings, error-queue checking, connection helper.
+
+A driver talks only through an open pyvisa ``MessageBasedResource`` (or anything with
+the same ``write``/``query``/``query_binary_values`` methods); it never knows whether a
+simulator or real hardware answers.
+
+Each setting is declared once with :func:`control` / :func:`measurement`: the SCPI
+command, the validator, the allowed values and a docstring (the PyMeasure style).
+Setting a value validates it *before* anything goes on the wire, writes one command,
+then drains ``SYST:ERR?`` until ``+0,"No error"`` and raises :class:`InstrumentError`
+for anything the instrument reported.  Inside ``with inst.configuring():`` the error
+check is deferred to the end of the group, so a group of settings costs one check.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import numbers
+import re
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+DEFAULT_TIMEOUT_MS = 10_000
+#: Read chunk for binary transfers: a 1 MiB chunk moves ~130 k REAL,64 readings per read.
+BINARY_CHUNK_SIZE = 1 << 20
+#: Upper bound on SYST:ERR? reads per check (Truevolt's queue holds 20 entries); protects
+#: against an instrument whose queue never reports "No error".
+MAX_ERROR_READS = 64
+
+_ERROR_REPLY = re.compile(r'^\s*([+-]?\d+)\s*,\s*"(.*)"\s*$', re.DOTALL)
+
+
+class InstrumentError(RuntimeError):
+    """The instrument put an error in its SCPI error queue.
+
+    ``code``/``message`` are the first error read after ``command`` (the command, or the
+    ``;``-joined group of commands, written since the previous check); ``further`` holds
+    any other ``(code, message)`` pairs drained from the queue at the same time.
+    """
+
+    def __init__(
+        self,
+        instrument_name: str,
+        command: str,
+        code: int,
+        message: str,
+        further: Sequence[tuple[int, str]] = (),
+    ) -> None:
+        self.instrument_name = instrument_name
+        self.command = command
+        self.code = code
+        self.message = message
+        self.further = tuple(further)
+        text = f'{instrument_name}: {code:+d},"{message}" after {command!r}'
+        if self.further:
+            text += " (also: " + "; ".join(f'{c:+d},"{m}"' for c, m in self.further) + ")"
+        super().__init__(text)
+
+
+class InstrumentReplyError(RuntimeError):
+    """A reply did not have the form the programming reference documents."""
+
+
+class UnsupportedInstrumentError(RuntimeError):
+    """``*IDN?`` names a model this driver does not know how to drive."""
+
+
+@dataclass(frozen=True)
+class Identity:
+    """The four fields of an IEEE 488.2 ``*IDN?`` reply."""
+
+    manufacturer: str
+    model: str
+    serial: str
+    firmware: str
+
+    @classmethod
+    def parse(cls, reply: str) -> "Identity":
+        fields = [f.strip() for f in reply.strip().split(",")]
+        if len(fields) != 4:
+            raise InstrumentReplyError(f"*IDN? reply {reply!r} does not have four fields")
+        return cls(*fields)
+
+
+# --- wire formatting and reply parsing -----------------------------------------------
+
+
+def format_number(value: float | int) -> str:
+    """SCPI <NRf> text: integers as such, floats with 12 significant digits ("10", "2e-05")."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{value!r} is not a real number")
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    return f"{float(value):.12g}"
+
+
+def quote_string(text: str) -> str:
+    """SCPI <string> data: double-quoted, embedded quotes doubled."""
+    return '"' + text.replace('"', '""') + '"'
+
+
+def unquote_string(reply: str) -> str:
+    """Inverse of :func:`quote_string`; an unquoted reply is returned stripped."""
+    reply = reply.strip()
+    if len(reply) >= 2 and reply[0] == reply[-1] and reply[0] in "\"'":
+        return reply[1:-1].replace(reply[0] * 2, reply[0])
+    return reply
+
+
+def parse_bool(reply: str) -> bool:
+    """Boolean reply: ``1``/``0`` (what SCPI returns) or ``ON``/``OFF``."""
+    token = reply.strip().upper()
+    if token in ("1", "ON", "+1"):
+        return True
+    if token in ("0", "OFF", "+0"):
+        return False
+    raise InstrumentReplyError(f"{reply!r} is not a boolean reply (1/0/ON/OFF)")
+
+
+def parse_float(reply: str) -> float:
+    try:
+        return float(reply.strip())
+    except ValueError:
+        raise InstrumentReplyError(f"{reply!r} is not a number") from None
+
+
+def parse_int(reply: str) -> int:
+    """Integer reply, also in NR3 form ("+1.00000000E+03")."""
+    value = parse_float(reply)
+    if not value.is_integer():
+        raise InstrumentReplyError(f"{reply!r} is not an integer")
+    return int(value)
+
+
+def parse_error_reply(reply: str) -> tuple[int, str]:
+    """``SYST:ERR?`` reply ``-222,"Data out of range"`` -> ``(-222, "Data out of range")``."""
+    match = _ERROR_REPLY.match(reply)
+    if match is None:
+        raise InstrumentReplyError(f"SYST:ERR? reply {reply!r} is not <code>,\"<message>\"")
+    return int(match.group(1)), match.group(2)
+
+
+def channel_list(channels: Iterable[int]) -> str:
+    """SCPI channel list ``(@1,2,3)`` of distinct positive channel numbers, in the given order."""
+    numbers_ = list(channels)
+    if not numbers_:
+        raise ValueError("channel list is empty; give at least one channel number")
+    for n in numbers_:
+        if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
+            raise ValueError(f"channel {n!r} is not a positive integer channel number")
+    if len(set(numbers_)) != len(numbers_):
+        raise ValueError(f"channel list {numbers_!r} repeats a channel")
+    return "(@" + ",".join(str(int(n)) for n in numbers_) + ")"
+
+
+# --- validators: (name, value, allowed) -> canonical value, ValueError otherwise ------
+
+
+def _real(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name}={value!r} is not a real number")
+    return float(value)
+
+
+def in_range(name: str, value: Any, bounds: tuple[float, float]) -> float:
+    """A finite real number in the closed interval ``bounds``."""
+    lo, hi = bounds
+    x = _real(name, value)
+    if not (lo <= x <= hi):  # also rejects NaN
+        raise ValueError(f"{name}={value!r} is outside the allowed range [{lo:g}, {hi:g}]")
+    return x
+
+
+def int_in_range(name: str, value: Any, bounds: tuple[int, int]) -> int:
+    """An integer (an integral float is accepted) in the closed interval ``bounds``."""
+    lo, hi = bounds
+    x = _real(name, value)
+    if not x.is_integer() or not (lo <= x <= hi):
+        raise ValueError(f"{name}={value!r} is not an integer in the allowed range [{lo}, {hi}]")
+    return int(x)
+
+
+def in_set(name: str, value: Any, allowed: Iterable[Any]) -> Any:
+    """One of ``allowed``: strings match case-insensitively, numbers to 1e-9 relative."""
+    allowed = tuple(allowed)
+    for candidate in allowed:
+        if isinstance(candidate, str):
+            if isinstance(value, str) and value.strip().upper() == candidate.upper():
+                return candidate
+        elif (
+            isinstance(value, numbers.Real)
+            and not isinstance(value, bool)
+            and math.isclose(float(value), candidate, rel_tol=1e-9, abs_tol=0.0)
+        ):
+            return candidate
+    shown = ", ".join(c if isinstance(c, str) else format_number(c) for c in allowed)
+    raise ValueError(f"{name}={value!r} is not one of the allowed values ({shown})")
+
+
+def boolean(name: str, value: Any, _allowed: Any = None) -> bool:
+    """Exactly ``True`` or ``False`` (0/1 integers are refused, to catch mix-ups)."""
+    if not isinstance(value, bool):
+        raise ValueError(f"{name}={value!r} is not a bool (True or False)")
+    return value
+
+
+# --- declarative settings -------------------------------------------------------------
+
+Validator = Callable[[str, Any, Any], Any]
+
+
+class Setting:
+    """A data descriptor for one SCPI setting or reading, declared once.
+
+    ``get_cmd``/``set_cmd`` are format strings; ``{value}`` is the formatted value and the
+    owner's ``command_fields()`` (e.g. ``{ch}``, ``{axis}``) fill the rest.  ``values`` is a
+    constant or a callable ``owner -> values`` for allowed values that depend on the
+    instrument (a channel's range, an installed option).
+    """
+
+    def __init__(
+        self,
+        get_cmd: str | None,
+        set_cmd: str | None,
+        doc: str,
+        *,
+        validator: Validator | None = None,
+        values: Any = None,
+        set_map: Mapping[Any, str] | None = None,
+        fmt: Callable[[Any], str] = format_number,
+        parse: Callable[[str], Any] = parse_float,
+    ) -> None:
+        if set_cmd is not None and validator is None:
+            raise TypeError("a settable Setting needs a validator")
+        self.get_cmd, self.set_cmd = get_cmd, set_cmd
+        self.validator, self.values, self.set_map = validator, values, set_map
+        self.fmt, self.parse = fmt, parse
+        self.__doc__ = doc
+        self.name = "?"
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def allowed(self, owner: Any) -> Any:
+        """The allowed values for this setting on ``owner``."""
+        return self.values(owner) if callable(self.values) else self.values
+
+    def __get__(self, owner: Any, owner_type: type | None = None) -> Any:
+        if owner is None:
+            return self
+        if self.get_cmd is None:
+            raise AttributeError(f"{self.name} is write-only")
+        return self.parse(owner.query(self.get_cmd.format(**owner.command_fields())))
+
+    def __set__(self, owner: Any, value: Any) -> None:
+        if self.set_cmd is None:
+            raise AttributeError(f"{self.name} is read-only")
+        assert self.validator is not None
+        canonical = self.validator(owner.label(self.name), value, self.allowed(owner))
+        wire = self.set_map[canonical] if self.set_map is not None else self.fmt(canonical)
+        owner.configure_command(self.set_cmd.format(value=wire, **owner.command_fields()))
+
+
+def control(get_cmd: str | None, set_cmd: str, doc: str, **kwargs: Any) -> Setting:
+    """A readable and settable setting (see :class:`Setting`)."""
+    return Setting(get_cmd, set_cmd, doc, **kwargs)
+
+
+def measurement(get_cmd: str, doc: str, parse: Callable[[str], Any] = parse_float) -> Setting:
+    """A read-only value (see :class:`Setting`)."""
+    return Setting(get_cmd, None, doc, parse=parse)
+
+
+# --- instruments and channels ---------------------------------------------------------
+
+
+class SCPIInstrument:
+    """Base of every SCPI driver: wire access, error queue, configuration groups, IEEE 488.2.
+
+    ``resource`` is an open pyvisa MessageBasedResource with ``\\n`` terminations (see
+    :func:`open_resource`).  The constructor does no I/O.
+    """
+
+    def __init__(self, resource: Any, name: str | None = None) -> None:
+        self.resource = resource
+        self.name = name or f"{type(self).__name__}@{getattr(resource, 'resource_name', '?')}"
+        self._group_depth = 0
+        self._group_commands: list[str] = []
+        self._identity: Identity | None = None
+
+    # wire access
+    def write(self, command: str) -> None:
+        log.debug("%s <- %s", self.name, command)
+        self.resource.write(command)
+
+    def query(self, command: str) -> str:
+        reply = self.resource.query(command).strip()
+        log.debug("%s <- %s -> %s", self.name, command, reply)
+        return reply
+
+    def query_real64(self, command: str) -> np.ndarray:
+        """Query a definite-length block of little-endian float64 (``FORM REAL,64``,
+        ``FORM:BORD SWAP``); returns a new writable native float64 array."""
+        values = self.resource.query_binary_values(
+            command, datatype="d", is_big_endian=False, container=np.array
+        )
+        log.debug("%s <- %s -> %d values", self.name, command, len(values))
+        return np.array(values, dtype=np.float64)
+
+    # settings plumbing used by Setting
+    def command_fields(self) -> dict[str, Any]:
+        return {}
+
+    def label(self, setting_name: str) -> str:
+        return setting_name
+
+    def configure_command(self, command: str) -> None:
+        """Write a configuring command; check the error queue now, or at the group's end."""
+        self.write(command)
+        if self._group_depth:
+            self._group_commands.append(command)
+        else:
+            self.check_errors(command)
+
+    @contextlib.contextmanager
+    def configuring(self) -> Iterator["SCPIInstrument"]:
+        """Group settings so that ``SYST:ERR?`` is drained once, when the group ends.
+
+        If the block raises, the queue is still drained (and logged) so stale errors are
+        not blamed on later commands; the block's exception propagates.
+        """
+        self._group_depth += 1
+        completed = False
+        try:
+            yield self
+            completed = True
+        finally:
+            self._group_depth -= 1
+            if self._group_depth == 0 and self._group_commands:
+                commands = "; ".join(self._group_commands)
+                self._group_commands.clear()
+                if completed:
+                    self.check_errors(commands)
+                else:
+                    self._drain_errors_quietly(commands)
+
+    def check_errors(self, command: str = "") -> None:
+        """Read ``SYST:ERR?`` until ``+0,"No error"``; raise :class:`InstrumentError` if any."""
+        errors: list[tuple[int, str]] = []
+        for _ in range(MAX_ERROR_READS):
+            code, message = parse_error_reply(self.query("SYST:ERR?"))
+            if code == 0:
+                break
+            errors.append((code, message))
+        else:
+            raise InstrumentReplyError(
+                f"{self.name}: SYST:ERR? did not report 'No error' in {MAX_ERROR_READS} reads"
+            )
+        if errors:
+            raise InstrumentError(self.name, command, *errors[0], further=errors[1:])
+
+    def _drain_errors_quietly(self, command: str) -> None:
+        try:
+            self.check_errors(command)
+        except Exception as exc:  # already unwinding from another error: report, don't mask
+            log.warning("%s: while handling an earlier failure: %s", self.name, exc)
+
+    # IEEE 488.2 common commands
+    @property
+    def idn(self) -> Identity:
+        """``*IDN?`` parsed into manufacturer, model, serial, firmware (read once, cached)."""
+        if self._identity is None:
+            self._identity = Identity.parse(self.query("*IDN?"))
+        return self._identity
+
+    @property
+    def options(self) -> tuple[str, ...]:
+        """``*OPT?``: installed option codes; ``0``/empty placeholders dropped."""
+        fields = (unquote_string(f) for f in self.query("*OPT?").split(","))
+        return tuple(f.upper() for f in fields if f and f != "0")
+
+    def reset(self) -> None:
+        """``*RST`` (factory state), ``*OPC?`` to wait for it, then check the error queue."""
+        self.write("*RST")
+        self.query("*OPC?")
+        self.check_errors("*RST")
+
+    def clear(self) -> None:
+        """``*CLS``: clear the error queue and the status event registers."""
+        self.write("*CLS")
+
+    def close(self) -> None:
+        self.resource.close()
+
+
+class InstrumentChannel:
+    """A numbered sub-unit (supply output, table axis) that speaks through its parent."""
+
+    #: Name of the format field the channel number fills in commands ("ch", "axis").
+    field_name = "ch"
+
+    def __init__(self, parent: SCPIInstrument, number: int) -> None:
+        self.parent = parent
+        self.number = number
+
+    def write(self, command: str) -> None:
+        self.parent.write(command)
+
+    def query(self, command: str) -> str:
+        return self.parent.query(command)
+
+    def command_fields(self) -> dict[str, Any]:
+        return {self.field_name: self.number}
+
+    def label(self, setting_name: str) -> str:
+        return f"{self.field_name}[{self.number}].{setting_name}"
+
+    def configure_command(self, command: str) -> None:
+        self.parent.configure_command(command)
+
+    def configuring(self) -> contextlib.AbstractContextManager[SCPIInstrument]:
+        return self.parent.configuring()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.number} of {self.parent.name}>"
+
+
+def open_resource(
+    address: str,
+    backend: str = "@py",
+    timeout_ms: int = DEFAULT_TIMEOUT_MS,
+    **kwargs: Any,
+) -> Any:
+    """Open a message-based VISA resource set up for these drivers.
+
+    ``address`` e.g. ``TCPIP::127.0.0.1::5025::SOCKET``; ``backend`` is the pyvisa
+    backend (``"@py"``, or ``"path/to.yaml@sim"`` for pyvisa-sim).  Terminations are
+    ``\\n`` both ways and the read chunk is large for binary reading transfers; extra
+    keyword arguments go to ``ResourceManager.open_resource``.
+    """
+    import pyvisa  # imported here so the pure helpers above work without a VISA stack
+
+    options: dict[str, Any] = {
+        "read_termination": "\n",
+        "write_termination": "\n",
+        "timeout": timeout_ms,
+        "chunk_size": BINARY_CHUNK_SIZE,
+    }
+    options.update(kwargs)
+    return pyvisa.ResourceManager(backend).open_resource(address, **options)

@@ -1,0 +1,181 @@
+"""Start-up acquisition of a quartz flexure accelerometer (Document A, step 1).
+
+1. Level the turntable with the input axis vertical (both axes at 0°) and check that the
+   powered unit reads ≈ +1 g.
+2. Supply off; wait for the unit to cool back to a cold start.
+3. Arm a timed DMM trace of the output (and a slower one of the internal temperature),
+   then switch the supply on: that instant is t = 0.
+4. Stream both traces to the run store as they arrive, for the requested duration.
+5. Teardown — always — leaves the supply off, the meters idle and the turntable stopped.
+
+Times in the record are seconds since power-on on the bench clock.  Acceleration in g is
+``V / R_sample / K1_nominal``; the analysis works on volts or g alike.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from bench.procedure import Context, Limit, each_safely
+
+#: fastest integration that fits a reading interval, per mains frequency (NPLC values)
+NPLC_CHOICES = (100.0, 10.0, 1.0, 0.2, 0.06, 0.02)
+
+
+@dataclass
+class StartupParameters:
+    duration_s: float = 1800.0
+    rate_hz: float = 100.0
+    temperature_rate_hz: float = 1.0
+    off_wait_s: float = 600.0        # cool-down before the cold start
+    pre_trigger_s: float = 1.0       # trace starts this long before power-on
+    check_settle_s: float = 5.0
+    nominal_scale_factor_ma_per_g: float = 1.33
+    one_g_tolerance: float = 0.15    # |reading − 1 g| allowed in the level check (K1 spread)
+    chunk_s: float = 60.0            # how often the trace is drained to the store
+
+    def validate(self) -> None:
+        checks = {
+            "duration_s": (self.duration_s, 1.0, 86400.0),
+            "rate_hz": (self.rate_hz, 0.01, 5000.0),
+            "temperature_rate_hz": (self.temperature_rate_hz, 0.01, 10.0),
+            "off_wait_s": (self.off_wait_s, 0.0, 86400.0),
+            "pre_trigger_s": (self.pre_trigger_s, 0.0, 60.0),
+            "check_settle_s": (self.check_settle_s, 0.0, 600.0),
+            "nominal_scale_factor_ma_per_g": (self.nominal_scale_factor_ma_per_g, 0.5, 5.0),
+            "one_g_tolerance": (self.one_g_tolerance, 0.001, 0.5),
+            "chunk_s": (self.chunk_s, 0.1, 3600.0),
+        }
+        for name, (value, lo, hi) in checks.items():
+            if not isinstance(value, (int, float)) or not math.isfinite(value) or not lo <= value <= hi:
+                raise ValueError(f"{name} = {value!r} not in {lo:g}..{hi:g}")
+        if self.duration_s * self.rate_hz > 50_000_000:
+            raise ValueError(f"duration_s × rate_hz = {self.duration_s * self.rate_hz:.0f} "
+                             "readings exceeds 5e7")
+
+
+def choose_nplc(interval_s: float, line_hz: float, autozero: bool = True) -> float:
+    """Largest NPLC whose reading (×2 with autozero) fits in ``interval_s`` with 10 % spare."""
+    for nplc in NPLC_CHOICES:
+        reading_s = (2 if autozero else 1) * nplc / line_hz
+        if reading_s <= 0.9 * interval_s:
+            return nplc
+    raise ValueError(f"reading interval {interval_s} s is too short for 0.02 NPLC at {line_hz} Hz")
+
+
+class StartupAcquisition:
+    name = "startup"
+
+    def __init__(self, params: StartupParameters | None = None) -> None:
+        self.p = params or StartupParameters()
+        self.p.validate()
+
+    def parameters(self) -> dict:
+        return asdict(self.p)
+
+    # -- set-up ---------------------------------------------------------------------------
+    def setup(self, ctx: Context) -> None:
+        supply, table = ctx.instruments["supply"], ctx.instruments["turntable"]
+        for dmm in (ctx.instruments["dmm"], ctx.instruments["dmm_temp"]):
+            dmm.reset()
+        supply.outputs_off()
+        table.interlock_close()
+        for axis in (1, 2):
+            table.axis[axis].move_to(0.0)
+        for axis in (1, 2):
+            table.axis[axis].wait_in_position(ctx.clock.sleep, timeout_s=120.0)
+        ctx.run.event(ctx.clock.now(), "levelled", "turntable at 0°, 0°: input axis up")
+
+    # -- steps ----------------------------------------------------------------------------
+    def run(self, ctx: Context) -> None:
+        p, w = self.p, ctx.wiring
+        dmm, dmm_temp, supply = (ctx.instruments[k] for k in ("dmm", "dmm_temp", "supply"))
+        volts_per_g = p.nominal_scale_factor_ma_per_g * 1e-3 * w["sampling_resistor_ohm"]
+        pos, neg = int(w["positive_rail_channel"]), int(w["negative_rail_channel"])
+
+        # 1. level check: powered, settled, averaged reading ≈ +1 g
+        self._power(ctx, on=True)
+        ctx.clock.sleep(p.check_settle_s)
+        dmm.configure_dc_voltage(range_v=10.0, nplc=10.0)
+        one_g = float(np.mean([dmm.measure_dc_voltage() for _ in range(5)])) / volts_per_g
+        ctx.measure("level_check_g", one_g, "g",
+                    Limit(1.0 - p.one_g_tolerance, 1.0 + p.one_g_tolerance),
+                    "reading with the input axis up, nominal scale factor")
+        if abs(one_g - 1.0) > p.one_g_tolerance:
+            raise RuntimeError(f"level check read {one_g:.4f} g, expected 1 ± {p.one_g_tolerance} g"
+                               " — check mounting, wiring and the sampling resistor")
+        # 2. cold start
+        supply.outputs_off()
+        ctx.run.event(ctx.clock.now(), "supply_off", "cool-down before the cold start")
+        ctx.clock.sleep(p.off_wait_s)
+
+        # 3. arm the traces, then power on (t = 0)
+        line_hz = dmm.line_frequency_hz
+        n_out = int(round((p.duration_s + p.pre_trigger_s) * p.rate_hz))
+        n_temp = int(round((p.duration_s + p.pre_trigger_s) * p.temperature_rate_hz))
+        nplc = choose_nplc(1.0 / p.rate_hz, line_hz)
+        dmm.configure_timed_trace(n_out, 1.0 / p.rate_hz, nplc=nplc, range_v=10.0)
+        dmm_temp.configure_timed_trace(n_temp, 1.0 / p.temperature_rate_hz,
+                                       nplc=choose_nplc(1.0 / p.temperature_rate_hz, line_hz),
+                                       range_v=10.0)
+        ctx.run.add_stream("output", {"t_s": "s", "voltage_v": "V", "acceleration_g": "g"},
+                           "accelerometer output across the sampling resistor")
+        ctx.run.add_stream("temperature", {"t_s": "s", "temperature_c": "degC"},
+                           "internal temperature sensor (1 uA/K)")
+        t_arm = ctx.clock.now()
+        dmm.initiate()
+        dmm_temp.initiate()
+        ctx.clock.sleep(p.pre_trigger_s)
+        self._power(ctx, on=True)
+        t_on = ctx.clock.now()
+        ctx.run.event(0.0, "supply_on", "t = 0 of the start-up test",
+                      nplc=nplc, line_hz=line_hz, n_output=n_out, n_temperature=n_temp)
+
+        # 4. stream to the store as the readings arrive
+        t0_out = t_arm + dmm.trigger_delay_s - t_on
+        t0_temp = t_arm + dmm_temp.trigger_delay_s - t_on
+        got_out = got_temp = 0
+        ohm_t = w["temp_resistor_ohm"]
+        while got_out < n_out or got_temp < n_temp:
+            remaining = (n_out - got_out) / p.rate_hz
+            ctx.clock.sleep(min(p.chunk_s, max(remaining, 1.0 / p.rate_hz)))
+            volts = dmm.read_available()
+            if volts.size:
+                t = t0_out + (got_out + np.arange(volts.size)) / p.rate_hz
+                ctx.run.append("output", t_s=t, voltage_v=volts, acceleration_g=volts / volts_per_g)
+                got_out += volts.size
+            temp_v = dmm_temp.read_available()
+            if temp_v.size:
+                t = t0_temp + (got_temp + np.arange(temp_v.size)) / p.temperature_rate_hz
+                ctx.run.append("temperature", t_s=t,
+                               temperature_c=temp_v / ohm_t / 1e-6 - 273.15)
+                got_temp += temp_v.size
+            ctx.progress(min(got_out / p.rate_hz - p.pre_trigger_s, p.duration_s), p.duration_s,
+                         "acquiring start-up trace")
+            if got_out >= n_out and got_temp < n_temp and not temp_v.size:
+                ctx.clock.sleep(1.0 / p.temperature_rate_hz)
+        ctx.measure("readings_lost", n_out - got_out, "readings", Limit(0, 0),
+                    "output readings expected minus stored")
+        ctx.run.set_result("samples", {"output": got_out, "temperature": got_temp})
+
+    def _power(self, ctx: Context, on: bool) -> None:
+        w, supply = ctx.wiring, ctx.instruments["supply"]
+        for ch in (int(w["positive_rail_channel"]), int(w["negative_rail_channel"])):
+            if on:
+                supply.ch[ch].apply(float(w["rail_voltage_v"]), float(w["rail_current_limit_a"]))
+        supply.set_outputs([int(w["positive_rail_channel"]), int(w["negative_rail_channel"])], on)
+        ctx.run.event(ctx.clock.now(), "supply_on" if on else "supply_off",
+                      f"rails ±{w['rail_voltage_v']} V")
+
+    # -- teardown: always, and safe even if one instrument is gone ------------------------
+    def teardown(self, ctx: Context) -> None:
+        inst = ctx.instruments
+        each_safely([
+            ("supply off", inst["supply"].outputs_off),
+            ("dmm abort", inst["dmm"].abort),
+            ("dmm_temp abort", inst["dmm_temp"].abort),
+            ("turntable stop", inst["turntable"].stop_all),
+        ])

@@ -1,0 +1,127 @@
+"""Measurement physics of a Keysight 34465A-class digital multimeter (DC volts).
+
+What the model reproduces, and why it matters on an inertial bench:
+
+* **Integration (aperture) averaging.**  A reading is the mean of the input over the
+  aperture ``T = NPLC / f_line``.  Line-frequency pickup ``A·sin(2π f t + φ)`` averages to
+  ``A·sinc(f T)·sin(...)`` — zero for integer NPLC (normal-mode rejection, finite because
+  the mains frequency is never exactly nominal) and not for fractional NPLC.
+* **Reading noise** from the data sheet's performance-vs-integration-time table
+  (rms noise in ppm of range, 10 V range; approximate to within a factor of ~1.5).
+* **Autozero.**  ON: the zero offset is measured every reading (offset removed, reading
+  time doubles).  OFF: a fixed zero offset remains.  ONCE: offset measured once, kept.
+* **Overload** reads ±9.9E37 when |input| exceeds 120 % of the range.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: rms noise in ppm of range versus NPLC (34465A data sheet, DCV 10 V range, approximate)
+NOISE_PPM_OF_RANGE = {
+    0.001: 30.0, 0.002: 15.0, 0.006: 6.0, 0.02: 3.0, 0.06: 1.5,
+    0.2: 0.7, 1.0: 0.3, 10.0: 0.1, 100.0: 0.03,
+}
+#: NPLC values needing the DIG option
+DIG_NPLC = (0.001, 0.002, 0.006)
+RANGES_V = (0.1, 1.0, 10.0, 100.0, 1000.0)
+#: extra noise factor on the 100 mV range (fixed µV floor dominates)
+LOW_RANGE_NOISE_FACTOR = {0.1: 4.0}
+#: per-reading overhead (s) beyond the aperture: ADC setup and data handling
+READING_OVERHEAD_S = 2e-5
+OVERLOAD = 9.9e37
+
+
+def allowed_nplc(has_dig: bool) -> tuple[float, ...]:
+    return tuple(n for n in sorted(NOISE_PPM_OF_RANGE) if has_dig or n not in DIG_NPLC)
+
+
+def round_up_nplc(value: float, has_dig: bool) -> float:
+    """The instrument rounds a requested NPLC up to the next supported value."""
+    for n in allowed_nplc(has_dig):
+        if value <= n * (1 + 1e-9):
+            return n
+    return 100.0
+
+
+def range_for(volts: float) -> float:
+    """Smallest range that holds ``volts`` (as ``VOLT:RANG`` selects it)."""
+    for r in RANGES_V:
+        if abs(volts) <= r * (1 + 1e-9):
+            return r
+    raise ValueError(f"range {volts} V not in 0..1000 V")
+
+
+@dataclass
+class LinePickup:
+    """Mains interference at the DMM input."""
+
+    amplitude_v: float = 3e-6
+    nominal_hz: float = 50.0
+    #: real mains sits slightly off nominal: finite rejection at integer NPLC
+    offset_fraction: float = 2e-4
+    phase_rad: float = 0.3
+
+    def averaged(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
+        """Mean of the pickup over [t, t+T] for each start time t."""
+        f = self.nominal_hz * (1 + self.offset_fraction)
+        w = 2 * np.pi * f
+        if aperture_s <= 0:
+            return self.amplitude_v * np.sin(w * t_start + self.phase_rad)
+        # ∫ sin(w t + φ) dt / T = [cos(w t0 + φ) − cos(w (t0+T) + φ)] / (w T)
+        a = w * t_start + self.phase_rad
+        return self.amplitude_v * (np.cos(a) - np.cos(a + w * aperture_s)) / (w * aperture_s)
+
+
+@dataclass
+class DmmFrontEnd:
+    """Settings that shape every reading (changed by SCPI commands)."""
+
+    range_v: float = 10.0
+    autorange: bool = True
+    nplc: float = 10.0
+    autozero: str = "ON"  # ON | OFF | ONCE
+    line_hz: float = 50.0
+
+    @property
+    def aperture_s(self) -> float:
+        return self.nplc / self.line_hz
+
+    @property
+    def reading_time_s(self) -> float:
+        """Time one reading occupies: aperture (×2 with autozero on) plus overhead."""
+        factor = 2.0 if self.autozero == "ON" else 1.0
+        return factor * self.aperture_s + READING_OVERHEAD_S
+
+
+class DmmConverter:
+    """Turns the averaged input voltage into readings: noise, zero offset, overload."""
+
+    def __init__(self, rng: np.random.Generator, zero_offset_sigma_v: float = 1.5e-6) -> None:
+        self.rng = rng
+        self.zero_offset_v = float(rng.normal(0.0, zero_offset_sigma_v))
+        self._once_offset = None
+
+    def convert(self, mean_input_v: np.ndarray, fe: DmmFrontEnd) -> np.ndarray:
+        n = mean_input_v.shape[0]
+        rng_v = fe.range_v
+        if fe.autorange:
+            peak = float(np.max(np.abs(mean_input_v))) if n else 0.0
+            rng_v = range_for(min(peak, 1000.0))
+        sigma = (NOISE_PPM_OF_RANGE[fe.nplc] * 1e-6 * rng_v
+                 * LOW_RANGE_NOISE_FACTOR.get(rng_v, 1.0))
+        readings = mean_input_v + self.rng.normal(0.0, sigma, n)
+        if fe.autozero == "OFF":
+            readings += self.zero_offset_v
+        elif fe.autozero == "ONCE":
+            if self._once_offset is None:
+                self._once_offset = float(self.rng.normal(0.0, sigma))
+            readings += self._once_offset
+        over = np.abs(mean_input_v) > 1.2 * rng_v
+        readings[over] = np.copysign(OVERLOAD, mean_input_v[over])
+        return readings
+
+    def autozero_once(self) -> None:
+        self._once_offset = None

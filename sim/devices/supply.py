@@ -1,0 +1,198 @@
+"""Simulated Keysight E36312A triple-output DC power supply (E36300-series command set).
+
+Channel 1: 0–6 V / 0–5 A; channels 2 and 3: 0–25 V / 0–1 A (E36312A data sheet).  Loads are
+callables wired by the station (``attach_load``) returning the current drawn at a voltage;
+when the load wants more than the current limit the channel goes into constant-current mode
+and its terminal voltage collapses to ``limit × load resistance``.  Every change of an
+output's terminal voltage is announced to listeners at ``world.now`` — the accelerometer
+uses that to know when it was powered (t = 0 of a start-up test).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+from sim.scpi import Args, ScpiDevice, ScpiError, format_number
+from sim.world import World
+
+RATINGS = {  # channel: (max volts, max amps) — E36312A
+    1: (6.0, 5.0),
+    2: (25.0, 1.0),
+    3: (25.0, 1.0),
+}
+
+
+@dataclass
+class Channel:
+    number: int
+    v_max: float
+    i_max: float
+    voltage_v: float = 0.0
+    current_limit_a: float = 0.0
+    output: bool = False
+    #: load(t_s, volts) -> amps drawn; None = open circuit
+    load: Callable[[float, float], float] | None = None
+
+    def reset(self) -> None:
+        self.voltage_v, self.current_limit_a, self.output = 0.0, self.i_max, False
+
+
+@dataclass
+class ChannelReading:
+    voltage_v: float
+    current_a: float
+    mode: str  # "CV", "CC" or "OFF"
+
+
+class PowerSupply(ScpiDevice):
+    """E36312A view of the world; ``listeners`` get ``(t_s, channel, terminal_volts)``."""
+
+    def __init__(self, world: World, serial: str = "MY61000123") -> None:
+        super().__init__(("Keysight Technologies", "E36312A", serial, "2.1.0-1.0.4-1.12"),
+                         options="0")
+        self.world = world
+        self.channels = {n: Channel(n, v, i, current_limit_a=i) for n, (v, i) in RATINGS.items()}
+        self.listeners: list[Callable[[float, int, float], None]] = []
+        self._selected = 1
+        self._register()
+
+    # -- physics ----------------------------------------------------------------------
+    def attach_load(self, channel: int, load: Callable[[float, float], float]) -> None:
+        self.channels[channel].load = load
+
+    def read(self, channel: int) -> ChannelReading:
+        """Terminal voltage and current now (constant-voltage or constant-current)."""
+        ch = self.channels[channel]
+        if not ch.output:
+            return ChannelReading(0.0, 0.0, "OFF")
+        if ch.load is None:
+            return ChannelReading(ch.voltage_v, 0.0, "CV")
+        drawn = ch.load(self.world.now, ch.voltage_v)
+        if drawn <= ch.current_limit_a or drawn <= 0:
+            return ChannelReading(ch.voltage_v, drawn, "CV")
+        # Constant current: the load sees limit × its resistance at the set voltage.
+        resistance = ch.voltage_v / drawn
+        return ChannelReading(ch.current_limit_a * resistance, ch.current_limit_a, "CC")
+
+    def _changed(self) -> None:
+        for n in self.channels:
+            volts = self.read(n).voltage_v
+            for listener in self.listeners:
+                listener(self.world.now, n, volts)
+
+    def reset(self) -> None:
+        for ch in self.channels.values():
+            ch.reset()
+        self._selected = 1
+        self._changed()
+
+    # -- SCPI vocabulary --------------------------------------------------------------
+    def _channels_from(self, args: Args, index: int) -> list[int]:
+        if args.count > index:
+            chans = args.channel_list(index)
+        else:
+            chans = [self._selected]
+        for c in chans:
+            if c not in self.channels:
+                raise ScpiError(-222, f"channel {c} not in 1..{len(self.channels)}")
+        return chans
+
+    def _register(self) -> None:
+        def set_volt(args: Args) -> None:
+            chans = self._channels_from(args, 1)
+            for c in chans:
+                ch = self.channels[c]
+                ch.voltage_v = args.number(0, min=0.0, max=ch.v_max, default=0.0)
+            self._changed()
+
+        def get_volt(args: Args) -> str:
+            if args.count and args.raw[0].upper().startswith(("MIN", "MAX", "DEF")):
+                ch = self.channels[self._selected]
+                return format_number(args.number(0, min=0.0, max=ch.v_max, default=0.0))
+            return ",".join(format_number(self.channels[c].voltage_v)
+                            for c in self._channels_from(args, 0))
+
+        def set_curr(args: Args) -> None:
+            for c in self._channels_from(args, 1):
+                ch = self.channels[c]
+                ch.current_limit_a = args.number(0, min=0.002, max=ch.i_max, default=ch.i_max)
+            self._changed()
+
+        def get_curr(args: Args) -> str:
+            return ",".join(format_number(self.channels[c].current_limit_a)
+                            for c in self._channels_from(args, 0))
+
+        def set_outp(args: Args) -> None:
+            state = args.boolean(0)
+            for c in self._channels_from(args, 1):
+                self.channels[c].output = state
+            self.world.note(f"supply output {'on' if state else 'off'}")
+            self._changed()
+
+        def get_outp(args: Args) -> str:
+            return ",".join("1" if self.channels[c].output else "0"
+                            for c in self._channels_from(args, 0))
+
+        def apply(args: Args) -> None:
+            args.require_count(1, 3)
+            name = args.raw[0].strip().upper()
+            if not (name.startswith(("CH", "P6V", "P25V", "N25V")) ):
+                raise ScpiError(-224, f"channel {args.raw[0]!r} not in CH1|CH2|CH3")
+            c = {"P6V": 1, "P25V": 2, "N25V": 3}.get(name)
+            if c is None:
+                try:
+                    c = int(name[2:])
+                except ValueError:
+                    raise ScpiError(-224, f"channel {args.raw[0]!r} not in CH1|CH2|CH3") from None
+            if c not in self.channels:
+                raise ScpiError(-224, f"channel {c} not in 1..3")
+            ch = self.channels[c]
+            if args.count > 1:
+                ch.voltage_v = args.number(1, min=0.0, max=ch.v_max, default=0.0)
+            if args.count > 2:
+                ch.current_limit_a = args.number(2, min=0.002, max=ch.i_max, default=ch.i_max)
+            self._changed()
+
+        def apply_q(args: Args) -> str:
+            name = args.raw[0].strip().upper() if args.count else f"CH{self._selected}"
+            try:
+                c = int(name[2:])
+                ch = self.channels[c]
+            except (ValueError, KeyError):
+                raise ScpiError(-224, f"channel {name!r} not in CH1|CH2|CH3") from None
+            return f'"{format_number(ch.voltage_v)},{format_number(ch.current_limit_a)}"'
+
+        def meas_volt(args: Args) -> str:
+            return ",".join(format_number(self.read(c).voltage_v)
+                            for c in self._channels_from(args, 0))
+
+        def meas_curr(args: Args) -> str:
+            return ",".join(format_number(self.read(c).current_a)
+                            for c in self._channels_from(args, 0))
+
+        def inst_nsel(args: Args) -> None:
+            self._selected = int(args.number(0, min=1, max=3))
+
+        def inst_sel(args: Args) -> None:
+            name = args.raw[0].strip().upper()
+            mapping = {"CH1": 1, "CH2": 2, "CH3": 3, "P6V": 1, "P25V": 2, "N25V": 3}
+            if name not in mapping:
+                raise ScpiError(-224, f"{args.raw[0]!r} not in CH1|CH2|CH3")
+            self._selected = mapping[name]
+
+        def oper_mode(args: Args) -> str:
+            return ",".join(self.read(c).mode for c in self._channels_from(args, 0))
+
+        self.command("[SOURce:]VOLTage[:LEVel][:IMMediate][:AMPLitude]", set=set_volt, query=get_volt)
+        self.command("[SOURce:]CURRent[:LEVel][:IMMediate][:AMPLitude]", set=set_curr, query=get_curr)
+        self.command("OUTPut[:STATe]", set=set_outp, query=get_outp)
+        self.command("APPLy", set=apply, query=apply_q)
+        self.command("MEASure[:SCALar]:VOLTage[:DC]", query=meas_volt)
+        self.command("MEASure[:SCALar]:CURRent[:DC]", query=meas_curr)
+        self.command("INSTrument:NSELect", set=inst_nsel, query=lambda a: str(self._selected))
+        self.command("INSTrument[:SELect]", set=inst_sel, query=lambda a: f"CH{self._selected}")
+        self.command("STATus:OPERation:INSTrument:ISUMmary#:CONDition", query=lambda a: "0")
+        self.command("[SOURce:]CHANnel:MODE", query=oper_mode)
+        self.command("SYSTem:REMote", set=lambda a: None)
+        self.command("SYSTem:LOCal", set=lambda a: None)

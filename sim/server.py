@@ -1,0 +1,137 @@
+"""TCP servers for simulated instruments: one loopback port per instrument, one thread.
+
+All servers run on one asyncio event loop in one background thread, so the World is only
+ever touched by that thread — no locks, and commands from different clients are applied
+in the order they arrive, as the physics requires.  A raw-socket SCPI instrument (port
+5025 on real Keysight meters) is what pyvisa-py opens for ``TCPIP::host::port::SOCKET``.
+
+Robustness: every message goes through the device's ``process()``, which never raises;
+a misbehaving client is disconnected on a socket error and never takes the server down.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import threading
+import warnings
+from dataclasses import dataclass
+
+from sim.scpi import MessageFramer, Oversize, ScpiDevice
+
+log = logging.getLogger(__name__)
+LOOPBACK = ("127.0.0.1", "::1", "localhost")
+
+
+@dataclass
+class Endpoint:
+    name: str
+    kind: str
+    host: str
+    port: int
+
+    @property
+    def resource(self) -> str:
+        return f"TCPIP::{self.host}::{self.port}::SOCKET"
+
+
+class InstrumentServer:
+    """Serves a set of SCPI devices, each on its own TCP port, from a background thread."""
+
+    def __init__(self, host: str = "127.0.0.1") -> None:
+        if host not in LOOPBACK:
+            warnings.warn(f"simulated instruments will listen on {host}, reachable from the network",
+                          stacklevel=2)
+        self.host = host
+        self._devices: list[tuple[str, str, ScpiDevice, int]] = []
+        self.endpoints: list[Endpoint] = []
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._servers: list[asyncio.base_events.Server] = []
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+
+    def add(self, name: str, kind: str, device: ScpiDevice, port: int = 0) -> None:
+        if self._thread is not None:
+            raise RuntimeError("add devices before start()")
+        self._devices.append((name, kind, device, port))
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def start(self) -> list[Endpoint]:
+        self._thread = threading.Thread(target=self._run, name="sim-instruments", daemon=True)
+        self._thread.start()
+        self._ready.wait(10)
+        if self._error is not None:
+            raise RuntimeError(f"simulated station failed to start: {self._error}") from self._error
+        return self.endpoints
+
+    def _run(self) -> None:
+        loop = asyncio.new_event_loop()
+        self._loop = loop
+        asyncio.set_event_loop(loop)
+        try:
+            loop.run_until_complete(self._open_all())
+        except BaseException as exc:  # port in use, bad host: report to start()
+            self._error = exc
+            self._ready.set()
+            return
+        self._ready.set()
+        loop.run_forever()
+        for server in self._servers:
+            server.close()
+        loop.run_until_complete(asyncio.sleep(0))
+        loop.close()
+
+    async def _open_all(self) -> None:
+        for name, kind, device, port in self._devices:
+            server = await asyncio.start_server(
+                lambda r, w, d=device: self._serve(d, r, w), self.host, port,
+                limit=1 << 22)
+            self._servers.append(server)
+            bound = server.sockets[0].getsockname()[1]
+            self.endpoints.append(Endpoint(name, kind, self.host, bound))
+
+    def stop(self) -> None:
+        if self._loop is not None and self._loop.is_running():
+            self._loop.call_soon_threadsafe(self._loop.stop)
+        if self._thread is not None:
+            self._thread.join(5)
+
+    def call(self, fn, *args):
+        """Run ``fn(*args)`` on the server thread (for fixtures and sim-control in-process)."""
+        if self._loop is None:
+            return fn(*args)
+        fut = asyncio.run_coroutine_threadsafe(self._call(fn, *args), self._loop)
+        return fut.result(60)
+
+    @staticmethod
+    async def _call(fn, *args):
+        return fn(*args)
+
+    # -- one client connection ---------------------------------------------------------------
+    async def _serve(self, device: ScpiDevice, reader: asyncio.StreamReader,
+                     writer: asyncio.StreamWriter) -> None:
+        framer = MessageFramer(max_bytes=device.max_message_bytes)
+        try:
+            while True:
+                data = await reader.read(1 << 16)
+                if not data:
+                    break
+                for message in framer.feed(data):
+                    if isinstance(message, Oversize):
+                        device.push_error(-223, "message longer than "
+                                                f"{device.max_message_bytes} bytes discarded")
+                        continue
+                    reply = device.process(message)
+                    if reply:
+                        writer.write(reply)
+                        await writer.drain()
+        except (ConnectionError, asyncio.IncompleteReadError):
+            pass
+        except Exception:  # never let one client take the server down
+            log.exception("client handler failed")
+        finally:
+            try:
+                writer.close()
+            except Exception:
+                pass

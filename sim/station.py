@@ -1,0 +1,151 @@
+"""The simulated start-up station: one World, its models, and the instruments that view it.
+
+Wiring (what a lab would do with cables):
+
+* supply CH2 → accelerometer +15 V rail, supply CH3 → −15 V rail (inverted at the fixture);
+  the unit is powered while both rails sit inside its supply range;
+* accelerometer output current → sampling resistor → ``dmm`` input;
+* the internal AD590-type temperature sensor (1 µA/K) → ``temp_resistor`` → ``dmm_temp``;
+* the accelerometer is fixed to the turntable platform with its input axis along platform z.
+
+Only this module (and ``bench.station`` which starts it) knows both the physics and the
+instruments; procedures see TCP addresses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sim.devices.dmm import Multimeter
+from sim.devices.dmm_model import LinePickup
+from sim.devices.sim_control import SimControl
+from sim.devices.supply import PowerSupply
+from sim.devices.turntable import TurntableController
+from sim.physics.accelerometer import AccelerometerParams, QuartzAccelerometer
+from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
+from sim.physics.motion import DualAxisTable
+from sim.server import Endpoint, InstrumentServer
+from sim.world import World
+
+
+@dataclass
+class SimStationConfig:
+    """Everything the simulated station needs; all fields have lab-realistic defaults."""
+
+    seed: int = 0
+    unit_serial: str = "QA-SIM-0001"
+    latitude_deg: float = 32.06      # Nanjing, where Document A's lab is
+    height_m: float = 10.0
+    g_mps2: float | None = None      # override local gravity
+    sampling_resistor_ohm: float = 5000.0
+    temp_resistor_ohm: float = 10000.0
+    positive_rail_channel: int = 2
+    negative_rail_channel: int = 3
+    line_hz: float = 50.0
+    line_pickup_v: float = 3e-6
+    #: accelerometer IA, PA, OA as unit vectors in the platform frame (rows)
+    mount: tuple[tuple[float, float, float], ...] = ((0, 0, 1), (1, 0, 0), (0, 1, 0))
+    accelerometer: dict = field(default_factory=dict)  # AccelerometerParams overrides
+    host: str = "127.0.0.1"
+
+    def validate(self) -> None:
+        if not -90 <= self.latitude_deg <= 90:
+            raise ValueError(f"latitude_deg {self.latitude_deg} not in -90..90")
+        if not 10 <= self.sampling_resistor_ohm <= 1e6:
+            raise ValueError(f"sampling_resistor_ohm {self.sampling_resistor_ohm} not in 10..1e6")
+        if self.line_hz not in (50.0, 60.0):
+            raise ValueError(f"line_hz {self.line_hz} not in 50|60")
+        m = np.asarray(self.mount, float)
+        if m.shape != (3, 3) or not np.allclose(m @ m.T, np.eye(3), atol=1e-6):
+            raise ValueError("mount must be three orthonormal rows (IA, PA, OA)")
+
+
+class SimulatedStation:
+    """Builds the world and serves its instruments on loopback TCP ports."""
+
+    def __init__(self, config: SimStationConfig | None = None) -> None:
+        cfg = config or SimStationConfig()
+        cfg.validate()
+        self.config = cfg
+        self.world = World(cfg.seed)
+        self.g_mps2 = cfg.g_mps2 or local_gravity_mps2(cfg.latitude_deg, cfg.height_m)
+        self.table = DualAxisTable()
+        self.accel = QuartzAccelerometer(AccelerometerParams(**cfg.accelerometer),
+                                         self.world.rng(f"accelerometer:{cfg.unit_serial}"))
+        self._mount = np.asarray(cfg.mount, float)
+        pickup = LinePickup(amplitude_v=cfg.line_pickup_v, nominal_hz=cfg.line_hz)
+        self.supply = PowerSupply(self.world)
+        self.dmm = Multimeter(self.world, "dmm", self._accel_volts, serial="MY59001234",
+                              line_pickup=pickup)
+        self.dmm_temp = Multimeter(self.world, "dmm_temp", self._temp_volts, serial="MY59001235",
+                                   line_pickup=LinePickup(amplitude_v=cfg.line_pickup_v,
+                                                          nominal_hz=cfg.line_hz, phase_rad=1.1))
+        self.turntable = TurntableController(self.world, self.table)
+        names = ["dmm", "dmm_temp", "supply", "turntable"]
+        self.sim_control = SimControl(self.world, names)
+        self._wire_power()
+        self.server = InstrumentServer(cfg.host)
+        for name, kind, dev in (("dmm", "multimeter", self.dmm),
+                                ("dmm_temp", "multimeter", self.dmm_temp),
+                                ("supply", "power_supply", self.supply),
+                                ("turntable", "turntable", self.turntable),
+                                ("sim", "sim_control", self.sim_control)):
+            self.server.add(name, kind, dev)
+        self.endpoints: list[Endpoint] = []
+
+    # -- wiring ----------------------------------------------------------------------------
+    def _wire_power(self) -> None:
+        pos, neg = self.config.positive_rail_channel, self.config.negative_rail_channel
+        rails = {pos: 0.0, neg: 0.0}
+
+        def on_change(t: float, channel: int, volts: float) -> None:
+            if channel in rails and rails[channel] != volts:
+                rails[channel] = volts
+                self.accel.set_supply(t, rails[pos], rails[neg])
+
+        def load(t: float, volts: float) -> float:
+            # Quiescent draw of the unit's servo electronics while its rails are in range.
+            return float(self.accel.supply_current_a(np.array([t]))[0]) if volts > 0 else 0.0
+
+        self.supply.listeners.append(on_change)
+        self.supply.attach_load(pos, load)
+        self.supply.attach_load(neg, load)
+
+    def specific_force_iapo_g(self, t: np.ndarray) -> np.ndarray:
+        f_platform = self.table.specific_force_platform_g(t, self.g_mps2)
+        return f_platform @ self._mount.T
+
+    def _accel_volts(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
+        t_mid = t_start + aperture_s / 2
+        current = self.accel.output_current_a(t_mid, self.specific_force_iapo_g(t_mid), aperture_s)
+        return current * self.config.sampling_resistor_ohm
+
+    def _temp_volts(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
+        t_mid = t_start + aperture_s / 2
+        return self.accel.temp_sensor_current_a(t_mid) * self.config.temp_resistor_ohm
+
+    # -- lifecycle ---------------------------------------------------------------------------
+    def start(self) -> list[Endpoint]:
+        self.endpoints = self.server.start()
+        return self.endpoints
+
+    def stop(self) -> None:
+        self.server.stop()
+
+    def __enter__(self) -> "SimulatedStation":
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def resources(self) -> dict[str, str]:
+        return {e.name: e.resource for e in self.endpoints}
+
+    def truth(self) -> dict:
+        """The simulated unit's true parameters (for recovery tests, never for procedures)."""
+        return {"g_mps2": self.g_mps2, "g_local_over_g0": self.g_mps2 / STANDARD_GRAVITY_MPS2,
+                "sampling_resistor_ohm": self.config.sampling_resistor_ohm,
+                **self.accel.truth()}
