@@ -87,7 +87,8 @@ def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
             stop = min(start + _CSV_BLOCK_ROWS, n_rows)
             lines = _column_text(columns[names[0]][start:stop])
             for name in names[1:]:
-                lines = np.char.add(np.char.add(lines, ","), _column_text(columns[name][start:stop]))
+                text = _column_text(columns[name][start:stop])
+                lines = np.char.add(np.char.add(lines, ","), text)
             f.write("\n".join(lines.tolist()) + "\n")
 
 
@@ -118,7 +119,8 @@ def export_csv(store: RunStore, run_id: str, out_dir_or_file: str | os.PathLike[
         path = attachment_dir / name
         path.write_bytes(payload)
         attachment_paths.append(path)
-        attachment_meta.append({**dataclasses.asdict(info), "file": f"{attachment_dir.name}/{name}"})
+        relative = f"{attachment_dir.name}/{name}"
+        attachment_meta.append({**dataclasses.asdict(info), "file": relative})
     sidecar = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -141,11 +143,14 @@ def _read_csv(path: Path, dtypes: dict[str, str], n_rows: int) -> dict[str, np.n
     if text is None:
         return {c: np.empty(0, dtype=np.dtype(dt).newbyteorder("=")) for c, dt in dtypes.items()}
     if text.shape != (n_rows, len(dtypes)):
-        raise ValueError(f"{path}: {text.shape} values where ({n_rows}, {len(dtypes)}) were expected")
+        raise ValueError(
+            f"{path}: {text.shape} values where ({n_rows}, {len(dtypes)}) were expected")
     out = {}
     for i, (column, dt) in enumerate(dtypes.items()):
         dtype = np.dtype(dt).newbyteorder("=")
-        out[column] = text[:, i].astype(np.uint8).astype(bool) if dtype.kind == "b" else text[:, i].astype(dtype)
+        # bools were written as 0/1: parse as integers first
+        values = text[:, i].astype(np.uint8) if dtype.kind == "b" else text[:, i]
+        out[column] = values.astype(dtype)
     return out
 
 
@@ -157,7 +162,8 @@ def read_csv_export(sidecar: str | os.PathLike[str]) -> ExportedRun:
         raise ValueError(f"{sidecar} is not a version-{FORMAT_VERSION} {FORMAT!r} sidecar")
     streams, data = {}, {}
     for name, s in meta["streams"].items():
-        streams[name] = StreamInfo(name, s["columns"], s["dtypes"], s["description"], s["n_rows"], s["n_chunks"])
+        streams[name] = StreamInfo(
+            name, s["columns"], s["dtypes"], s["description"], s["n_rows"], s["n_chunks"])
         data[name] = _read_csv(sidecar.parent / s["file"], s["dtypes"], s["n_rows"])
     attachments = {}
     for a in meta["attachments"]:
@@ -203,7 +209,8 @@ def export_hdf5(
         events.create_dataset("t_s", data=np.array([e.t_s for e in snap.events], dtype=np.float64))
         for field in ("kind", "message"):
             events.create_dataset(field, data=[getattr(e, field) for e in snap.events], dtype=text)
-        events.create_dataset("data_json", data=[json.dumps(e.data) for e in snap.events], dtype=text)
+        data_json = [json.dumps(e.data) for e in snap.events]
+        events.create_dataset("data_json", data=data_json, dtype=text)
         attachments = f.create_group("attachments")
         for name, (info, payload) in snap.attachments.items():
             ds = attachments.create_dataset(name, data=np.frombuffer(payload, dtype=np.uint8))

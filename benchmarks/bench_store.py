@@ -58,7 +58,8 @@ def main() -> None:
           f"(synchronous={args.synchronous}, {os.fspath(path.parent)})")
     print(f"append: {append_s:8.3f} s  {args.samples / append_s:12.3e} samples/s  "
           f"{mb / append_s:8.1f} MB/s  {n_chunks / append_s:8.0f} commits/s")
-    print(f"load:   {load_s:8.3f} s  {args.samples / load_s:12.3e} samples/s  {mb / load_s:8.1f} MB/s")
+    print(f"load:   {load_s:8.3f} s  {args.samples / load_s:12.3e} samples/s  "
+          f"{mb / load_s:8.1f} MB/s")
     print(f"file:   {file_mb:8.1f} MB (database + WAL) for {mb:.1f} MB of samples")
 
 

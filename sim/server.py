@@ -77,9 +77,13 @@ class InstrumentServer:
             return
         self._ready.set()
         loop.run_forever()
+        # Orderly shutdown: stop listening, cancel client handlers, let them close sockets.
         for server in self._servers:
             server.close()
-        loop.run_until_complete(asyncio.sleep(0))
+        tasks = [t for t in asyncio.all_tasks(loop) if not t.done()]
+        for task in tasks:
+            task.cancel()
+        loop.run_until_complete(asyncio.gather(*tasks, return_exceptions=True))
         loop.close()
 
     async def _open_all(self) -> None:
@@ -111,7 +115,7 @@ class InstrumentServer:
     # -- one client connection ---------------------------------------------------------------
     async def _serve(self, device: ScpiDevice, reader: asyncio.StreamReader,
                      writer: asyncio.StreamWriter) -> None:
-        framer = MessageFramer(max_bytes=device.max_message_bytes)
+        framer = MessageFramer(max_message_bytes=device.max_message_bytes)
         try:
             while True:
                 data = await reader.read(1 << 16)
@@ -126,7 +130,7 @@ class InstrumentServer:
                     if reply:
                         writer.write(reply)
                         await writer.drain()
-        except (ConnectionError, asyncio.IncompleteReadError):
+        except (ConnectionError, asyncio.IncompleteReadError, asyncio.CancelledError):
             pass
         except Exception:  # never let one client take the server down
             log.exception("client handler failed")

@@ -103,11 +103,14 @@ class SimulatedStation:
         def on_change(t: float, channel: int, volts: float) -> None:
             if channel in rails and rails[channel] != volts:
                 rails[channel] = volts
-                self.accel.set_supply(t, rails[pos], rails[neg])
+                # CH3 is wired inverted at the fixture: it feeds the unit's negative rail.
+                self.accel.set_supply(t, rails[pos], -rails[neg])
 
         def load(t: float, volts: float) -> float:
-            # Quiescent draw of the unit's servo electronics while its rails are in range.
-            return float(self.accel.supply_current_a(np.array([t]))[0]) if volts > 0 else 0.0
+            # Quiescent draw of the unit's servo electronics while a rail is within its range.
+            p = self.accel.params
+            in_range = p.supply_min_v <= volts <= p.supply_max_v
+            return p.quiescent_current_a if in_range else 0.0
 
         self.supply.listeners.append(on_change)
         self.supply.attach_load(pos, load)

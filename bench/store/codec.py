@@ -42,15 +42,36 @@ def encode_chunk(
             raise ValueError(
                 f"append to stream {stream!r}: columns must have equal lengths, got {lengths}"
             )
-        if array.dtype.kind not in "biuf" or not np.can_cast(array.dtype, dtype, "safe"):
+        if array.dtype.kind not in "biuf":
             raise TypeError(
-                f"append to stream {stream!r}: column {name!r} has dtype {array.dtype}, which "
-                f"cannot be stored losslessly as the declared {dtype}"
+                f"append to stream {stream!r}: column {name!r} has dtype {array.dtype}; "
+                f"only bool, integer and float data can be stored (declared {dtype})"
             )
-        arrays.append(array.astype(dtype, copy=False))
+        arrays.append(_lossless_cast(array, dtype, f"append to stream {stream!r}: column {name!r}"))
     assert n_rows is not None  # a stream has at least one column
     blob = b"".join(np.ascontiguousarray(a).tobytes() for a in arrays)
     return n_rows, ",".join(dt.str for dt in dtypes.values()), blob
+
+
+def _lossless_cast(array: np.ndarray, dtype: np.dtype, where: str) -> np.ndarray:
+    """``array`` as ``dtype`` if every value survives the cast (so ``[1, 2]`` fits an int32
+    column and ``[0.5]`` does not fit an integer one); TypeError naming a lost value if not."""
+    if np.can_cast(array.dtype, dtype, "safe"):
+        return array.astype(dtype, copy=False)
+    with np.errstate(all="ignore"):  # overflow and NaN -> int are caught by the comparison
+        cast = array.astype(dtype)
+        kept = cast.astype(array.dtype) == array
+        if array.dtype.kind == "f":
+            kept |= np.isnan(array) & np.isnan(cast.astype(np.float64))
+        if dtype.kind in "iu" and array.dtype.kind in "iu":
+            kept &= (cast < 0) == (array < 0)  # wraparound between signed and unsigned
+    if not kept.all():
+        index = int(np.argmin(kept))
+        raise TypeError(
+            f"{where} has dtype {array.dtype}; value {array[index]!r} at index {index} cannot be "
+            f"stored exactly as the declared {dtype}"
+        )
+    return cast
 
 
 def decode_chunks(

@@ -91,6 +91,8 @@ def liveness(writer: ProcessIdentity) -> Liveness:
         fields = _stat_fields(writer.pid)
         if fields is None or fields[0] in ("Z", "X"):  # gone, or a zombie awaiting its reaper
             return Liveness.DEAD
+        if len(fields) < 20:
+            return Liveness.UNKNOWN  # an unreadable /proc entry: do not guess
         # Same pid, same start time: the very process (a reused pid starts later).
         return Liveness.ALIVE if fields[19] == ticks else Liveness.DEAD
     return Liveness.ALIVE if _pid_exists(writer.pid) else Liveness.DEAD

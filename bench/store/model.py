@@ -85,7 +85,8 @@ class StreamInfo:
 
 
 class Event(NamedTuple):
-    """A logged event at bench time ``t_s`` (s); unpacks as ``(t_s, kind, message, data)``."""
+    """A logged event at bench time ``t_s`` (s; NaN if the time was unknown); unpacks as
+    ``(t_s, kind, message, data)``."""
 
     t_s: float
     kind: str
@@ -150,12 +151,14 @@ def check_column_dtype(dtype: object, where: str) -> np.dtype:
     return dt.newbyteorder("<")  # stored bytes are little-endian whatever the host
 
 
-def check_finite_time(t_s: object, what: str) -> float:
+def check_finite_time(t_s: object, what: str, allow_nan: bool = False) -> float:
+    """``t_s`` as a float of seconds; finite (or NaN, meaning unknown, if ``allow_nan``)."""
     if isinstance(t_s, bool) or not isinstance(t_s, (int, float, np.integer, np.floating)):
         raise TypeError(f"{what} must be a real number of seconds, got {t_s!r}")
     value = float(t_s)
-    if not math.isfinite(value):
-        raise ValueError(f"{what} must be finite, got {value!r}")
+    if not (math.isfinite(value) or (allow_nan and math.isnan(value))):
+        allowed = "finite or NaN (unknown)" if allow_nan else "finite"
+        raise ValueError(f"{what} must be {allowed}, got {value!r}")
     return value
 
 

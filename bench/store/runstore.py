@@ -8,6 +8,7 @@ RunStore serialises its own connection with a lock, so it may be shared between 
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import secrets
 import sqlite3
@@ -197,7 +198,9 @@ class RunStore:
     # -- reading -------------------------------------------------------------------------
     def list_runs(self, limit: int | None = None) -> list[RunInfo]:
         """Runs, newest first; at most ``limit`` (>= 1) of them if given."""
-        if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
+        if limit is not None and (
+            isinstance(limit, bool) or not isinstance(limit, int) or limit < 1
+        ):
             raise ValueError(f"limit must be None or an int >= 1, got {limit!r}")
         with self._read_snapshot() as conn:
             rows = conn.execute(
@@ -217,7 +220,8 @@ class RunStore:
             self._run_row(conn, run_id)
             rows = conn.execute(
                 "SELECT s.name, s.columns_json, s.description, "
-                "(SELECT COALESCE(SUM(n_rows), 0) FROM chunks c WHERE c.run_id = s.run_id AND c.stream = s.name), "
+                "(SELECT COALESCE(SUM(n_rows), 0) FROM chunks c "
+                " WHERE c.run_id = s.run_id AND c.stream = s.name), "
                 "(SELECT COUNT(*) FROM chunks c WHERE c.run_id = s.run_id AND c.stream = s.name) "
                 "FROM streams s WHERE s.run_id = ? ORDER BY s.position",
                 (run_id,),
@@ -253,7 +257,8 @@ class RunStore:
                 (run_id, stream),
             ).fetchone()
             cursor = conn.execute(
-                "SELECT n_rows, dtypes, data FROM chunks WHERE run_id = ? AND stream = ? ORDER BY seq",
+                "SELECT n_rows, dtypes, data FROM chunks WHERE run_id = ? AND stream = ? "
+                "ORDER BY seq",
                 (run_id, stream),
             )
             return codec.decode_chunks(dtypes, int(total), cursor)
@@ -266,7 +271,8 @@ class RunStore:
                 "SELECT t_s, kind, message, data_json FROM events WHERE run_id = ? ORDER BY seq",
                 (run_id,),
             ).fetchall()
-        return [Event(t, kind, message, from_json(data)) for t, kind, message, data in rows]
+        return [Event(math.nan if t is None else t, kind, message, from_json(data))
+                for t, kind, message, data in rows]
 
     def attachments(self, run_id: str) -> list[AttachmentInfo]:
         """Descriptions of the run's attachments, by name."""
@@ -289,7 +295,8 @@ class RunStore:
             if row is None:
                 known = [r[0] for r in conn.execute(
                     "SELECT name FROM attachments WHERE run_id = ? ORDER BY name", (run_id,))]
-                raise UnknownAttachmentError(f"run {run_id} has no attachment {name!r}; it has {known}")
+                raise UnknownAttachmentError(
+                    f"run {run_id} has no attachment {name!r}; it has {known}")
         return bytes(row[0])
 
     def results(self, run_id: str) -> dict[str, Any]:

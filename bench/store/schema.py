@@ -73,7 +73,7 @@ CREATE TABLE IF NOT EXISTS chunks (
 CREATE TABLE IF NOT EXISTS events (
     run_id    TEXT NOT NULL REFERENCES runs (id),
     seq       INTEGER NOT NULL,
-    t_s       REAL NOT NULL,
+    t_s       REAL,                 -- NULL: the bench clock could not be read
     kind      TEXT NOT NULL,
     message   TEXT NOT NULL,
     data_json TEXT NOT NULL,
@@ -133,6 +133,15 @@ def _ensure_schema(conn: sqlite3.Connection, path: Path) -> None:
             row = conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
             version = int(row[0]) if row else None
         if version is None:
+            foreign = conn.execute(
+                "SELECT name FROM sqlite_master WHERE type='table' AND name NOT IN "
+                "('meta', 'runs', 'streams', 'chunks', 'events', 'attachments', 'results')"
+            ).fetchall()
+            if foreign:  # never write our tables into somebody else's database
+                raise SchemaVersionError(
+                    f"{path} is not a run store: it has tables {[r[0] for r in foreign]} and no "
+                    "schema_version"
+                )
             for statement in DDL.split(";"):  # executescript would COMMIT our transaction
                 if statement.strip():
                     conn.execute(statement)

@@ -9,6 +9,7 @@ exception as its reason; one that leaves normally without ``finish`` is ``comple
 from __future__ import annotations
 
 import hashlib
+import math
 import sqlite3
 from typing import TYPE_CHECKING, Any
 
@@ -59,14 +60,20 @@ class RunWriter:
     def __enter__(self) -> RunWriter:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: Any) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: Any
+    ) -> None:
         if self.finished_status is not None:
             return  # finished inside the block; an exception after that still propagates
         if exc is None:
             self.finish("completed")
         else:
             text = str(exc)
-            self.finish("aborted", f"{type(exc).__name__}: {text}" if text else type(exc).__name__)
+            reason = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+            try:
+                self.finish("aborted", reason)
+            except RunClosedError:
+                pass  # closed elsewhere (e.g. recovered); the original exception matters more
 
     # -- writing -------------------------------------------------------------------------
     def add_stream(
@@ -79,6 +86,7 @@ class RunWriter:
         """Declare stream ``name`` with ``columns`` (column name -> unit, e.g.
         ``{"t_s": "s", "voltage_v": "V"}``; the order is kept).  Columns are float64 unless
         ``dtypes`` names another bool/integer/float dtype for them."""
+        self._check_open()
         check_stream_name(name)
         if name in self._dtypes:
             raise ValueError(f"run {self.id}: stream {name!r} is already declared")
@@ -96,17 +104,22 @@ class RunWriter:
             check_column_name(column)
             if not isinstance(unit, str):
                 raise TypeError(f"stream {name!r}: unit of {column!r} must be str, got {unit!r}")
-            dt = check_column_dtype(dtypes.get(column, np.float64), f"stream {name!r} column {column!r}")
+            where = f"stream {name!r} column {column!r}"
+            dt = check_column_dtype(dtypes.get(column, np.float64), where)
             spec[column] = dt
             layout.append([column, unit, dt.str])
-        with self._transaction() as conn:
-            conn.execute(
-                "INSERT INTO streams (run_id, name, position, columns_json, description) "
-                "VALUES (?, ?, ?, ?, ?)",
-                (self.id, name, len(self._dtypes), to_json(layout, "columns"), description),
-            )
-        self._dtypes[name] = spec
-        self._next_seq[name] = 0
+        with self.store._lock:
+            if name in self._dtypes:  # declared meanwhile by another thread
+                raise ValueError(f"run {self.id}: stream {name!r} is already declared")
+            with self._transaction() as conn:
+                conn.execute(
+                    "INSERT INTO streams (run_id, name, position, columns_json, description) "
+                    "VALUES (?, ?, ?, ?, ?)",
+                    (self.id, name, len(self._dtypes), to_json(layout, "columns"), description),
+                )
+                self._touch(conn)
+            self._dtypes[name] = spec
+            self._next_seq[name] = 0
 
     def append(self, stream: str, /, **columns: Any) -> None:
         """Append one chunk: every declared column of ``stream`` as an equal-length 1-D
@@ -122,52 +135,62 @@ class RunWriter:
         n_rows, dtype_text, blob = codec.encode_chunk(stream, dtypes, columns)
         if n_rows == 0:
             return
-        last_t = self.last_sample_t_s
+        chunk_last_t = None
         if TIME_COLUMN in columns:
             times = np.asarray(columns[TIME_COLUMN], dtype=np.float64)
             finite = times[np.isfinite(times)]
-            if finite.size:
-                last_t = float(finite[-1]) if last_t is None else max(last_t, float(finite[-1]))
-        with self._transaction() as conn:
-            conn.execute(
-                "INSERT INTO chunks (run_id, stream, seq, n_rows, dtypes, data) VALUES (?, ?, ?, ?, ?, ?)",
-                (self.id, stream, self._next_seq[stream], n_rows, dtype_text, blob),
-            )
-            self._touch(conn, last_sample_t_s=last_t)
-        self._next_seq[stream] += 1
-        self.last_sample_t_s = last_t
+            chunk_last_t = float(finite[-1]) if finite.size else None
+        # The store's lock keeps this writer's counters in step with its commits across threads.
+        with self.store._lock:
+            last_t = self.last_sample_t_s
+            if chunk_last_t is not None:
+                last_t = chunk_last_t if last_t is None else max(last_t, chunk_last_t)
+            with self._transaction() as conn:
+                conn.execute(
+                    "INSERT INTO chunks (run_id, stream, seq, n_rows, dtypes, data) "
+                    "VALUES (?, ?, ?, ?, ?, ?)",
+                    (self.id, stream, self._next_seq[stream], n_rows, dtype_text, blob),
+                )
+                self._touch(conn, last_sample_t_s=last_t)
+            self._next_seq[stream] += 1
+            self.last_sample_t_s = last_t
 
     def event(self, t_s: float, kind: str, message: str = "", **data: Any) -> None:
-        """Log an event at bench time ``t_s`` (s) of ``kind`` (e.g. "step", "limit",
-        "warning") with a human ``message`` and JSON-serialisable ``data``."""
+        """Log an event at bench time ``t_s`` (s; NaN when the clock could not be read) of
+        ``kind`` (e.g. "step", "limit", "warning") with a human ``message`` and
+        JSON-serialisable ``data``."""
         self._check_open()
-        t = check_finite_time(t_s, "event t_s")
+        t = check_finite_time(t_s, "event t_s", allow_nan=True)
         if not isinstance(kind, str) or not kind:
             raise ValueError(f"event kind must be a non-empty str, got {kind!r}")
         if not isinstance(message, str):
             raise TypeError(f"event message must be str, got {message!r}")
         data_json = to_json(data, f"data of event {kind!r}")
-        with self._transaction() as conn:
+        with self.store._lock, self._transaction() as conn:
             conn.execute(
-                "INSERT INTO events (run_id, seq, t_s, kind, message, data_json) VALUES (?, ?, ?, ?, ?, ?)",
-                (self.id, self._n_events, t, kind, message, data_json),
+                "INSERT INTO events (run_id, seq, t_s, kind, message, data_json) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
+                (self.id, self._n_events, None if math.isnan(t) else t, kind, message, data_json),
             )
             self._touch(conn)
-        self._n_events += 1
+            self._n_events += 1  # only reached if the insert worked; a failed COMMIT leaves a gap
 
     def attach(self, name: str, data: bytes, mime: str) -> None:
         """Store ``data`` (bytes-like) under a unique ``name`` with MIME type ``mime``."""
         self._check_open()
         check_attachment_name(name)
         if not isinstance(data, (bytes, bytearray, memoryview)):
-            raise TypeError(f"attachment {name!r}: data must be bytes-like, got {type(data).__name__}")
+            raise TypeError(
+                f"attachment {name!r}: data must be bytes-like, got {type(data).__name__}")
         if not isinstance(mime, str) or "/" not in mime:
-            raise ValueError(f"attachment {name!r}: mime must look like 'type/subtype', got {mime!r}")
+            raise ValueError(
+                f"attachment {name!r}: mime must look like 'type/subtype', got {mime!r}")
         payload = bytes(data)
         try:
             with self._transaction() as conn:
                 conn.execute(
-                    "INSERT INTO attachments (run_id, name, mime, sha256, created_utc, data) VALUES (?, ?, ?, ?, ?, ?)",
+                    "INSERT INTO attachments (run_id, name, mime, sha256, created_utc, data) "
+                    "VALUES (?, ?, ?, ?, ?, ?)",
                     (self.id, name, mime, hashlib.sha256(payload).hexdigest(), utc_now(), payload),
                 )
                 self._touch(conn)
@@ -219,7 +242,8 @@ class RunWriter:
     # -- internals -----------------------------------------------------------------------
     def _check_open(self) -> None:
         if self.finished_status is not None:
-            raise RunClosedError(f"run {self.id} is finished ({self.finished_status}); it takes no more data")
+            raise RunClosedError(
+                f"run {self.id} is finished ({self.finished_status}); it takes no more data")
 
     def _transaction(self):  # noqa: ANN202 - a context manager from the store
         return self.store._write_transaction()

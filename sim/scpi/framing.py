@@ -56,10 +56,14 @@ class MessageFramer:
     Args:
         max_message_bytes: largest accepted message body in bytes (terminator
             excluded); must be >= 1.
+        max_bytes: alias of ``max_message_bytes`` (keyword only).
     """
 
-    def __init__(self, max_message_bytes: int = 1 << 20):
-        if not isinstance(max_message_bytes, int) or max_message_bytes < 1:
+    def __init__(self, max_message_bytes: int = 1 << 20, *, max_bytes: int | None = None):
+        if max_bytes is not None:
+            max_message_bytes = max_bytes
+        if (not isinstance(max_message_bytes, int) or isinstance(max_message_bytes, bool)
+                or max_message_bytes < 1):
             raise ValueError(f"max_message_bytes must be an int >= 1, got {max_message_bytes!r}")
         self.max_message_bytes = max_message_bytes
         self.reset()
@@ -89,13 +93,17 @@ class MessageFramer:
         if self._discarding:
             return
         if self._size > self.max_message_bytes:
-            out.append(Oversize(self.max_message_bytes))
-            self._discarding = True
-            self._buf = bytearray()
-            if self._state == _STRING:
-                self._state = _NORMAL
+            self._overflow(out)
             return
         self._buf += data[start:stop]
+
+    def _overflow(self, out: list) -> None:
+        """Report the current message as oversize and start discarding it."""
+        out.append(Oversize(self.max_message_bytes))
+        self._discarding = True
+        self._buf = bytearray()
+        if self._state == _STRING:
+            self._state = _NORMAL
 
     def _finish(self, out: list, strip_cr: bool) -> None:
         """End the current message at a terminator."""
@@ -143,13 +151,20 @@ class MessageFramer:
                 i = j + 1
             elif state == _STRING:
                 j = data.find(self._quote, i)
+                end = n if j < 0 else j + 1
+                room = self.max_message_bytes - self._size
+                if end - i > room:
+                    # the limit falls inside the string: stop tracking the quote there
+                    # and rescan the rest as ordinary text so a LF can end the message
+                    self._take(data, i, i + room, out)
+                    self._overflow(out)
+                    i += room
+                    continue
+                self._take(data, i, end, out)
                 if j < 0:
-                    self._take(data, i, n, out)
                     break
-                self._take(data, i, j + 1, out)
-                if self._state == _STRING:  # the take may have switched to discarding
-                    self._state = _NORMAL
-                i = j + 1
+                self._state = _NORMAL
+                i = end
             elif state == _HASH:
                 c = data[i]
                 if 0x31 <= c <= 0x39:  # '1'..'9': definite-length block header

@@ -28,8 +28,10 @@ from .params import BLOCK, EXPR, PLAIN, STRING, Param
 __all__ = ["lex_message", "parse_unit", "WHITESPACE"]
 
 WHITESPACE = "".join(chr(c) for c in range(0x21) if c != 0x0A)
+_WS_BYTES = WHITESPACE.encode("ascii")
 _WS = r"\x00-\x09\x0b-\x20"
 _LEX = re.compile(rb"[;,'\"#()]")
+_COMPLEX = re.compile(rb"['\"#(]")
 _HEADER = re.compile(rf"[{_WS}]*([A-Za-z0-9_:*?]*)")
 _STRING = {"'": re.compile(r"'(?:[^']|'')*'"), '"': re.compile(r'"(?:[^"]|"")*"')}
 _PLAIN = re.compile(rf"[A-Za-z0-9_+\-.#/{_WS}]*")
@@ -51,6 +53,8 @@ LexedUnit = tuple[list[list], "tuple[int, str] | None"]
 
 def lex_message(msg: bytes) -> list[LexedUnit]:
     """Split ``msg`` into units and their comma-separated segments."""
+    if _COMPLEX.search(msg) is None:  # no strings, blocks or parentheses: split in C
+        return [([[seg] for seg in unit.split(b",")], None) for unit in msg.split(b";")]
     units: list[LexedUnit] = []
     segs: list[list] = []
     parts: list = []
@@ -158,7 +162,10 @@ def parse_unit(segs: list[list]) -> tuple[str, list[Param]] | None:
     Raises:
         ScpiError: -101/-102/-103/-151/-161/-170 for syntax errors.
     """
-    head = _decode(segs[0][0])
+    raw_head = segs[0][0]
+    if len(segs) == 1 and len(segs[0]) == 1 and not raw_head.strip(_WS_BYTES):
+        return None  # empty unit (fast path: ';;' floods must stay cheap)
+    head = _decode(raw_head)
     m = _HEADER.match(head)
     header = m.group(1)
     rest = head[m.end():]

@@ -1,0 +1,237 @@
+"""Start-up trend: exponential settling plus linear drift (Document A, step 3).
+
+Model, with ``u = t - t0`` seconds since the first sample::
+
+    exp1:  y(u) = c + a·exp(-u/τ) + b·u
+    exp2:  y(u) = c + a1·exp(-u/τ1) + a2·exp(-u/τ2) + b·u      (τ1 < τ2)
+
+fitted by nonlinear least squares (``scipy.optimize.least_squares``, analytic Jacobian).
+
+Starting values: a variable-projection scan — for each τ on a log grid from one sample
+interval to three record lengths, ``c, a, b`` are linear and solved exactly; the τ with
+the smallest residual starts the fit.  Unlike a log-linear fit of the early samples,
+this needs no guess of where the transient ends or of the sign of ``a``, and copes
+with noise larger than the transient's tail.  The scan runs on block means (≤ 4096
+points) so it stays cheap at 10⁶ samples.
+
+Standard errors: the residual noise of a start-up trace is coloured, so the white-noise
+``s²(JᵀJ)⁻¹`` would be too small.  The residual is modelled as AR(p) (Burg, order by
+BIC, p ≤ 10) and the sandwich ``(JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹`` is evaluated exactly for that AR
+covariance Σ, using ``JᵀΣJ = σ² GᵀG`` where ``G`` is J filtered by the inverse AR
+filter run backwards in time.
+
+Two exponentials are kept only when the data demand it: the BIC of the trend plus its
+AR noise (innovation variance, all parameters counted) must fall by more than 10
+("very strong" evidence) and both amplitudes must exceed three standard errors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import lfilter
+
+from bench.analysis import timeseries as ts
+
+MIN_SAMPLES = 32
+BIC_MARGIN = 10.0
+MAX_NOISE_ORDER = 10
+_SCAN_POINTS = 4096
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A fitted value and its standard error, in the parameter's units."""
+
+    value: float
+    std: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {"value": float(self.value), "std": float(self.std)}
+
+
+@dataclass(frozen=True, eq=False)
+class TrendFit:
+    """Fitted start-up trend.  Units: those of ``y``; time constants in s; slope per s.
+
+    ``exp_*`` is the faster exponential (τ1) and ``exp2_*`` the slower one when
+    ``kind == "exp2"``.  ``covariance`` is ordered as ``param_names``.
+    """
+
+    kind: Literal["exp1", "exp2"]
+    offset: Estimate
+    exp_amplitude: Estimate
+    exp_tau_s: Estimate
+    linear_slope_per_s: Estimate
+    exp2_amplitude: Estimate | None
+    exp2_tau_s: Estimate | None
+    t0_s: float
+    param_names: tuple[str, ...]
+    covariance: np.ndarray
+    noise_ar: tuple[float, ...]  # AR model of the residual behind the standard errors
+    noise_sigma2: float
+    bic_exp1: float
+    bic_exp2: float | None  # None when the two-exponential fit was not attempted or failed
+    fitted: np.ndarray
+    residual: np.ndarray
+
+    def evaluate(self, t_s: np.ndarray) -> np.ndarray:
+        """Trend value at absolute times ``t_s`` (same time base as the fitted trace)."""
+        u = np.asarray(t_s, dtype=float) - self.t0_s
+        out = self.offset.value + self.exp_amplitude.value * np.exp(-u / self.exp_tau_s.value)
+        if self.kind == "exp2":
+            out = out + self.exp2_amplitude.value * np.exp(-u / self.exp2_tau_s.value)
+        return out + self.linear_slope_per_s.value * u
+
+    def to_dict(self) -> dict:
+        d = {"kind": self.kind, "t0_s": float(self.t0_s)}
+        for name in ("offset", "exp_amplitude", "exp_tau_s", "linear_slope_per_s", "exp2_amplitude", "exp2_tau_s"):
+            est = getattr(self, name)
+            if est is not None:
+                d[name] = est.to_dict()
+        d["noise_ar"] = list(self.noise_ar)
+        d["bic_exp1"] = float(self.bic_exp1)
+        d["bic_exp2"] = None if self.bic_exp2 is None else float(self.bic_exp2)
+        return d
+
+
+def _model(theta: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Model value and Jacobian; ``theta = [c, a1, τ1, (a2, τ2,) b]``."""
+    n_exp = (theta.size - 2) // 2
+    cols = [np.ones_like(u)]
+    value = theta[0] + theta[-1] * u
+    for i in range(n_exp):
+        a, tau = theta[1 + 2 * i], theta[2 + 2 * i]
+        e = np.exp(-u / tau)
+        value = value + a * e
+        cols += [e, a * u / tau**2 * e]
+    cols.append(u)
+    return value, np.column_stack(cols)
+
+
+def _scan(u: np.ndarray, y: np.ndarray, taus: np.ndarray, fixed: tuple[float, ...] = ()) -> np.ndarray:
+    """Variable projection: best τ on the grid with every linear coefficient solved exactly."""
+    if u.size > _SCAN_POINTS:  # block means keep the scan O(grid × 4096)
+        block = -(-u.size // _SCAN_POINTS)
+        m = u.size // block * block
+        u, y = u[:m].reshape(-1, block).mean(1), y[:m].reshape(-1, block).mean(1)
+    base = [np.ones_like(u), u] + [np.exp(-u / t) for t in fixed]
+    best = (np.inf, None)
+    for tau in taus:
+        a = np.column_stack(base + [np.exp(-u / tau)])
+        coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+        sse = float(np.sum((a @ coef - y) ** 2))
+        if sse < best[0]:
+            best = (sse, (coef, tau))
+    coef, tau = best[1]
+    c, b, amps = coef[0], coef[1], coef[2:]
+    pairs = sorted(zip(list(fixed) + [tau], amps), key=lambda pair: pair[0])
+    return np.array([c, *[v for t, a in pairs for v in (a, t)], b])
+
+
+def _noise_model(resid: np.ndarray) -> tuple[np.ndarray, float]:
+    """AR model (Burg, BIC order) of a trend residual."""
+    max_p = min(MAX_NOISE_ORDER, resid.size // 10)
+    sel = ts.select_order(resid, "AR", max_p, ar_method="burg")
+    return ts.burg(resid, sel.best_bic[0])
+
+
+def _fit(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[float, float]):
+    """NLS from ``start``; returns (theta, cov, phi, sigma2, bic, fitted).
+
+    The optimiser works on ln τ (positive by construction, better scaled) with MINPACK's
+    Levenberg–Marquardt; covariances are evaluated in τ afterwards.
+    """
+    taus = slice(2, -1, 2)
+
+    def to_theta(z: np.ndarray) -> np.ndarray:
+        th = z.copy()
+        th[taus] = np.exp(z[taus])
+        return th
+
+    def jac(z: np.ndarray) -> np.ndarray:
+        th = to_theta(z)
+        j = _model(th, u)[1]
+        j[:, taus] *= th[taus]  # d/d ln τ = τ d/dτ
+        return j
+
+    z0 = start.copy()
+    z0[taus] = np.log(np.clip(start[taus], *tau_bounds))
+    def resid(z: np.ndarray) -> np.ndarray:
+        return _model(to_theta(z), u)[0] - y
+
+    sol = least_squares(resid, z0, jac=jac, x_scale="jac", method="lm")
+    log_lo, log_hi = np.log(tau_bounds)
+    if np.any((sol.x[taus] < log_lo) | (sol.x[taus] > log_hi)):  # τ ran off (no transient): bounded rerun
+        lo, hi = np.full(z0.size, -np.inf), np.full(z0.size, np.inf)
+        lo[taus], hi[taus] = log_lo, log_hi
+        z0[taus] = np.clip(z0[taus], log_lo + 1e-9, log_hi - 1e-9)
+        sol = least_squares(resid, z0, jac=jac, x_scale="jac", method="trf", bounds=(lo, hi))
+    sol.x = to_theta(sol.x)
+    theta = sol.x
+    fitted, jac = _model(theta, u)
+    resid = y - fitted
+    phi, sigma2 = _noise_model(resid)
+    g = lfilter([1.0], np.r_[1.0, -phi], jac[::-1], axis=0)[::-1]  # L⁻ᵀJ, see module docstring
+    scale = 1.0 / np.maximum(np.linalg.norm(jac, axis=0), np.finfo(float).tiny)  # columns differ by ~10¹⁵
+    h_inv = scale[:, None] * np.linalg.pinv((jac * scale).T @ (jac * scale)) * scale[None, :]
+    cov = h_inv @ (sigma2 * g.T @ g) @ h_inv
+    k = theta.size + phi.size + 1
+    bic = y.size * np.log(sigma2) + k * np.log(y.size)
+    return theta, cov, phi, sigma2, bic, fitted
+
+
+def fit_trend(t_s: np.ndarray, y: np.ndarray, *, allow_two_exponentials: bool = True) -> TrendFit:
+    """Fit the start-up trend to a trace; see the module docstring.
+
+    ``t_s``: strictly increasing times in s (uniform sampling assumed for the noise
+    model); ``y``: the trace in its own units.  Needs at least 32 samples.
+    """
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if t.shape != y.shape or t.ndim != 1:
+        raise ValueError(f"t_s and y must be 1-D of equal length, got shapes {t.shape} and {y.shape}")
+    if t.size < MIN_SAMPLES:
+        raise ValueError(f"trace has {t.size} samples; the trend fit needs at least {MIN_SAMPLES}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y))):
+        raise ValueError("t_s and y must be finite")
+    if np.any(np.diff(t) <= 0):
+        raise ValueError("t_s must be strictly increasing")
+    u = t - t[0]
+    dt, span = float(np.median(np.diff(u))), float(u[-1])
+    bounds = (dt / 10, 1e3 * span)
+    taus = np.geomspace(dt, 3 * span, 60)
+
+    fit1 = _fit(u, y, _scan(u, y, taus), bounds)
+    best, kind, bic2 = fit1, "exp1", None
+    if allow_two_exponentials:
+        try:
+            start2 = _scan(u, y, taus[np.abs(np.log(taus / fit1[0][2])) > np.log(2)], fixed=(fit1[0][2],))
+            fit2 = _fit(u, y, start2, bounds)
+        except (np.linalg.LinAlgError, ValueError):  # degenerate scan/fit: one exponential it is
+            fit2 = None
+        if fit2 is not None:
+            bic2 = float(fit2[4])
+            std2 = np.sqrt(np.diag(fit2[1]))
+            amps_significant = np.all(np.abs(fit2[0][[1, 3]]) > 3 * std2[[1, 3]])
+            if fit1[4] - fit2[4] > BIC_MARGIN and amps_significant:
+                best, kind = fit2, "exp2"
+    theta, cov, phi, sigma2, _, fitted = best
+    if kind == "exp2" and theta[2] > theta[4]:  # report the faster exponential first
+        order = [0, 3, 4, 1, 2, 5]
+        theta, cov = theta[order], cov[np.ix_(order, order)]
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    est = [Estimate(float(v), float(s)) for v, s in zip(theta, std)]
+    names = ("offset", "exp_amplitude", "exp_tau_s") + (("exp2_amplitude", "exp2_tau_s") if kind == "exp2" else ())
+    fitted.flags.writeable = False
+    resid = y - fitted
+    resid.flags.writeable = False
+    return TrendFit(
+        kind, est[0], est[1], est[2], est[-1],
+        est[3] if kind == "exp2" else None, est[4] if kind == "exp2" else None,
+        float(t[0]), names + ("linear_slope_per_s",), cov, tuple(phi.tolist()), float(sigma2),
+        float(fit1[4]), bic2, fitted, resid,
+    )

@@ -1,0 +1,151 @@
+"""Typed interfaces per instrument kind.
+
+A procedure asks for "a multimeter that can take a timed trace", not for a model
+number: it annotates its parameters with these Protocols, and any driver (or test
+double) with the same members fits.  Nothing here knows about clocks: drivers that
+must let time pass take a :data:`Wait` callable from the caller (the bench clock).
+
+Units are in the names (``_v``, ``_a``, ``_s``, ``_deg``, ``_dps``, ``_dps2``).
+
+The Protocols are deliberately not ``runtime_checkable``: on Python 3.11 an
+``isinstance`` check reads every property, which would put queries on the wire.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Iterator, Mapping, Protocol
+
+import numpy as np
+
+#: ``wait(seconds)``: let that much (bench-clock) time pass.  Drivers never sleep.
+Wait = Callable[[float], None]
+
+
+class TimedTraceMultimeter(Protocol):
+    """A DC voltmeter that samples at a fixed interval and streams the readings."""
+
+    @property
+    def line_frequency_hz(self) -> float: ...
+
+    def configure_dc_voltage(
+        self, range_v: float | None = ..., nplc: float | None = ...
+    ) -> None: ...
+
+    def measure_dc_voltage(self) -> float: ...
+
+    def configure_timed_trace(
+        self,
+        n_samples: int,
+        interval_s: float,
+        *,
+        nplc: float = ...,
+        aperture_s: float | None = ...,
+        range_v: float = ...,
+        autozero: str = ...,
+        trigger_delay_s: float = ...,
+    ) -> Any: ...
+
+    def initiate(self) -> None: ...
+
+    def abort(self) -> None: ...
+
+    def points_available(self) -> int: ...
+
+    def fetch_all(self) -> np.ndarray: ...
+
+    def read_and_remove(self, max_n: int) -> np.ndarray: ...
+
+    def read_available(self, max_n: int | None = ...) -> np.ndarray: ...
+
+    @property
+    def trigger_delay_s(self) -> float: ...
+
+    def reset(self) -> None: ...
+
+    def snapshot(self) -> dict[str, Any]: ...
+
+    def stream_trace(
+        self, chunk_points: int = ..., *, wait: Wait, initiate: bool = ...,
+        min_poll_s: float = ..., stall_timeout_s: float | None = ...,
+    ) -> Iterator[np.ndarray]: ...
+
+
+class SupplyChannel(Protocol):
+    """One output of a DC supply."""
+
+    voltage_setpoint_v: float
+    current_limit_a: float
+    output_enabled: bool
+
+    @property
+    def measured_voltage_v(self) -> float: ...
+
+    @property
+    def measured_current_a(self) -> float: ...
+
+    def apply(self, voltage_v: float, current_a: float) -> None: ...
+
+
+class PowerSupply(Protocol):
+    """A multi-output DC supply with outputs addressed ``ch[1]``, ``ch[2]``, ..."""
+
+    @property
+    def ch(self) -> Mapping[int, SupplyChannel]: ...
+
+    def set_outputs(self, channels: Any, enabled: bool) -> None: ...
+
+    def outputs_off(self) -> None: ...
+
+    def snapshot(self) -> dict[str, Any]: ...
+
+
+class RateTableAxis(Protocol):
+    """One axis of a position/rate table."""
+
+    mode: str
+    position_demand_deg: float
+    rate_demand_dps: float
+    rate_limit_dps: float
+    accel_limit_dps2: float
+
+    @property
+    def position_deg(self) -> float: ...
+
+    @property
+    def rate_dps(self) -> float: ...
+
+    @property
+    def accel_dps2(self) -> float: ...
+
+    @property
+    def status(self) -> Any: ...
+
+    def move_to(self, position_deg: float) -> None: ...
+
+    def set_rate(self, rate_dps: float) -> None: ...
+
+    def stop(self) -> None: ...
+
+    def wait_in_position(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> Any: ...
+
+    def wait_at_rate(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> Any: ...
+
+
+class PositionRateTable(Protocol):
+    """A table of numbered axes behind one interlock."""
+
+    @property
+    def axis(self) -> Mapping[int, RateTableAxis]: ...
+
+    @property
+    def interlock_closed(self) -> bool: ...
+
+    def interlock_close(self) -> None: ...
+
+    def interlock_open(self) -> None: ...
+
+    def interlock_reset(self) -> None: ...
+
+    def stop_all(self) -> list[Any]: ...
+
+    def snapshot(self) -> dict[str, Any]: ...
