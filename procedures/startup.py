@@ -131,8 +131,10 @@ class StartupAcquisition:
         ctx.clock.sleep(p.pre_trigger_s)
         self._power(ctx, on=True)
         t_on = ctx.clock.now()
-        ctx.run.event(0.0, "supply_on", "t = 0 of the start-up test",
+        # Events carry bench-clock time; the streams' t_s count from this instant.
+        ctx.run.event(t_on, "t0", "power-on: t = 0 of the start-up test",
                       nplc=nplc, line_hz=line_hz, n_output=n_out, n_temperature=n_temp)
+        ctx.run.set_result("power_on_clock_s", t_on)
 
         # 4. stream to the store as the readings arrive
         t0_out = t_arm + dmm.trigger_delay_s - t_on

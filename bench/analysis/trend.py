@@ -40,6 +40,7 @@ MIN_SAMPLES = 32
 BIC_MARGIN = 10.0
 MAX_NOISE_ORDER = 10
 _SCAN_POINTS = 4096
+_FIT_POINTS = 16384
 
 
 @dataclass(frozen=True)
@@ -112,12 +113,18 @@ def _model(theta: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return value, np.column_stack(cols)
 
 
+def _block_means(u: np.ndarray, y: np.ndarray, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """Average consecutive blocks so at most ~``points`` remain (the tail block is dropped)."""
+    if u.size <= points:
+        return u, y
+    block = -(-u.size // points)
+    m = u.size // block * block
+    return u[:m].reshape(-1, block).mean(1), y[:m].reshape(-1, block).mean(1)
+
+
 def _scan(u: np.ndarray, y: np.ndarray, taus: np.ndarray, fixed: tuple[float, ...] = ()) -> np.ndarray:
     """Variable projection: best τ on the grid with every linear coefficient solved exactly."""
-    if u.size > _SCAN_POINTS:  # block means keep the scan O(grid × 4096)
-        block = -(-u.size // _SCAN_POINTS)
-        m = u.size // block * block
-        u, y = u[:m].reshape(-1, block).mean(1), y[:m].reshape(-1, block).mean(1)
+    u, y = _block_means(u, y, _SCAN_POINTS)
     base = [np.ones_like(u), u] + [np.exp(-u / t) for t in fixed]
     best = (np.inf, None)
     for tau in taus:
@@ -139,39 +146,51 @@ def _noise_model(resid: np.ndarray) -> tuple[np.ndarray, float]:
     return ts.burg(resid, sel.best_bic[0])
 
 
+_TAUS = slice(2, -1, 2)  # positions of the time constants in theta
+
+
+def _solve(u: np.ndarray, y: np.ndarray, z0: np.ndarray, log_bounds: tuple[float, float]) -> np.ndarray:
+    """Least squares in ``z`` = theta with ln τ in place of τ (positive by construction,
+    better scaled): MINPACK Levenberg–Marquardt, or bounded TRF if τ runs off."""
+
+    def theta(z: np.ndarray) -> np.ndarray:
+        th = z.copy()
+        th[_TAUS] = np.exp(z[_TAUS])
+        return th
+
+    def resid(z: np.ndarray) -> np.ndarray:
+        return _model(theta(z), u)[0] - y
+
+    def jac(z: np.ndarray) -> np.ndarray:
+        th = theta(z)
+        j = _model(th, u)[1]
+        j[:, _TAUS] *= th[_TAUS]  # d/d ln τ = τ d/dτ
+        return j
+
+    sol = least_squares(resid, z0, jac=jac, x_scale="jac", method="lm")
+    if np.any((sol.x[_TAUS] < log_bounds[0]) | (sol.x[_TAUS] > log_bounds[1])):  # no transient: bounded rerun
+        lo, hi = np.full(z0.size, -np.inf), np.full(z0.size, np.inf)
+        lo[_TAUS], hi[_TAUS] = log_bounds
+        z0 = z0.copy()
+        z0[_TAUS] = np.clip(z0[_TAUS], log_bounds[0] + 1e-9, log_bounds[1] - 1e-9)
+        sol = least_squares(resid, z0, jac=jac, x_scale="jac", method="trf", bounds=(lo, hi))
+    return sol.x
+
+
 def _fit(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[float, float]):
     """NLS from ``start``; returns (theta, cov, phi, sigma2, bic, fitted).
 
-    The optimiser works on ln τ (positive by construction, better scaled) with MINPACK's
-    Levenberg–Marquardt; covariances are evaluated in τ afterwards.
+    Long traces are first fitted on ≤ 16384 block means, then polished on every sample
+    (a few iterations from there).  Covariances are evaluated in τ.
     """
-    taus = slice(2, -1, 2)
-
-    def to_theta(z: np.ndarray) -> np.ndarray:
-        th = z.copy()
-        th[taus] = np.exp(z[taus])
-        return th
-
-    def jac(z: np.ndarray) -> np.ndarray:
-        th = to_theta(z)
-        j = _model(th, u)[1]
-        j[:, taus] *= th[taus]  # d/d ln τ = τ d/dτ
-        return j
-
-    z0 = start.copy()
-    z0[taus] = np.log(np.clip(start[taus], *tau_bounds))
-    def resid(z: np.ndarray) -> np.ndarray:
-        return _model(to_theta(z), u)[0] - y
-
-    sol = least_squares(resid, z0, jac=jac, x_scale="jac", method="lm")
-    log_lo, log_hi = np.log(tau_bounds)
-    if np.any((sol.x[taus] < log_lo) | (sol.x[taus] > log_hi)):  # τ ran off (no transient): bounded rerun
-        lo, hi = np.full(z0.size, -np.inf), np.full(z0.size, np.inf)
-        lo[taus], hi[taus] = log_lo, log_hi
-        z0[taus] = np.clip(z0[taus], log_lo + 1e-9, log_hi - 1e-9)
-        sol = least_squares(resid, z0, jac=jac, x_scale="jac", method="trf", bounds=(lo, hi))
-    sol.x = to_theta(sol.x)
-    theta = sol.x
+    log_bounds = (float(np.log(tau_bounds[0])), float(np.log(tau_bounds[1])))
+    z = start.copy()
+    z[_TAUS] = np.log(np.clip(start[_TAUS], *tau_bounds))
+    if u.size > 4 * _FIT_POINTS:
+        z = _solve(*_block_means(u, y, _FIT_POINTS), z, log_bounds)
+    z = _solve(u, y, z, log_bounds)
+    theta = z.copy()
+    theta[_TAUS] = np.exp(z[_TAUS])
     fitted, jac = _model(theta, u)
     resid = y - fitted
     phi, sigma2 = _noise_model(resid)

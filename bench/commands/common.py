@@ -12,6 +12,17 @@ def open_store(args) -> RunStore:
     return RunStore(args.store)
 
 
+def resolve_run_id(store: RunStore, run_id: str) -> str:
+    """``latest`` names the newest run; anything else must be a stored id."""
+    if run_id == "latest":
+        runs = store.list_runs(limit=1)
+        if not runs:
+            raise LookupError(f"no runs stored yet in {store.path}")
+        return runs[0].id
+    store.get_run(run_id)  # raises LookupError naming the id
+    return run_id
+
+
 @contextlib.contextmanager
 def progress_bar(enabled: bool):
     """A rich progress bar on stderr; yields a ``progress(done, total, message)`` callable."""

@@ -7,7 +7,7 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
-from bench.commands.common import open_store
+from bench.commands.common import open_store, resolve_run_id
 
 
 def register(sub) -> None:
@@ -19,7 +19,7 @@ def register(sub) -> None:
     ls.add_argument("--json", action="store_true")
     ls.set_defaults(func=list_runs)
     show = cmds.add_parser("show", help="one run: metadata, streams, events, measurements")
-    show.add_argument("run_id")
+    show.add_argument("run_id", help="run id, or 'latest'")
     show.add_argument("--json", action="store_true")
     show.set_defaults(func=show_run)
     exp = cmds.add_parser("export", help="export a run's data")
@@ -54,6 +54,7 @@ def _info(r) -> dict:
 
 def show_run(args) -> int:
     store = open_store(args)
+    args.run_id = resolve_run_id(store, args.run_id)
     info = store.get_run(args.run_id)
     streams = store.streams(args.run_id)
     events = store.events(args.run_id)
@@ -89,7 +90,7 @@ def export_run(args) -> int:
     from bench.export import export_csv, export_hdf5
 
     store = open_store(args)
-    store.get_run(args.run_id)  # clear error for an unknown id
+    args.run_id = resolve_run_id(store, args.run_id)
     if args.format == "csv":
         paths = export_csv(store, args.run_id, Path(args.out or f"export-{args.run_id}"))
     else:

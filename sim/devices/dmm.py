@@ -388,10 +388,13 @@ class Multimeter(ScpiDevice):
         elif args.count >= 1:
             fe.range_v = range_for(args.number(0, min=0.0, max=1000.0, default=10.0))
             fe.autorange = False
-        if args.count >= 2:
-            self._set_resolution_value(args.number(1, min=0.0, max=1.0, default=None))
+        word = args.raw[1].strip().upper()[:3] if args.count >= 2 else "DEF"
+        if word in ("DEF", "MIN", "MAX"):
+            # DEF: 10 PLC; MIN resolution value = finest (100 PLC); MAX = fastest
+            fe.nplc = {"DEF": 10.0, "MIN": 100.0,
+                       "MAX": 0.001 if self.has_dig else 0.02}[word]
         else:
-            fe.nplc = 10.0
+            self._set_resolution_value(args.number(1, min=1e-9, max=1.0))
         self.trig_source, self.trig_count, self.trig_delay_auto = "IMMEDIATE", 1.0, True
         self.samp_source, self.samp_count = "IMMEDIATE", 1
 
@@ -403,13 +406,13 @@ class Multimeter(ScpiDevice):
         return NOISE_PPM_OF_RANGE[self.fe.nplc] * 1e-6 * self.fe.range_v
 
     def _set_resolution(self, args: Args) -> None:
-        self._set_resolution_value(args.number(0, min=0.0, max=1.0, default=None))
-
-    def _set_resolution_value(self, res_v: float | None) -> None:
-        from sim.devices.dmm_model import NOISE_PPM_OF_RANGE, allowed_nplc
-        if res_v is None:
+        if args.raw[0].strip().upper()[:3] == "DEF":
             self.fe.nplc = 10.0
             return
+        self._set_resolution_value(args.number(0, min=1e-9, max=1.0))
+
+    def _set_resolution_value(self, res_v: float) -> None:
+        from sim.devices.dmm_model import NOISE_PPM_OF_RANGE, allowed_nplc
         ppm = res_v / self.fe.range_v * 1e6
         for n in allowed_nplc(self.has_dig):  # fastest NPLC that meets the resolution
             if NOISE_PPM_OF_RANGE[n] <= ppm:

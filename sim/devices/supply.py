@@ -116,7 +116,7 @@ class PowerSupply(ScpiDevice):
         def set_curr(args: Args) -> None:
             for c in self._channels_from(args, 1):
                 ch = self.channels[c]
-                ch.current_limit_a = args.number(0, min=0.002, max=ch.i_max, default=ch.i_max)
+                ch.current_limit_a = args.number(0, min=0.0, max=ch.i_max, default=ch.i_max)
             self._changed()
 
         def get_curr(args: Args) -> str:
@@ -151,7 +151,7 @@ class PowerSupply(ScpiDevice):
             if args.count > 1:
                 ch.voltage_v = args.number(1, min=0.0, max=ch.v_max, default=0.0)
             if args.count > 2:
-                ch.current_limit_a = args.number(2, min=0.002, max=ch.i_max, default=ch.i_max)
+                ch.current_limit_a = args.number(2, min=0.0, max=ch.i_max, default=ch.i_max)
             self._changed()
 
         def apply_q(args: Args) -> str:
