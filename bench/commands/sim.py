@@ -33,12 +33,13 @@ def serve_sim(args) -> int:
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"bench: warning: listening on {args.host}: reachable from the network",
               file=sys.stderr)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):  # before the addresses are announced
+        signal.signal(sig, lambda *_: stop.set())
     station.start()
     for e in station.endpoints:
         print(json.dumps({"name": e.name, "kind": e.kind, "resource": e.resource}), flush=True)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    stop.wait()
+    while not stop.wait(0.5):
+        pass
     station.stop()
     return 0
