@@ -364,10 +364,15 @@ def fit_arma_ml(x: np.ndarray, p: int, q: int) -> ArmaFit:
     )
 
 
-def _hannan_rissanen(xd: np.ndarray, p: int, q: int) -> np.ndarray:
-    """Hannan–Rissanen start values: long-AR (Yule–Walker) residuals, then OLS on lagged x and residuals."""
-    m = min(max(2 * (p + q), int(10 * np.log10(xd.size))), xd.size // 10)
-    e = lfilter(np.r_[1.0, -levinson_durbin(sample_acf(xd, m), m)[0]], [1.0], xd)
+def _long_ar_residuals(xd: np.ndarray) -> tuple[np.ndarray, int]:
+    """Residuals of a long Yule–Walker AR(m), m ≈ 10 log10 n: the innovations estimate of Hannan–Rissanen."""
+    m = min(max(8, int(10 * np.log10(xd.size))), xd.size // 10)
+    return lfilter(np.r_[1.0, -levinson_durbin(sample_acf(xd, m), m)[0]], [1.0], xd), m
+
+
+def _hannan_rissanen(xd: np.ndarray, p: int, q: int, long_ar: tuple[np.ndarray, int] | None = None) -> np.ndarray:
+    """Hannan–Rissanen start values: OLS of x on its lags and on lagged long-AR residuals."""
+    e, m = _long_ar_residuals(xd) if long_ar is None else long_ar
     k = max(p, q) + m
     cols = [xd[k - i : xd.size - i] for i in range(1, p + 1)] + [e[k - j : xd.size - j] for j in range(1, q + 1)]
     return np.linalg.lstsq(np.column_stack(cols), xd[k:], rcond=None)[0]
@@ -378,7 +383,9 @@ def _admissible(theta: np.ndarray, p: int) -> bool:
     return all(np.all(np.abs(np.roots(np.r_[1.0, c])) < 1.0) for c in (-theta[:p], theta[p:]) if c.size)
 
 
-def fit_arma_css(x: np.ndarray, p: int, q: int, n_condition: int | None = None) -> ArmaFit:
+def fit_arma_css(
+    x: np.ndarray, p: int, q: int, n_condition: int | None = None, _long_ar: tuple[np.ndarray, int] | None = None
+) -> ArmaFit:
     """ARMA(p, q) by conditional least squares (conditional Gaussian ML).
 
     Residuals ``e = (1 - Σφ B^k)/(1 + Σθ B^k) x`` start from zero pre-sample values; the
@@ -398,17 +405,23 @@ def fit_arma_css(x: np.ndarray, p: int, q: int, n_condition: int | None = None) 
     def resid_jac(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ma = np.r_[1.0, theta[p:]]
         e = lfilter(np.r_[1.0, -theta[:p]], ma, xd)
-        xf, ef = lfilter([1.0], ma, xd), lfilter([1.0], ma, e)
-        cols = [-xf[m - k : xd.size - k] for k in range(1, p + 1)] + [-ef[m - k : xd.size - k] for k in range(1, q + 1)]
-        return e[m:], np.column_stack(cols) if cols else np.zeros((xd.size - m, 0))
+        jac = np.empty((xd.size - m, p + q))
+        xf = lfilter([1.0], ma, xd) if p else xd
+        ef = lfilter([1.0], ma, e) if q else e
+        for k in range(1, p + 1):
+            jac[:, k - 1] = -xf[m - k : xd.size - k]
+        for k in range(1, q + 1):
+            jac[:, p + k - 1] = -ef[m - k : xd.size - k]
+        return e[m:], jac
 
     theta = np.zeros(p + q)
     if p + q:
-        start = _hannan_rissanen(xd, p, q)
+        start = _hannan_rissanen(xd, p, q, _long_ar)
         theta = next((f * start for f in (1.0, 0.9, 0.5) if _admissible(f * start, p)), theta)
         e, jac = resid_jac(theta)
         for _ in range(100):
-            step = np.linalg.lstsq(jac, -e, rcond=None)[0]
+            scale = 1.0 / np.maximum(np.linalg.norm(jac, axis=0), 1e-300)  # normal equations, equilibrated
+            step = scale * np.linalg.solve((jac * scale).T @ (jac * scale) + 1e-12 * np.eye(p + q), -(jac * scale).T @ e)
             sse = e @ e
             while np.max(np.abs(step)) > 1e-12:
                 trial = theta + step
@@ -474,9 +487,10 @@ def select_order(
         method = ar_method
     elif kind in ("MA", "ARMA"):
         m = max(max_p, max_q) if kind == "ARMA" else max_q
+        long_ar = _long_ar_residuals(xd)  # shared by every cell's start values
         for p in range(max_p + 1) if kind == "ARMA" else [0]:
             for q in range(max_q + 1):
-                fit = fit_arma_css(xd, p, q, n_condition=m)
+                fit = fit_arma_css(xd, p, q, n_condition=m, _long_ar=long_ar)
                 cells.append(OrderCandidate(p, q, fit.aic, fit.bic))
         method = "css"
     else:

@@ -117,6 +117,7 @@ class Multimeter(ScpiDevice):
         self.trig_delay_auto = True
         self.samp_source, self.samp_count, self.samp_timer_s = "IMMEDIATE", 1, 1.0
         self.state = "IDLE"  # IDLE | WAIT_TRIGGER | ACQUIRING
+        self.aperture_enabled = False  # APER sets it; NPLC clears it (the integration is kept as NPLC)
         self._next_k = 0          # next sample index within the current trigger
         self._triggers_done = 0
         self._t_trigger = 0.0
@@ -239,11 +240,13 @@ class Multimeter(ScpiDevice):
             lo = 0.001 if self.has_dig else 0.02
             fe().nplc = round_up_nplc(args.number(0, min=lo, max=100.0, default=10.0),
                                       self.has_dig)
+            self.aperture_enabled = False
 
         def set_aper(args: Args) -> None:
             lo = 0.001 / fe().line_hz if self.has_dig else 0.02 / fe().line_hz
             ap = args.number(0, min=lo, max=1.0, default=0.1)
             fe().nplc = round_up_nplc(ap * fe().line_hz, self.has_dig)
+            self.aperture_enabled = True
 
         def set_zero(args: Args) -> None:
             word = args.raw[0].strip().upper()
@@ -333,6 +336,9 @@ class Multimeter(ScpiDevice):
         c("[SENSe:]VOLTage[:DC]:NPLCycles", set=set_nplc, query=lambda a: format_number(fe().nplc))
         c("[SENSe:]VOLTage[:DC]:APERture", set=set_aper,
           query=lambda a: format_number(fe().aperture_s))
+        c("[SENSe:]VOLTage[:DC]:APERture:ENABled",
+          set=lambda a: setattr(self, "aperture_enabled", a.boolean(0)),
+          query=lambda a: "1" if self.aperture_enabled else "0")
         c("[SENSe:]VOLTage[:DC]:RESolution", set=self._set_resolution,
           query=lambda a: format_number(self._resolution()))
         c("[SENSe:]VOLTage[:DC]:ZERO:AUTO", set=set_zero,
