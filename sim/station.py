@@ -120,13 +120,18 @@ class SimulatedStation:
         f_platform = self.table.specific_force_platform_g(t, self.g_mps2)
         return f_platform @ self._mount.T
 
+    def _eval_times(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
+        # A reading is evaluated at mid-aperture; one whose aperture straddles a power
+        # change is evaluated just after the change (the unit's state is piecewise).
+        return np.maximum(t_start + aperture_s / 2, self.accel.last_supply_change_s)
+
     def _accel_volts(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
-        t_mid = t_start + aperture_s / 2
+        t_mid = self._eval_times(t_start, aperture_s)
         current = self.accel.output_current_a(t_mid, self.specific_force_iapo_g(t_mid), aperture_s)
         return current * self.config.sampling_resistor_ohm
 
     def _temp_volts(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
-        t_mid = t_start + aperture_s / 2
+        t_mid = self._eval_times(t_start, aperture_s)
         return self.accel.temp_sensor_current_a(t_mid) * self.config.temp_resistor_ohm
 
     # -- lifecycle ---------------------------------------------------------------------------

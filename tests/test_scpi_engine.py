@@ -441,8 +441,11 @@ def test_oversize_message_and_non_bytes_input():
 def test_feed_frames_and_answers():
     dev = FakeDmm(max_message_bytes=64)
     assert dev.feed(b"*IDN?\r\n*OPT") == (",".join(IDN) + "\n").encode()
-    assert dev.feed(b"?\nDISP:TEXT 'a\nb'\n") == b"DIG,MEM\n"
-    assert dev.text == "a\nb"
+    assert dev.feed(b"?\nDISP:TEXT 'a b'\n") == b"DIG,MEM\n"
+    assert dev.text == "a b"
+    # an LF inside an open string ends the message: -151, and the next command is served
+    assert dev.feed(b"DISP:TEXT 'a\n*OPT?\n") == b"DIG,MEM\n"
+    assert err(dev).startswith("-15")
     assert dev.feed(b"DISP:TEXT '" + b"y" * 100 + b"'\n*OPT?\n") == b"DIG,MEM\n"
     assert err(dev) == '-223,"Too much data;message longer than 64 bytes"'
 
@@ -490,9 +493,15 @@ def test_framer_basic_and_crlf():
     assert f.feed(b"\n\n") == [b"VOLT 1", b""]
 
 
-def test_framer_lf_in_strings_and_blocks():
+def test_framer_lf_in_an_open_string_ends_the_message_and_resyncs():
     f = MessageFramer()
-    msg1 = b"DISP:TEXT 'line1\nline2';\"a\n\"\"b\""
+    assert f.feed(b'DISP:TEXT "abc\n*IDN?\n') == [b'DISP:TEXT "abc', b"*IDN?"]
+    assert f.feed(b"DATA #9999999999\n*OPC?\n") == [Oversize(1 << 20), b"*OPC?"]
+
+
+def test_framer_lf_in_blocks():
+    f = MessageFramer()
+    msg1 = b"DISP:TEXT 'line1 line2';\"a \"\"b\""
     msg2 = b"DATA " + format_block(b"\n\r\n'#") + b";X"
     msg3 = b"DATA " + format_block(b"ends with CR\r")
     msg4 = b"DATA #0indefinite 'quote\r"
@@ -507,8 +516,8 @@ def test_framer_oversize_reported_once_and_resyncs():
     out = f.feed(b"A" * 25)
     assert out == [Oversize(10)]
     assert f.feed(b"B" * 25 + b"\nOK\n") == [b"OK"]
-    # an oversize block is counted through, so LFs in its payload do not resync early
-    assert f.feed(b"D " + format_block(b"\n" * 20) + b"\n*OPC?\n") == [Oversize(10), b"*OPC?"]
+    # a block declared past the limit is reported at once; the stream resyncs at the next LF
+    assert f.feed(b"D " + format_block(b"x" * 20) + b"\n*OPC?\n") == [Oversize(10), b"*OPC?"]
     # an unbalanced quote past the limit no longer hides the terminator
     assert f.feed(b"T '" + b"z" * 20 + b"\nNEXT\n") == [Oversize(10), b"NEXT"]
     with pytest.raises(ValueError):

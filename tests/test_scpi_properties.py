@@ -200,7 +200,7 @@ def test_stream_handling_is_split_invariant(messages, cuts):
 
 
 # (3) framing a stream of messages with binary blocks and strings, split anywhere
-quoted = st.text(alphabet="ab ;,\n\r'\"#\t", max_size=12)
+quoted = st.text(alphabet="ab ;,\r'\"#\t", max_size=12)  # an LF ends a message, even in a string
 param = st.one_of(
     st.integers(-10**9, 10**9),
     st.tuples(st.sampled_from("'\""), quoted),

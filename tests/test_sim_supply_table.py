@@ -86,3 +86,22 @@ def test_turntable_position_demand_requires_position_mode_and_closed_interlock(s
     assert float(ask(t, ":READ:POS? 1")) == pytest.approx(-45.0, abs=1e-3)
     f = station.specific_force_iapo_g(np.array([station.world.now]))
     assert f[0, 0] == pytest.approx(station.g_mps2 / 9.80665, rel=1e-9)  # IA still vertical
+
+
+def test_a_channel_list_with_one_bad_value_changes_nothing(station):
+    s = station.supply
+    ask(s, "VOLT 10,(@2,1)")  # 10 V is fine for CH2, too much for CH1 (6 V)
+    assert ask(s, "SYST:ERR?").startswith("-222")
+    assert ask(s, "VOLT? (@1,2)") == "+0.00000000E+00,+0.00000000E+00"
+
+
+def test_limit_queries_answer_per_channel_and_per_axis(station):
+    assert ask(station.supply, "VOLT? MAX,(@1,2)") == "+6.00000000E+00,+2.50000000E+01"
+    assert ask(station.supply, "CURR? MAX,(@3)") == "+1.00000000E+00"
+    assert ask(station.supply, "APPL? P25V") == '"+0.00000000E+00,+1.00000000E+00"'
+    t = station.turntable
+    assert float(ask(t, ":LIM:RATE? 1,MAX")) == station.table.axes[0].rate_max_dps
+    ask(t, ":MODE:POS 3")
+    assert ask(t, "SYST:ERR?").startswith("-222")  # two axes
+    ask(t, ":MODE:POS 1.6")  # SCPI rounds decimal data for integer parameters: axis 2
+    assert ask(t, ":MODE? 2") == "POS" and ask(t, ":MODE? 1") == "OFF"

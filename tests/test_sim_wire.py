@@ -47,17 +47,17 @@ def test_powered_unit_reads_one_g_through_the_wire(sim_station, rm):
     dmm = _open(rm, sim_station.resources()["dmm"])
     clock = _open(rm, sim_station.resources()["sim"])
     supply.write("APPL CH2,15,0.1;APPL CH3,15,0.1")
-    supply.write("OUTP ON,(@2,3)")
+    supply.query("OUTP ON,(@2,3);*OPC?")
     assert supply.query("OUTP? (@2,3)").strip() == "1,1"
     currents = [float(x) for x in supply.query("MEAS:CURR? (@2,3)").split(",")]
     assert currents == pytest.approx([0.016, 0.016])
-    clock.write("SIM:TIME:ADV 30")
+    clock.query("SIM:TIME:ADV 30;*OPC?")
     volts = float(dmm.query("MEAS:VOLT:DC? 10"))
     truth = sim_station.truth()
     expected = truth["k1_ma_per_g"] * 1e-3 * truth["sampling_resistor_ohm"] * truth["g_local_over_g0"]
     assert volts == pytest.approx(expected, rel=2e-3)
     assert float(clock.query("SIM:TIME?")) >= 30.0
-    supply.write("OUTP OFF,(@2,3)")
+    supply.query("OUTP OFF,(@2,3);*OPC?")
     assert abs(float(dmm.query("MEAS:VOLT:DC? 10"))) < 1e-4
 
 
@@ -75,7 +75,7 @@ def test_turntable_moves_by_trapezoid_and_reports_in_position(sim_station, rm):
     table.write(":MODE:POS 2;:DEM:POS 2,90")
     assert table.query("SYST:ERR?").strip() == '+0,"No error"'
     assert int(table.query(":STAT? 2")) & 2  # moving
-    clock.write("SIM:TIME:ADV 60")
+    clock.query("SIM:TIME:ADV 60;*OPC?")
     assert float(table.query(":READ:POS? 2")) == pytest.approx(90.0, abs=1e-3)
     assert int(table.query(":STAT? 2")) & 1  # in position
     table.write(":INT:OPEN")
@@ -88,18 +88,19 @@ def test_tilting_the_table_changes_the_reading_as_cos_theta(sim_station, rm):
     dmm = _open(rm, sim_station.resources()["dmm"])
     table = _open(rm, sim_station.resources()["turntable"])
     clock = _open(rm, sim_station.resources()["sim"])
-    supply.write("APPL CH2,15,0.1;APPL CH3,15,0.1;OUTP ON,(@2,3)")
-    clock.write("SIM:TIME:ADV 3000")  # past the warm-up transient
+    # Writes on different sockets are ordered only by a round trip: *OPC? after each.
+    supply.query("APPL CH2,15,0.1;APPL CH3,15,0.1;OUTP ON,(@2,3);*OPC?")
+    clock.query("SIM:TIME:ADV 3000;*OPC?")  # past the warm-up transient
     level = float(dmm.query("MEAS:VOLT:DC? 10"))
-    table.write(":MODE:POS 2;:DEM:POS 2,60")
-    clock.write("SIM:TIME:ADV 30")
+    table.query(":MODE:POS 2;:DEM:POS 2,60;*OPC?")
+    clock.query("SIM:TIME:ADV 30;*OPC?")
     tilted = float(dmm.query("MEAS:VOLT:DC? 10"))
     assert tilted / level == pytest.approx(0.5, abs=2e-3)
 
 
 def test_sim_control_refuses_going_back_in_time(sim_station, rm):
     clock = _open(rm, sim_station.resources()["sim"])
-    clock.write("SIM:TIME:ADV 10")
+    clock.query("SIM:TIME:ADV 10;*OPC?")
     clock.write("SIM:TIME:UNT 5")
     assert clock.query("SYST:ERR?").startswith("-222")
     assert float(clock.query("SIM:TIME?")) == pytest.approx(10.0)

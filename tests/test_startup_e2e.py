@@ -107,3 +107,11 @@ def test_nplc_choice_fits_the_interval():
     assert choose_nplc(1.0, 60.0) == 10.0
     with pytest.raises(ValueError, match="too short"):
         choose_nplc(1e-4, 50.0)
+
+
+def test_a_reading_straddling_power_on_does_not_wedge_the_world(tmp_path):
+    """A slow trace (1.2 Hz) whose aperture spans the supply switching on."""
+    store, outcome, safe, _ = run_startup(tmp_path, duration_s=20.0, rate_hz=1.2, off_wait_s=0.0,
+                                          chunk_s=5.0)
+    assert outcome.status == "passed", outcome.reason
+    assert store.streams(outcome.run_id)["output"].n_rows == round(21 * 1.2)

@@ -40,7 +40,10 @@ def _series(x: np.ndarray, min_len: int, name: str = "x") -> np.ndarray:
         raise ValueError(f"{name} has {arr.size} samples; at least {min_len} are required")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} contains {int(np.sum(~np.isfinite(arr)))} non-finite values; all must be finite")
-    return arr - arr.mean()
+    out = arr - arr.mean()
+    if not np.any(out):
+        raise ValueError(f"{name} is constant; there is nothing to model")
+    return out
 
 
 def _check_order(order: int, n: int, name: str = "p") -> int:
@@ -152,15 +155,20 @@ class Identification:
 def cutoff_lag(values: np.ndarray, band: np.ndarray | float, max_order: int, alpha: float = 0.05) -> int | None:
     """Lag ``k ≤ max_order`` after which a correlation sequence "cuts off", else None.
 
-    ``values[0]`` is lag 0 and is ignored.  The sequence cuts off after ``k`` when lag
-    ``k + 1`` is inside the band and the number of later lags outside it is no more than
-    white noise would give by chance (the 99 % point of Binomial(m, alpha), since about
-    ``alpha`` of white lags fall outside a ``1 - alpha`` band).
+    ``values[0]`` is lag 0 and is ignored.  It cuts off after ``k`` when the drop is
+    abrupt — lag ``k`` at least twice its band (k ≥ 1), lag ``k + 1`` inside — and no
+    more later lags stick out than white noise would by chance (the 99 % point of
+    Binomial(m, alpha): about ``alpha`` of white lags fall outside a ``1 - alpha`` band).
+    A geometric decay crosses the band gradually, so it fails the first test and counts
+    as tailing off.
     """
-    outside = np.abs(np.asarray(values)[1:]) > np.broadcast_to(band, np.shape(values))[1:]
+    vals = np.abs(np.asarray(values, dtype=float))
+    bands = np.broadcast_to(band, vals.shape)
+    outside = vals[1:] > bands[1:]
     for k in range(0, min(max_order, outside.size - 1) + 1):
         later = outside[k:]
-        if not later[0] and later.sum() <= stats.binom.ppf(0.99, later.size, alpha):
+        abrupt = k == 0 or vals[k] >= 2 * bands[k]
+        if abrupt and not later[0] and later.sum() <= stats.binom.ppf(0.99, later.size, alpha):
             return k
     return None
 
@@ -420,8 +428,9 @@ def fit_arma_css(
         theta = next((f * start for f in (1.0, 0.9, 0.5) if _admissible(f * start, p)), theta)
         e, jac = resid_jac(theta)
         for _ in range(100):
-            scale = 1.0 / np.maximum(np.linalg.norm(jac, axis=0), 1e-300)  # normal equations, equilibrated
-            step = scale * np.linalg.solve((jac * scale).T @ (jac * scale) + 1e-12 * np.eye(p + q), -(jac * scale).T @ e)
+            gram = jac.T @ jac
+            d = 1.0 / np.sqrt(np.maximum(np.diag(gram), 1e-300))  # equilibrate the normal equations
+            step = d * np.linalg.solve(gram * np.outer(d, d) + 1e-12 * np.eye(p + q), -d * (jac.T @ e))
             sse = e @ e
             while np.max(np.abs(step)) > 1e-12:
                 trial = theta + step
@@ -433,7 +442,7 @@ def fit_arma_css(
             else:
                 break  # no descent step left: converged
             theta, e, jac = trial, e_new, jac_new
-            if sse - e @ e <= 1e-10 * sse:
+            if sse - e @ e <= 0.01 / e.size * sse:  # log-likelihood gain below 0.005
                 break
     e, jac = resid_jac(theta)
     sigma2 = float(e @ e / e.size)
@@ -497,6 +506,44 @@ def select_order(
         raise ValueError(f"kind {kind!r} must be 'AR', 'MA' or 'ARMA'")
     best = {c: min(cells, key=lambda cell: getattr(cell, c)) for c in ("aic", "bic")}
     return OrderSelection(tuple(cells), (best["aic"].p, best["aic"].q), (best["bic"].p, best["bic"].q), method)
+
+
+def ar_interpolate(x: np.ndarray, missing: np.ndarray, phi: np.ndarray, sweeps: int = 10) -> np.ndarray:
+    """Replace ``x[missing]`` by their conditional expectation given the other samples under AR(phi).
+
+    For a zero-mean AR(p) with ``a = [1, -φ1, …, -φp]`` the two-sided interpolator is
+    ``x̂_t = -Σ_{k=1..p} ρi_k (x_{t-k} + x_{t+k})`` with the inverse autocorrelations
+    ``ρi_k = Σ_j a_j a_{j+k} / Σ_j a_j²`` (exact for isolated gaps away from the ends).
+    Adjacent gaps are solved by repeating the update (``sweeps`` Jacobi passes).  The
+    values in ``x[missing]`` on entry are the starting guess (e.g. linear interpolation).
+    """
+    out = np.array(x, dtype=float)
+    idx = np.flatnonzero(missing)
+    phi = np.asarray(phi, dtype=float)
+    if idx.size == 0 or phi.size == 0:
+        if idx.size:
+            out[idx] = 0.0  # white noise: the best guess of a missing sample is the mean
+        return out
+    a = np.r_[1.0, -phi]
+    p = phi.size
+    rho_inv = np.array([a[: a.size - k] @ a[k:] for k in range(1, p + 1)]) / (a @ a)
+    pad = np.r_[np.zeros(p), out, np.zeros(p)]  # samples beyond the ends count as the mean
+    for _ in range(sweeps):
+        guess = -sum(rho_inv[k - 1] * (pad[idx + p - k] + pad[idx + p + k]) for k in range(1, p + 1))
+        pad[idx + p] = guess
+    return pad[p:-p]
+
+
+def burg_bic(x: np.ndarray, max_p: int) -> tuple[np.ndarray, float]:
+    """Burg AR model with the BIC order (p ≤ max_p), from one Burg recursion: a quick,
+    always-stationary noise model for standard errors and interpolation."""
+    xd = _series(x, 16)
+    max_p = _check_order(max_p, xd.size, "max_p")
+    phis, sig = _burg_path(xd, max_p)
+    f = _lag_sums(xd, max_p, max_p + 1)
+    bics = [_conditional_ic(xd, phi, max_p, f)[2] for phi in phis]
+    best = int(np.argmin(bics))
+    return phis[best], float(sig[best])
 
 
 # --------------------------------------------------------------------------- diagnostics

@@ -140,10 +140,10 @@ def _scan(u: np.ndarray, y: np.ndarray, taus: np.ndarray, fixed: tuple[float, ..
 
 
 def _noise_model(resid: np.ndarray) -> tuple[np.ndarray, float]:
-    """AR model (Burg, BIC order) of a trend residual."""
-    max_p = min(MAX_NOISE_ORDER, resid.size // 10)
-    sel = ts.select_order(resid, "AR", max_p, ar_method="burg")
-    return ts.burg(resid, sel.best_bic[0])
+    """AR model (Burg, BIC order) of a trend residual; a noiseless fit gets a vanishing σ²."""
+    if not np.any(resid - resid.mean()):
+        return np.zeros(0), float(np.finfo(float).tiny)
+    return ts.burg_bic(resid, min(MAX_NOISE_ORDER, resid.size // 10))
 
 
 _TAUS = slice(2, -1, 2)  # positions of the time constants in theta

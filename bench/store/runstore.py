@@ -8,6 +8,7 @@ RunStore serialises its own connection with a lock, so it may be shared between 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import math
 import os
 import secrets
@@ -298,6 +299,27 @@ class RunStore:
                 raise UnknownAttachmentError(
                     f"run {run_id} has no attachment {name!r}; it has {known}")
         return bytes(row[0])
+
+    def attach_analysis(self, run_id: str, name: str, data: bytes, mime: str) -> None:
+        """Attach an analysis product (report, model file) to a run, finished or not.
+
+        Acquired data stay immutable: analysis products live under the ``analysis/`` name
+        prefix, and re-analysing a run replaces its earlier product of the same name.
+        """
+        if not isinstance(name, str) or not name.startswith("analysis/") or len(name) > 200:
+            raise ValueError(f"analysis attachment name {name!r} must start with 'analysis/'")
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise TypeError(f"attachment {name!r}: data must be bytes-like")
+        if not isinstance(mime, str) or "/" not in mime:
+            raise ValueError(f"attachment {name!r}: mime must look like 'type/subtype', got {mime!r}")
+        payload = bytes(data)
+        with self._write_transaction() as conn:
+            self._run_row(conn, run_id)
+            conn.execute("DELETE FROM attachments WHERE run_id = ? AND name = ?", (run_id, name))
+            conn.execute(
+                "INSERT INTO attachments (run_id, name, mime, sha256, created_utc, data) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
+                (run_id, name, mime, hashlib.sha256(payload).hexdigest(), utc_now(), payload))
 
     def results(self, run_id: str) -> dict[str, Any]:
         """The run's results, key -> JSON value."""

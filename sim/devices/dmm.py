@@ -23,7 +23,7 @@ from typing import Callable
 import numpy as np
 
 from sim.devices.dmm_model import (
-    DIG_NPLC, OVERLOAD, RANGES_V, DmmConverter, DmmFrontEnd, LinePickup, range_for,
+    DIG_NPLC, RANGES_V, DmmConverter, DmmFrontEnd, LinePickup, noise_ppm, range_for,
     round_up_nplc,
 )
 from sim.scpi import Args, ScpiDevice, ScpiError, format_block, format_number
@@ -37,6 +37,20 @@ MAX_BATCH = 500_000  # readings generated per step, bounds memory per advance
 
 def _fmt_reading(x: float) -> str:
     return f"{x:+.8E}"
+
+
+def _fmt_count(x: float) -> str:
+    return f"{int(x):+d}" if x < 9.9e37 else "+9.90000000E+37"
+
+
+def limits_query(args: Args, current, lo, hi, default, fmt=format_number) -> str:
+    """A setting's query: the value, or with MIN|MAX|DEF the limit (as the real meter)."""
+    if args.count:
+        value = {"MIN": lo, "MAX": hi, "DEF": default}.get(args.raw[0].strip().upper()[:3])
+        if value is None:
+            raise ScpiError(-224, f"{args.raw[0]!r} not in MIN|MAX|DEF")
+        return fmt(value)
+    return fmt(current)
 
 
 class _Memory:
@@ -117,20 +131,23 @@ class Multimeter(ScpiDevice):
         self.trig_delay_auto = True
         self.samp_source, self.samp_count, self.samp_timer_s = "IMMEDIATE", 1, 1.0
         self.state = "IDLE"  # IDLE | WAIT_TRIGGER | ACQUIRING
-        self.aperture_enabled = False  # APER sets it; NPLC clears it (the integration is kept as NPLC)
-        self._next_k = 0          # next sample index within the current trigger
-        self._triggers_done = 0
-        self._t_trigger = 0.0
+        self.aperture_value_s = 0.1  # VOLT:APER value (used only while enabled)
+        # the current *segment*: readings of one or more back-to-back triggers
+        self._seg_t0 = 0.0           # time of the trigger that started it
+        self._seg_triggers = 1.0     # triggers in it (IMM: all remaining; BUS: one)
+        self._g = 0                  # next reading index within it
+        self._triggers_done = 0.0
 
     def reset(self) -> None:
         self.abort()
         self._defaults()
         self.memory.clear()
+        self.memory.last = np.nan
         self.format_real, self.swapped = False, False
 
     @property
     def delay_s(self) -> float:
-        # Auto delay for DCV: 1.5 ms below 1 NPLC's settling, else none (data sheet table).
+        # Auto delay for DCV: 1.5 ms up to 1 NPLC (settling), none above (data sheet table).
         return (0.0015 if self.fe.nplc <= 1 else 0.0) if self.trig_delay_auto else self.trig_delay_s
 
     @property
@@ -140,26 +157,57 @@ class Multimeter(ScpiDevice):
             return max(self.samp_timer_s, self.fe.reading_time_s)
         return self.fe.reading_time_s
 
-    def _sample_end(self, k: int) -> float:
-        return self._t_trigger + self.delay_s + k * self.interval_s + self.fe.aperture_s
+    @property
+    def aperture_enabled(self) -> bool:
+        return self.fe.aperture_override_s is not None
+
+    @property
+    def _aper_min(self) -> float:
+        return 2e-5 if self.has_dig else 2e-4
+
+    @property
+    def _period_s(self) -> float:
+        """Trigger-to-trigger time when triggers follow immediately (TRIG:SOUR IMM)."""
+        return self.delay_s + (self.samp_count - 1) * self.interval_s + self.fe.aperture_s
+
+    @property
+    def _seg_total(self) -> float:
+        return self._seg_triggers * self.samp_count
+
+    def _t_start(self, g: np.ndarray) -> np.ndarray:
+        """Aperture start of readings with indices ``g`` in the current segment."""
+        j, k = np.divmod(g, self.samp_count)
+        return self._seg_t0 + j * self._period_s + self.delay_s + k * self.interval_s
+
+    def _due(self, t: float) -> int:
+        """Readings of the current segment whose aperture has ended by ``t``."""
+        span = t - self._seg_t0
+        period, s = self._period_s, self.samp_count
+        eps = 1e-9 * self.interval_s
+        j_full = max(0.0, np.floor((span + eps) / period))
+        rem = span - j_full * period
+        k = int(np.clip(np.floor((rem - self.delay_s - self.fe.aperture_s + eps)
+                                 / self.interval_s) + 1, 0, s))
+        return int(min(j_full * s + k, self._seg_total))
 
     # -- the acquisition as a world activity --------------------------------------------
     def initiate(self) -> None:
         if self.state != "IDLE":
             raise ScpiError(-213, "INIT while a measurement is in progress")
         self.memory.clear()
-        self._triggers_done = 0
+        self._triggers_done = 0.0
         self.state = "WAIT_TRIGGER"
         self.world.add_activity(self)
         if self.trig_source == "IMMEDIATE":
-            self._fire(self.world.now)
+            self._fire(self.world.now, self.trig_count)
 
-    def _fire(self, t: float) -> None:
-        self._t_trigger, self._next_k, self.state = t, 0, "ACQUIRING"
+    def _fire(self, t: float, triggers: float) -> None:
+        self._seg_t0, self._seg_triggers, self._g = t, triggers, 0
+        self.state = "ACQUIRING"
 
     def trigger(self) -> None:
         if self.state == "WAIT_TRIGGER" and self.trig_source == "BUS":
-            self._fire(self.world.now)
+            self._fire(self.world.now, 1.0)
         else:
             raise ScpiError(-211)
 
@@ -168,47 +216,68 @@ class Multimeter(ScpiDevice):
         self.world.remove_activity(self)
 
     def run_until(self, t: float) -> None:
-        """Take every reading whose aperture ends by ``t``."""
+        """Take every reading whose aperture ends by ``t``.
+
+        Work is bounded by the memory depth whatever the span: readings the memory could
+        not hold are never generated (the noise processes jump over the gap exactly), and
+        the overflow is flagged as on the real meter.
+        """
+        try:
+            self._run_until(t)
+        except Exception as exc:  # a model failure must not wedge the world's clock
+            self.abort()
+            self.push_error(-240, f"measurement failed: {type(exc).__name__}: {exc}")
+
+    def _run_until(self, t: float) -> None:
         while self.state == "ACQUIRING":
-            interval, ap = self.interval_s, self.fe.aperture_s
-            start0 = self._t_trigger + self.delay_s
-            n_due = int(np.floor((t - start0 - ap) / interval + 1e-9)) + 1
-            n_due = min(n_due, self.samp_count)
-            n = min(n_due - self._next_k, MAX_BATCH)
-            if n <= 0:
-                return
-            k = np.arange(self._next_k, self._next_k + n)
-            t_start = start0 + k * interval
-            mean_v = self.input_signal(t_start, ap) + self.pickup.averaged(t_start, ap)
-            self.memory.push(self.converter.convert(mean_v, self.fe))
-            self._next_k += n
-            if self._next_k >= self.samp_count:
-                self._triggers_done += 1
-                t_done = start0 + (self.samp_count - 1) * interval + ap
+            due = self._due(t)
+            if due - self._g > self.memory.depth:
+                self._g = due - self.memory.depth
+                self.memory.clear()
+                self.memory.overflowed = True
+            n = min(due - self._g, MAX_BATCH)
+            if n > 0:
+                g = np.arange(self._g, self._g + n, dtype=np.float64)
+                t_start = self._t_start(g)
+                ap = self.fe.aperture_s
+                mean_v = self.input_signal(t_start, ap) + self.pickup.averaged(t_start, ap)
+                self.memory.push(self.converter.convert(mean_v, self.fe))
+                self._g += n
+            if self._g >= self._seg_total:
+                self._triggers_done += self._seg_triggers
                 if self._triggers_done >= self.trig_count:
                     self.abort()
-                elif self.trig_source == "IMMEDIATE":
-                    self._fire(t_done)
                 else:
                     self.state = "WAIT_TRIGGER"
+                return
+            if n < MAX_BATCH:
+                return
+
+    def _t_end(self, g: float) -> float:
+        return float(self._t_start(np.array([g]))[0]) + self.fe.aperture_s
 
     def completion_time(self) -> float | None:
         """Simulated time at which the acquisition ends, or None if it never does by itself."""
         if self.state == "IDLE":
             return self.world.now
-        if self.trig_source != "IMMEDIATE" or self.trig_count >= 9.9e37:
+        last_segment = self._triggers_done + self._seg_triggers >= self.trig_count
+        if self.state != "ACQUIRING" or not last_segment or self._seg_total >= 9.9e37:
             return None
-        per_trigger = self.delay_s + (self.samp_count - 1) * self.interval_s + self.fe.aperture_s
-        remaining = self.trig_count - self._triggers_done - 1
-        if self.state == "WAIT_TRIGGER":
-            return None
-        return self._t_trigger + per_trigger + remaining * per_trigger
+        return self._t_end(self._seg_total - 1)
 
     def wait_complete(self) -> None:
         t_end = self.completion_time()
         if t_end is None:
             raise ScpiError(-230, "acquisition waits for a trigger that cannot arrive")
         self.world.advance_to(max(t_end, self.world.now))
+
+    def _wait_for_points(self, n: int) -> None:
+        """Let simulated time pass until ``n`` readings are in memory."""
+        while self.memory.count < n:
+            missing = n - self.memory.count
+            if self.state != "ACQUIRING" or self._g + missing > self._seg_total:
+                raise ScpiError(-230, f"waiting for {n} readings that cannot arrive")
+            self.world.advance_to(max(self.world.now, self._t_end(self._g + missing - 1)))
 
     # -- reply formatting ----------------------------------------------------------------
     def _readings_reply(self, values: np.ndarray, block: bool) -> bytes | str:
@@ -240,13 +309,13 @@ class Multimeter(ScpiDevice):
             lo = 0.001 if self.has_dig else 0.02
             fe().nplc = round_up_nplc(args.number(0, min=lo, max=100.0, default=10.0),
                                       self.has_dig)
-            self.aperture_enabled = False
+            fe().aperture_override_s = None
 
         def set_aper(args: Args) -> None:
-            lo = 0.001 / fe().line_hz if self.has_dig else 0.02 / fe().line_hz
-            ap = args.number(0, min=lo, max=1.0, default=0.1)
-            fe().nplc = round_up_nplc(ap * fe().line_hz, self.has_dig)
-            self.aperture_enabled = True
+            # 200 µs .. 1 s (20 µs with DIG) in 2 µs steps
+            self.aperture_value_s = round(args.number(0, min=self._aper_min, max=1.0,
+                                                      default=0.1) / 2e-6) * 2e-6
+            fe().aperture_override_s = self.aperture_value_s
 
         def set_zero(args: Args) -> None:
             word = args.raw[0].strip().upper()
@@ -263,7 +332,7 @@ class Multimeter(ScpiDevice):
             if args.raw[0].strip().upper().startswith("INF"):
                 self.trig_count = 9.9e37
             else:
-                self.trig_count = float(int(args.number(0, min=1, max=1e6, default=1)))
+                self.trig_count = float(args.integer(0, min=1, max=1_000_000, default=1))
 
         def set_trig_del(args: Args) -> None:
             self.trig_delay_s = args.number(0, min=0.0, max=3600.0, default=0.0)
@@ -276,7 +345,7 @@ class Multimeter(ScpiDevice):
             self.samp_timer_s = args.number(0, min=2e-5, max=3600.0, default=1.0)
 
         def set_samp_coun(args: Args) -> None:
-            self.samp_count = int(args.number(0, min=1, max=MAX_SAMPLES, default=1))
+            self.samp_count = args.integer(0, min=1, max=MAX_SAMPLES, default=1)
 
         def init(args: Args) -> None:
             self.initiate()
@@ -305,7 +374,7 @@ class Multimeter(ScpiDevice):
 
         def last_q(args: Args) -> str:
             v = self.memory.last
-            return f"{_fmt_reading(v if np.isfinite(v) else OVERLOAD)} VDC"
+            return f"{_fmt_reading(v) if np.isfinite(v) else '+9.91000000E+37'} VDC"  # 9.91E37: none
 
         def form_q(args: Args) -> str:
             return "REAL,64" if self.format_real else "ASC,9"
@@ -330,14 +399,14 @@ class Multimeter(ScpiDevice):
         c("MEASure[:VOLTage][:DC]", query=meas_volt)
         c("[SENSe:]FUNCtion[:ON]", set=self._set_function, query=lambda a: '"VOLT"')
         c("[SENSe:]VOLTage[:DC]:RANGe[:UPPer]", set=set_range,
-          query=lambda a: format_number(fe().range_v))
+          query=lambda a: limits_query(a, fe().range_v, 0.1, 1000.0, 10.0))
         c("[SENSe:]VOLTage[:DC]:RANGe:AUTO", set=lambda a: setattr(fe(), "autorange", a.boolean(0)),
           query=lambda a: "1" if fe().autorange else "0")
-        c("[SENSe:]VOLTage[:DC]:NPLCycles", set=set_nplc, query=lambda a: format_number(fe().nplc))
+        c("[SENSe:]VOLTage[:DC]:NPLCycles", set=set_nplc,
+          query=lambda a: limits_query(a, fe().nplc, 0.001 if self.has_dig else 0.02, 100.0, 10.0))
         c("[SENSe:]VOLTage[:DC]:APERture", set=set_aper,
-          query=lambda a: format_number(fe().aperture_s))
-        c("[SENSe:]VOLTage[:DC]:APERture:ENABled",
-          set=lambda a: setattr(self, "aperture_enabled", a.boolean(0)),
+          query=lambda a: limits_query(a, self.aperture_value_s, self._aper_min, 1.0, 0.1))
+        c("[SENSe:]VOLTage[:DC]:APERture:ENABled", set=self._set_aper_enabled,
           query=lambda a: "1" if self.aperture_enabled else "0")
         c("[SENSe:]VOLTage[:DC]:RESolution", set=self._set_resolution,
           query=lambda a: format_number(self._resolution()))
@@ -345,13 +414,17 @@ class Multimeter(ScpiDevice):
           query=lambda a: "1" if fe().autozero == "ON" else "0")
         c("[SENSe:]VOLTage[:DC]:IMPedance:AUTO", set=lambda a: a.boolean(0), query=lambda a: "0")
         c("TRIGger:SOURce", set=set_trig_sour, query=lambda a: self.trig_source[:3])
-        c("TRIGger:COUNt", set=set_trig_coun, query=lambda a: format_number(self.trig_count))
-        c("TRIGger:DELay", set=set_trig_del, query=lambda a: format_number(self.delay_s))
+        c("TRIGger:COUNt", set=set_trig_coun,
+          query=lambda a: limits_query(a, self.trig_count, 1, 1_000_000, 1, _fmt_count))
+        c("TRIGger:DELay", set=set_trig_del,
+          query=lambda a: limits_query(a, self.delay_s, 0.0, 3600.0, self.delay_s))
         c("TRIGger:DELay:AUTO", set=lambda a: setattr(self, "trig_delay_auto", a.boolean(0)),
           query=lambda a: "1" if self.trig_delay_auto else "0")
         c("SAMPle:SOURce", set=set_samp_sour, query=lambda a: self.samp_source[:3])
-        c("SAMPle:TIMer", set=set_samp_tim, query=lambda a: format_number(self.samp_timer_s))
-        c("SAMPle:COUNt", set=set_samp_coun, query=lambda a: f"{self.samp_count:+d}")
+        c("SAMPle:TIMer", set=set_samp_tim,
+          query=lambda a: limits_query(a, self.samp_timer_s, self.fe.reading_time_s, 3600.0, 1.0))
+        c("SAMPle:COUNt", set=set_samp_coun,
+          query=lambda a: limits_query(a, self.samp_count, 1, MAX_SAMPLES, 1, _fmt_count))
         c("INITiate[:IMMediate]", set=init)
         c("ABORt", set=lambda a: self.abort())
         c("FETCh", query=fetch_q)
@@ -370,6 +443,9 @@ class Multimeter(ScpiDevice):
         c("STATus:QUEStionable:CONDition", query=lambda a: f"{self._ques():+d}")
         c("SYSTem:BEEPer[:IMMediate]", set=lambda a: None)
 
+    def _set_aper_enabled(self, args: Args) -> None:
+        self.fe.aperture_override_s = self.aperture_value_s if args.boolean(0) else None
+
     def _ques(self) -> int:
         return (1 << 14) if self.memory.overflowed else 0
 
@@ -377,18 +453,9 @@ class Multimeter(ScpiDevice):
         out = self._readings_reply(values, block=True)
         return out if isinstance(out, bytes) else out.encode()
 
-    def _wait_for_points(self, n: int) -> None:
-        """Let simulated time pass until ``n`` readings are in memory."""
-        if self.state != "ACQUIRING" or self.trig_source != "IMMEDIATE":
-            raise ScpiError(-230, f"waiting for {n} readings that cannot arrive")
-        missing = n - self.memory.count
-        k_target = min(self._next_k + missing - 1, self.samp_count - 1)
-        self.world.advance_to(max(self.world.now, self._sample_end(k_target)))
-        if self.memory.count < n and self.state != "IDLE":
-            self._wait_for_points(n)
-
     def _configure_volts(self, args: Args) -> None:
         fe = self.fe
+        fe.aperture_override_s = None
         if args.count >= 1 and args.raw[0].strip().upper().startswith("AUTO"):
             fe.autorange = True
         elif args.count >= 1:
@@ -408,8 +475,7 @@ class Multimeter(ScpiDevice):
         return f'"VOLT +{self.fe.range_v:.8E},+{self._resolution():.8E}"'
 
     def _resolution(self) -> float:
-        from sim.devices.dmm_model import NOISE_PPM_OF_RANGE
-        return NOISE_PPM_OF_RANGE[self.fe.nplc] * 1e-6 * self.fe.range_v
+        return noise_ppm(self.fe) * 1e-6 * self.fe.range_v
 
     def _set_resolution(self, args: Args) -> None:
         if args.raw[0].strip().upper()[:3] == "DEF":

@@ -84,9 +84,13 @@ class DmmFrontEnd:
     nplc: float = 10.0
     autozero: str = "ON"  # ON | OFF | ONCE
     line_hz: float = 50.0
+    #: integration set in seconds by VOLT:APER (None: integration is NPLC / f_line)
+    aperture_override_s: float | None = None
 
     @property
     def aperture_s(self) -> float:
+        if self.aperture_override_s is not None:
+            return self.aperture_override_s
         return self.nplc / self.line_hz
 
     @property
@@ -94,6 +98,17 @@ class DmmFrontEnd:
         """Time one reading occupies: aperture (×2 with autozero on) plus overhead."""
         factor = 2.0 if self.autozero == "ON" else 1.0
         return factor * self.aperture_s + READING_OVERHEAD_S
+
+
+def noise_ppm(fe: DmmFrontEnd) -> float:
+    """rms noise (ppm of range) for the integration in use; an aperture set in seconds
+    is interpolated log-log between the table's NPLC points."""
+    if fe.aperture_override_s is None:
+        return NOISE_PPM_OF_RANGE[fe.nplc]
+    nplc_equiv = fe.aperture_override_s * fe.line_hz
+    xs = np.log(sorted(NOISE_PPM_OF_RANGE))
+    ys = np.log([NOISE_PPM_OF_RANGE[k] for k in sorted(NOISE_PPM_OF_RANGE)])
+    return float(np.exp(np.interp(np.log(nplc_equiv), xs, ys)))
 
 
 class DmmConverter:
@@ -106,18 +121,24 @@ class DmmConverter:
 
     def convert(self, mean_input_v: np.ndarray, fe: DmmFrontEnd) -> np.ndarray:
         n = mean_input_v.shape[0]
-        rng_v = fe.range_v
         if fe.autorange:
-            peak = float(np.max(np.abs(mean_input_v))) if n else 0.0
-            rng_v = range_for(min(peak, 1000.0))
-        sigma = (NOISE_PPM_OF_RANGE[fe.nplc] * 1e-6 * rng_v
-                 * LOW_RANGE_NOISE_FACTOR.get(rng_v, 1.0))
-        readings = mean_input_v + self.rng.normal(0.0, sigma, n)
+            # per reading (no hysteresis), so the bytes never depend on how the
+            # acquisition was split into batches
+            ranges = np.asarray(RANGES_V)
+            idx = np.minimum(np.searchsorted(ranges, np.abs(mean_input_v) * (1 - 1e-12)),
+                             len(ranges) - 1)
+            rng_v = ranges[idx]
+            factor = np.where(rng_v == 0.1, LOW_RANGE_NOISE_FACTOR[0.1], 1.0)
+        else:
+            rng_v = fe.range_v
+            factor = LOW_RANGE_NOISE_FACTOR.get(rng_v, 1.0)
+        sigma = noise_ppm(fe) * 1e-6 * rng_v * factor
+        readings = mean_input_v + self.rng.normal(0.0, 1.0, n) * sigma
         if fe.autozero == "OFF":
             readings += self.zero_offset_v
         elif fe.autozero == "ONCE":
             if self._once_offset is None:
-                self._once_offset = float(self.rng.normal(0.0, sigma))
+                self._once_offset = float(self.rng.normal(0.0, np.max(sigma)))
             readings += self._once_offset
         over = np.abs(mean_input_v) > 1.2 * rng_v
         readings[over] = np.copysign(OVERLOAD, mean_input_v[over])

@@ -99,29 +99,36 @@ class PowerSupply(ScpiDevice):
         return chans
 
     def _register(self) -> None:
-        def set_volt(args: Args) -> None:
+        def limit_word(args: Args) -> str | None:
+            word = args.raw[0].strip().upper()[:3] if args.count else ""
+            return word if word in ("MIN", "MAX", "DEF") else None
+
+        def setpoints(args: Args, attr: str, lo: float, hi_attr: str) -> None:
+            # validate every channel's value before changing any (no half-applied lists)
             chans = self._channels_from(args, 1)
-            for c in chans:
-                ch = self.channels[c]
-                ch.voltage_v = args.number(0, min=0.0, max=ch.v_max, default=0.0)
+            values = {c: args.number(0, min=lo, max=getattr(self.channels[c], hi_attr),
+                                     default=0.0 if attr == "voltage_v" else
+                                     getattr(self.channels[c], hi_attr))
+                      for c in chans}
+            for c, v in values.items():
+                setattr(self.channels[c], attr, v)
             self._changed()
 
-        def get_volt(args: Args) -> str:
-            if args.count and args.raw[0].upper().startswith(("MIN", "MAX", "DEF")):
-                ch = self.channels[self._selected]
-                return format_number(args.number(0, min=0.0, max=ch.v_max, default=0.0))
-            return ",".join(format_number(self.channels[c].voltage_v)
+        def readback(args: Args, attr: str, hi_attr: str) -> str:
+            word = limit_word(args)
+            if word:
+                chans = self._channels_from(args, 1)
+                return ",".join(format_number(
+                    {"MIN": 0.0, "MAX": getattr(self.channels[c], hi_attr),
+                     "DEF": 0.0 if attr == "voltage_v" else getattr(self.channels[c], hi_attr)
+                     }[word]) for c in chans)
+            return ",".join(format_number(getattr(self.channels[c], attr))
                             for c in self._channels_from(args, 0))
 
-        def set_curr(args: Args) -> None:
-            for c in self._channels_from(args, 1):
-                ch = self.channels[c]
-                ch.current_limit_a = args.number(0, min=0.0, max=ch.i_max, default=ch.i_max)
-            self._changed()
-
-        def get_curr(args: Args) -> str:
-            return ",".join(format_number(self.channels[c].current_limit_a)
-                            for c in self._channels_from(args, 0))
+        set_volt = lambda a: setpoints(a, "voltage_v", 0.0, "v_max")  # noqa: E731
+        get_volt = lambda a: readback(a, "voltage_v", "v_max")  # noqa: E731
+        set_curr = lambda a: setpoints(a, "current_limit_a", 0.0, "i_max")  # noqa: E731
+        get_curr = lambda a: readback(a, "current_limit_a", "i_max")  # noqa: E731
 
         def set_outp(args: Args) -> None:
             state = args.boolean(0)
@@ -156,11 +163,10 @@ class PowerSupply(ScpiDevice):
 
         def apply_q(args: Args) -> str:
             name = args.raw[0].strip().upper() if args.count else f"CH{self._selected}"
-            try:
-                c = int(name[2:])
-                ch = self.channels[c]
-            except (ValueError, KeyError):
-                raise ScpiError(-224, f"channel {name!r} not in CH1|CH2|CH3") from None
+            c = {"P6V": 1, "P25V": 2, "N25V": 3, "CH1": 1, "CH2": 2, "CH3": 3}.get(name)
+            if c is None:
+                raise ScpiError(-224, f"channel {name!r} not in CH1|CH2|CH3")
+            ch = self.channels[c]
             return f'"{format_number(ch.voltage_v)},{format_number(ch.current_limit_a)}"'
 
         def meas_volt(args: Args) -> str:

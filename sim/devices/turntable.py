@@ -25,7 +25,7 @@ class TurntableController(ScpiDevice):
 
     def _axis(self, args: Args):
         args.require_count(1, 99)
-        n = int(args.number(0, min=1, max=len(self.table.axes)))
+        n = args.integer(0, min=1, max=len(self.table.axes))
         return n, self.table.axes[n - 1]
 
     def _need_drive(self) -> None:
@@ -101,10 +101,21 @@ class TurntableController(ScpiDevice):
         c(":READ:POSition", query=read("position_deg"))
         c(":READ:RATE", query=read("rate_dps"))
         c(":READ:ACCeleration", query=read("accel_dps2"))
+        def limit_q(attr: str, hw_attr: str):
+            def handler(args: Args) -> str:
+                _, axis = self._axis(args)
+                if args.count > 1:
+                    word = args.raw[1].strip().upper()[:3]
+                    if word not in ("MIN", "MAX"):
+                        raise ScpiError(-224, f"{args.raw[1]!r} not in MIN|MAX")
+                    return format_number(1e-3 if word == "MIN" else getattr(axis, hw_attr))
+                return format_number(getattr(axis, attr))
+            return handler
+
         c(":LIMit:RATE", set=limit("rate_limit", "rate_max_dps"),
-          query=lambda a: format_number(self._axis(a)[1].rate_limit_dps))
+          query=limit_q("rate_limit_dps", "rate_max_dps"))
         c(":LIMit:ACCeleration", set=limit("accel_limit", "accel_max_dps2"),
-          query=lambda a: format_number(self._axis(a)[1].accel_limit_dps2))
+          query=limit_q("accel_limit_dps2", "accel_max_dps2"))
         c(":STATus", query=lambda a: str(self.status_bits(self._axis(a)[1])))
         c(":STOP", set=lambda a: self._axis(a)[1].stop(now()))
 

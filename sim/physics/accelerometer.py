@@ -169,6 +169,11 @@ class QuartzAccelerometer:
         self._thermal.set_power(t, on)
 
     @property
+    def last_supply_change_s(self) -> float:
+        """Time of the last power state change; evaluations must not precede it."""
+        return self._t_change
+
+    @property
     def power_on_time_s(self) -> float:
         """Time of the last power-on (NaN if never powered)."""
         return self._t_on

@@ -2,12 +2,14 @@
 
 Over a raw socket (VISA ``::SOCKET`` resources) the program message terminator is a
 line feed (LF, 0x0A); a CR immediately before it is dropped too, so CR LF clients work.
-An LF is *not* a terminator when it is:
-
-* inside a string program datum (``'..'`` or ``".."``; a doubled quote inside a
-  string lexes as close-then-reopen, so no look-ahead is needed);
-* inside the payload of a definite-length block ``#<n><len><payload>``
-  (``n`` = 1..9 digits of ``len``); its bytes are counted, never inspected.
+An LF is *not* a terminator only inside the payload of a definite-length block
+``#<n><len><payload>`` (``n`` = 1..9 digits of ``len``): its bytes are counted, never
+inspected.  An LF inside a quoted string *does* end the message: over a socket the LF is
+the only END a client can send, and a client that left a quote open (``DISP:TEXT "abc``)
+must get its error (-151 from the lexer) and its next command served, not a connection
+that swallows everything until the size limit.  A block whose declared length exceeds
+the message limit is reported as oversize at once and the stream resynchronises at the
+next LF, so ``#9999999999`` cannot swallow a gigabyte.
 
 An indefinite block ``#0<payload>`` runs to the next LF, which ends both the block
 and the message (IEEE 488.2 §7.7.6.2: NL^END); a CR just before that LF belongs to the
@@ -151,6 +153,22 @@ class MessageFramer:
                 i = j + 1
             elif state == _STRING:
                 j = data.find(self._quote, i)
+                lf = data.find(b"\n", i)
+                if lf >= 0 and (j < 0 or lf < j):
+                    # an LF inside an open string ends the message (the lexer reports
+                    # the unterminated string); rescan from the LF as ordinary text
+                    self._state = _NORMAL
+                    j = -1
+                    end = lf
+                    room = self.max_message_bytes - self._size
+                    if end - i > room:
+                        self._take(data, i, i + room, out)
+                        self._overflow(out)
+                        i += room
+                        continue
+                    self._take(data, i, end, out)
+                    i = end
+                    continue
                 end = n if j < 0 else j + 1
                 room = self.max_message_bytes - self._size
                 if end - i > room:
@@ -189,6 +207,11 @@ class MessageFramer:
                     if self._digits_left == 0:
                         self._remaining = self._block_len
                         self._state = _BLOCK_DATA if self._block_len else _NORMAL
+                        if self._size + self._block_len > self.max_message_bytes:
+                            # a declared length past the limit: report now, resync at LF
+                            if not self._discarding:
+                                self._overflow(out)
+                            self._state = _NORMAL
                 else:  # malformed length: rescan this byte normally
                     self._state = _NORMAL
             elif state == _BLOCK_DATA:

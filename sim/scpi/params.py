@@ -102,6 +102,15 @@ def _choice_map(choices) -> dict[str, str]:
     return table
 
 
+class _RawParams(list):
+    def __getitem__(self, index):
+        try:
+            return super().__getitem__(index)
+        except IndexError:
+            raise ScpiError(-109, f"parameter {index + 1 if isinstance(index, int) else index}"
+                            " is required") from None
+
+
 class Args:
     """Parameters of one program message unit, with typed accessors.
 
@@ -125,9 +134,12 @@ class Args:
         return len(self._params)
 
     @property
-    def raw(self) -> list[str]:
-        """Parameters as sent (white space trimmed; blocks decoded as Latin-1)."""
-        return [p.text.decode("latin-1") if p.kind == BLOCK else p.text for p in self._params]
+    def raw(self) -> "_RawParams":
+        """Parameters as sent (white space trimmed; blocks decoded as Latin-1).  Indexing
+        past the last one raises ScpiError -109 "Missing parameter", so a handler that
+        reads ``args.raw[0]`` answers a bare header with the standard error."""
+        return _RawParams(p.text.decode("latin-1") if p.kind == BLOCK else p.text
+                          for p in self._params)
 
     def __repr__(self) -> str:
         return f"Args({self.header!r}, {self._params!r}, suffixes={self.suffixes})"
