@@ -111,7 +111,15 @@ class RunOutcome:
 
 def execute(procedure: Procedure, station, store: RunStore, *, unit_serial: str | None,
             seed: int | None, progress: Progress = _no_progress) -> RunOutcome:
-    """Run ``procedure`` on an open station; always tears down; always leaves a record."""
+    """Run ``procedure`` on an open station; always tears down; always leaves a record.
+
+    A station that lacks an instrument the procedure needs is refused before a run is
+    created (ValueError naming what is missing).
+    """
+    missing = [n for n in getattr(procedure, "requires", ()) if n not in station.instruments]
+    if missing:
+        raise ValueError(f"station {station.config.name!r} lacks {missing} needed by "
+                         f"{procedure.name!r}; it has {sorted(station.instruments)}")
     run = store.create_run(procedure=procedure.name, parameters=procedure.parameters(),
                            station=station.snapshot(), unit_serial=unit_serial, seed=seed,
                            code_version=code_version())

@@ -86,12 +86,36 @@ def _require(table: dict, key: str, kind: type, where: str):
     return value
 
 
+#: wiring key -> (allowed range, must be a whole number)
+WIRING_RANGES = {
+    "sampling_resistor_ohm": ((10.0, 1e6), False),
+    "temp_resistor_ohm": ((10.0, 1e6), False),
+    "positive_rail_channel": ((1, 3), True),
+    "negative_rail_channel": ((1, 3), True),
+    "rail_voltage_v": ((0.0, 25.0), False),
+    "rail_current_limit_a": ((0.0, 1.0), False),
+}
+
+
+def _table(data: dict, key: str, source: str) -> dict:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise StationError(f"{source}: '{key}' = {value!r} must be a table ([{key}])")
+    return value
+
+
 def parse_station(data: dict, source: str = "<station>") -> StationConfig:
     """Validate a station table (as read from TOML) into a :class:`StationConfig`."""
-    top = data.get("station", {})
+    top = _table(data, "station", source)
+    unknown = set(data) - {"station", "instruments", "wiring", "simulation"}
+    if unknown:
+        raise StationError(f"{source}: unknown table(s) {sorted(unknown)}; allowed: "
+                           "station, instruments, wiring, simulation")
     instruments: dict[str, InstrumentConfig] = {}
-    for name, table in data.get("instruments", {}).items():
+    for name, table in _table(data, "instruments", source).items():
         where = f"{source}: [instruments.{name}]"
+        if not isinstance(table, dict):
+            raise StationError(f"{where} must be a table with driver and address")
         driver = _require(table, "driver", str, where)
         if driver not in DRIVERS:
             raise StationError(f"{where}: driver {driver!r} not in {sorted(DRIVERS)}")
@@ -106,20 +130,43 @@ def parse_station(data: dict, source: str = "<station>") -> StationConfig:
             {k: v for k, v in table.items()
              if k not in ("driver", "address", "visa_backend", "timeout_ms")})
     wiring = dict(DEFAULT_WIRING)
-    for key, value in data.get("wiring", {}).items():
+    for key, value in _table(data, "wiring", source).items():
         if key not in DEFAULT_WIRING:
             raise StationError(f"{source}: [wiring] {key!r} not in {sorted(DEFAULT_WIRING)}")
-        if not isinstance(value, (int, float)) or value <= 0:
-            raise StationError(f"{source}: [wiring] {key} = {value!r} must be a positive number")
-        wiring[key] = value
+        (lo, hi), whole = WIRING_RANGES[key]
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or (whole and value != int(value)) or not lo <= value <= hi):
+            kind = "a whole number" if whole else "a number"
+            raise StationError(f"{source}: [wiring] {key} = {value!r} must be {kind} in {lo:g}..{hi:g}")
+        wiring[key] = int(value) if whole else float(value)
+    if wiring["positive_rail_channel"] == wiring["negative_rail_channel"]:
+        raise StationError(f"{source}: [wiring] positive and negative rails are both channel "
+                           f"{wiring['positive_rail_channel']}")
     simulation = data.get("simulation")
-    if simulation is not None and not isinstance(simulation, dict):
-        raise StationError(f"{source}: [simulation] must be a table")
+    if simulation is not None:
+        if not isinstance(simulation, dict):
+            raise StationError(f"{source}: [simulation] must be a table")
+        check_simulation(simulation, source)
     clock = top.get("clock", "wall")
     if not isinstance(clock, str):
         raise StationError(f"{source}: [station] clock {clock!r} must be 'wall' or a VISA address")
     return StationConfig(top.get("name", Path(source).stem), instruments, clock,
                          top.get("clock_backend", "@py"), wiring, simulation)
+
+
+def check_simulation(options: dict, source: str = "<station>") -> None:
+    """Validate a [simulation] table now, before any run is created."""
+    from sim.station import SimStationConfig  # noqa: PLC0415
+
+    from sim.physics.accelerometer import AccelerometerParams  # noqa: PLC0415
+
+    try:
+        SimStationConfig(**options).validate()
+        AccelerometerParams(**options.get("accelerometer", {}))
+    except TypeError as exc:
+        raise StationError(f"{source}: [simulation]: {exc}") from None
+    except ValueError as exc:
+        raise StationError(f"{source}: [simulation] {exc}") from None
 
 
 def load_station(path: str | Path) -> StationConfig:
@@ -183,13 +230,17 @@ class Station:
                 resource = open_resource(inst.address, backend=inst.visa_backend,
                                          timeout_ms=inst.timeout_ms,
                                          resource_manager=manager(inst.visa_backend))
+                self._stack.callback(resource.close)
+                self.instruments[name] = _driver_class(inst.driver)(resource, name=name)
             except Exception as exc:
-                raise StationError(f"cannot open instrument {name!r} at {inst.address!r}: {exc}") from exc
-            self._stack.callback(resource.close)
-            self.instruments[name] = _driver_class(inst.driver)(resource, name=name)
+                raise StationError(f"cannot open instrument {name!r} ({inst.driver}) at "
+                                   f"{inst.address!r}: {exc}") from exc
         if cfg.clock != "wall":
-            res = open_resource(cfg.clock, backend=cfg.clock_backend, timeout_ms=600000,
-                                resource_manager=manager(cfg.clock_backend))
+            try:
+                res = open_resource(cfg.clock, backend=cfg.clock_backend, timeout_ms=600000,
+                                    resource_manager=manager(cfg.clock_backend))
+            except Exception as exc:
+                raise StationError(f"cannot open the sim-control clock at {cfg.clock!r}: {exc}") from exc
             self._stack.callback(res.close)
             self.clock = SimulatedClock(res)
         self.config = cfg

@@ -45,9 +45,12 @@ def speedup(duration_s: float) -> None:
         wall = time.perf_counter() - t_wall
         n = store.streams(outcome.run_id)["output"].n_rows
         store.close()
-    print(f"start-up acquisition ({duration_s:.0f} s trace, {n} readings, status {outcome.status})")
-    print(f"  simulated time {t_sim:10.1f} s   wall time {wall:8.3f} s   "
-          f"speed-up {t_sim / wall:10.0f}x   (goal >= 1000x)")
+    print(f"start-up acquisition ({duration_s:.0f} s trace, {n} readings, status {outcome.status};"
+          " wall time includes starting the station)")
+    print(f"  whole procedure: simulated {t_sim:8.1f} s / wall {wall:6.3f} s = "
+          f"{t_sim / wall:7.0f}x   (goal >= 1000x)")
+    print(f"  the trace alone: simulated {duration_s:8.1f} s / wall {wall:6.3f} s = "
+          f"{duration_s / wall:7.0f}x   (the cool-down wait costs ~nothing)")
 
 
 def dmm_throughput(points: int, repeats: int = 5) -> None:
@@ -58,10 +61,8 @@ def dmm_throughput(points: int, repeats: int = 5) -> None:
         dmm = rm.open_resource(station.resources()["dmm"], read_termination="\n",
                                write_termination="\n", timeout=60000)
         dmm.chunk_size = 4 << 20
-        dmm.write(f"CONF:VOLT:DC 10;:VOLT:NPLC 0.001;:SAMP:SOUR TIM;:SAMP:TIM 2E-5;"
-                  f":SAMP:COUN {points};:FORM REAL,64;:FORM:BORD SWAP")
-        dmm.write("INIT")
-        assert dmm.query("*OPC?").strip() == "1"
+        dmm.write(f"CONF:VOLT:DC 10;:VOLT:NPLC 0.001;:VOLT:ZERO:AUTO OFF;:SAMP:SOUR TIM;"
+                  f":SAMP:TIM 2E-5;:SAMP:COUN {points};:FORM REAL,64;:FORM:BORD SWAP")
         driver = SCPIInstrument(dmm, name="dmm")
 
         def best_rate(fetch) -> float:
@@ -73,7 +74,12 @@ def dmm_throughput(points: int, repeats: int = 5) -> None:
             assert data.size == points, data.size
             return points / best
 
-        ours = best_rate(lambda: driver.query_real64("FETC?"))
+        def acquire_and_fetch() -> np.ndarray:
+            dmm.write("INIT")  # FETC? lets simulated time pass: every reading is simulated here
+            return driver.query_real64("FETC?")
+
+        end_to_end = best_rate(acquire_and_fetch)
+        transfer = best_rate(lambda: driver.query_real64("FETC?"))
         naive = best_rate(lambda: dmm.query_binary_values("FETC?", datatype="d",
                                                           is_big_endian=False,
                                                           container=np.array))
@@ -81,11 +87,14 @@ def dmm_throughput(points: int, repeats: int = 5) -> None:
         dmm.close()
         rm.close()
     real = REAL_34465A_READINGS_PER_S
-    print(f"simulated DMM {points}-point REAL,64 FETC? through pyvisa-py ({err})")
-    print(f"  bench driver (block read by count) {ours / 1e6:8.2f} M readings/s   "
-          f"ratio to the real 34465A's {real / 1e3:.0f} k/s: {ours / real:8.1f}x   (goal >= 5 M/s)")
-    print(f"  plain query_binary_values          {naive / 1e6:8.2f} M readings/s   "
-          f"driver / plain: {ours / naive:6.1f}x")
+    print(f"simulated DMM, {points}-point REAL,64 trace through pyvisa-py ({err}); "
+          f"the real 34465A digitizes at most {real / 1e3:.0f} k readings/s")
+    print(f"  INIT + FETC? (physics simulated) {end_to_end / 1e6:7.2f} M readings/s  "
+          f"{end_to_end / real:7.1f}x the real meter   (goal >= 5 M/s)")
+    print(f"  FETC? of the stored trace         {transfer / 1e6:7.2f} M readings/s  "
+          f"{transfer / real:7.1f}x the real meter")
+    print(f"  plain pyvisa query_binary_values  {naive / 1e6:7.2f} M readings/s  "
+          f"(the bench driver's block read is {transfer / naive:.1f}x faster)")
 
 
 def query_rate(n: int = 2000) -> None:

@@ -40,7 +40,7 @@ class StartupParameters:
     def validate(self) -> None:
         checks = {
             "duration_s": (self.duration_s, 1.0, 86400.0),
-            "rate_hz": (self.rate_hz, 0.01, 5000.0),
+            "rate_hz": (self.rate_hz, 0.01, 1000.0),  # 2 × 0.02 NPLC must fit the interval
             "temperature_rate_hz": (self.temperature_rate_hz, 0.01, 10.0),
             "off_wait_s": (self.off_wait_s, 0.0, 86400.0),
             "pre_trigger_s": (self.pre_trigger_s, 0.0, 60.0),
@@ -68,6 +68,7 @@ def choose_nplc(interval_s: float, line_hz: float, autozero: bool = True) -> flo
 
 class StartupAcquisition:
     name = "startup"
+    requires = ("dmm", "dmm_temp", "supply", "turntable")
 
     def __init__(self, params: StartupParameters | None = None) -> None:
         self.p = params or StartupParameters()
@@ -105,8 +106,11 @@ class StartupAcquisition:
                     Limit(1.0 - p.one_g_tolerance, 1.0 + p.one_g_tolerance),
                     "reading with the input axis up, nominal scale factor")
         if abs(one_g - 1.0) > p.one_g_tolerance:
-            raise RuntimeError(f"level check read {one_g:.4f} g, expected 1 ± {p.one_g_tolerance} g"
-                               " — check mounting, wiring and the sampling resistor")
+            # a failed measurement, not a fault: the run ends 'failed' (exit 1) with the reading
+            ctx.run.event(ctx.clock.now(), "level_check_failed",
+                          f"read {one_g:.4f} g, expected 1 ± {p.one_g_tolerance} g — check "
+                          "mounting, wiring and the sampling resistor; no trace taken")
+            return
         # 2. cold start
         supply.outputs_off()
         ctx.run.event(ctx.clock.now(), "supply_off", "cool-down before the cold start")
@@ -175,9 +179,14 @@ class StartupAcquisition:
     # -- teardown: always, and safe even if one instrument is gone ------------------------
     def teardown(self, ctx: Context) -> None:
         inst = ctx.instruments
+        def stop_table() -> None:
+            failures = inst["turntable"].stop_all()  # tries every axis, reports the failures
+            if failures:
+                raise RuntimeError("; ".join(f"axis {f.axis}: {f.error}" for f in failures))
+
         each_safely([
             ("supply off", inst["supply"].outputs_off),
             ("dmm abort", inst["dmm"].abort),
             ("dmm_temp abort", inst["dmm_temp"].abort),
-            ("turntable stop", inst["turntable"].stop_all),
+            ("turntable stop", stop_table),
         ])

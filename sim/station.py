@@ -51,6 +51,17 @@ class SimStationConfig:
     host: str = "127.0.0.1"
 
     def validate(self) -> None:
+        for name in ("latitude_deg", "height_m", "sampling_resistor_ohm", "temp_resistor_ohm",
+                     "line_hz", "line_pickup_v"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{name} = {value!r} must be a number")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
+            raise ValueError(f"seed = {self.seed!r} not in 0..2**63-1")
+        if not isinstance(self.unit_serial, str) or not 0 < len(self.unit_serial) <= 64:
+            raise ValueError(f"unit_serial = {self.unit_serial!r} must be text of 1..64 characters")
+        if not isinstance(self.accelerometer, dict):
+            raise ValueError(f"accelerometer = {self.accelerometer!r} must be a table of parameters")
         if not -90 <= self.latitude_deg <= 90:
             raise ValueError(f"latitude_deg {self.latitude_deg} not in -90..90")
         if not 10 <= self.sampling_resistor_ohm <= 1e6:
@@ -118,6 +129,8 @@ class SimulatedStation:
 
     def specific_force_iapo_g(self, t: np.ndarray) -> np.ndarray:
         f_platform = self.table.specific_force_platform_g(t, self.g_mps2)
+        if f_platform.shape[0] > 1 and f_platform.strides[0] == 0:  # table at rest
+            return np.broadcast_to(f_platform[0] @ self._mount.T, f_platform.shape)
         return f_platform @ self._mount.T
 
     def _eval_times(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:

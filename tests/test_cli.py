@@ -37,7 +37,7 @@ def test_run_startup_json_then_runs_list_show_export(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv,fragment", [
-    (["run", "startup", "--rate-hz", "99999"], "rate_hz = 99999.0 not in 0.01..5000"),
+    (["run", "startup", "--rate-hz", "99999"], "rate_hz = 99999.0 not in 0.01..1000"),
     (["run", "startup", "--station", "nope.toml"], "station file 'nope.toml' not found"),
     (["runs", "show", "no-such-run"], "no-such-run"),
     (["run", "startup", "--seed", "-3"], "--seed -3"),
@@ -77,3 +77,49 @@ def test_sim_serve_prints_resources_that_plain_pyvisa_can_use():
         proc.terminate()
         proc.wait(10)
     assert proc.returncode == 0
+
+
+@pytest.mark.parametrize("text,fragment", [
+    ("instruments = 3\n", "'instruments' = 3 must be a table"),
+    ('station = "x"\n', "'station' = 'x' must be a table"),
+    ("[wiring]\npositive_rail_channel = 2.5\n", "positive_rail_channel = 2.5 must be a whole number in 1..3"),
+    ("[wiring]\nnegative_rail_channel = 2\n", "both channel 2"),
+    ('[simulation]\nlatitude_deg = "north"\n', "latitude_deg = 'north' must be a number"),
+    ("[simulation]\nseed = -4\n", "seed = -4 not in 0..2**63-1"),
+    ("[simulation]\nwarp_factor = 9\n", "warp_factor"),
+    ("[simulation.accelerometer]\nk1_ma_per_g = 99.0\n", "k1_ma_per_g"),
+    ("[instruments.dmm]\ndriver = \"keysight_34465a\"\naddress = \"TCPIP::127.0.0.1::1::SOCKET\"\n",
+     "cannot open instrument 'dmm' (keysight_34465a) at 'TCPIP::127.0.0.1::1::SOCKET'"),
+    ("[calibration]\nx = 1\n", "unknown table(s) ['calibration']"),
+])
+def test_bad_station_files_fail_before_any_run_with_the_key_named(tmp_path, capsys, text, fragment):
+    station = tmp_path / "lab.toml"
+    station.write_text(text)
+    store = str(tmp_path / "b.sqlite")
+    assert main(["--store", store, "run", "startup", "--station", str(station)]) == 2
+    err = capsys.readouterr().err
+    assert fragment in err and err.count("\n") == 1, err
+    main(["--store", store, "runs", "list", "--json"])
+    assert json.loads(capsys.readouterr().out) == []  # no run was created
+
+
+def test_station_without_the_needed_instruments_is_refused_before_a_run(tmp_path, capsys):
+    station = tmp_path / "lab.toml"
+    station.write_text("[station]\nname = 'empty'\n")
+    store = str(tmp_path / "b.sqlite")
+    assert main(["--store", store, "run", "startup", "--station", str(station)]) == 2
+    assert "lacks ['dmm', 'dmm_temp', 'supply', 'turntable']" in capsys.readouterr().err
+
+
+def test_level_check_out_of_tolerance_is_a_failed_run_exit_1(tmp_path, capsys):
+    # the simulated fixture has a 2.5 kΩ resistor while the station wiring says 5 kΩ
+    station = tmp_path / "lab.toml"
+    station.write_text("[simulation]\nsampling_resistor_ohm = 2500.0\nseed = 9\n")
+    store = str(tmp_path / "b.sqlite")
+    code = main(["--store", store, "run", "startup", "--station", str(station), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 1 and doc["status"] == "failed" and "level_check_g" in doc["reason"]
+    assert doc["measurements"][0]["value"] == pytest.approx(0.5, abs=0.01)
+    main(["--store", store, "runs", "show", doc["run_id"], "--json"])
+    shown = json.loads(capsys.readouterr().out)
+    assert shown["seed"] == 9  # the station file's seed is used when --seed is absent

@@ -166,3 +166,22 @@ def test_random_walk_variance_and_chunking():
     rw = RandomWalk(0.5, np.random.default_rng(1))
     assert np.array_equal(whole, np.concatenate([rw.sample(t[:37]), rw.sample(t[37:])]))
     assert whole[0] == 0.0
+
+
+def test_gauss_markov_gap_then_uniform_run_matches_the_exact_recursion():
+    """A new acquisition (a gap, then a uniform grid) takes the lfilter path; it must equal
+    the per-step exact recursion with the same draws."""
+    from sim.physics.noise import GaussMarkov
+
+    t = np.concatenate(([0.0, 0.01, 0.02], 7.3 + 0.004 * np.arange(5000)))
+    fast = GaussMarkov(2.0, 3.0, np.random.default_rng(1))
+    got = np.concatenate([fast.sample(t[:3]), fast.sample(t[3:])])
+    w = np.random.default_rng(1).standard_normal(t.size + 5)  # the same stream of draws
+    # the first call drew 3, the second 5000: replay them in order
+    w = np.concatenate((w[:3], w[3:3 + 5000]))
+    ref = np.empty(t.size)
+    ref[0] = 2.0 * w[0]
+    for k in range(1, t.size):
+        phi = np.exp(-(t[k] - t[k - 1]) / 3.0)
+        ref[k] = phi * ref[k - 1] + 2.0 * np.sqrt(1 - phi**2) * w[k]
+    assert np.allclose(got, ref, rtol=0, atol=1e-9)

@@ -305,3 +305,21 @@ def test_any_command_sequence_keeps_motion_continuous_and_limited(steps, limited
         assert np.abs(acc).max() <= bound * (1 + 1e-12)
         if limited and ax.mode != "OFF" and -200.0 <= before[0] <= 250.0:
             assert pos.min() >= -200.0 - 1e-6 and pos.max() <= 250.0 + 1e-6
+
+
+def test_static_fast_path_equals_the_full_evaluation():
+    """After a move has rung out, the specific force is evaluated once and repeated; it must
+    equal the element-wise evaluation exactly."""
+    from sim.physics.motion import DualAxisTable
+
+    table = DualAxisTable()
+    table.outer.command_position(0.0, 37.0)
+    table.inner.command_position(0.0, -20.0)
+    t_rest = max(table.inner.at_rest_from_s(), table.outer.at_rest_from_s())
+    assert np.isfinite(t_rest)
+    t = t_rest + np.linspace(0.0, 100.0, 1001)
+    fast = table.specific_force_platform_g(t, 9.8)
+    slow = np.vstack([table.specific_force_platform_g(np.array([x]), 9.8) for x in t[::100]])
+    assert np.allclose(fast[::100], slow, rtol=0, atol=1e-15)
+    table.inner.command_rate(t[-1], 10.0)
+    assert table.inner.at_rest_from_s() == np.inf

@@ -43,8 +43,10 @@ def run_startup(args) -> int:
     procedure = StartupAcquisition(params)  # validates before any instrument is touched
     config = resolve_station(args.station)
     store = open_store(args)
-    unit = args.unit or ("QA-SIM-0001" if config.simulated else None)
-    seed = args.seed if args.seed is not None else (0 if config.simulated else None)
+    sim = config.simulation or {}
+    unit = args.unit or sim.get("unit_serial") or ("QA-SIM-0001" if config.simulated else None)
+    seed = args.seed if args.seed is not None else (
+        sim.get("seed", 0) if config.simulation is not None else None)
     with Station(config, seed=seed, unit_serial=unit) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
         outcome = execute(procedure, station, store, unit_serial=unit, seed=seed,

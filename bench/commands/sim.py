@@ -15,7 +15,8 @@ def register(sub) -> None:
     serve = cmds.add_parser("serve", help="serve the simulated instruments on TCP and print "
                             "one JSON line per instrument")
     serve.add_argument("--station", default=None, help="station TOML with a [simulation] table")
-    serve.add_argument("--seed", type=int, default=0)
+    serve.add_argument("--seed", type=int, default=None,
+                       help="seed of the world [the station file's, else 0]")
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to listen on [127.0.0.1]; anything else warns")
     serve.set_defaults(func=serve_sim)
@@ -28,8 +29,12 @@ def serve_sim(args) -> int:
     options = {}
     if args.station:
         options = dict(load_station(args.station).simulation or {})
-    options.update(seed=args.seed, host=args.host)
-    station = SimulatedStation(SimStationConfig(**options))
+    if args.seed is not None:
+        options["seed"] = args.seed
+    options["host"] = args.host
+    config = SimStationConfig(**options)
+    config.validate()
+    station = SimulatedStation(config)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"bench: warning: listening on {args.host}: reachable from the network",
               file=sys.stderr)

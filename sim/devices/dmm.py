@@ -175,8 +175,14 @@ class Multimeter(ScpiDevice):
         return self._seg_triggers * self.samp_count
 
     def _t_start(self, g: np.ndarray) -> np.ndarray:
-        """Aperture start of readings with indices ``g`` in the current segment."""
-        j, k = np.divmod(g, self.samp_count)
+        """Aperture start of readings with indices ``g`` (contiguous, increasing) in the
+        current segment."""
+        s = self.samp_count
+        j0, k0 = divmod(int(g[0]), s)
+        if k0 + g.size <= s:  # the usual case: all within one trigger, no divmod needed
+            return (self._seg_t0 + j0 * self._period_s + self.delay_s
+                    + (k0 + np.arange(g.size)) * self.interval_s)
+        j, k = np.divmod(g, s)
         return self._seg_t0 + j * self._period_s + self.delay_s + k * self.interval_s
 
     def _due(self, t: float) -> int:

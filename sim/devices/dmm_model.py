@@ -71,8 +71,10 @@ class LinePickup:
         if aperture_s <= 0:
             return self.amplitude_v * np.sin(w * t_start + self.phase_rad)
         # ∫ sin(w t + φ) dt / T = [cos(w t0 + φ) − cos(w (t0+T) + φ)] / (w T)
-        a = w * t_start + self.phase_rad
-        return self.amplitude_v * (np.cos(a) - np.cos(a + w * aperture_s)) / (w * aperture_s)
+        #                       = sinc-like gain × sin at mid-aperture (one sin per reading)
+        half = w * aperture_s / 2
+        gain = self.amplitude_v * np.sin(half) / half
+        return gain * np.sin(w * (t_start + aperture_s / 2) + self.phase_rad)
 
 
 @dataclass

@@ -107,6 +107,8 @@ def indicated_acceleration_g(p: AccelerometerParams, f_iapo_g: np.ndarray) -> np
     f = np.asarray(f_iapo_g, dtype=float)
     if f.ndim != 2 or f.shape[1] != 3:
         raise ValueError(f"f_iapo_g must have shape (n, 3), got {f.shape}")
+    if f.shape[0] > 1 and f.strides[0] == 0:  # a static input broadcast over time: once
+        return np.full(f.shape[0], indicated_acceleration_g(p, f[:1])[0])
     ai, ap, ao = f[:, 0], f[:, 1], f[:, 2]
     return (p.k0_g + ai + p.k2_g_per_g2 * ai**2 + p.k3_g_per_g3 * ai**3
             + p.delta_o_rad * ap - p.delta_p_rad * ao

@@ -277,6 +277,18 @@ class Axis:
         """Braking at a position limit has started (RATE mode)."""
         return _scalar_or_array(self._times(t) >= self._plan.t_limit)
 
+    def at_rest_from_s(self) -> float:
+        """Time from which the position no longer changes: the demand has ended at zero
+        rate and every settling oscillation is below 1e-15° (inf while a rate is held)."""
+        plan = self._plan
+        if plan.vb[-1] != 0.0:
+            return math.inf
+        t_rest = plan.t_end
+        for tk, _, horizon in plan.kicks:
+            if horizon >= 0.0:
+                t_rest = max(t_rest, tk + horizon)
+        return t_rest
+
     @property
     def settle_time_s(self) -> float:
         """Time from the end of the current demand profile until in position / at rate."""
@@ -488,8 +500,14 @@ class DualAxisTable:
         if not (math.isfinite(g_mps2) and 9.7 <= g_mps2 <= 9.9):
             raise ValueError(f"g_mps2={g_mps2!r} outside the allowed range [9.7, 9.9]")
         t = np.atleast_1d(np.asarray(t, dtype=float))
+        scale = g_mps2 / STANDARD_GRAVITY_MPS2
+        if t.size > 1 and t.min() >= max(self.inner.at_rest_from_s(), self.outer.at_rest_from_s()):
+            # both axes at rest: one evaluation, repeated (long static traces cost O(1))
+            ci, si, co, so = self._trig(t[:1])
+            row = np.array([so[0] * si[0], so[0] * ci[0], co[0]]) * scale
+            return np.broadcast_to(row, (t.size, 3))  # read-only view, rows share memory
         ci, si, co, so = self._trig(t)
-        return np.stack([so * si, so * ci, co], axis=1) * (g_mps2 / STANDARD_GRAVITY_MPS2)
+        return np.stack([so * si, so * ci, co], axis=1) * scale
 
     def angular_rate_platform_dps(self, t, latitude_deg: float) -> np.ndarray:
         """Inertial angular rate of the platform in platform axes, deg/s, shape (n, 3).

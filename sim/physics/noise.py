@@ -105,6 +105,15 @@ class GaussMarkov:
                 # x_k = gain w_k + phi x_{k-1}; zi carries phi * x_{k-1} across calls.
                 out[start:], _ = lfilter([gain], [1.0, -phi], w[start:], zi=[phi * prev_x])
                 self._run_dt = ref
+            elif dt.size > 2 and np.all(np.abs(dt[1:] - dt[1]) <= _UNIFORM_RTOL * dt[1]):
+                # a gap, then a uniform run (a new acquisition): one exact step across the
+                # gap, the run through lfilter — avoids the O(n log n) scan on the usual case
+                phi0, gain0 = (float(c) for c in self._coefficients(dt[0]))
+                out[start] = phi0 * prev_x + gain0 * w[start]
+                phi, gain = (float(c) for c in self._coefficients(dt[1]))
+                out[start + 1:], _ = lfilter([gain], [1.0, -phi], w[start + 1:],
+                                             zi=[phi * out[start]])
+                self._run_dt = float(dt[1])
             else:
                 phi, gain = self._coefficients(dt)
                 u = gain * w[start:]
