@@ -15,8 +15,8 @@ $(STAMP): pyproject.toml
 
 ## demo: the start-up acquisition (30 min at 100 Hz, simulated) and its start-up model
 demo: $(STAMP)
-	$(BIN)/bench --store $(STORE) run startup --station sim --unit QA-SIM-0001 --seed 1
-	$(BIN)/bench --store $(STORE) analyze run latest --report bench-data/reports
+	$(BIN)/bench --store $(STORE) run startup --station sim --unit QA-SIM-0001 --seed 1 \
+		--analyze --report bench-data/reports
 
 ## test: the whole suite (hypothesis derandomised in CI)
 test: $(STAMP)

@@ -123,3 +123,22 @@ def test_level_check_out_of_tolerance_is_a_failed_run_exit_1(tmp_path, capsys):
     main(["--store", store, "runs", "show", doc["run_id"], "--json"])
     shown = json.loads(capsys.readouterr().out)
     assert shown["seed"] == 9  # the station file's seed is used when --seed is absent
+
+
+def test_run_startup_analyze_attaches_the_start_up_model(tmp_path, capsys):
+    store = str(tmp_path / "b.sqlite")
+    code = main(["--store", store, "run", "startup", "--duration-s", "120", "--off-wait-s", "5",
+                 "--seed", "6", "--analyze", "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0 and doc["status"] == "passed"
+    model = doc["analysis"]["model"]
+    assert model["kind"] in ("AR", "MA", "ARMA") and model["p"] + model["q"] >= 1
+    assert set(doc["analysis"]["trend"]) >= {"offset", "exp_amplitude", "exp_tau_s",
+                                             "linear_slope_per_s"}
+    from bench.store import RunStore
+
+    with RunStore(store) as s:
+        names = {a.name for a in s.attachments(doc["run_id"])}
+        html = s.attachment(doc["run_id"], "analysis/startup/startup_report.html")
+    assert {"analysis/startup/startup_report.html", "analysis/startup/startup_model.json"} <= names
+    assert b"<html" in html.lower()

@@ -101,8 +101,7 @@ def _fail(message: str) -> int:
     return 2
 
 
-def _analyse_and_print(t: np.ndarray, y: np.ndarray, args, report_dir: Path | None, label: str,
-                       on_report=None) -> int:
+def _analyse_and_print(t: np.ndarray, y: np.ndarray, args, report_dir: Path | None, label: str) -> int:
     from bench.analysis.startup import analyze_startup
 
     analysis = analyze_startup(t, y, **_options(args))
@@ -111,8 +110,6 @@ def _analyse_and_print(t: np.ndarray, y: np.ndarray, args, report_dir: Path | No
         from bench.reports.startup_report import write_startup_report
 
         report = write_startup_report(analysis, report_dir)
-        if on_report is not None:
-            on_report(analysis, report)
     if args.json:
         doc = analysis.to_dict()
         doc["source"] = label
@@ -147,39 +144,63 @@ def analyze_startup_csv(args) -> int:
         return _fail(str(exc))
 
 
+def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: str = RUN_STREAM,
+                time_col: str = RUN_TIME_COL, value_col: str = RUN_VALUE_COL, **options):
+    """Analyse a stored start-up run (samples from power-on), write the report and attach it
+    to the run under ``analysis/startup/``.  Returns ``(analysis, report_html_path)``; the
+    report lives in ``report_root/<run_id>/`` (a temporary folder when ``report_root`` is None,
+    in which case only the attached copy remains)."""
+    import tempfile
+
+    from bench.analysis.startup import analyze_startup
+    from bench.commands.common import resolve_run_id
+    from bench.reports.startup_report import write_startup_report
+    from bench.store import RunStore
+
+    with RunStore(store_path) as store:
+        run_id = resolve_run_id(store, run_id)
+        data = store.load(run_id, stream)
+    for col in (time_col, value_col):
+        if col not in data:
+            raise ValueError(f"stream {stream!r} of run {run_id} has no column {col!r}; "
+                             f"columns are {', '.join(data)}")
+    t, y = np.asarray(data[time_col], float), np.asarray(data[value_col], float)
+    keep = t >= 0.0  # Document A models the trace from power-on; the record starts before it
+    analysis = analyze_startup(t[keep], y[keep], **options)
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(report_root) / run_id if report_root is not None else Path(tmp)
+        report = write_startup_report(analysis, folder)
+        mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
+        with RunStore(store_path) as store:  # the report and model travel with the run
+            for f in sorted(report.parent.iterdir()):
+                if f.is_file() and f.suffix in mime:
+                    store.attach_analysis(run_id, f"analysis/startup/{f.name}",
+                                          f.read_bytes(), mime[f.suffix])
+    return run_id, analysis, (report if report_root is not None else None)
+
+
 def analyze_stored_run(args) -> int:
     """Handler of ``bench analyze run``: the samples from power-on (t ≥ 0) of a stored run."""
     try:
-        from bench.commands.common import resolve_run_id
-        from bench.store import DEFAULT_PATH, RunStore
+        from bench.store import DEFAULT_PATH
 
-        import tempfile
-
-        store_path = getattr(args, "store", DEFAULT_PATH)
-        with RunStore(store_path) as store:
-            run_id = resolve_run_id(store, args.run_id)
-            data = store.load(run_id, args.stream)
-        for col in (args.time_col, args.value_col):
-            if col not in data:
-                raise ValueError(f"stream {args.stream!r} of run {run_id} has no column {col!r}; "
-                                 f"columns are {', '.join(data)}")
-        t, y = np.asarray(data[args.time_col], float), np.asarray(data[args.value_col], float)
-        keep = t >= 0.0  # Document A models the trace from power-on; the record starts before it
-
-        def attach(analysis, report: Path) -> None:
-            # the report and the model travel with the run they describe
-            mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
-            with RunStore(store_path) as store:
-                for f in sorted(report.parent.iterdir()):
-                    if f.is_file() and f.suffix in mime:
-                        store.attach_analysis(run_id, f"analysis/startup/{f.name}",
-                                              f.read_bytes(), mime[f.suffix])
-            if not args.json:
-                print(f"attached to run {run_id} as analysis/startup/*")
-
-        with tempfile.TemporaryDirectory() as tmp:
-            report = Path(args.report) / run_id if args.report is not None else Path(tmp)
-            return _analyse_and_print(t[keep], y[keep], args, report, f"run {run_id}",
-                                      on_report=attach)
+        run_id, analysis, report = analyse_run(
+            getattr(args, "store", DEFAULT_PATH), args.run_id,
+            None if args.report is None else Path(args.report), stream=args.stream,
+            time_col=args.time_col, value_col=args.value_col, **_options(args))
+        label = f"run {run_id}"
+        if args.json:
+            doc = analysis.to_dict()
+            doc["source"] = label
+            doc["attached"] = "analysis/startup/"
+            if report is not None:
+                doc["report"] = str(report)
+            print(json.dumps(doc, indent=2, allow_nan=False))
+            return 0
+        print(_summary(analysis, label))
+        print(f"report attached to run {run_id} as analysis/startup/startup_report.html")
+        if report is not None:
+            print(f"report: {report}")
+        return 0
     except (ValueError, OSError, LookupError) as exc:
         return _fail(str(exc))

@@ -21,6 +21,10 @@ def register(sub) -> None:
     p.add_argument("--rate-hz", type=float, default=100.0, help="output sample rate [100]")
     p.add_argument("--off-wait-s", type=float, default=600.0,
                    help="cool-down with the supply off before the cold start [600]")
+    p.add_argument("--analyze", action="store_true",
+                   help="fit Document A's start-up model to the run and attach the report")
+    p.add_argument("--report", metavar="DIR", default=None,
+                   help="with --analyze: also write the report into DIR/<run id>/")
     p.set_defaults(func=run_startup)
 
 
@@ -51,9 +55,30 @@ def run_startup(args) -> int:
             progress_bar(not args.no_progress and not args.json) as progress:
         outcome = execute(procedure, station, store, unit_serial=unit, seed=seed,
                           progress=progress)
+    analysis = report = None
+    if args.analyze and outcome.status == "passed":
+        from pathlib import Path
+
+        from bench.commands.analyze import analyse_run
+
+        _, analysis, report = analyse_run(store.path, outcome.run_id,
+                                          None if args.report is None else Path(args.report))
     if args.json:
-        json.dump(outcome.to_dict(), sys.stdout, indent=2)
+        doc = outcome.to_dict()
+        if analysis is not None:
+            doc["analysis"] = analysis.to_dict()
+            doc["analysis"]["attached"] = "analysis/startup/"
+            if report is not None:
+                doc["analysis"]["report"] = str(report)
+        json.dump(doc, sys.stdout, indent=2, allow_nan=False)
         print()
     else:
         print_outcome(outcome)
+        if analysis is not None:
+            from bench.commands.analyze import _summary
+
+            print(_summary(analysis, f"run {outcome.run_id}"))
+            print(f"report attached to run {outcome.run_id} as analysis/startup/startup_report.html")
+            if report is not None:
+                print(f"report: {report}")
     return {"passed": 0, "completed": 0, "failed": 1}.get(outcome.status, 2)
