@@ -95,7 +95,6 @@ class StartupAcquisition:
         p, w = self.p, ctx.wiring
         dmm, dmm_temp, supply = (ctx.instruments[k] for k in ("dmm", "dmm_temp", "supply"))
         volts_per_g = p.nominal_scale_factor_ma_per_g * 1e-3 * w["sampling_resistor_ohm"]
-        pos, neg = int(w["positive_rail_channel"]), int(w["negative_rail_channel"])
 
         # 1. level check: powered, settled, averaged reading ≈ +1 g
         self._power(ctx, on=True)

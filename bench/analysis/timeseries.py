@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from scipy import fft as sp_fft
 from scipy import stats
 from scipy.signal import lfilter
 
@@ -63,9 +64,9 @@ def sample_acf(x: np.ndarray, nlags: int) -> np.ndarray:
     n = xd.size
     if not 0 <= nlags < n:
         raise ValueError(f"nlags = {nlags} must be in [0, {n - 1}]")
-    nfft = 1 << int(np.ceil(np.log2(2 * n - 1)))
-    spec = np.fft.rfft(xd, nfft)
-    acov = np.fft.irfft(spec * np.conj(spec), nfft)[: nlags + 1] / n
+    nfft = sp_fft.next_fast_len(2 * n - 1, real=True)  # ≥ 2n - 1: no circular wrap-around
+    spec = sp_fft.rfft(xd, nfft)
+    acov = sp_fft.irfft(spec.real**2 + spec.imag**2, nfft)[: nlags + 1] / n
     if acov[0] <= 0:
         raise ValueError("x is constant; its autocorrelation is undefined")
     return acov / acov[0]
@@ -241,12 +242,17 @@ def burg(x: np.ndarray, p: int) -> tuple[np.ndarray, float]:
 
 def _burg_path(xd: np.ndarray, pmax: int) -> tuple[list[np.ndarray], np.ndarray]:
     """Burg recursion returning the AR coefficients and ``sigma2`` of every order 0..pmax."""
-    f, b = xd.copy(), xd.copy()
+    f, b, old_f, step = xd.copy(), xd.copy(), np.empty_like(xd), np.empty_like(xd)
     phis, sig = [np.zeros(0)], [xd @ xd / xd.size]
     for k in range(1, pmax + 1):
-        fk, bk = f[1:], b[:-1]  # f_{k-1}(t) and b_{k-1}(t-1), t = k..n-1
-        kappa = 2 * (fk @ bk) / (fk @ fk + bk @ bk)
-        f, b = fk - kappa * bk, bk - kappa * fk
+        # f_{k-1}(t) and b_{k-1}(t-1), t = k..n-1, updated in place (views of shrinking
+        # length): the same arithmetic as fresh arrays, without 10⁶-sample allocations
+        f, b = f[1:], b[:-1]
+        m = f.size
+        kappa = 2 * (f @ b) / (f @ f + b @ b)
+        np.copyto(old_f[:m], f)
+        f -= np.multiply(b, kappa, out=step[:m])
+        b -= np.multiply(old_f[:m], kappa, out=step[:m])
         phis.append(np.concatenate([phis[-1] - kappa * phis[-1][::-1], [kappa]]))
         sig.append((f @ f + b @ b) / (2 * (xd.size - k)))
     return phis, np.array(sig)
@@ -391,8 +397,36 @@ def _admissible(theta: np.ndarray, p: int) -> bool:
     return all(np.all(np.abs(np.roots(np.r_[1.0, c])) < 1.0) for c in (-theta[:p], theta[p:]) if c.size)
 
 
+CSS_SEGMENT = 1 << 16  # longer series: Gauss–Newton converges on this leading segment first
+
+
+def _css_start(xd: np.ndarray, p: int, q: int, long_ar: tuple[np.ndarray, int] | None) -> np.ndarray:
+    """Start values for the CSS Gauss–Newton.
+
+    Up to ``4·CSS_SEGMENT`` samples: Hannan–Rissanen on the whole series.  Longer: the
+    converged CSS fit of the first ``CSS_SEGMENT`` samples (its error, ~n_seg^-1/2, is a
+    few full-length standard errors, which one or two full-length Gauss–Newton steps
+    remove), so the expensive iterations run on 65 536 samples instead of 10⁶.
+    ``long_ar`` must belong to the series the Hannan–Rissanen step runs on.
+    """
+    if xd.size > 4 * CSS_SEGMENT:
+        seg = xd[:CSS_SEGMENT] - xd[:CSS_SEGMENT].mean()
+        fit = fit_arma_css(seg, p, q, _long_ar=long_ar)
+        return np.r_[fit.ar, fit.ma]
+    start = _hannan_rissanen(xd, p, q, long_ar)
+    return next((f * start for f in (1.0, 0.9, 0.5) if _admissible(f * start, p)), np.zeros(p + q))
+
+
+def _segment_long_ar(xd: np.ndarray) -> tuple[np.ndarray, int]:
+    """Long-AR residuals for the start values of :func:`fit_arma_css` on ``xd`` (see :func:`_css_start`)."""
+    if xd.size > 4 * CSS_SEGMENT:
+        return _long_ar_residuals(xd[:CSS_SEGMENT] - xd[:CSS_SEGMENT].mean())
+    return _long_ar_residuals(xd)
+
+
 def fit_arma_css(
-    x: np.ndarray, p: int, q: int, n_condition: int | None = None, _long_ar: tuple[np.ndarray, int] | None = None
+    x: np.ndarray, p: int, q: int, n_condition: int | None = None, _long_ar: tuple[np.ndarray, int] | None = None,
+    _start: np.ndarray | None = None,
 ) -> ArmaFit:
     """ARMA(p, q) by conditional least squares (conditional Gaussian ML).
 
@@ -402,7 +436,11 @@ def fit_arma_css(
     ``∂e_t/∂φ_k = -[x/θ(B)]_{t-k}``, ``∂e_t/∂θ_k = -[e/θ(B)]_{t-k}``, halving any step that
     leaves the stationary/invertible region or raises the sum of squares.  O(n) per
     iteration and asymptotically as efficient as exact ML: the workhorse of the order grid.
-    ``ar_std``/``ma_std`` are ``sqrt(diag(sigma2 (JᵀJ)⁻¹))``.
+    ``ar_std``/``ma_std`` are ``sqrt(diag(sigma2 (JᵀJ)⁻¹))``.  Series longer than
+    ``4·CSS_SEGMENT`` start from the converged fit of their first ``CSS_SEGMENT`` samples
+    (:func:`_css_start`).  ``_long_ar`` (long-AR residuals of the series the start values
+    come from, :func:`_segment_long_ar`) and ``_start`` (admissible start values, e.g. a
+    neighbouring fit) let a caller share work between fits.
     """
     xd = _series(x, 16)
     p, q = _check_order(p, xd.size, "p"), _check_order(q, xd.size, "q")
@@ -424,14 +462,22 @@ def fit_arma_css(
 
     theta = np.zeros(p + q)
     if p + q:
-        start = _hannan_rissanen(xd, p, q, _long_ar)
-        theta = next((f * start for f in (1.0, 0.9, 0.5) if _admissible(f * start, p)), theta)
-        e, jac = resid_jac(theta)
+        if _start is not None and np.shape(_start) == (p + q,) and _admissible(np.asarray(_start, float), p):
+            theta = np.array(_start, dtype=float)
+        else:
+            theta = _css_start(xd, p, q, _long_ar)
+    e, jac = resid_jac(theta)
+    if p + q:
         for _ in range(100):
             gram = jac.T @ jac
+            grad = jac.T @ e
             d = 1.0 / np.sqrt(np.maximum(np.diag(gram), 1e-300))  # equilibrate the normal equations
-            step = d * np.linalg.solve(gram * np.outer(d, d) + 1e-12 * np.eye(p + q), -d * (jac.T @ e))
+            step = d * np.linalg.solve(gram * np.outer(d, d) + 1e-12 * np.eye(p + q), -d * grad)
             sse = e @ e
+            # the Gauss–Newton model predicts an SSE drop of -grad·step; below the stopping
+            # gain (log-likelihood 0.005) no evaluation of the step is worth its O(n) cost
+            if -(grad @ step) <= 0.005 / e.size * sse:
+                break
             while np.max(np.abs(step)) > 1e-12:
                 trial = theta + step
                 if _admissible(trial, p):
@@ -444,7 +490,6 @@ def fit_arma_css(
             theta, e, jac = trial, e_new, jac_new
             if sse - e @ e <= 0.01 / e.size * sse:  # log-likelihood gain below 0.005
                 break
-    e, jac = resid_jac(theta)
     sigma2 = float(e @ e / e.size)
     std = np.sqrt(np.diag(sigma2 * np.linalg.pinv(jac.T @ jac))) if p + q else np.zeros(0)
     ll = -0.5 * e.size * (np.log(2 * np.pi * sigma2) + 1)
@@ -477,12 +522,13 @@ class OrderSelection:
 
 def select_order(
     x: np.ndarray, kind: Literal["AR", "MA", "ARMA"], max_p: int, max_q: int = 0,
-    ar_method: ArMethod = "ulrych-clayton",
+    ar_method: ArMethod = "ulrych-clayton", _fits: dict | None = None,
 ) -> OrderSelection:
     """Fill the AIC/BIC table for ``kind``, every cell conditioned on the same first samples.
 
     AR: p = 0..max_p by ``ar_method``.  MA: q = 0..max_q; ARMA: p = 0..max_p × q = 0..max_q;
     both by conditional least squares (:func:`fit_arma_css`), which is O(n) per cell.
+    ``_fits``, if given, receives every MA/ARMA cell's :class:`ArmaFit` keyed by ``(p, q)``.
     """
     xd = _series(x, 16)
     max_p = _check_order(max_p, xd.size, "max_p")
@@ -496,11 +542,13 @@ def select_order(
         method = ar_method
     elif kind in ("MA", "ARMA"):
         m = max(max_p, max_q) if kind == "ARMA" else max_q
-        long_ar = _long_ar_residuals(xd)  # shared by every cell's start values
+        long_ar = _segment_long_ar(xd)  # shared by every cell's start values
         for p in range(max_p + 1) if kind == "ARMA" else [0]:
             for q in range(max_q + 1):
                 fit = fit_arma_css(xd, p, q, n_condition=m, _long_ar=long_ar)
                 cells.append(OrderCandidate(p, q, fit.aic, fit.bic))
+                if _fits is not None:
+                    _fits[(p, q)] = fit
         method = "css"
     else:
         raise ValueError(f"kind {kind!r} must be 'AR', 'MA' or 'ARMA'")
@@ -559,12 +607,18 @@ class LjungBox:
     dof: int
 
 
-def ljung_box(residuals: np.ndarray, lags: int, model_df: int = 0) -> LjungBox:
-    """``Q = n(n+2) Σ_{k=1}^{lags} r_k² / (n-k)`` against χ² with ``lags - model_df`` dof."""
+def ljung_box(residuals: np.ndarray, lags: int, model_df: int = 0, _acf: np.ndarray | None = None) -> LjungBox:
+    """``Q = n(n+2) Σ_{k=1}^{lags} r_k² / (n-k)`` against χ² with ``lags - model_df`` dof.
+
+    ``_acf``: the residuals' sample ACF from lag 0 to at least ``lags``, if already computed.
+    """
     n = np.asarray(residuals).size
     if not model_df < lags < n:
         raise ValueError(f"lags = {lags} must be in ({model_df}, {n}) (model_df = {model_df}, n = {n})")
-    r = sample_acf(residuals, lags)[1:]
+    if _acf is not None and np.size(_acf) > lags:
+        r = np.asarray(_acf, dtype=float)[1 : lags + 1]
+    else:
+        r = sample_acf(residuals, lags)[1:]
     q = float(n * (n + 2) * np.sum(r**2 / (n - np.arange(1, lags + 1))))
     return LjungBox(q, float(stats.chi2.sf(q, lags - model_df)), lags, lags - model_df)
 

@@ -10,7 +10,7 @@ uses that to know when it was powered (t = 0 of a start-up test).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 from sim.scpi import Args, ScpiDevice, ScpiError, format_number

@@ -154,22 +154,8 @@ class MessageFramer:
             elif state == _STRING:
                 j = data.find(self._quote, i)
                 lf = data.find(b"\n", i)
-                if lf >= 0 and (j < 0 or lf < j):
-                    # an LF inside an open string ends the message (the lexer reports
-                    # the unterminated string); rescan from the LF as ordinary text
-                    self._state = _NORMAL
-                    j = -1
-                    end = lf
-                    room = self.max_message_bytes - self._size
-                    if end - i > room:
-                        self._take(data, i, i + room, out)
-                        self._overflow(out)
-                        i += room
-                        continue
-                    self._take(data, i, end, out)
-                    i = end
-                    continue
-                end = n if j < 0 else j + 1
+                lf_first = lf >= 0 and (j < 0 or lf < j)
+                end = lf if lf_first else (n if j < 0 else j + 1)
                 room = self.max_message_bytes - self._size
                 if end - i > room:
                     # the limit falls inside the string: stop tracking the quote there
@@ -179,6 +165,12 @@ class MessageFramer:
                     i += room
                     continue
                 self._take(data, i, end, out)
+                if lf_first:
+                    # an LF inside an open string ends the message (the lexer reports the
+                    # unterminated string): rescan from the LF as ordinary text
+                    self._state = _NORMAL
+                    i = end
+                    continue
                 if j < 0:
                     break
                 self._state = _NORMAL
