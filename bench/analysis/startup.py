@@ -375,12 +375,13 @@ def analyze_startup(
 
     corr = ts.correlogram(z, alpha=alpha)
     ident = ts.identify(corr, identification_max_order)
+    grid_fits: dict = {}  # MA/ARMA cells' CSS fits: start values of the final fit
     if ident.kind == "AR":
         sel = ts.select_order(z, "AR", max_p, ar_method=ar_method)
     elif ident.kind == "MA":
-        sel = ts.select_order(z, "MA", 0, max(max_pq, min(ident.q, n // 10)))
+        sel = ts.select_order(z, "MA", 0, max(max_pq, min(ident.q, n // 10)), _fits=grid_fits)
     else:
-        sel = ts.select_order(z, "ARMA", max_pq, max_pq)
+        sel = ts.select_order(z, "ARMA", max_pq, max_pq, _fits=grid_fits)
     p, q = sel.best_bic if criterion == "bic" else sel.best_aic
 
     notes: list[str] = []
@@ -400,10 +401,12 @@ def analyze_startup(
                 fit = ts.fit_arma_ml(z, p, q)
             except (np.linalg.LinAlgError, ValueError) as exc:
                 notes.append(f"exact ML failed ({exc}); the conditional-least-squares estimate is reported")
-        fit = fit or ts.fit_arma_css(z, p, q)
+        if fit is None:  # same orders as a grid cell, only the conditioning differs: start there
+            cell = grid_fits.get((p, q))
+            fit = ts.fit_arma_css(z, p, q, _start=None if cell is None else np.r_[cell.ar, cell.ma])
     lb_lags = ts.default_lb_lags(fit.residuals.size, p + q)
-    lb = ts.ljung_box(fit.residuals, lb_lags, p + q)
     resid_corr = ts.correlogram(fit.residuals, nlags=lb_lags, alpha=alpha)
+    lb = ts.ljung_box(fit.residuals, lb_lags, p + q, _acf=resid_corr.acf)
 
     if lb.p_value < 0.01:
         notes.append(f"Ljung–Box rejects residual whiteness (p = {lb.p_value:.2g}): the noise model is inadequate."
