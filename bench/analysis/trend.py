@@ -22,7 +22,10 @@ filter run backwards in time.
 
 Two exponentials are kept only when the data demand it: the BIC of the trend plus its
 AR noise (innovation variance, all parameters counted) must fall by more than 10
-("very strong" evidence) and both amplitudes must exceed three standard errors.
+("very strong" evidence) and both amplitudes must exceed three standard errors.  On
+long traces (> 65 536 samples) the two-exponential fit is first done on the block means
+and polished on every sample only when the block-mean likelihood ratio reaches half of
+what acceptance needs (:func:`_exp2_promising`); otherwise ``bic_exp2`` is None.
 """
 
 from __future__ import annotations
@@ -113,6 +116,14 @@ def _model(theta: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return value, np.column_stack(cols)
 
 
+def _value(theta: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Model value only (the Jacobian costs several more passes over ``u``)."""
+    value = theta[0] + theta[-1] * u
+    for i in range((theta.size - 2) // 2):
+        value += theta[1 + 2 * i] * np.exp(-u / theta[2 + 2 * i])
+    return value
+
+
 def _block_means(u: np.ndarray, y: np.ndarray, points: int) -> tuple[np.ndarray, np.ndarray]:
     """Average consecutive blocks so at most ~``points`` remain (the tail block is dropped)."""
     if u.size <= points:
@@ -159,7 +170,7 @@ def _solve(u: np.ndarray, y: np.ndarray, z0: np.ndarray, log_bounds: tuple[float
         return th
 
     def resid(z: np.ndarray) -> np.ndarray:
-        return _model(theta(z), u)[0] - y
+        return _value(theta(z), u) - y
 
     def jac(z: np.ndarray) -> np.ndarray:
         th = theta(z)
@@ -177,17 +188,37 @@ def _solve(u: np.ndarray, y: np.ndarray, z0: np.ndarray, log_bounds: tuple[float
     return sol.x
 
 
-def _fit(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[float, float]):
-    """NLS from ``start``; returns (theta, cov, phi, sigma2, bic, fitted).
+def _fit_blocks(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[float, float]):
+    """First stage of :func:`_fit` for long traces: NLS on ≤ 16384 block means.
 
-    Long traces are first fitted on ≤ 16384 block means, then polished on every sample
-    (a few iterations from there).  Covariances are evaluated in τ.
+    Returns ``(z, sse, n_blocks)``: parameters with ln τ, the block-mean residual sum of
+    squares and the number of block means.
     """
     log_bounds = (float(np.log(tau_bounds[0])), float(np.log(tau_bounds[1])))
     z = start.copy()
     z[_TAUS] = np.log(np.clip(start[_TAUS], *tau_bounds))
-    if u.size > 4 * _FIT_POINTS:
-        z = _solve(*_block_means(u, y, _FIT_POINTS), z, log_bounds)
+    ub, yb = _block_means(u, y, _FIT_POINTS)
+    z = _solve(ub, yb, z, log_bounds)
+    theta = z.copy()
+    theta[_TAUS] = np.exp(z[_TAUS])
+    return z, float(np.sum((_value(theta, ub) - yb) ** 2)), ub.size
+
+
+def _fit(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[float, float],
+         z_blocks: np.ndarray | None = None):
+    """NLS from ``start``; returns (theta, cov, phi, sigma2, bic, fitted).
+
+    Long traces are first fitted on ≤ 16384 block means (or ``z_blocks``, that stage's
+    result from :func:`_fit_blocks`), then polished on every sample (a few iterations
+    from there).  Covariances are evaluated in τ.
+    """
+    log_bounds = (float(np.log(tau_bounds[0])), float(np.log(tau_bounds[1])))
+    z = start.copy()
+    z[_TAUS] = np.log(np.clip(start[_TAUS], *tau_bounds))
+    if z_blocks is not None:
+        z = z_blocks
+    elif u.size > 4 * _FIT_POINTS:
+        z = _fit_blocks(u, y, start, tau_bounds)[0]
     z = _solve(u, y, z, log_bounds)
     theta = z.copy()
     theta[_TAUS] = np.exp(z[_TAUS])
@@ -201,6 +232,23 @@ def _fit(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[floa
     k = theta.size + phi.size + 1
     bic = y.size * np.log(sigma2) + k * np.log(y.size)
     return theta, cov, phi, sigma2, bic, fitted
+
+
+def _exp2_promising(blocks1: tuple, blocks2: tuple, n: int) -> bool:
+    """Could two exponentials pass the full-length BIC test?  Judged on block means.
+
+    Each block mean averages ≥ 61 samples, many noise correlation times, so block means
+    carry nearly white noise and the Gaussian likelihood ratio ``nb·ln(SSE1/SSE2)`` of
+    the two block fits estimates the full-length one (the trend lives at frequencies the
+    blocks keep).  Acceptance needs a full-length ratio above ``BIC_MARGIN + 2 ln n``
+    (~38 at 10⁶ samples); the full fit is skipped only when the block ratio is below
+    half of that.  Correlated block noise (slow drift) inflates the block ratio, which
+    errs towards fitting.
+    """
+    (_, sse1, nb), (_, sse2, _) = blocks1, blocks2
+    if not sse2 > 0:
+        return True
+    return nb * np.log(sse1 / sse2) > 0.5 * (BIC_MARGIN + 2 * np.log(n))
 
 
 def fit_trend(t_s: np.ndarray, y: np.ndarray, *, allow_two_exponentials: bool = True) -> TrendFit:
@@ -224,12 +272,19 @@ def fit_trend(t_s: np.ndarray, y: np.ndarray, *, allow_two_exponentials: bool = 
     bounds = (dt / 10, 1e3 * span)
     taus = np.geomspace(dt, 3 * span, 60)
 
-    fit1 = _fit(u, y, _scan(u, y, taus), bounds)
+    long = u.size > 4 * _FIT_POINTS
+    start1 = _scan(u, y, taus)
+    blocks1 = _fit_blocks(u, y, start1, bounds) if long else None
+    fit1 = _fit(u, y, start1, bounds, None if blocks1 is None else blocks1[0])
     best, kind, bic2 = fit1, "exp1", None
     if allow_two_exponentials:
         try:
             start2 = _scan(u, y, taus[np.abs(np.log(taus / fit1[0][2])) > np.log(2)], fixed=(fit1[0][2],))
-            fit2 = _fit(u, y, start2, bounds)
+            blocks2 = _fit_blocks(u, y, start2, bounds) if long else None
+            if long and not _exp2_promising(blocks1, blocks2, u.size):
+                fit2 = None  # screened out on the block means (module docstring)
+            else:
+                fit2 = _fit(u, y, start2, bounds, None if blocks2 is None else blocks2[0])
         except (np.linalg.LinAlgError, ValueError):  # degenerate scan/fit: one exponential it is
             fit2 = None
         if fit2 is not None:

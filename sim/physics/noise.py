@@ -98,14 +98,19 @@ class GaussMarkov:
             prev_t = self._t_last
         prev_x = out[0] if start else self._x_last
         if n > start:
-            dt = np.diff(np.concatenate(([prev_t], t[start:])))
+            dt = np.empty(n - start)
+            dt[0] = t[start] - prev_t
+            np.subtract(t[start + 1:], t[start:-1], out=dt[1:])
             ref = self._run_dt if self._run_dt is not None else dt[0]
-            if np.all(np.abs(dt - ref) <= _UNIFORM_RTOL * ref):
+            lo, hi = (float(dt.min()), float(dt.max()))
+            lo1, hi1 = (float(dt[1:].min()), float(dt[1:].max())) if dt.size > 2 else (0.0, 0.0)
+            if hi - ref <= _UNIFORM_RTOL * ref and ref - lo <= _UNIFORM_RTOL * ref:
                 phi, gain = (float(c) for c in self._coefficients(ref))
                 # x_k = gain w_k + phi x_{k-1}; zi carries phi * x_{k-1} across calls.
                 out[start:], _ = lfilter([gain], [1.0, -phi], w[start:], zi=[phi * prev_x])
                 self._run_dt = ref
-            elif dt.size > 2 and np.all(np.abs(dt[1:] - dt[1]) <= _UNIFORM_RTOL * dt[1]):
+            elif dt.size > 2 and hi1 - dt[1] <= _UNIFORM_RTOL * dt[1] \
+                    and dt[1] - lo1 <= _UNIFORM_RTOL * dt[1]:
                 # a gap, then a uniform run (a new acquisition): one exact step across the
                 # gap, the run through lfilter — avoids the O(n log n) scan on the usual case
                 phi0, gain0 = (float(c) for c in self._coefficients(dt[0]))
