@@ -39,7 +39,7 @@ def test_run_startup_json_then_runs_list_show_export(tmp_path, capsys):
 @pytest.mark.parametrize("argv,fragment", [
     (["run", "startup", "--rate-hz", "99999"], "rate_hz = 99999.0 not in 0.01..1000"),
     (["run", "startup", "--station", "nope.toml"], "station file 'nope.toml' not found"),
-    (["runs", "show", "no-such-run"], "no-such-run"),
+    (["runs", "show", "no-such-run"], "no run store at"),  # and nothing is created
     (["run", "startup", "--seed", "-3"], "--seed -3"),
 ])
 def test_user_errors_exit_2_with_one_line(tmp_path, capsys, argv, fragment):
@@ -142,3 +142,15 @@ def test_run_startup_analyze_attaches_the_start_up_model(tmp_path, capsys):
         html = s.attachment(doc["run_id"], "analysis/startup/startup_report.html")
     assert {"analysis/startup/startup_report.html", "analysis/startup/startup_model.json"} <= names
     assert b"<html" in html.lower()
+
+
+def test_unknown_run_in_an_existing_store_is_named(tmp_path, capsys):
+    store = str(tmp_path / "b.sqlite")
+    assert main(["--store", store, "run", "startup", "--duration-s", "5", "--off-wait-s", "1",
+                 "--json"]) == 0
+    capsys.readouterr()
+    assert main(["--store", store, "runs", "show", "no-such-run"]) == 2
+    assert "no-such-run" in capsys.readouterr().err
+    assert main(["--store", str(tmp_path / "none.sqlite"), "analyze", "run", "latest"]) == 2
+    assert "no run store at" in capsys.readouterr().err
+    assert not (tmp_path / "none.sqlite").exists()

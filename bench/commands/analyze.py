@@ -157,6 +157,8 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
     from bench.reports.startup_report import write_startup_report
     from bench.store import RunStore
 
+    if not Path(store_path).is_file():
+        raise LookupError(f"no run store at {store_path} (run a procedure first, or --store PATH)")
     with RunStore(store_path) as store:
         run_id = resolve_run_id(store, run_id)
         data = store.load(run_id, stream)

@@ -8,7 +8,13 @@ import sys
 from bench.store import RunStore
 
 
-def open_store(args) -> RunStore:
+def open_store(args, *, create: bool = True) -> RunStore:
+    """The run store; reading commands pass ``create=False`` so that asking about a store
+    that does not exist says so instead of creating an empty one."""
+    from pathlib import Path
+
+    if not create and not Path(args.store).is_file():
+        raise LookupError(f"no run store at {args.store} (run a procedure first, or --store PATH)")
     return RunStore(args.store)
 
 

@@ -32,7 +32,9 @@ def register(sub) -> None:
 def list_runs(args) -> int:
     if args.limit < 1:
         raise ValueError(f"--limit {args.limit} must be ≥ 1")
-    runs = open_store(args).list_runs(limit=args.limit)
+    from pathlib import Path
+
+    runs = open_store(args).list_runs(limit=args.limit) if Path(args.store).is_file() else []
     if args.json:
         json.dump([_info(r) for r in runs], sys.stdout, indent=2, default=str)
         print()
@@ -53,7 +55,7 @@ def _info(r) -> dict:
 
 
 def show_run(args) -> int:
-    store = open_store(args)
+    store = open_store(args, create=False)
     args.run_id = resolve_run_id(store, args.run_id)
     info = store.get_run(args.run_id)
     streams = store.streams(args.run_id)
@@ -89,7 +91,7 @@ def show_run(args) -> int:
 def export_run(args) -> int:
     from bench.export import export_csv, export_hdf5
 
-    store = open_store(args)
+    store = open_store(args, create=False)
     args.run_id = resolve_run_id(store, args.run_id)
     if args.format == "csv":
         paths = export_csv(store, args.run_id, Path(args.out or f"export-{args.run_id}"))
