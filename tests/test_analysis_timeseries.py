@@ -256,3 +256,66 @@ def test_bad_input_raises_naming_the_value(call, match):
     x = np.random.default_rng(0).normal(size=100)
     with pytest.raises(ValueError, match=match):
         call(x)
+
+
+# --------------------------------------------------------------------------- fast paths for long series
+
+
+def _burg_path_reference(xd, pmax):
+    """The textbook Burg recursion with fresh arrays per order (what the in-place one replaced)."""
+    f, b = xd.copy(), xd.copy()
+    phis, sig = [np.zeros(0)], [xd @ xd / xd.size]
+    for k in range(1, pmax + 1):
+        fk, bk = f[1:], b[:-1]
+        kappa = 2 * (fk @ bk) / (fk @ fk + bk @ bk)
+        f, b = fk - kappa * bk, bk - kappa * fk
+        phis.append(np.concatenate([phis[-1] - kappa * phis[-1][::-1], [kappa]]))
+        sig.append((f @ f + b @ b) / (2 * (xd.size - k)))
+    return phis, np.array(sig)
+
+
+def test_in_place_burg_equals_the_textbook_recursion():
+    x = simulate_arma([0.6, -0.3], [0.4], 3000, np.random.default_rng(21))
+    xd = x - x.mean()
+    phis, sig = ts._burg_path(xd, 8)
+    ref_phis, ref_sig = _burg_path_reference(xd, 8)
+    np.testing.assert_allclose(sig, ref_sig, rtol=1e-12)
+    for a, b in zip(phis, ref_phis):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("p, q", [(1, 1), (0, 1), (0, 2), (2, 1)])
+def test_css_segment_start_reaches_the_same_optimum(monkeypatch, p, q):
+    """Long series start Gauss–Newton from a leading segment's fit; the optimum must not move.
+
+    CSS_SEGMENT is shrunk so a 6000-sample series takes the long-series path; misspecified
+    cells (MA for ARMA(1,1) data) exercise the zig-zag damping as well.
+    """
+    x = simulate_arma([0.7], [0.4], 6000, np.random.default_rng(22 + p + q))
+    slow = ts.fit_arma_css(x, p, q, n_condition=2)
+    monkeypatch.setattr(ts, "CSS_SEGMENT", 512)
+    fast = ts.fit_arma_css(x, p, q, n_condition=2)
+    assert fast.loglik == pytest.approx(slow.loglik, abs=0.02)  # both at the optimum (tolerance 0.005)
+    for a, b, s in zip(fast.ar + fast.ma, slow.ar + slow.ma, slow.ar_std + slow.ma_std):
+        assert abs(a - b) < 0.1 * s
+
+
+def test_css_warm_start_and_grid_fits_agree_with_a_cold_fit():
+    x = simulate_arma([0.8], [-0.5], 5000, np.random.default_rng(23))
+    fits: dict = {}
+    sel = ts.select_order(x, "ARMA", 2, 2, _fits=fits)
+    assert set(fits) == {(p, q) for p in range(3) for q in range(3)}
+    assert all(fits[(c.p, c.q)].bic == c.bic for c in sel.candidates)
+    cell = fits[(1, 1)]
+    warm = ts.fit_arma_css(x, 1, 1, _start=np.r_[cell.ar, cell.ma])
+    cold = ts.fit_arma_css(x, 1, 1)
+    assert warm.loglik == pytest.approx(cold.loglik, abs=0.02)
+    bad_start = ts.fit_arma_css(x, 1, 1, _start=np.array([1.5, 0.0]))  # inadmissible: ignored
+    assert bad_start.loglik == pytest.approx(cold.loglik, abs=0.02)
+
+
+def test_ljung_box_from_a_precomputed_acf_is_identical():
+    e = np.random.default_rng(24).normal(size=2000)
+    acf = ts.sample_acf(e, 30)
+    a, b = ts.ljung_box(e, 20, 2), ts.ljung_box(e, 20, 2, _acf=acf)
+    assert (a.statistic, a.p_value) == (b.statistic, b.p_value)

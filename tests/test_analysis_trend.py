@@ -124,3 +124,20 @@ def test_fitting_the_denoised_trace_biases_tau_which_is_why_raw_is_the_default()
 def test_bad_input(t, y, match):
     with pytest.raises(ValueError, match=match):
         fit_trend(t, y)
+
+
+def test_long_trace_two_exponential_screen():
+    """Past 4·16384 samples the two-exponential fit is screened on block means: a real second
+    exponential must still be found, and a single one must not trigger the full fit."""
+    rng = np.random.default_rng(31)
+    t = np.arange(80_000) * 0.1
+    noise = ar1_noise(t.size, 0.8, 0.01, rng)
+    y2 = 1.0 + 0.2 * np.exp(-t / 30.0) + 0.2 * np.exp(-t / 1500.0) + 1e-6 * t + noise
+    fit2 = fit_trend(t, y2)
+    assert fit2.kind == "exp2" and fit2.bic_exp2 < fit2.bic_exp1 - 10
+    assert abs(fit2.exp_tau_s.value - 30.0) < 4 * fit2.exp_tau_s.std
+    assert abs(fit2.exp2_tau_s.value - 1500.0) < 4 * fit2.exp2_tau_s.std
+    y1 = 1.0 + 0.2 * np.exp(-t / 300.0) + 1e-6 * t + noise
+    fit1 = fit_trend(t, y1)
+    assert fit1.kind == "exp1" and fit1.bic_exp2 is None  # screened out, not fitted
+    assert abs(fit1.exp_tau_s.value - 300.0) < 4 * fit1.exp_tau_s.std

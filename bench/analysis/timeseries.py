@@ -487,6 +487,15 @@ def fit_arma_css(
                 step = step / 2
             else:
                 break  # no descent step left: converged
+            # misspecified cells (e.g. MA(1) for ARMA(1,1) data) make Gauss–Newton overshoot
+            # and zig-zag; one step to the minimum of the parabola through SSE(0), SSE'(0)
+            # and SSE(step) removes most of it at the cost of one evaluation
+            curv = e_new @ e_new - sse - 2 * (grad @ step)
+            alpha = -(grad @ step) / curv if curv > 0 else 1.0
+            if abs(alpha - 1.0) > 0.25 and 0.0 < alpha < 4.0 and _admissible(theta + alpha * step, p):
+                e_alt, jac_alt = resid_jac(theta + alpha * step)
+                if e_alt @ e_alt < e_new @ e_new:
+                    trial, e_new, jac_new = theta + alpha * step, e_alt, jac_alt
             theta, e, jac = trial, e_new, jac_new
             if sse - e @ e <= 0.01 / e.size * sse:  # log-likelihood gain below 0.005
                 break
