@@ -139,14 +139,17 @@ class StartupAcquisition:
                       nplc=nplc, line_hz=line_hz, n_output=n_out, n_temperature=n_temp)
         ctx.run.set_result("power_on_clock_s", t_on)
 
-        # 4. stream to the store as the readings arrive
+        # 4. stream to the store as the readings arrive; drain well before memory fills
+        chunk_s = min(p.chunk_s, 0.5 * dmm.memory_depth / p.rate_hz)
+        stall_s = max(30.0, 5 * chunk_s)  # no new reading for this long while due: a fault
         t0_out = t_arm + dmm.trigger_delay_s - t_on
         t0_temp = t_arm + dmm_temp.trigger_delay_s - t_on
         got_out = got_temp = 0
         ohm_t = w["temp_resistor_ohm"]
+        t_last_data = ctx.clock.now()
         while got_out < n_out or got_temp < n_temp:
-            remaining = (n_out - got_out) / p.rate_hz
-            ctx.clock.sleep(min(p.chunk_s, max(remaining, 1.0 / p.rate_hz)))
+            remaining = max((n_out - got_out) / p.rate_hz, (n_temp - got_temp) / p.temperature_rate_hz)
+            ctx.clock.sleep(min(chunk_s, max(remaining, 1.0 / p.rate_hz)))
             volts = dmm.read_available()
             if volts.size:
                 t = t0_out + (got_out + np.arange(volts.size)) / p.rate_hz
@@ -160,8 +163,14 @@ class StartupAcquisition:
                 got_temp += temp_v.size
             ctx.progress(min(got_out / p.rate_hz - p.pre_trigger_s, p.duration_s), p.duration_s,
                          "acquiring start-up trace")
-            if got_out >= n_out and got_temp < n_temp and not temp_v.size:
-                ctx.clock.sleep(1.0 / p.temperature_rate_hz)
+            now = ctx.clock.now()
+            if volts.size or temp_v.size:
+                t_last_data = now
+            elif now - t_last_data > stall_s:
+                raise TimeoutError(
+                    f"no readings for {now - t_last_data:.0f} s: output {got_out}/{n_out}, "
+                    f"temperature {got_temp}/{n_temp} received (meter stopped, or its memory "
+                    "overflowed)")
         ctx.measure("readings_lost", n_out - got_out, "readings", Limit(0, 0),
                     "output readings expected minus stored")
         ctx.run.set_result("samples", {"output": got_out, "temperature": got_temp})

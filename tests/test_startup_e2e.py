@@ -115,3 +115,20 @@ def test_a_reading_straddling_power_on_does_not_wedge_the_world(tmp_path):
                                           chunk_s=5.0)
     assert outcome.status == "passed", outcome.reason
     assert store.streams(outcome.run_id)["output"].n_rows == round(21 * 1.2)
+
+
+def test_a_meter_that_stops_mid_trace_aborts_the_run_with_the_counts(tmp_path):
+    """The output DMM silently stops (as a hung instrument would): the procedure must not
+    wait forever; it aborts naming what it received, keeps the data, and powers down."""
+    store = RunStore(tmp_path / "bench.sqlite")
+    params = StartupParameters(**SHORT)
+    with Station(builtin_sim_config(), seed=5, unit_serial="QA-T-2") as station:
+        sim = station.sim
+        sim.server.call(lambda: sim.world.schedule(150.0, sim.dmm.abort))
+        outcome = execute(StartupAcquisition(params), station, store, unit_serial="QA-T-2", seed=5)
+        outputs = [ch.output for ch in sim.supply.channels.values()]
+    assert outcome.status == "aborted"
+    assert "no readings for" in outcome.reason and "output" in outcome.reason
+    kept = store.load(outcome.run_id, "output")["t_s"]
+    assert 0 < kept.size < (SHORT["duration_s"] + 1) * SHORT["rate_hz"]
+    assert outputs == [False, False, False]

@@ -289,7 +289,9 @@ def fit_trend(t_s: np.ndarray, y: np.ndarray, *, allow_two_exponentials: bool = 
             fit2 = None
         if fit2 is not None:
             bic2 = float(fit2[4])
-            std2 = np.sqrt(np.diag(fit2[1]))
+            var2 = np.diag(fit2[1])
+            # a negative variance means an ill-conditioned fit: treat it as insignificant
+            std2 = np.sqrt(np.where(var2 >= 0, var2, np.inf))
             amps_significant = np.all(np.abs(fit2[0][[1, 3]]) > 3 * std2[[1, 3]])
             if fit1[4] - fit2[4] > BIC_MARGIN and amps_significant:
                 best, kind = fit2, "exp2"
