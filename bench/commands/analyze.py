@@ -162,6 +162,11 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
     with RunStore(store_path) as store:
         run_id = resolve_run_id(store, run_id)
         data = store.load(run_id, stream)
+        info = store.get_run(run_id)
+    context = {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure,
+               "station": (info.station or {}).get("name"), "status": info.status,
+               "started (UTC)": info.started_utc, "seed": info.seed,
+               "code version": info.code_version, "stream": f"{stream}.{value_col}"}
     for col in (time_col, value_col):
         if col not in data:
             raise ValueError(f"stream {stream!r} of run {run_id} has no column {col!r}; "
@@ -171,7 +176,7 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
     analysis = analyze_startup(t[keep], y[keep], **options)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(report_root) / run_id if report_root is not None else Path(tmp)
-        report = write_startup_report(analysis, folder)
+        report = write_startup_report(analysis, folder, context)
         mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
         with RunStore(store_path) as store:  # the report and model travel with the run
             for f in sorted(report.parent.iterdir()):

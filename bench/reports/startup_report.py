@@ -121,8 +121,13 @@ def _g(x: float) -> str:
     return f"{x:.6g}"
 
 
-def write_startup_report(analysis: StartupAnalysis, directory: str | Path) -> Path:
-    """Write the report files into ``directory`` (created if missing); return the HTML path."""
+def write_startup_report(analysis: StartupAnalysis, directory: str | Path,
+                         context: dict | None = None) -> Path:
+    """Write the report files into ``directory`` (created if missing); return the HTML path.
+
+    ``context`` (optional) is shown as a header table: where the trace came from — run id,
+    unit serial, procedure, station, seed, code version, start time.
+    """
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     a, m = analysis, analysis.model
@@ -151,6 +156,7 @@ def write_startup_report(analysis: StartupAnalysis, directory: str | Path) -> Pa
 td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}} tr.best{{font-weight:bold;background:#eef}}
 pre{{background:#f6f6f6;padding:0.6em;white-space:pre-wrap}} img{{max-width:100%}}</style></head><body>
 <h1>Start-up model (Document A)</h1>
+{_table(["source", "value"], [[k, v] for k, v in (context or {}).items()]) if context else ""}
 <p>{a.raw.size} samples every {_g(m.sample_interval_s)} s ({_g(duration)} s);
 noise model fitted to the {html.escape(str(a.settings.get("noise_source")))} series, trend to the
 {html.escape(str(a.settings.get("trend_source")))} trace.</p>
