@@ -115,8 +115,8 @@ def export_csv(store: RunStore, run_id: str, out_dir_or_file: str | os.PathLike[
     attachment_dir = prefix.parent / f"{prefix.name}.attachments"
     attachment_meta, attachment_paths = [], []
     for name, (info, payload) in snap.attachments.items():
-        attachment_dir.mkdir(exist_ok=True)
-        path = attachment_dir / name
+        path = attachment_dir / name  # names may hold folders, e.g. analysis/startup/x.html
+        path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(payload)
         attachment_paths.append(path)
         relative = f"{attachment_dir.name}/{name}"

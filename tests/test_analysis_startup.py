@@ -161,3 +161,39 @@ def test_bad_input_names_the_problem(t, y, kwargs, match):
 
 def test_validate_trace_returns_the_sampling_interval():
     assert validate_trace(np.arange(100) * 0.25 + 3, np.zeros(100)) == pytest.approx(0.25)
+
+
+def _trace(n=3000, dt=0.1):
+    return np.arange(n) * dt
+
+
+@pytest.mark.parametrize("y,fragment", [
+    (lambda t: np.ones_like(t), "the signal is constant"),
+    (lambda t: 1e200 * (1 + 0.1 * np.exp(-t / 20)) + 1e198 * np.sin(t), "outside the analysable range"),
+    (lambda t: 1e-300 * (1 + 0.1 * np.exp(-t / 20)), "outside the analysable range"),
+    (lambda t: 1 + 0.5 * np.exp(-t / 20) + 1e-4 * t, "no noise left after the trend"),
+])
+def test_degenerate_traces_are_refused_with_the_reason(y, fragment):
+    from bench.analysis.startup import analyze_startup
+
+    t = _trace()
+    with pytest.raises(ValueError, match=fragment):
+        analyze_startup(t, y(t))
+
+
+def test_a_trace_without_a_transient_says_so():
+    from bench.analysis.startup import analyze_startup
+
+    t = _trace()
+    y = 1 + 1e-3 * t + np.random.default_rng(4).normal(0, 0.01, t.size)
+    notes = " ".join(analyze_startup(t, y).notes)
+    assert "exponential term is not significant" in notes
+
+
+def test_too_many_arma_parameters_for_the_samples_is_refused():
+    from bench.analysis.startup import analyze_startup
+
+    t = _trace(100)
+    y = 1 + np.random.default_rng(1).normal(0, 0.01, t.size)
+    with pytest.raises(ValueError, match="10 samples per parameter"):
+        analyze_startup(t, y, max_arma_order=6)

@@ -154,3 +154,27 @@ def test_unknown_run_in_an_existing_store_is_named(tmp_path, capsys):
     assert main(["--store", str(tmp_path / "none.sqlite"), "analyze", "run", "latest"]) == 2
     assert "no run store at" in capsys.readouterr().err
     assert not (tmp_path / "none.sqlite").exists()
+
+
+def test_analysis_failure_after_a_run_still_names_the_run(tmp_path, capsys):
+    store = str(tmp_path / "b.sqlite")
+    code = main(["--store", store, "run", "startup", "--duration-s", "5", "--rate-hz", "10",
+                 "--off-wait-s", "0", "--analyze", "--json"])
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    assert code == 2 and doc["status"] == "passed" and doc["run_id"] in doc["analysis_error"]
+    assert doc["run_id"] in captured.err and "samples" in captured.err
+    assert main(["--store", store, "run", "startup", "--report", str(tmp_path)]) == 2
+    assert "--report DIR needs --analyze" in capsys.readouterr().err
+
+
+def test_attached_report_is_listed_and_exported(tmp_path, capsys):
+    store = str(tmp_path / "b.sqlite")
+    assert main(["--store", store, "run", "startup", "--duration-s", "60", "--off-wait-s", "1",
+                 "--analyze", "--json"]) == 0
+    run_id = json.loads(capsys.readouterr().out)["run_id"]
+    assert main(["--store", store, "runs", "show", run_id]) == 0
+    assert "analysis/startup/startup_report.html" in capsys.readouterr().out
+    assert main(["--store", store, "runs", "export", run_id, "--out", str(tmp_path / "x")]) == 0
+    exported = tmp_path / "x" / f"{run_id}.attachments" / "analysis" / "startup"
+    assert (exported / "startup_report.html").read_bytes().lower().count(b"<html") == 1

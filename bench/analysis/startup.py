@@ -354,12 +354,25 @@ def analyze_startup(
     max_p = _order_limit(max_ar_order, 10, n, "max_ar_order")
     max_pq = _order_limit(max_arma_order, 2, n, "max_arma_order")
 
+    peak = float(np.max(np.abs(raw)))
+    if not 1e-150 < peak < 1e150:
+        raise ValueError(f"values up to {peak:.3g} are outside the analysable range 1e-150..1e150; "
+                         "rescale the input (e.g. to volts or g)")
+    spread = float(np.ptp(raw))
+    if spread <= 1e-12 * peak:
+        raise ValueError(f"the signal is constant (peak-to-peak {spread:.3g} at level {peak:.3g}); "
+                         "there is no start-up transient or noise to model")
+    if max_pq and 2 * max_pq > n // 10:
+        raise ValueError(f"max_arma_order = {max_pq} gives ARMA({max_pq},{max_pq}): {2 * max_pq} "
+                         f"parameters for {n} samples (at most {n // 10}, 10 samples per parameter)")
+
     dn = wavelet_denoise(raw, wavelet, level)
     trend = fit_trend(t, raw if trend_source == "raw" else dn.denoised, allow_two_exponentials=allow_two_exponentials)
     detrended = (dn.denoised if noise_source == "denoised" else raw) - trend.fitted
     mean, std = float(detrended.mean()), float(detrended.std())
-    if not std > 0:
-        raise ValueError("the detrended series is constant; there is no noise to model")
+    if not std > 1e-9 * float(raw.std()):
+        raise ValueError(f"no noise left after the trend (residual rms {std:.3g} against a signal "
+                         f"rms of {float(raw.std()):.3g}): the trace is the trend; there is no noise to model")
     z = (detrended - mean) / std
     bad = np.abs(z) > outlier_z
     kept = np.flatnonzero(~bad)
@@ -419,6 +432,17 @@ def analyze_startup(
         notes.append(f"the {ar_method} estimate was not stationary; Burg's estimate is used instead")
     if trend.kind == "exp2":
         notes.append("the data demand a second exponential (BIC and 3-sigma amplitudes)")
+    amp, tau = trend.exp_amplitude, trend.exp_tau_s
+    record_s = float(t[-1] - t[0])
+    if not abs(amp.value) > 3 * amp.std:
+        notes.append(f"the exponential term is not significant (|a| = {abs(amp.value):.3g} < 3σ = "
+                     f"{3 * amp.std:.3g}): the trace shows no resolvable start-up transient")
+    elif tau.value > record_s:
+        notes.append(f"τ = {tau.value:.4g} s exceeds the {record_s:.4g} s record: the transient is not "
+                     "identifiable here (a rising or very slow trend); record longer")
+    if dn.sigma <= 1e-9 * float(raw.std()):
+        notes.append("the first-level wavelet details have median 0 (quantised data?): σ ≈ 0, "
+                     "so the denoising leaves the trace unchanged")
     trend_params = {name: getattr(trend, name) for name in trend.param_names}
     model = StartupModel(trend_params, trend.t0_s, dt, fit.kind, fit.ar, fit.ma, fit.ar_std, fit.ma_std,
                          fit.sigma2, fit.aic, fit.bic, fit.method, mean, std, dn.sigma, noise_source)

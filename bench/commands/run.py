@@ -40,6 +40,8 @@ def _common(p) -> None:
 def run_startup(args) -> int:
     from procedures.startup import StartupAcquisition, StartupParameters
 
+    if args.report is not None and not args.analyze:
+        raise ValueError("--report DIR needs --analyze (the report is the start-up model's)")
     if args.seed is not None and not 0 <= args.seed < 2**63:
         raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
     params = StartupParameters(duration_s=args.duration_s, rate_hz=args.rate_hz,
@@ -55,14 +57,17 @@ def run_startup(args) -> int:
             progress_bar(not args.no_progress and not args.json) as progress:
         outcome = execute(procedure, station, store, unit_serial=unit, seed=seed,
                           progress=progress)
-    analysis = report = None
+    analysis = report = analysis_error = None
     if args.analyze and outcome.status == "passed":
         from pathlib import Path
 
         from bench.commands.analyze import analyse_run
 
-        _, analysis, report = analyse_run(store.path, outcome.run_id,
-                                          None if args.report is None else Path(args.report))
+        try:
+            _, analysis, report = analyse_run(store.path, outcome.run_id,
+                                              None if args.report is None else Path(args.report))
+        except (ValueError, LookupError, OSError) as exc:  # the run is kept and reported first
+            analysis_error = f"run {outcome.run_id} is stored, but its analysis failed: {exc}"
     if args.json:
         doc = outcome.to_dict()
         if analysis is not None:
@@ -70,6 +75,8 @@ def run_startup(args) -> int:
             doc["analysis"]["attached"] = "analysis/startup/"
             if report is not None:
                 doc["analysis"]["report"] = str(report)
+        if analysis_error:
+            doc["analysis_error"] = analysis_error
         json.dump(doc, sys.stdout, indent=2, allow_nan=False)
         print()
     else:
@@ -81,4 +88,7 @@ def run_startup(args) -> int:
             print(f"report attached to run {outcome.run_id} as analysis/startup/startup_report.html")
             if report is not None:
                 print(f"report: {report}")
+    if analysis_error:
+        print(f"bench: error: {analysis_error}", file=sys.stderr)
+        return 2
     return {"passed": 0, "completed": 0, "failed": 1}.get(outcome.status, 2)

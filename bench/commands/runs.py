@@ -65,6 +65,8 @@ def show_run(args) -> int:
         doc["streams"] = {k: asdict(v) if hasattr(v, "__dataclass_fields__") else v
                           for k, v in streams.items()}
         doc["events"] = [asdict(e) if hasattr(e, "__dataclass_fields__") else e for e in events]
+        doc["attachments"] = [asdict(a) if hasattr(a, "__dataclass_fields__") else a
+                              for a in store.attachments(args.run_id)]
         json.dump(doc, sys.stdout, indent=2, default=str)
         print()
         return 0
@@ -82,6 +84,11 @@ def show_run(args) -> int:
         print("measurements:")
         for name, m in measurements.items():
             print(f"  {name:<22} {m['value']:>14.6g} {m['unit']:<9} {m['outcome']}")
+    attachments = store.attachments(args.run_id)
+    if attachments:
+        print("attachments:")
+        for a in attachments:
+            print(f"  {a.name:<40} {a.mime:<18} {a.size_bytes:>9} bytes")
     print(f"events: {len(events)}")
     for e in events[:20]:
         print(f"  t={e.t_s:>10.3f} s  {e.kind:<14} {e.message}")

@@ -306,8 +306,10 @@ class RunStore:
         Acquired data stay immutable: analysis products live under the ``analysis/`` name
         prefix, and re-analysing a run replaces its earlier product of the same name.
         """
-        if not isinstance(name, str) or not name.startswith("analysis/") or len(name) > 200:
-            raise ValueError(f"analysis attachment name {name!r} must start with 'analysis/'")
+        if (not isinstance(name, str) or not name.startswith("analysis/") or len(name) > 200
+                or any(part in ("", ".", "..") for part in name.split("/")[1:])):
+            raise ValueError(f"analysis attachment name {name!r} must be 'analysis/<path>' "
+                             "without empty, '.' or '..' parts")
         if not isinstance(data, (bytes, bytearray, memoryview)):
             raise TypeError(f"attachment {name!r}: data must be bytes-like")
         if not isinstance(mime, str) or "/" not in mime:
