@@ -174,6 +174,8 @@ def test_queries_with_min_max_def_return_the_limits():
     assert ask(dmm, "TRIG:COUN? MAX") == "+1000000\n"
     _, plain = make(options=())
     assert float(ask(plain, "VOLT:NPLC? MIN")) == 0.02
+    assert ask(dmm, "SAMP:COUN? maximum") == "+1000000000\n"  # long form, any case
+    assert ask(dmm, "SAMP:COUN? MAXWELL") is None and err(dmm).startswith("-224")
 
 
 def test_a_bare_header_that_needs_a_value_is_missing_parameter():

@@ -27,7 +27,7 @@ def _fmt_count(x: float) -> str:
 def limits_query(args: Args, current, lo, hi, default, fmt=format_number) -> str:
     """A setting's query: the value, or with MIN|MAX|DEF the limit (as the real meter)."""
     if args.count:
-        value = {"MIN": lo, "MAX": hi, "DEF": default}.get(args.raw[0].strip().upper()[:3])
+        value = {"MIN": lo, "MAX": hi, "DEF": default}.get(args.keyword(0))
         if value is None:
             raise ScpiError(-224, f"{args.raw[0]!r} not in MIN|MAX|DEF")
         return fmt(value)
@@ -87,7 +87,7 @@ class Keysight34465AVocabulary:
             self.trig_source = args.choice(0, ["IMMediate", "BUS", "EXTernal", "INTernal"])
 
         def set_trig_coun(args: Args) -> None:
-            if args.raw[0].strip().upper().startswith("INF"):
+            if args.keyword(0) == "INF":
                 self.trig_count = 9.9e37
             else:
                 self.trig_count = float(args.integer(0, min=1, max=1_000_000, default=1))
@@ -219,7 +219,7 @@ class Keysight34465AVocabulary:
         elif args.count >= 1:
             fe.range_v = range_for(args.number(0, min=0.0, max=1000.0, default=10.0))
             fe.autorange = False
-        word = args.raw[1].strip().upper()[:3] if args.count >= 2 else "DEF"
+        word = args.keyword(1) if args.count >= 2 else "DEF"
         if word in ("DEF", "MIN", "MAX"):
             # DEF: 10 PLC; MIN resolution value = finest (100 PLC); MAX = fastest
             fe.nplc = {"DEF": 10.0, "MIN": 100.0,
@@ -236,7 +236,7 @@ class Keysight34465AVocabulary:
         return noise_ppm(self.fe) * 1e-6 * self.fe.range_v
 
     def _set_resolution(self, args: Args) -> None:
-        if args.raw[0].strip().upper()[:3] == "DEF":
+        if args.keyword(0) == "DEF":
             self.fe.nplc = 10.0
             return
         self._set_resolution_value(args.number(0, min=1e-9, max=1.0))

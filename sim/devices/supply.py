@@ -23,6 +23,18 @@ RATINGS = {  # channel: (max volts, max amps) — E36312A
 }
 
 
+#: output names accepted by APPL / INST:SEL (E36312A: P6V, P25V, N25V are aliases of CH1..3)
+CHANNEL_NAMES = {"CH1": 1, "CH2": 2, "CH3": 3, "P6V": 1, "P25V": 2, "N25V": 3}
+
+
+def channel_named(text: str) -> int:
+    """Channel number of an output name (any case), else -224 naming the allowed names."""
+    number = CHANNEL_NAMES.get(text.strip().upper())
+    if number is None:
+        raise ScpiError(-224, f"channel {text!r} not in CH1|CH2|CH3 (or P6V|P25V|N25V)")
+    return number
+
+
 @dataclass
 class Channel:
     number: int
@@ -99,10 +111,6 @@ class PowerSupply(ScpiDevice):
         return chans
 
     def _register(self) -> None:
-        def limit_word(args: Args) -> str | None:
-            word = args.raw[0].strip().upper()[:3] if args.count else ""
-            return word if word in ("MIN", "MAX", "DEF") else None
-
         def setpoints(args: Args, attr: str, lo: float, hi_attr: str) -> None:
             # validate every channel's value before changing any (no half-applied lists)
             chans = self._channels_from(args, 1)
@@ -115,8 +123,8 @@ class PowerSupply(ScpiDevice):
             self._changed()
 
         def readback(args: Args, attr: str, hi_attr: str) -> str:
-            word = limit_word(args)
-            if word:
+            word = args.keyword(0)
+            if word in ("MIN", "MAX", "DEF"):
                 chans = self._channels_from(args, 1)
                 return ",".join(format_number(
                     {"MIN": 0.0, "MAX": getattr(self.channels[c], hi_attr),
@@ -143,18 +151,7 @@ class PowerSupply(ScpiDevice):
 
         def apply(args: Args) -> None:
             args.require_count(1, 3)
-            name = args.raw[0].strip().upper()
-            if not (name.startswith(("CH", "P6V", "P25V", "N25V")) ):
-                raise ScpiError(-224, f"channel {args.raw[0]!r} not in CH1|CH2|CH3")
-            c = {"P6V": 1, "P25V": 2, "N25V": 3}.get(name)
-            if c is None:
-                try:
-                    c = int(name[2:])
-                except ValueError:
-                    raise ScpiError(-224, f"channel {args.raw[0]!r} not in CH1|CH2|CH3") from None
-            if c not in self.channels:
-                raise ScpiError(-224, f"channel {c} not in 1..3")
-            ch = self.channels[c]
+            ch = self.channels[channel_named(args.raw[0])]
             if args.count > 1:
                 ch.voltage_v = args.number(1, min=0.0, max=ch.v_max, default=0.0)
             if args.count > 2:
@@ -162,11 +159,7 @@ class PowerSupply(ScpiDevice):
             self._changed()
 
         def apply_q(args: Args) -> str:
-            name = args.raw[0].strip().upper() if args.count else f"CH{self._selected}"
-            c = {"P6V": 1, "P25V": 2, "N25V": 3, "CH1": 1, "CH2": 2, "CH3": 3}.get(name)
-            if c is None:
-                raise ScpiError(-224, f"channel {name!r} not in CH1|CH2|CH3")
-            ch = self.channels[c]
+            ch = self.channels[channel_named(args.raw[0]) if args.count else self._selected]
             return f'"{format_number(ch.voltage_v)},{format_number(ch.current_limit_a)}"'
 
         def meas_volt(args: Args) -> str:
@@ -181,11 +174,7 @@ class PowerSupply(ScpiDevice):
             self._selected = int(args.number(0, min=1, max=3))
 
         def inst_sel(args: Args) -> None:
-            name = args.raw[0].strip().upper()
-            mapping = {"CH1": 1, "CH2": 2, "CH3": 3, "P6V": 1, "P25V": 2, "N25V": 3}
-            if name not in mapping:
-                raise ScpiError(-224, f"{args.raw[0]!r} not in CH1|CH2|CH3")
-            self._selected = mapping[name]
+            self._selected = channel_named(args.raw[0])
 
         def oper_mode(args: Args) -> str:
             return ",".join(self.read(c).mode for c in self._channels_from(args, 0))

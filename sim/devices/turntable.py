@@ -106,7 +106,7 @@ class TurntableController(ScpiDevice):
             def handler(args: Args) -> str:
                 _, axis = self._axis(args)
                 if args.count > 1:
-                    word = args.raw[1].strip().upper()[:3]
+                    word = args.keyword(1)
                     if word not in ("MIN", "MAX"):
                         raise ScpiError(-224, f"{args.raw[1]!r} not in MIN|MAX")
                     return format_number(1e-3 if word == "MIN" else getattr(axis, hw_attr))

@@ -148,6 +148,14 @@ class Args:
         """True when parameter ``i`` (0-based) is present."""
         return 0 <= i < len(self._params)
 
+    def keyword(self, i: int) -> str | None:
+        """The numeric keyword parameter ``i`` spells, canonical (``MIN``, ``MAX``, ``DEF``,
+        ``INF``, ``NINF``, ``NAN``; short or long form, any case), or None when it is absent
+        or not such a keyword.  For queries like ``SAMP:COUN? MAX`` that answer a limit."""
+        if not 0 <= i < len(self._params) or self._params[i].kind != PLAIN:
+            return None
+        return _KEYWORDS.get(self._params[i].text.upper())
+
     def require_count(self, lo: int, hi: int | None = None) -> None:
         """Check lo <= count <= hi (hi defaults to lo): -109 if fewer, -108 if more."""
         hi = lo if hi is None else hi
