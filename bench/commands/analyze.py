@@ -111,16 +111,30 @@ def _analyse_and_print(t: np.ndarray, y: np.ndarray, args, report_dir: Path | No
 
         report = write_startup_report(analysis, report_dir)
     if args.json:
-        doc = analysis.to_dict()
-        doc["source"] = label
-        if report is not None:
-            doc["report"] = str(report)
-        print(json.dumps(doc, indent=2, allow_nan=False))
-        return 0
+        print(json.dumps(analysis_document(analysis, label, report), indent=2, allow_nan=False))
+    else:
+        print_analysis(analysis, label, report)
+    return 0
+
+
+def analysis_document(analysis, label: str, report: Path | None, run_id: str | None = None) -> dict:
+    """The ``--json`` form of an analysis: its numbers, where it came from, where its report is."""
+    doc = analysis.to_dict()
+    doc["source"] = label
+    if run_id is not None:
+        doc["attached"] = "analysis/startup/"
+    if report is not None:
+        doc["report"] = str(report)
+    return doc
+
+
+def print_analysis(analysis, label: str, report: Path | None, run_id: str | None = None) -> None:
+    """The text form: summary, where the report was attached and written."""
     print(_summary(analysis, label))
+    if run_id is not None:
+        print(f"report attached to run {run_id} as analysis/startup/startup_report.html")
     if report is not None:
         print(f"report: {report}")
-    return 0
 
 
 def _summary(a, label: str) -> str:
@@ -153,36 +167,33 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
     import tempfile
 
     from bench.analysis.startup import analyze_startup
-    from bench.commands.common import resolve_run_id
+    from bench.commands.common import require_store, resolve_run_id
     from bench.reports.startup_report import write_startup_report
     from bench.store import RunStore
 
-    if not Path(store_path).is_file():
-        raise LookupError(f"no run store at {store_path} (run a procedure first, or --store PATH)")
-    with RunStore(store_path) as store:
+    require_store(store_path)
+    with RunStore(store_path) as store, tempfile.TemporaryDirectory() as tmp:
         run_id = resolve_run_id(store, run_id)
         data = store.load(run_id, stream)
         info = store.get_run(run_id)
-    context = {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure,
-               "station": (info.station or {}).get("name"), "status": info.status,
-               "started (UTC)": info.started_utc, "seed": info.seed,
-               "code version": info.code_version, "stream": f"{stream}.{value_col}"}
-    for col in (time_col, value_col):
-        if col not in data:
-            raise ValueError(f"stream {stream!r} of run {run_id} has no column {col!r}; "
-                             f"columns are {', '.join(data)}")
-    t, y = np.asarray(data[time_col], float), np.asarray(data[value_col], float)
-    keep = t >= 0.0  # Document A models the trace from power-on; the record starts before it
-    analysis = analyze_startup(t[keep], y[keep], **options)
-    with tempfile.TemporaryDirectory() as tmp:
+        for col in (time_col, value_col):
+            if col not in data:
+                raise ValueError(f"stream {stream!r} of run {run_id} has no column {col!r}; "
+                                 f"columns are {', '.join(data)}")
+        t, y = np.asarray(data[time_col], float), np.asarray(data[value_col], float)
+        keep = t >= 0.0  # Document A models the trace from power-on; the record starts before it
+        analysis = analyze_startup(t[keep], y[keep], **options)
+        context = {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure,
+                   "station": (info.station or {}).get("name"), "status": info.status,
+                   "started (UTC)": info.started_utc, "seed": info.seed,
+                   "code version": info.code_version, "stream": f"{stream}.{value_col}"}
         folder = Path(report_root) / run_id if report_root is not None else Path(tmp)
         report = write_startup_report(analysis, folder, context)
         mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
-        with RunStore(store_path) as store:  # the report and model travel with the run
-            for f in sorted(report.parent.iterdir()):
-                if f.is_file() and f.suffix in mime:
-                    store.attach_analysis(run_id, f"analysis/startup/{f.name}",
-                                          f.read_bytes(), mime[f.suffix])
+        for f in sorted(report.parent.iterdir()):  # the report and model travel with the run
+            if f.is_file() and f.suffix in mime:
+                store.attach_analysis(run_id, f"analysis/startup/{f.name}", f.read_bytes(),
+                                      mime[f.suffix])
     return run_id, analysis, (report if report_root is not None else None)
 
 
@@ -197,17 +208,10 @@ def analyze_stored_run(args) -> int:
             time_col=args.time_col, value_col=args.value_col, **_options(args))
         label = f"run {run_id}"
         if args.json:
-            doc = analysis.to_dict()
-            doc["source"] = label
-            doc["attached"] = "analysis/startup/"
-            if report is not None:
-                doc["report"] = str(report)
-            print(json.dumps(doc, indent=2, allow_nan=False))
-            return 0
-        print(_summary(analysis, label))
-        print(f"report attached to run {run_id} as analysis/startup/startup_report.html")
-        if report is not None:
-            print(f"report: {report}")
+            print(json.dumps(analysis_document(analysis, label, report, run_id), indent=2,
+                             allow_nan=False))
+        else:
+            print_analysis(analysis, label, report, run_id)
         return 0
     except (ValueError, OSError, LookupError) as exc:
         return _fail(str(exc))

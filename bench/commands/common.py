@@ -8,13 +8,18 @@ import sys
 from bench.store import RunStore
 
 
-def open_store(args, *, create: bool = True) -> RunStore:
-    """The run store; reading commands pass ``create=False`` so that asking about a store
-    that does not exist says so instead of creating an empty one."""
+def require_store(path) -> None:
+    """Reading commands never create a store: a missing one is named (LookupError)."""
     from pathlib import Path
 
-    if not create and not Path(args.store).is_file():
-        raise LookupError(f"no run store at {args.store} (run a procedure first, or --store PATH)")
+    if not Path(path).is_file():
+        raise LookupError(f"no run store at {path} (run a procedure first, or --store PATH)")
+
+
+def open_store(args, *, create: bool = True) -> RunStore:
+    """The run store; reading commands pass ``create=False``."""
+    if not create:
+        require_store(args.store)
     return RunStore(args.store)
 
 

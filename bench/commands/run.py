@@ -71,10 +71,10 @@ def run_startup(args) -> int:
     if args.json:
         doc = outcome.to_dict()
         if analysis is not None:
-            doc["analysis"] = analysis.to_dict()
-            doc["analysis"]["attached"] = "analysis/startup/"
-            if report is not None:
-                doc["analysis"]["report"] = str(report)
+            from bench.commands.analyze import analysis_document
+
+            doc["analysis"] = analysis_document(analysis, f"run {outcome.run_id}", report,
+                                                outcome.run_id)
         if analysis_error:
             doc["analysis_error"] = analysis_error
         json.dump(doc, sys.stdout, indent=2, allow_nan=False)
@@ -82,12 +82,9 @@ def run_startup(args) -> int:
     else:
         print_outcome(outcome)
         if analysis is not None:
-            from bench.commands.analyze import _summary
+            from bench.commands.analyze import print_analysis
 
-            print(_summary(analysis, f"run {outcome.run_id}"))
-            print(f"report attached to run {outcome.run_id} as analysis/startup/startup_report.html")
-            if report is not None:
-                print(f"report: {report}")
+            print_analysis(analysis, f"run {outcome.run_id}", report, outcome.run_id)
     if analysis_error:
         print(f"bench: error: {analysis_error}", file=sys.stderr)
         return 2
