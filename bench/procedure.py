@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import traceback
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 
 from bench.clock import Clock
@@ -175,4 +175,4 @@ def each_safely(actions: list[tuple[str, Callable[[], Any]]]) -> None:
 
 
 __all__ = ["Limit", "Measurement", "Context", "Procedure", "RunOutcome", "execute",
-           "each_safely", "asdict"]
+           "each_safely"]

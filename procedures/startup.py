@@ -177,10 +177,11 @@ class StartupAcquisition:
 
     def _power(self, ctx: Context, on: bool) -> None:
         w, supply = ctx.wiring, ctx.instruments["supply"]
-        for ch in (int(w["positive_rail_channel"]), int(w["negative_rail_channel"])):
-            if on:
+        rails = [int(w["positive_rail_channel"]), int(w["negative_rail_channel"])]
+        if on:
+            for ch in rails:
                 supply.ch[ch].apply(float(w["rail_voltage_v"]), float(w["rail_current_limit_a"]))
-        supply.set_outputs([int(w["positive_rail_channel"]), int(w["negative_rail_channel"])], on)
+        supply.set_outputs(rails, on)
         ctx.run.event(ctx.clock.now(), "supply_on" if on else "supply_off",
                       f"rails ±{w['rail_voltage_v']} V")
 

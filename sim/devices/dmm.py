@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from sim.devices.dmm_model import DIG_NPLC, RANGES_V, DmmConverter, DmmFrontEnd, LinePickup
+from sim.devices.dmm_model import DmmConverter, DmmFrontEnd, LinePickup
 from sim.devices.dmm_scpi import Keysight34465AVocabulary
 from sim.scpi import ScpiDevice, ScpiError
 from sim.world import World
@@ -265,5 +265,5 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
             self.world.advance_to(max(self.world.now, self._t_end(self._g + missing - 1)))
 
 
-__all__ = ["Multimeter", "RANGES_V", "DIG_NPLC"]
+__all__ = ["Multimeter"]
 
