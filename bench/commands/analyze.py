@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 import csv
+import importlib
+import pkgutil
 import json
 import sys
 from pathlib import Path
@@ -18,6 +20,15 @@ import numpy as np
 from bench.analysis import timeseries as ts
 
 RUN_STREAM, RUN_TIME_COL, RUN_VALUE_COL = "output", "t_s", "voltage_v"
+
+
+
+def _analysis_modules() -> list[str]:
+    """``bench.commands.analyze_<kind>`` modules; each adds ``bench analyze <kind>``."""
+    import bench.commands as pkg  # noqa: PLC0415
+
+    return sorted(f"bench.commands.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)
+                  if m.name.startswith("analyze_"))
 
 
 def register(sub) -> None:
@@ -41,6 +52,10 @@ def register(sub) -> None:
     r.add_argument("--store", default=argparse.SUPPRESS, help="run store path (overrides bench --store)")
     _common(r)
     r.set_defaults(func=analyze_stored_run)
+
+    # Further analyses live in their own modules, each with ``register_analysis(kinds)``.
+    for name in _analysis_modules():
+        importlib.import_module(name).register_analysis(kinds)
 
 
 def _common(p: argparse.ArgumentParser) -> None:
