@@ -23,7 +23,7 @@ from sim.devices.dmm_model import LinePickup
 from sim.devices.sim_control import SimControl
 from sim.devices.supply import PowerSupply
 from sim.devices.turntable import TurntableController
-from sim.physics.accelerometer import AccelerometerParams, QuartzAccelerometer
+from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
 from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
 from sim.physics.motion import DualAxisTable
 from sim.server import Endpoint, InstrumentServer
@@ -47,7 +47,7 @@ class SimStationConfig:
     line_pickup_v: float = 3e-6
     #: accelerometer IA, PA, OA as unit vectors in the platform frame (rows)
     mount: tuple[tuple[float, float, float], ...] = ((0, 0, 1), (1, 0, 0), (0, 1, 0))
-    accelerometer: dict = field(default_factory=dict)  # AccelerometerParams overrides
+    accelerometer: dict = field(default_factory=dict)  # overrides of the unit drawn by serial
     host: str = "127.0.0.1"
 
     def validate(self) -> None:
@@ -83,7 +83,7 @@ class SimulatedStation:
         self.world = World(cfg.seed)
         self.g_mps2 = cfg.g_mps2 or local_gravity_mps2(cfg.latitude_deg, cfg.height_m)
         self.table = DualAxisTable()
-        self.accel = QuartzAccelerometer(AccelerometerParams(**cfg.accelerometer),
+        self.accel = QuartzAccelerometer(draw_accelerometer(cfg.unit_serial, cfg.accelerometer),
                                          self.world.rng(f"accelerometer:{cfg.unit_serial}"))
         self._mount = np.asarray(cfg.mount, float)
         pickup = LinePickup(amplitude_v=cfg.line_pickup_v, nominal_hz=cfg.line_hz)

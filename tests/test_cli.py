@@ -114,7 +114,8 @@ def test_station_without_the_needed_instruments_is_refused_before_a_run(tmp_path
 def test_level_check_out_of_tolerance_is_a_failed_run_exit_1(tmp_path, capsys):
     # the simulated fixture has a 2.5 kΩ resistor while the station wiring says 5 kΩ
     station = tmp_path / "lab.toml"
-    station.write_text("[simulation]\nsampling_resistor_ohm = 2500.0\nseed = 9\n")
+    station.write_text("[simulation]\nsampling_resistor_ohm = 2500.0\nseed = 9\n"
+                       "[simulation.accelerometer]\nk1_ma_per_g = 1.33\n")  # nominal K1
     store = str(tmp_path / "b.sqlite")
     code = main(["--store", store, "run", "startup", "--station", str(station), "--json"])
     doc = json.loads(capsys.readouterr().out)

@@ -162,7 +162,7 @@ def test_truth_reports_the_true_parameters():
 
 
 @pytest.mark.parametrize("field,value", [
-    ("k1_ma_per_g", 1.5), ("k1_ma_per_g", 1.1), ("k0_g", 0.02), ("warmup_tau_s", 0.0),
+    ("k1_ma_per_g", 1.8), ("k1_ma_per_g", 0.9), ("k0_g", 0.02), ("warmup_tau_s", 0.0),
     ("ambient_c", 100.0), ("white_density_g_per_rthz", -1e-6), ("delta_o_rad", math.nan),
     ("supply_min_v", 20.0), ("gm_tau_s", (20.0, 5.0)), ("gm_sigma_g", (-1e-6,)),
 ])

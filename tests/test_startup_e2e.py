@@ -18,7 +18,9 @@ SHORT = dict(duration_s=240.0, rate_hz=50.0, off_wait_s=60.0, chunk_s=30.0)
 def run_startup(tmp_path, seed=3, progress=None, **overrides):
     store = RunStore(tmp_path / "bench.sqlite")
     params = StartupParameters(**{**SHORT, **overrides})
-    with Station(builtin_sim_config(), seed=seed, unit_serial="QA-T-1") as station:
+    config = builtin_sim_config()
+    config.simulation = {"accelerometer": {"warmup_amplitude_g": 6e-5}}  # a clear transient
+    with Station(config, seed=seed, unit_serial="QA-T-1") as station:
         kwargs = {"progress": progress} if progress else {}
         outcome = execute(StartupAcquisition(params), station, store, unit_serial="QA-T-1",
                           seed=seed, **kwargs)

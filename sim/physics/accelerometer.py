@@ -22,7 +22,8 @@ is not modelled). Outside the supply range the unit is off and outputs 0 A.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+import zlib
+from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
@@ -71,7 +72,7 @@ class AccelerometerParams:
 
     def __post_init__(self):
         bounded = {  # name: (low, high), inclusive
-            "k0_g": (-10e-3, 10e-3), "k1_ma_per_g": (1.20, 1.46), "k2_g_per_g2": (-1e-3, 1e-3),
+            "k0_g": (-10e-3, 10e-3), "k1_ma_per_g": (1.0, 1.7), "k2_g_per_g2": (-1e-3, 1e-3),
             "k3_g_per_g3": (-1e-3, 1e-3), "delta_o_rad": (-0.01, 0.01), "delta_p_rad": (-0.01, 0.01),
             "kip_g_per_g2": (-1e-3, 1e-3), "kio_g_per_g2": (-1e-3, 1e-3),
             "warmup_amplitude_g": (-10e-3, 10e-3), "warmup_tau_s": (1e-3, 1e5),
@@ -100,6 +101,49 @@ class AccelerometerParams:
     @property
     def k1_a_per_g(self) -> float:
         return self.k1_ma_per_g * 1e-3
+
+
+#: Manufacturing spread of the simulated QA-2000-class population: field -> (kind, centre, spread).
+#: "normal": centre ± σ; "lognormal": median × exp(σ·z). The data-sheet limits the acceptance
+#: spec uses (|K0| < 4 mg, K1 1.20–1.46 mA/g, |K2| < 20 µg/g², |δ| < 70 µrad, noise < 7 µg rms
+#: in 0–10 Hz i.e. N < 2.2 µg/√Hz) sit at 2.3–2.9 σ of these, so about 6 % of units fail one.
+ACCELEROMETER_SPREAD: dict[str, tuple[str, float, float]] = {
+    "k0_g": ("normal", 0.0, 1.5e-3),
+    "k1_ma_per_g": ("normal", 1.33, 0.045),
+    "k2_g_per_g2": ("normal", 0.0, 8e-6),
+    "k3_g_per_g3": ("normal", 0.0, 2e-6),        # assumed
+    "delta_o_rad": ("normal", 0.0, 30e-6),
+    "delta_p_rad": ("normal", 0.0, 30e-6),
+    "kip_g_per_g2": ("normal", 0.0, 5e-6),       # assumed
+    "kio_g_per_g2": ("normal", 0.0, 5e-6),       # assumed
+    "warmup_amplitude_g": ("normal", 60e-6, 25e-6),  # assumed
+    "warmup_tau_s": ("lognormal", 180.0, 0.3),   # assumed
+    "drift_g_per_s": ("normal", 1e-9, 1e-9),     # assumed
+    "bias_tc_g_per_c": ("normal", 0.0, 10e-6),
+    "white_density_g_per_rthz": ("lognormal", 1.2e-6, 0.25),
+}
+
+
+def draw_accelerometer(serial: str, overrides: dict | None = None) -> AccelerometerParams:
+    """The unit with serial number ``serial``: drawn from :data:`ACCELEROMETER_SPREAD`.
+
+    Seeded by the serial alone (crc32 → SeedSequence), so the same serial is the same unit on
+    every station and seed, and different serials are different units. ``overrides`` (field →
+    value) replace drawn values, e.g. a station file pinning one unit's parameters.
+    """
+    if not isinstance(serial, str) or not serial:
+        raise ValueError(f"serial {serial!r} must be non-empty text")
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(
+        [zlib.crc32(b"accelerometer"), zlib.crc32(serial.encode("utf-8"))])))
+    drawn = {}
+    for name, (kind, centre, spread) in ACCELEROMETER_SPREAD.items():  # fixed order: stable draws
+        z = float(rng.standard_normal())
+        drawn[name] = centre * math.exp(spread * z) if kind == "lognormal" else centre + spread * z
+    known = {f.name for f in fields(AccelerometerParams)}
+    unknown = set(overrides or {}) - known
+    if unknown:
+        raise ValueError(f"accelerometer parameter(s) {sorted(unknown)} unknown; allowed: {sorted(known)}")
+    return replace(AccelerometerParams(), **{**drawn, **(overrides or {})})
 
 
 def indicated_acceleration_g(p: AccelerometerParams, f_iapo_g: np.ndarray) -> np.ndarray:
