@@ -48,13 +48,13 @@ _FIT_POINTS = 16384
 
 @dataclass(frozen=True)
 class Estimate:
-    """A fitted value and its standard error, in the parameter's units."""
+    """A fitted value and its standard error, in the parameter's units (None: unknown)."""
 
     value: float
-    std: float
+    std: float | None
 
-    def to_dict(self) -> dict[str, float]:
-        return {"value": float(self.value), "std": float(self.std)}
+    def to_dict(self) -> dict[str, float | None]:
+        return {"value": float(self.value), "std": None if self.std is None else float(self.std)}
 
 
 @dataclass(frozen=True, eq=False)
