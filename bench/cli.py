@@ -14,7 +14,7 @@ import sys
 
 #: subcommand modules; each has ``register(subparsers)`` and sets ``func(args) -> int``
 COMMAND_MODULES = ("bench.commands.run", "bench.commands.sim", "bench.commands.runs",
-                   "bench.commands.analyze")
+                   "bench.commands.analyze", "bench.commands.acceptance")
 
 
 class UsageError(Exception):

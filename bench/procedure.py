@@ -48,6 +48,7 @@ class Measurement:
     unit: str
     limit: Limit = field(default_factory=Limit)
     description: str = ""
+    uncertainty: float | None = None  # standard uncertainty, same unit (None: not known)
 
     @property
     def outcome(self) -> str:
@@ -56,7 +57,8 @@ class Measurement:
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "value": self.value, "unit": self.unit,
                 "low": self.limit.low, "high": self.limit.high, "marginal": self.limit.marginal,
-                "outcome": self.outcome, "description": self.description}
+                "outcome": self.outcome, "description": self.description,
+                "uncertainty": self.uncertainty}
 
 
 class Progress(Protocol):
@@ -79,8 +81,9 @@ class Context:
     measurements: list[Measurement] = field(default_factory=list)
 
     def measure(self, name: str, value: float, unit: str, limit: Limit | None = None,
-                description: str = "") -> Measurement:
-        m = Measurement(name, float(value), unit, limit or Limit(), description)
+                description: str = "", uncertainty: float | None = None) -> Measurement:
+        u = None if uncertainty is None or not math.isfinite(uncertainty) else float(uncertainty)
+        m = Measurement(name, float(value), unit, limit or Limit(), description, u)
         self.measurements.append(m)
         self.run.set_result(f"measurement.{name}", m.to_dict())
         return m

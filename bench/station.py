@@ -189,10 +189,13 @@ class Station:
     """Open drivers and clock of a station; closes everything (and the embedded sim) on exit."""
 
     def __init__(self, config: StationConfig, *, seed: int | None = None,
-                 unit_serial: str | None = None) -> None:
+                 unit_serial: str | None = None, unit_kind: str = "accelerometer") -> None:
+        if unit_kind not in ("accelerometer", "gyro"):
+            raise ValueError(f"unit_kind {unit_kind!r} not in accelerometer|gyro")
         self.config = config
         self.seed = seed
         self.unit_serial = unit_serial
+        self.unit_kind = unit_kind  # which simulated sensor the serial number names
         self.instruments: dict[str, Any] = {}
         self.clock: Clock = WallClock()
         self.sim = None  # the embedded simulated station, if any
@@ -252,7 +255,8 @@ class Station:
         if self.seed is not None:
             sim_opts["seed"] = self.seed
         if self.unit_serial is not None:
-            sim_opts["unit_serial"] = self.unit_serial
+            key = "gyro_serial" if self.unit_kind == "gyro" else "unit_serial"
+            sim_opts[key] = self.unit_serial
         for key in ("sampling_resistor_ohm", "temp_resistor_ohm",
                     "positive_rail_channel", "negative_rail_channel"):
             sim_opts.setdefault(key, cfg.wiring[key])

@@ -1,0 +1,107 @@
+"""``bench acceptance``: calibrate a unit, judge it against its spec, store one record, report.
+
+Exit 0 pass (marginal measurements included), 1 fail, 2 error or aborted run.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from bench.commands.common import open_store, progress_bar
+
+
+def register(sub) -> None:
+    p = sub.add_parser("acceptance", help="factory acceptance test of one unit against its spec")
+    p.add_argument("--station", default="sim", help="'sim' or a station TOML file [sim]")
+    p.add_argument("--unit", default=None, help="unit serial number (sim default: the spec's "
+                   "serial pattern with * = 0001)")
+    p.add_argument("--spec", default=None, help="unit spec TOML [the built-in spec whose "
+                   "serial_pattern matches --unit]")
+    p.add_argument("--seed", type=int, default=None, help="seed of the simulated world")
+    p.add_argument("--report", metavar="DIR", default="bench-data/reports",
+                   help="write the HTML report into DIR/<run id>/ [bench-data/reports]")
+    p.add_argument("--json", action="store_true", help="print the verdict document as JSON")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run_acceptance)
+
+
+def choose_spec(spec_path: str | None, unit: str | None):
+    from bench.spec import load_spec
+    from bench.specs import builtin_specs
+    from procedures.acceptance import CATALOGUE
+
+    if spec_path is not None:
+        return load_spec(spec_path, CATALOGUE)
+    specs = [load_spec(p, CATALOGUE) for p in builtin_specs()]
+    if unit is None:
+        raise ValueError("give --spec FILE or --unit SN (built-in specs match serials: "
+                         + ", ".join(f"{s.serial_pattern} → {s.model}" for s in specs) + ")")
+    matching = [s for s in specs if s.applies_to(unit)]
+    if not matching:
+        raise ValueError(f"no built-in spec matches unit {unit!r} (patterns: "
+                         + ", ".join(str(s.serial_pattern) for s in specs) + "); give --spec FILE")
+    return matching[0]
+
+
+def run_acceptance(args) -> int:
+    from bench.procedure import execute
+    from bench.reports.acceptance_report import acceptance_document, write_acceptance_report
+    from bench.station import Station, resolve_station
+    from procedures.acceptance import AcceptanceTest
+
+    started = time.perf_counter()
+    if args.seed is not None and not 0 <= args.seed < 2**63:
+        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
+    spec = choose_spec(args.spec, args.unit)
+    procedure = AcceptanceTest(spec)  # every step's parameters validated before the station opens
+    config = resolve_station(args.station)
+    unit = args.unit
+    if unit is None:
+        if not config.simulated or not spec.serial_pattern:
+            raise ValueError("--unit SN is required on a real station")
+        unit = spec.serial_pattern.replace("*", "0001")
+    if spec.serial_pattern and not spec.applies_to(unit):
+        print(f"bench: warning: unit {unit!r} does not match the spec's serial pattern "
+              f"{spec.serial_pattern!r}", file=sys.stderr)
+    sim = config.simulation or {}
+    seed = args.seed if args.seed is not None else (
+        sim.get("seed", 0) if config.simulation is not None else None)
+    store = open_store(args)
+    with Station(config, seed=seed, unit_serial=unit, unit_kind=spec.kind) as station, \
+            progress_bar(not args.no_progress and not args.json) as progress:
+        outcome = execute(procedure, station, store, unit_serial=unit, seed=seed, progress=progress)
+    folder = Path(args.report) / outcome.run_id
+    report = write_acceptance_report(store, outcome.run_id, folder)
+    mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
+    for f in sorted(folder.iterdir()):
+        if f.is_file() and f.suffix in mime:
+            store.attach_analysis(outcome.run_id, f"analysis/acceptance/{f.name}", f.read_bytes(),
+                                  mime[f.suffix])
+    doc = acceptance_document(store, outcome.run_id)
+    doc.update(report=str(report), store=str(store.path),
+               wall_time_s=round(time.perf_counter() - started, 2))
+    if args.json:
+        json.dump(doc, sys.stdout, indent=2, allow_nan=False, default=str)
+        print()
+    else:
+        print_verdict(doc)
+    return {"passed": 0, "failed": 1}.get(outcome.status, 2)
+
+
+def print_verdict(doc: dict) -> None:
+    print(f"{doc['model']} s/n {doc['unit']}: {doc['verdict']}"
+          + (f" — {doc['reason']}" if doc.get("reason") else ""))
+    print(f"  {'measurement':<18} {'value':>13} {'± unc.':>9} {'unit':<8} {'low':>9} {'high':>9}  outcome")
+    for m in doc["measurements"]:
+        unc = "" if m.get("uncertainty") is None else f"{m['uncertainty']:.2g}"
+        low = "" if m["low"] is None else f"{m['low']:g}"
+        high = "" if m["high"] is None else f"{m['high']:g}"
+        print(f"  {m['name']:<18} {m['value']:>13.6g} {unc:>9} {m['unit']:<8} {low:>9} {high:>9}  "
+              f"{m['outcome'].upper()}")
+    print(f"run {doc['run_id']} stored in {doc['store']} (bench runs show {doc['run_id']})")
+    print(f"report: {doc['report']}")
+    if "wall_time_s" in doc:
+        print(f"wall time: {doc['wall_time_s']:.1f} s")

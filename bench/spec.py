@@ -1,0 +1,236 @@
+"""Unit specifications: what a sensor model must meet, as data (TOML), not code.
+
+A spec names the sensor model, the procedures acceptance runs (in file order, each with its
+parameters) and every measurement with its unit, limits and optional marginal band::
+
+    [unit]
+    model = "QA-2000-SIM"
+    kind = "accelerometer"                 # accelerometer | gyro
+    serial_pattern = "QA-SIM-*"            # units this spec applies to by default (fnmatch)
+
+    [procedures.tumble]                    # run first; parameters of the procedure
+    positions = 12
+    planes = 2
+
+    [[measurements]]
+    name = "k0"                            # a measurement the procedure produces
+    procedure = "tumble"
+    unit = "mg"                            # any unit of the same dimension as produced
+    low = -4.0
+    high = 4.0
+    marginal = 0.4                         # inside the limits but this close: "marginal"
+
+Which measurements and parameters each procedure has is the *catalogue* the caller passes
+(``procedures.acceptance.CATALOGUE``); the spec is checked against it completely before any
+instrument is touched. Limits are compared in the spec's unit.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+#: unit → (dimension, value of one unit in the dimension's base unit)
+_ARCSEC_RAD = math.pi / 180 / 3600
+UNITS: dict[str, tuple[str, float]] = {
+    "g": ("acceleration", 1.0), "mg": ("acceleration", 1e-3), "ug": ("acceleration", 1e-6),
+    "m/s^2": ("acceleration", 1 / 9.80665),
+    "mA/g": ("accelerometer scale factor", 1.0), "A/g": ("accelerometer scale factor", 1e3),
+    "g/g^2": ("second-order coefficient", 1.0), "ug/g^2": ("second-order coefficient", 1e-6),
+    "g/g^3": ("third-order coefficient", 1.0), "ug/g^3": ("third-order coefficient", 1e-6),
+    "rad": ("angle", 1.0), "mrad": ("angle", 1e-3), "urad": ("angle", 1e-6),
+    "deg": ("angle", math.pi / 180), "arcsec": ("angle", _ARCSEC_RAD),
+    "deg/h": ("angular rate", 1.0), "deg/s": ("angular rate", 3600.0),
+    "ppm": ("ratio", 1.0), "%": ("ratio", 1e4),
+    "s": ("time", 1.0), "min": ("time", 60.0),
+    "g/rtHz": ("acceleration noise density", 1.0), "ug/rtHz": ("acceleration noise density", 1e-6),
+    "deg/rth": ("angle random walk", 1.0), "deg/h/rtHz": ("angle random walk", 1 / 60),
+    "deg/h/rth": ("rate random walk", 1.0),
+    "pulses/arcsec": ("gyro scale factor", 1.0),
+    "readings": ("count", 1.0), "frames": ("count", 1.0),
+}
+KINDS = ("accelerometer", "gyro")
+
+
+class SpecError(ValueError):
+    """A unit spec that cannot be used; the message names the file, the entry and the value."""
+
+
+def convert(value: float, from_unit: str, to_unit: str) -> float:
+    """``value`` in ``from_unit`` expressed in ``to_unit`` (same dimension)."""
+    (dim_a, fa), (dim_b, fb) = _unit(from_unit), _unit(to_unit)
+    if dim_a != dim_b:
+        raise ValueError(f"cannot convert {from_unit!r} ({dim_a}) to {to_unit!r} ({dim_b})")
+    return value * fa / fb
+
+
+def _unit(name: str) -> tuple[str, float]:
+    if name not in UNITS:
+        raise ValueError(f"unit {name!r} unknown; known units: {', '.join(UNITS)}")
+    return UNITS[name]
+
+
+def same_dimension(unit: str) -> list[str]:
+    dim = _unit(unit)[0]
+    return [u for u, (d, _) in UNITS.items() if d == dim]
+
+
+@dataclass(frozen=True)
+class SpecMeasurement:
+    """One line of the spec: a produced measurement, its unit and its limits (in that unit)."""
+
+    name: str
+    procedure: str
+    unit: str
+    low: float | None = None
+    high: float | None = None
+    marginal: float = 0.0
+    description: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "procedure": self.procedure, "unit": self.unit, "low": self.low,
+                "high": self.high, "marginal": self.marginal, "description": self.description}
+
+
+@dataclass(frozen=True)
+class UnitSpec:
+    model: str
+    kind: str
+    procedures: dict[str, dict[str, Any]]  # in run order
+    measurements: tuple[SpecMeasurement, ...]
+    description: str = ""
+    serial_pattern: str | None = None
+    source: str = "<spec>"
+
+    def for_procedure(self, procedure: str) -> list[SpecMeasurement]:
+        return [m for m in self.measurements if m.procedure == procedure]
+
+    def applies_to(self, serial: str) -> bool:
+        return self.serial_pattern is not None and fnmatch.fnmatchcase(serial, self.serial_pattern)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model": self.model, "kind": self.kind, "description": self.description,
+                "serial_pattern": self.serial_pattern, "source": self.source,
+                "procedures": self.procedures,
+                "measurements": [m.to_dict() for m in self.measurements]}
+
+
+@dataclass(frozen=True)
+class CatalogueEntry:
+    """What one procedure offers a spec: its measurements (name → unit, description), the
+    sensor kinds it applies to, and a validator of its parameter table."""
+
+    produces: Mapping[str, tuple[str, str]]
+    kinds: tuple[str, ...]
+    check_parameters: Callable[[dict[str, Any]], Any] = field(default=lambda params: params)
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise SpecError(f"{where} = {value!r} must be a finite number")
+    return float(value)
+
+
+def _text(table: dict, key: str, where: str, required: bool = True) -> str | None:
+    value = table.get(key)
+    if value is None and not required:
+        return None
+    if not isinstance(value, str) or not value.strip():
+        raise SpecError(f"{where}: '{key}' = {value!r} must be non-empty text")
+    return value
+
+
+def parse_spec(data: dict, catalogue: Mapping[str, CatalogueEntry], source: str = "<spec>") -> UnitSpec:
+    """Validate a spec table (as read from TOML) against the procedures' catalogue."""
+    unknown = set(data) - {"unit", "procedures", "measurements"}
+    if unknown:
+        raise SpecError(f"{source}: unknown table(s) {sorted(unknown)}; allowed: unit, procedures, "
+                        "measurements")
+    unit = data.get("unit")
+    if not isinstance(unit, dict):
+        raise SpecError(f"{source}: missing [unit] table (model, kind)")
+    model = _text(unit, "model", f"{source}: [unit]")
+    kind = _text(unit, "kind", f"{source}: [unit]")
+    if kind not in KINDS:
+        raise SpecError(f"{source}: [unit] kind = {kind!r} not in {list(KINDS)}")
+    pattern = _text(unit, "serial_pattern", f"{source}: [unit]", required=False)
+    procedures = data.get("procedures", {})
+    if not isinstance(procedures, dict) or not procedures:
+        raise SpecError(f"{source}: [procedures.<name>] tables needed, one per procedure to run; "
+                        f"known: {sorted(catalogue)}")
+    checked: dict[str, dict[str, Any]] = {}
+    for name, params in procedures.items():
+        where = f"{source}: [procedures.{name}]"
+        if name not in catalogue:
+            raise SpecError(f"{where}: unknown procedure; known: {sorted(catalogue)}")
+        if kind not in catalogue[name].kinds:
+            raise SpecError(f"{where}: applies to {list(catalogue[name].kinds)}, not to a {kind}")
+        if not isinstance(params, dict):
+            raise SpecError(f"{where} must be a table of parameters")
+        try:
+            catalogue[name].check_parameters(dict(params))
+        except (TypeError, ValueError) as exc:
+            raise SpecError(f"{where}: {exc}") from None
+        checked[name] = dict(params)
+    entries = data.get("measurements", [])
+    if not isinstance(entries, list) or not entries:
+        raise SpecError(f"{source}: no [[measurements]]: a spec with nothing to judge passes every unit")
+    measurements, seen = [], set()
+    for i, entry in enumerate(entries, start=1):
+        where = f"{source}: measurement #{i}"
+        if not isinstance(entry, dict):
+            raise SpecError(f"{where} must be a table")
+        extra = set(entry) - {"name", "procedure", "unit", "low", "high", "marginal", "description"}
+        if extra:
+            raise SpecError(f"{where}: unknown key(s) {sorted(extra)}")
+        name = _text(entry, "name", where)
+        proc = _text(entry, "procedure", where)
+        where = f"{source}: measurement {name!r}"
+        if proc not in checked:
+            raise SpecError(f"{where}: procedure {proc!r} is not among this spec's [procedures.*] "
+                            f"({sorted(checked)})")
+        produced = catalogue[proc].produces
+        if name not in produced:
+            raise SpecError(f"{where}: {proc} produces {sorted(produced)}, not {name!r}")
+        if (proc, name) in seen:
+            raise SpecError(f"{where}: listed twice for {proc}")
+        seen.add((proc, name))
+        unit_name = _text(entry, "unit", where)
+        allowed = same_dimension(produced[name][0])
+        if unit_name not in allowed:
+            raise SpecError(f"{where}: unit {unit_name!r} not in {allowed}")
+        low = None if "low" not in entry else _number(entry["low"], f"{where}: low")
+        high = None if "high" not in entry else _number(entry["high"], f"{where}: high")
+        if low is None and high is None:
+            raise SpecError(f"{where}: needs 'low', 'high' or both")
+        if low is not None and high is not None and not low < high:
+            raise SpecError(f"{where}: low = {low} must be < high = {high}")
+        marginal = _number(entry.get("marginal", 0.0), f"{where}: marginal")
+        width = (high - low) / 2 if low is not None and high is not None else math.inf
+        if not 0 <= marginal < width:
+            raise SpecError(f"{where}: marginal = {marginal} not in 0..{width:g} (half the limit span)")
+        description = entry.get("description", produced[name][1])
+        if not isinstance(description, str):
+            raise SpecError(f"{where}: description {description!r} must be text")
+        measurements.append(SpecMeasurement(name, proc, unit_name, low, high, marginal, description))
+    return UnitSpec(model, kind, checked, tuple(measurements), unit.get("description", ""),
+                    pattern, source)
+
+
+def load_spec(path: str | Path, catalogue: Mapping[str, CatalogueEntry]) -> UnitSpec:
+    path = Path(path)
+    if not path.is_file():
+        raise SpecError(f"spec file {str(path)!r} not found")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SpecError(f"spec file {str(path)!r} is not valid TOML: {exc}") from None
+    return parse_spec(data, catalogue, str(path))
+
+
+__all__ = ["UNITS", "KINDS", "SpecError", "SpecMeasurement", "UnitSpec", "CatalogueEntry",
+           "convert", "same_dimension", "parse_spec", "load_spec"]

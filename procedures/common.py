@@ -1,0 +1,118 @@
+"""What every procedure does the same way: power the unit, level or move the table, average
+a meter, and leave the station safe.
+
+The unit under test is powered through the station's wiring (``ctx.wiring``): the
+accelerometer from two rails (positive and negative channel), the gyro from one channel.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from bench.analysis.trend import Estimate  # value and standard uncertainty (None: unknown)
+from bench.procedure import Context, each_safely
+
+#: fastest integration that fits a reading interval, per mains frequency (NPLC values)
+NPLC_CHOICES = (100.0, 10.0, 1.0, 0.2, 0.06, 0.02)
+MOVE_TIMEOUT_S = 300.0
+
+
+def check_ranges(values: dict[str, Any], ranges: dict[str, tuple[float, float]],
+                 integers: tuple[str, ...] = ()) -> None:
+    """ValueError naming the first parameter outside its inclusive range."""
+    for name, (lo, hi) in ranges.items():
+        value = values[name]
+        ok = (not isinstance(value, bool) and isinstance(value, (int, float))
+              and math.isfinite(value) and lo <= value <= hi)
+        if ok and name in integers and value != int(value):
+            ok = False
+        if not ok:
+            kind = "a whole number" if name in integers else "a number"
+            raise ValueError(f"{name} = {value!r} must be {kind} in {lo:g}..{hi:g}")
+
+
+def choose_nplc(interval_s: float, line_hz: float, autozero: bool = True) -> float:
+    """Largest NPLC whose reading (×2 with autozero) fits in ``interval_s`` with 10 % spare."""
+    for nplc in NPLC_CHOICES:
+        reading_s = (2 if autozero else 1) * nplc / line_hz
+        if reading_s <= 0.9 * interval_s:
+            return nplc
+    raise ValueError(f"reading interval {interval_s} s is too short for 0.02 NPLC at {line_hz} Hz")
+
+
+def accelerometer_rails(ctx: Context) -> list[int]:
+    w = ctx.wiring
+    return [int(w["positive_rail_channel"]), int(w["negative_rail_channel"])]
+
+
+def power_accelerometer(ctx: Context, on: bool) -> None:
+    """Both rails to ``rail_voltage_v`` (current-limited) and on, or both off."""
+    w, supply = ctx.wiring, ctx.instruments["supply"]
+    rails = accelerometer_rails(ctx)
+    if on:
+        for ch in rails:
+            supply.ch[ch].apply(float(w["rail_voltage_v"]), float(w["rail_current_limit_a"]))
+    supply.set_outputs(rails, on)
+    ctx.run.event(ctx.clock.now(), "supply_on" if on else "supply_off",
+                  f"accelerometer rails ±{w['rail_voltage_v']} V")
+
+
+def move_table(ctx: Context, inner_deg: float, outer_deg: float) -> None:
+    """Both axes to a position, waiting until each is in position (bench clock)."""
+    table = ctx.instruments["turntable"]
+    table.axis[1].move_to(inner_deg)
+    table.axis[2].move_to(outer_deg)
+    for axis in (1, 2):
+        table.axis[axis].wait_in_position(ctx.clock.sleep, timeout_s=MOVE_TIMEOUT_S)
+
+
+def level_table(ctx: Context) -> None:
+    ctx.instruments["turntable"].interlock_close()
+    move_table(ctx, 0.0, 0.0)
+    ctx.run.event(ctx.clock.now(), "levelled", "turntable at 0°, 0°: platform z up")
+
+
+def averaged_voltage(ctx: Context, average_s: float, nplc: float) -> tuple[float, float, int]:
+    """Mean DC voltage of the ``dmm`` over ``average_s``: (mean V, standard error V, n).
+
+    A timed trace of readings at the given NPLC (autozero off, one reading per interval);
+    the standard error treats the readings as independent.
+    """
+    dmm = ctx.instruments["dmm"]
+    interval = nplc / dmm.line_frequency_hz + 0.002
+    n = max(2, int(average_s / interval))
+    plan = dmm.configure_timed_trace(n, interval, nplc=nplc, range_v=10.0)
+    dmm.initiate()
+    ctx.clock.sleep(plan.duration_s)
+    volts = dmm.fetch_all()
+    if not np.all(np.isfinite(volts)):
+        raise RuntimeError(f"dmm overload: {int(np.sum(~np.isfinite(volts)))} of {volts.size} "
+                           "readings out of range while averaging")
+    return float(volts.mean()), float(volts.std(ddof=1) / math.sqrt(volts.size)), volts.size
+
+
+def make_safe(ctx: Context) -> None:
+    """Teardown for every procedure: supply off, meters idle, tables stopped, gyro stopped.
+
+    Tries every instrument the station has even when one fails, then raises one error
+    naming all failures.
+    """
+    inst = ctx.instruments
+    actions = []
+    if "supply" in inst:
+        actions.append(("supply off", inst["supply"].outputs_off))
+    for name in ("dmm", "dmm_temp"):
+        if name in inst:
+            actions.append((f"{name} abort", inst[name].abort))
+    if "gyro" in inst:
+        actions.append(("gyro stop", inst["gyro"].stop))
+    if "turntable" in inst:
+        def stop_table() -> None:
+            failures = inst["turntable"].stop_all()
+            if failures:
+                raise RuntimeError("; ".join(f"axis {f.axis}: {f.error}" for f in failures))
+        actions.append(("turntable stop", stop_table))
+    each_safely(actions)

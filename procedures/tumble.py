@@ -1,0 +1,125 @@
+"""Accelerometer multi-position (tumble) calibration on the dual-axis turntable, IEEE 1293.
+
+1. Power the unit and let it warm up at the first position.
+2. For each position of the plan (N equally spaced outer angles in one or two planes):
+   move both axes, wait in position, settle, average the output voltage over a timed DMM
+   trace; stream the position, the mean and its standard error to the run.
+3. Fit K0, K1, K2, K3, δo, δp, Kip, Kio by weighted least squares (the identifiable ones for
+   this plan; the rest are named as not identifiable) with standard errors.
+
+The specific force at each position comes from the table angles, the fixture's mount
+(IA along platform z by default) and local gravity (latitude and height, or given).
+Output current = voltage / sampling resistor (station wiring).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from bench.analysis.tumble import fit_tumble, specific_force_iapo_g, tumble_positions
+from bench.procedure import Context
+from bench.site import STANDARD_GRAVITY_MPS2, normal_gravity_mps2
+from procedures.common import Estimate, averaged_voltage, check_ranges, move_table, power_accelerometer
+
+#: produced measurement → (unit, description); names follow IEEE 1293 symbols
+TUMBLE_PRODUCES = {
+    "k0": ("g", "bias K0"),
+    "k1": ("mA/g", "scale factor K1"),
+    "k2": ("g/g^2", "second-order non-linearity K2"),
+    "k3": ("g/g^3", "third-order non-linearity K3"),
+    "delta_o": ("rad", "input-axis misalignment δo (toward PA)"),
+    "delta_p": ("rad", "input-axis misalignment δp (toward OA)"),
+    "kip": ("g/g^2", "cross-coupling Kip"),
+    "kio": ("g/g^2", "cross-coupling Kio"),
+    "fit_residual_rms": ("g", "rms residual of the fit"),
+}
+_PARAM = {"k0": "k0_g", "k1": "k1_ma_per_g", "k2": "k2_g_per_g2", "k3": "k3_g_per_g3",
+          "delta_o": "delta_o_rad", "delta_p": "delta_p_rad", "kip": "kip_g_per_g2",
+          "kio": "kio_g_per_g2"}
+
+
+@dataclass
+class TumbleParameters:
+    positions: int = 12           # outer angles per plane (multiple of 4)
+    planes: int = 2               # 1: IA–OA plane; 2: also IA–PA
+    warmup_s: float = 600.0       # powered, before the first position
+    settle_s: float = 5.0         # after in position, before averaging
+    average_s: float = 10.0       # averaging time per position
+    nplc: float = 10.0
+    latitude_deg: float = 32.06
+    height_m: float = 10.0
+    local_g_mps2: float = 0.0     # 0: normal gravity at latitude and height
+
+    def validate(self) -> None:
+        check_ranges(asdict(self), {
+            "positions": (4, 72), "planes": (1, 2), "warmup_s": (0, 86400), "settle_s": (0, 600),
+            "average_s": (0.5, 3600), "nplc": (0.02, 100), "latitude_deg": (-90, 90),
+            "height_m": (-1000, 10000), "local_g_mps2": (0, 9.9)}, integers=("positions", "planes"))
+        if self.positions % 4:
+            raise ValueError(f"positions = {self.positions} must be a multiple of 4")
+        if self.local_g_mps2 and not 9.7 <= self.local_g_mps2 <= 9.9:
+            raise ValueError(f"local_g_mps2 = {self.local_g_mps2} not in 9.7..9.9 (or 0: computed)")
+        if self.nplc not in (0.02, 0.06, 0.2, 1.0, 10.0, 100.0):
+            raise ValueError(f"nplc = {self.nplc} not in 0.02|0.06|0.2|1|10|100")
+
+    @property
+    def g_mps2(self) -> float:
+        return self.local_g_mps2 or normal_gravity_mps2(self.latitude_deg, self.height_m)
+
+
+class TumbleCalibration:
+    name = "tumble"
+    requires = ("dmm", "supply", "turntable")
+    kinds = ("accelerometer",)
+    produces = TUMBLE_PRODUCES
+
+    def __init__(self, params: TumbleParameters | None = None, **overrides) -> None:
+        self.p = params or TumbleParameters(**overrides)
+        self.p.validate()
+        self.plan = tumble_positions(self.p.positions, self.p.planes)
+
+    def parameters(self) -> dict:
+        return asdict(self.p)
+
+    def duration_s(self) -> float:
+        return self.p.warmup_s + len(self.plan) * (self.p.settle_s + self.p.average_s + 3.0)
+
+    def run(self, ctx: Context) -> dict[str, Estimate]:
+        p, plan = self.p, self.plan
+        ohm = float(ctx.wiring["sampling_resistor_ohm"])
+        ctx.run.add_stream("tumble", {"t_s": "s", "inner_deg": "deg", "outer_deg": "deg",
+                                      "voltage_v": "V", "voltage_se_v": "V", "n_readings": "1"},
+                           "mean output per tumble position")
+        move_table(ctx, *plan[0])
+        power_accelerometer(ctx, on=True)
+        ctx.progress(0, self.duration_s(), "warming up")
+        ctx.clock.sleep(p.warmup_s)
+        means, errors = np.empty(len(plan)), np.empty(len(plan))
+        for k, (inner, outer) in enumerate(plan):
+            move_table(ctx, inner, outer)
+            ctx.clock.sleep(p.settle_s)
+            mean, se, n = averaged_voltage(ctx, p.average_s, p.nplc)
+            means[k], errors[k] = mean, se
+            ctx.run.append("tumble", t_s=[ctx.clock.now()], inner_deg=[inner], outer_deg=[outer],
+                           voltage_v=[mean], voltage_se_v=[se], n_readings=[n])
+            ctx.progress(p.warmup_s + (k + 1) * (self.duration_s() - p.warmup_s) / len(plan),
+                         self.duration_s(), f"position {k + 1}/{len(plan)} ({inner:g}°, {outer:g}°)")
+        g_over_g0 = p.g_mps2 / STANDARD_GRAVITY_MPS2
+        forces = specific_force_iapo_g(plan[:, 0], plan[:, 1], g_over_g0)
+        # Readings within a position are correlated (coloured noise), so their standard error
+        # understates the scatter between positions: σ comes from the residuals when the plan
+        # leaves degrees of freedom, from the per-position errors only when it does not.
+        fit = fit_tumble(forces, means, None, output_unit_per_ma=ohm * 1e-3)
+        if fit.dof == 0:
+            fit = fit_tumble(forces, means, errors, output_unit_per_ma=ohm * 1e-3)
+        ctx.run.set_result("tumble.fit", {**fit.to_dict(), "g_mps2": p.g_mps2,
+                                          "positions": plan.tolist()})
+        out = {name: Estimate(fit.params[key].value, fit.params[key].std)
+               for name, key in _PARAM.items() if key in fit.params}
+        out["fit_residual_rms"] = Estimate(fit.rms_g, None)
+        for name, key in _PARAM.items():
+            if key in fit.not_identifiable:
+                ctx.run.event(ctx.clock.now(), "not_identifiable", f"{name}: {fit.not_identifiable[key]}")
+        return out
