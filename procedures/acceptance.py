@@ -17,9 +17,11 @@ from bench.spec import CatalogueEntry, UnitSpec, convert
 from procedures.common import level_table, make_safe
 from procedures.steps import Step, scaled_progress
 from procedures.tumble import TumbleCalibration
+from procedures.turn_on import TurnOnTest
 
 #: step name → step class (constructed with the spec's parameter table as keywords)
 STEPS: dict[str, type] = {
+    "startup": TurnOnTest,
     "tumble": TumbleCalibration,
 }
 

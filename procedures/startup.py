@@ -19,11 +19,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.procedure import Context, Limit, each_safely
-
-#: fastest integration that fits a reading interval, per mains frequency (NPLC values)
-NPLC_CHOICES = (100.0, 10.0, 1.0, 0.2, 0.06, 0.02)
-
+from bench.procedure import Context, Limit
+from procedures.common import choose_nplc, make_safe, power_accelerometer
 
 @dataclass
 class StartupParameters:
@@ -57,15 +54,6 @@ class StartupParameters:
                              "readings exceeds 5e7")
 
 
-def choose_nplc(interval_s: float, line_hz: float, autozero: bool = True) -> float:
-    """Largest NPLC whose reading (×2 with autozero) fits in ``interval_s`` with 10 % spare."""
-    for nplc in NPLC_CHOICES:
-        reading_s = (2 if autozero else 1) * nplc / line_hz
-        if reading_s <= 0.9 * interval_s:
-            return nplc
-    raise ValueError(f"reading interval {interval_s} s is too short for 0.02 NPLC at {line_hz} Hz")
-
-
 class StartupAcquisition:
     name = "startup"
     requires = ("dmm", "dmm_temp", "supply", "turntable")
@@ -97,7 +85,7 @@ class StartupAcquisition:
         volts_per_g = p.nominal_scale_factor_ma_per_g * 1e-3 * w["sampling_resistor_ohm"]
 
         # 1. level check: powered, settled, averaged reading ≈ +1 g
-        self._power(ctx, on=True)
+        power_accelerometer(ctx, on=True)
         ctx.clock.sleep(p.check_settle_s)
         dmm.configure_dc_voltage(range_v=10.0, nplc=10.0)
         one_g = float(np.mean([dmm.measure_dc_voltage() for _ in range(5)])) / volts_per_g
@@ -132,7 +120,7 @@ class StartupAcquisition:
         dmm.initiate()
         dmm_temp.initiate()
         ctx.clock.sleep(p.pre_trigger_s)
-        self._power(ctx, on=True)
+        power_accelerometer(ctx, on=True)
         t_on = ctx.clock.now()
         # Events carry bench-clock time; the streams' t_s count from this instant.
         ctx.run.event(t_on, "t0", "power-on: t = 0 of the start-up test",
@@ -175,27 +163,6 @@ class StartupAcquisition:
                     "output readings expected minus stored")
         ctx.run.set_result("samples", {"output": got_out, "temperature": got_temp})
 
-    def _power(self, ctx: Context, on: bool) -> None:
-        w, supply = ctx.wiring, ctx.instruments["supply"]
-        rails = [int(w["positive_rail_channel"]), int(w["negative_rail_channel"])]
-        if on:
-            for ch in rails:
-                supply.ch[ch].apply(float(w["rail_voltage_v"]), float(w["rail_current_limit_a"]))
-        supply.set_outputs(rails, on)
-        ctx.run.event(ctx.clock.now(), "supply_on" if on else "supply_off",
-                      f"rails ±{w['rail_voltage_v']} V")
-
     # -- teardown: always, and safe even if one instrument is gone ------------------------
     def teardown(self, ctx: Context) -> None:
-        inst = ctx.instruments
-        def stop_table() -> None:
-            failures = inst["turntable"].stop_all()  # tries every axis, reports the failures
-            if failures:
-                raise RuntimeError("; ".join(f"axis {f.axis}: {f.error}" for f in failures))
-
-        each_safely([
-            ("supply off", inst["supply"].outputs_off),
-            ("dmm abort", inst["dmm"].abort),
-            ("dmm_temp abort", inst["dmm_temp"].abort),
-            ("turntable stop", stop_table),
-        ])
+        make_safe(ctx)

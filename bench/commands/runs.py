@@ -60,8 +60,16 @@ def show_run(args) -> int:
     info = store.get_run(args.run_id)
     streams = store.streams(args.run_id)
     events = store.events(args.run_id)
+    measurements = [v for k, v in (info.results or {}).items() if k.startswith("measurement.")]
+    verdict = None
+    if info.procedure == "acceptance" and info.status != "running":
+        from bench.reports.acceptance_report import verdict_of
+
+        verdict = verdict_of(info.status, measurements)
     if args.json:
         doc = _info(info)
+        doc["verdict"] = verdict
+        doc["measurements"] = measurements
         doc["streams"] = {k: asdict(v) if hasattr(v, "__dataclass_fields__") else v
                           for k, v in streams.items()}
         doc["events"] = [asdict(e) if hasattr(e, "__dataclass_fields__") else e for e in events]
@@ -72,18 +80,22 @@ def show_run(args) -> int:
         return 0
     print(f"run        {info.id}\nprocedure  {info.procedure}\nunit       {info.unit_serial}\n"
           f"status     {info.status}" + (f" — {info.reason}" if info.reason else "") +
+          (f"\nverdict    {verdict}" if verdict else "") +
           f"\nstarted    {info.started_utc}\nended      {info.ended_utc}\nseed       {info.seed}\n"
           f"code       {info.code_version}\nlast good sample at t = {info.last_sample_t_s} s")
     print("streams:")
     for name, s in streams.items():
         print(f"  {name:<14} {getattr(s, 'n_rows', '?'):>10} rows  "
               f"{', '.join(f'{c} [{u}]' for c, u in getattr(s, 'columns', {}).items())}")
-    measurements = {k[len('measurement.'):]: v for k, v in (info.results or {}).items()
-                    if k.startswith("measurement.")}
     if measurements:
-        print("measurements:")
-        for name, m in measurements.items():
-            print(f"  {name:<22} {m['value']:>14.6g} {m['unit']:<9} {m['outcome']}")
+        print(f"measurements:\n  {'name':<22} {'value':>14} {'± unc.':>9} {'unit':<9} {'low':>10} "
+              f"{'high':>10}  outcome")
+        for m in measurements:
+            unc = "" if m.get("uncertainty") is None else f"{m['uncertainty']:.2g}"
+            low = "" if m.get("low") is None else f"{m['low']:g}"
+            high = "" if m.get("high") is None else f"{m['high']:g}"
+            print(f"  {m['name']:<22} {m['value']:>14.6g} {unc:>9} {m['unit']:<9} {low:>10} "
+                  f"{high:>10}  {m['outcome']}")
     attachments = store.attachments(args.run_id)
     if attachments:
         print("attachments:")

@@ -49,7 +49,39 @@ def tumble_section(store, run_id: str, results: dict[str, Any], out: Path) -> Se
     return "Tumble calibration", name, caption
 
 
+def startup_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
+    r = results.get("startup.turn_on")
+    if not r or "output" not in store.streams(run_id):
+        return None
+    data = store.load(run_id, "output")
+    t, g = np.asarray(data["t_s"]), np.asarray(data["acceleration_g"])
+    keep = t >= 0
+    t, g = t[keep], g[keep]
+    n = max(1, int(round(r["smooth_s"] / float(np.median(np.diff(t))))))
+    smooth = np.convolve(g, np.ones(n) / n, mode="valid")
+    ts = t[n - 1:]
+    step = max(1, t.size // 20000)
+    settled, band = r["settled_value"], r["band"]
+    fig = Figure(figsize=(9, 3.8))
+    ax = fig.add_subplot()
+    ax.plot(t[::step], (g[::step] - settled) * 1e6, lw=0.4, color="0.75", label="output")
+    ax.plot(ts[::step], (smooth[::step] - settled) * 1e6, lw=1.0, color="C0",
+            label=f"{r['smooth_s']:g} s average")
+    ax.axhspan(-band * 1e6, band * 1e6, color="C2", alpha=0.15, label=f"±{band * 1e6:g} µg band")
+    ax.axvline(r["turn_on_time_s"], color="C3", lw=1.0,
+               label=f"turn-on time {r['turn_on_time_s']:.0f} s")
+    lim = max(5 * band, 1.2 * float(np.max(np.abs(smooth - settled)))) * 1e6
+    ax.set(xlabel="time since power-on (s)", ylabel="output − settled (µg)", ylim=(-lim, lim),
+           title="Start-up: output relative to its settled value")
+    ax.legend(fontsize=8, loc="upper right")
+    name = _save(fig, out / "acceptance_startup.png")
+    caption = (f"Settled value {settled:.7g} g (mean of the last part of the record); warm-up "
+               f"drift of the fitted trend {r['warmup_drift'] * 1e6:.3g} µg ({r['trend']['kind']}).")
+    return "Start-up", name, caption
+
+
 #: step name → section builder
 SECTIONS: dict[str, Callable[..., Section | None]] = {
+    "startup": startup_section,
     "tumble": tumble_section,
 }
