@@ -169,6 +169,8 @@ def test_rate_plan_interleaves_log_spaced_rates():
     np.testing.assert_allclose(mags[1:] / mags[:-1], 10 ** 0.5, rtol=1e-12)
     np.testing.assert_array_equal(plan[1::2], -mags)
     assert rate_plan(50.0, 1).tolist() == [50.0, -50.0]
+    below = rate_plan(490.0, 4, min_fraction=0.01, max_fraction=0.99)
+    assert below[0] == pytest.approx(4.9, rel=1e-12) and below[-2] == pytest.approx(485.1, rel=1e-15)
 
 
 @settings(max_examples=200, deadline=None, derandomize=True)
@@ -210,6 +212,7 @@ W = np.array([-10.0, 0.0, 10.0, 100.0])
      "nominal_scale_factor=0.0"),
     (lambda: rate_plan(100.0, 0), "n_per_sign=0"),
     (lambda: rate_plan(100.0, 3, min_fraction=1.5), "min_fraction=1.5"),
+    (lambda: rate_plan(100.0, 3, max_fraction=1.2), "max_fraction=1.2"),
     (lambda: whole_revolution_duration_s(0.0, 10.0), "rate_dps=0.0"),
     (lambda: whole_revolution_duration_s(10.0, -1.0), "min_duration_s=-1.0"),
     (lambda: earth_rate_vertical_dps(91.0), "latitude_deg=91.0"),

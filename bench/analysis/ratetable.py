@@ -56,21 +56,26 @@ def earth_rate_vertical_dps(latitude_deg: float) -> float:
     return EARTH_RATE_DPS * math.sin(math.radians(latitude_deg))
 
 
-def rate_plan(full_scale_dps: float, n_per_sign: int = 6, *, min_fraction: float = 0.01) -> np.ndarray:
+def rate_plan(full_scale_dps: float, n_per_sign: int = 6, *, min_fraction: float = 0.01,
+              max_fraction: float = 1.0) -> np.ndarray:
     """Default table rates in °/s: ``n_per_sign`` magnitudes log-spaced from
-    ``min_fraction·FS`` to FS, each visited + then −, smallest first. Interleaving the
-    signs keeps a slow thermal drift from posing as asymmetry."""
+    ``min_fraction·FS`` to ``max_fraction·FS``, each visited + then −, smallest first.
+    Interleaving the signs keeps a slow thermal drift from posing as asymmetry. A gyro that
+    clips at exactly FS needs ``max_fraction`` < 1 so the Earth rate does not push it over."""
     _check_full_scale(full_scale_dps)
     if isinstance(n_per_sign, bool) or not isinstance(n_per_sign, (int, np.integer)) \
             or not 1 <= n_per_sign <= 50:
         raise ValueError(f"n_per_sign={n_per_sign!r} must be an integer in [1, 50]")
     if not (_real(min_fraction) and 1e-4 <= min_fraction < 1.0):
         raise ValueError(f"min_fraction={min_fraction!r} outside the allowed range [1e-4, 1)")
+    if not (_real(max_fraction) and min_fraction < max_fraction <= 1.0):
+        raise ValueError(f"max_fraction={max_fraction!r} outside the allowed range ({min_fraction}, 1]")
+    top = max_fraction * full_scale_dps
     if n_per_sign == 1:
-        mags = np.array([float(full_scale_dps)])
+        mags = np.array([float(top)])
     else:
-        mags = full_scale_dps * np.logspace(math.log10(min_fraction), 0.0, n_per_sign)
-        mags[-1] = full_scale_dps  # exactly FS, not 10**0 rounded
+        mags = top * np.logspace(math.log10(min_fraction / max_fraction), 0.0, n_per_sign)
+        mags[-1] = top  # exactly, not 10**0 rounded
     return np.column_stack([mags, -mags]).ravel()
 
 
