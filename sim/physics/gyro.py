@@ -1,0 +1,366 @@
+"""Interferometric fibre-optic gyro (FOG) with angle-increment pulse output (IEEE Std 952).
+
+Per output interval [t₀, t₁] the unit integrates its indicated rate (°/s)
+
+    ω_out = B(t) + ω·(1 + ε + (A/2)·sign ω) + n·FS·(ω/FS)³ + vibration + white noise
+
+with ω the interval-mean input rate along the misaligned input axis (clipped to ±FS,
+which sets OVER_RANGE) and B(t) = turn-on bias (+ a repeatability draw per power-on)
++ warm-up a·exp(−(t − t_on)/τ) + temperature tc·(T − ambient) + g-sensitivity·f
++ flicker (Gauss-Markov sum) + rate random walk. Parameters, conventions and sources:
+``sim/physics/gyro_params.py``; manufacturing spread and limits:
+``sim/physics/gyro_population.py``.
+
+How each term enters the interval's angle (degrees):
+* warm-up and temperature: their exact integrals over the interval (closed forms);
+* flicker + RRW: the knot-grid process (``gyro_noise.KnotBias``) at the interval midpoint;
+* ARW: white rate noise of density N integrated exactly, an increment of σ = N·√dt;
+* vibration (g rms per sensor axis): rectified bias Σ kᵢgᵢ², the resonance's exact mean
+  over the interval, and a Gauss-Markov rate noise of σ = ‖cᵢgᵢ‖ at the midpoint.
+
+Quantisation with carry: pulses = angle·3600·SF (nominal SF) accumulated in 2⁻²⁴-pulse
+fixed point (exact integer sums, so any split of the intervals gives the same counts);
+each interval outputs the change of the rounded accumulator, so the sum of pulses over
+any span equals the integrated angle within ±1 pulse. The accumulator restarts at each
+boot. An interval outputs pulses only if the unit was ready (powered and booted)
+throughout it; otherwise 0 — its noise is still drawn, so the random streams never
+depend on the power history.
+
+Determinism: every stochastic term has its own child generator of the given ``rng``.
+On uniform interval grids (the frame line's) a split call [0..k], [k..n] gives pulses
+identical to one call, noise included; on non-uniform grids the vibration noise's
+per-step coefficients agree to rounding only (~1e-15), so a count may differ by one
+where the accumulator sits on a pulse boundary.
+
+Status bits (aligned with docs/FOG_SERIAL.md where they overlap): 0x01 READY, 0x04
+TEMPERATURE (coil outside the operating range), 0x08 OVER_RANGE (|ω| > FS in the interval
+of the last ``pulses`` call containing t), 0x20 WARMING_UP (ready and t − t_on < 3 τ_warm-up),
+0x40 BOOTING (powered, not yet ready). SUPPLY (0x02) and BIT_FAIL (0x10) are not produced.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from sim.physics.gyro_noise import KNOT_STEPS_PER_TAU, KnotBias
+from sim.physics.gyro_params import (FLICKER_ADEV_FACTOR, GRADES, NAVIGATION, TACTICAL, GyroParams,
+                                     adev_model_dph, flicker_terms)
+from sim.physics.gyro_population import LIMITS, draw_gyro, out_of_limits
+from sim.physics.noise import GaussMarkov
+from sim.physics.thermal import ThermalNode
+
+__all__ = ["GRADES", "LIMITS", "NAVIGATION", "TACTICAL", "FiberOpticGyro", "GyroParams", "adev_model_dph",
+           "draw_gyro", "flicker_terms", "indicated_rate_dps", "out_of_limits"]
+
+STATUS_READY, STATUS_TEMPERATURE, STATUS_OVER_RANGE = 0x01, 0x04, 0x08
+STATUS_WARMING_UP, STATUS_BOOTING = 0x20, 0x40
+WARMUP_STATUS_TAUS = 3.0
+
+_FRAC_BITS = 24  # fixed-point fraction of a pulse in the carry accumulator
+_HALF_PULSE = 1 << (_FRAC_BITS - 1)
+_FRAC_MASK = (1 << _FRAC_BITS) - 1
+_MAX_SPAN_PULSES = float(2**61 >> _FRAC_BITS)  # |accumulator| bound of one cumulative sum
+
+
+def indicated_rate_dps(p: GyroParams, omega_ia_dps) -> np.ndarray:
+    """Static rate response (°/s) to input rates along the input axis: scale-factor error,
+    asymmetry and cubic non-linearity, input clipped to ±FS. Bias not included."""
+    fs = p.full_scale_dps
+    w = np.clip(np.asarray(omega_ia_dps, dtype=float), -fs, fs)
+    half_asym = 0.5e-6 * p.asymmetry_ppm
+    return w * (1.0 + 1e-6 * p.scale_factor_error_ppm + half_asym * np.sign(w)) \
+        + 1e-6 * p.nonlinearity_ppm * fs * (w / fs) ** 3
+
+
+def _child_generators(rng: np.random.Generator, n: int) -> list[np.random.Generator]:
+    """Independent child streams (as in accelerometer.py), one per stochastic term."""
+    try:
+        return rng.spawn(n)
+    except (TypeError, ValueError):  # generator built without a SeedSequence: seed from its stream
+        return [np.random.default_rng(int(s)) for s in rng.integers(0, 2**63, size=n)]
+
+
+@dataclass(frozen=True)
+class _Segment:
+    """A span of constant supply state starting at ``t_start``."""
+
+    t_start: float
+    on: bool
+    t_on: float  # power-on instant (NaN when off)
+    t_ready: float  # t_on + boot time (inf when off)
+    thermal: ThermalNode  # snapshot valid from t_start on
+    run_bias_dps: float  # turn-on bias of this run (bias + repeatability draw)
+
+
+class FiberOpticGyro:
+    """One FOG: supply and boot, self-heating, bias terms, noise and pulse quantisation.
+
+    Times are simulated seconds. ``set_supply`` calls come at non-decreasing times, not
+    before the last interval edge already processed; ``pulses`` calls come in time order,
+    each starting at (contiguous) or after (a gap) the previous call's last edge.
+    Queries (``powered``, ``ready``, ``status``, temperatures) accept times from the
+    start of the last ``pulses`` call on; scalars give scalars, arrays give arrays.
+    """
+
+    def __init__(self, params: GyroParams, rng: np.random.Generator) -> None:
+        if not isinstance(params, GyroParams):
+            raise TypeError("params must be a GyroParams (e.g. draw_gyro(serial) or TACTICAL)")
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError("rng must be a numpy.random.Generator (no global RNG is used)")
+        self.params = p = params
+        arw_rng, slow_rng, vib_rng, phase_rng, rep_rng = _child_generators(rng, 5)
+        self._arw_rng, self._rep_rng = arw_rng, rep_rng
+        self._flicker = flicker_terms(p)
+        self._slow = KnotBias(*self._flicker, p.rrw_dps_per_rs, p.flicker_tau_min_s / KNOT_STEPS_PER_TAU,
+                              slow_rng)
+        self._vib_noise = GaussMarkov(1.0, p.vib_noise_tau_s, vib_rng)
+        self._vib_phase = float(phase_rng.uniform(0.0, 2.0 * math.pi))
+        self._ia = np.array([1.0, *p.misalignment_rad])
+        self._g_sens_dps = np.array(p.g_sensitivity_dph_per_g) / 3600.0
+        self._thermal = ThermalNode(p.ambient_c, p.self_heating_delta_c, p.thermal_tau_s)
+        self._segments = [_Segment(-math.inf, False, math.nan, math.inf, copy.copy(self._thermal), 0.0)]
+        self._supply_v = 0.0
+        self._t_edge: float | None = None  # last interval edge processed
+        self._acc = _HALF_PULSE  # carry accumulator (fixed point), valid while _running
+        self._running = False
+        self._last_edges = np.empty(0)
+        self._last_over = np.empty(0, dtype=bool)
+
+    # ---- supply -------------------------------------------------------------------------
+    def supply_in_range(self, volts: float) -> bool:
+        return self.params.supply_min_v <= volts <= self.params.supply_max_v
+
+    def set_supply(self, t_s: float, volts: float) -> None:
+        """Apply ``volts`` at ``t_s``; entering the supply range is a power-on (restarts
+        boot, warm-up and draws this run's turn-on bias), leaving it a power-off."""
+        t = float(t_s)
+        earliest = max(self._segments[-1].t_start, -math.inf if self._t_edge is None else self._t_edge)
+        if not (math.isfinite(t) and t >= earliest):
+            raise ValueError(f"t_s={t_s!r} must be finite and ≥ {earliest!r} s "
+                             "(the last supply change or the last processed interval edge)")
+        if not math.isfinite(volts):
+            raise ValueError(f"volts={volts!r} must be finite")
+        self._supply_v = float(volts)
+        on = self.supply_in_range(volts)
+        if on == self._segments[-1].on:
+            return
+        self._thermal.set_power(t, on)
+        p = self.params
+        run_bias = (p.bias_dph + p.bias_repeatability_dph * float(self._rep_rng.standard_normal())) / 3600.0 \
+            if on else 0.0
+        self._segments.append(_Segment(t, on, t if on else math.nan, t + p.boot_time_s if on else math.inf,
+                                       copy.copy(self._thermal), run_bias))
+        self._running = False
+
+    @property
+    def supply_v(self) -> float:
+        return self._supply_v
+
+    # ---- state queries ------------------------------------------------------------------
+    def _seg_index(self, t: np.ndarray) -> np.ndarray:
+        starts = np.array([s.t_start for s in self._segments])
+        if t.size and not np.all(np.isfinite(t)):
+            raise ValueError("times must be finite")
+        idx = np.searchsorted(starts, t, side="right") - 1
+        if t.size and idx.min() < 0:
+            raise ValueError(f"time {t.min()!r} s precedes the retained history (from {starts[0]!r} s)")
+        return idx
+
+    def _per_segment(self, t_s, fn, dtype=float):
+        """Evaluate ``fn(segment, times)`` per segment; scalar in, scalar out."""
+        t = np.asarray(t_s, dtype=float)
+        flat = np.atleast_1d(t).ravel()
+        idx = self._seg_index(flat)
+        out = np.empty(flat.shape, dtype=dtype)
+        for i in np.unique(idx):
+            sel = idx == i
+            out[sel] = fn(self._segments[i], flat[sel])
+        return out.reshape(t.shape)[()] if t.ndim else out[0].item()
+
+    def powered(self, t_s):
+        """Supply within range at ``t_s``."""
+        return self._per_segment(t_s, lambda s, t: np.full(t.shape, s.on), bool)
+
+    def ready(self, t_s):
+        """Powered and booted at ``t_s`` (output valid)."""
+        return self._per_segment(t_s, lambda s, t: s.on & (t >= s.t_ready), bool)
+
+    def body_temperature_c(self, t_s):
+        """Coil (sensor-body) temperature in °C — the one the bias depends on."""
+        return self._per_segment(t_s, lambda s, t: s.thermal.temperature_c(t))
+
+    def temperature_c(self, t_s):
+        """The on-board temperature sensor's reading in °C (coil + sensor offset)."""
+        return self._per_segment(t_s, lambda s, t: s.thermal.temperature_c(t) + self.params.temp_sensor_offset_c)
+
+    def supply_current_a(self, t_s):
+        """Current drawn from the supply in A (constant while powered)."""
+        return self._per_segment(t_s, lambda s, t: np.full(t.shape, self.params.supply_current_a if s.on else 0.0))
+
+    def status(self, t_s):
+        """Status bit field at ``t_s`` (module docstring); 0 when unpowered."""
+        p = self.params
+
+        def bits(s: _Segment, t: np.ndarray) -> np.ndarray:
+            if not s.on:
+                return np.zeros(t.shape, dtype=np.int64)
+            ready = t >= s.t_ready
+            temp = s.thermal.temperature_c(t)
+            out = np.where(ready, STATUS_READY, STATUS_BOOTING).astype(np.int64)
+            out |= np.where(ready & (t - s.t_on < WARMUP_STATUS_TAUS * p.warmup_tau_s), STATUS_WARMING_UP, 0)
+            out |= np.where((temp < p.operating_min_c) | (temp > p.operating_max_c), STATUS_TEMPERATURE, 0)
+            if self._last_over.size:
+                k = np.searchsorted(self._last_edges, t, side="left") - 1
+                inside = (k >= 0) & (k < self._last_over.size)
+                over = np.zeros(t.shape, dtype=bool)
+                over[inside] = self._last_over[k[inside]]
+                out |= np.where(over & ready, STATUS_OVER_RANGE, 0)
+            return out
+
+        return self._per_segment(t_s, bits, np.int64)
+
+    # ---- output -------------------------------------------------------------------------
+    def _vibration(self, v, n: int):
+        """(rectified bias °/s, resonance amplitude °/s, noise σ °/s) per interval, or None."""
+        p = self.params
+        g = np.asarray(v, dtype=float)
+        if g.ndim == 0:
+            g = np.full((n, 1), float(g))
+        elif g.shape == (n,):
+            g = g[:, None]
+        elif g.shape != (n, 3):
+            raise ValueError(f"vibration_g_rms must be a scalar, shape ({n},) or ({n}, 3), got {g.shape}")
+        if not np.all(np.isfinite(g)) or np.any(g < 0):
+            raise ValueError("vibration_g_rms must be finite and ≥ 0")
+        if not np.any(g):
+            return None
+        m = g.shape[1]
+        rect = (g**2) @ (np.array(p.vib_rectification_dph_per_g2[:m]) / 3600.0)
+        amp = np.sqrt((g**2) @ np.square(p.vib_resonance_dps_per_grms[:m]))
+        sigma = np.sqrt((g**2) @ np.square(p.vib_noise_dps_per_grms[:m]))
+        return rect, amp, sigma
+
+    def pulses(self, t_edges_s: np.ndarray, omega_sensor_dps: np.ndarray, f_sensor_g: np.ndarray,
+               vibration_g_rms: float | np.ndarray = 0.0) -> np.ndarray:
+        """Pulse counts (int64, n) over the n intervals between ``t_edges_s`` (n+1, increasing).
+
+        ``omega_sensor_dps`` (n, 3): mean inertial rate per interval in sensor axes (IA,
+        second, third); ``f_sensor_g`` (n, 3): specific force in g; ``vibration_g_rms``:
+        random-vibration level, a scalar or (n,) along the IA, or (n, 3) per sensor axis.
+        """
+        t = np.asarray(t_edges_s, dtype=float)
+        if t.ndim != 1 or t.size < 1 or not np.all(np.isfinite(t)):
+            raise ValueError("t_edges_s must be a finite 1-D array of at least one edge")
+        n = t.size - 1
+        dt = np.diff(t)
+        if n and dt.min() <= 0.0:
+            raise ValueError("t_edges_s must be strictly increasing")
+        if self._t_edge is not None and t[0] < self._t_edge:
+            raise ValueError(f"t_edges_s[0]={t[0]!r} s precedes the previous call's last edge {self._t_edge!r} s")
+        omega = np.asarray(omega_sensor_dps, dtype=float)
+        f = np.asarray(f_sensor_g, dtype=float)
+        for name, arr in (("omega_sensor_dps", omega), ("f_sensor_g", f)):
+            if arr.shape != (n, 3):
+                raise ValueError(f"{name} must have shape ({n}, 3), got {arr.shape}")
+        vib = self._vibration(vibration_g_rms, n)
+        contiguous = self._t_edge is None or t[0] == self._t_edge
+        if n == 0:
+            self._t_edge = float(t[0])
+            return np.zeros(0, dtype=np.int64)
+        p = self.params
+        mid = t[:-1] + 0.5 * dt
+        # noise for every interval, powered or not (streams independent of the power history)
+        noise_dps = self._slow.values(mid, contiguous)
+        vib_unit = self._vib_noise.sample(mid)
+        arw_deg = self._arw_rng.standard_normal(n)
+        arw_deg *= p.arw_deg_per_rs * np.sqrt(dt)
+
+        omega_ia = omega @ self._ia
+        over = np.abs(omega_ia) > p.full_scale_dps
+        # validity: one segment over the whole interval, powered, booted at its start
+        idx0 = self._seg_index(t[:-1])
+        idx1 = np.searchsorted([s.t_start for s in self._segments], t[1:], side="left") - 1
+        on = np.array([s.on for s in self._segments])
+        t_ready = np.array([s.t_ready for s in self._segments])
+        valid = (idx0 == idx1) & on[idx0] & (t[:-1] >= t_ready[idx0])
+        counts = np.zeros(n, dtype=np.int64)
+        carry_in = self._running
+        self._running = False
+        for i in np.unique(idx0[valid]):
+            run = np.flatnonzero(valid & (idx0 == i))
+            a, b = int(run[0]), int(run[-1]) + 1  # valid intervals of a segment are contiguous
+            seg = self._segments[i]
+            rate = indicated_rate_dps(p, omega_ia[a:b]) + seg.run_bias_dps + noise_dps[a:b]
+            rate += self._deterministic_bias_dps(seg, t[a:b + 1], dt[a:b])
+            rate += f[a:b] @ self._g_sens_dps
+            if vib is not None:
+                rect, amp, sigma = (x[a:b] for x in vib)
+                half = math.pi * p.vib_resonance_hz * dt[a:b]  # half the phase advance
+                phase = 2.0 * math.pi * p.vib_resonance_hz * mid[a:b] + self._vib_phase
+                rate += rect + amp * np.sin(phase) * (np.sin(half) / half) + sigma * vib_unit[a:b]
+            angle_pulses = (rate * dt[a:b] + arw_deg[a:b]) * (3600.0 * p.scale_factor_pulses_per_arcsec)
+            start = self._acc if (carry_in and a == 0) else _HALF_PULSE
+            counts[a:b], self._acc = _quantise(angle_pulses, start)
+            self._running = b == n
+        self._t_edge = float(t[-1])
+        self._last_edges, self._last_over = t.copy(), over & valid
+        self._prune(t[0])
+        return counts
+
+    def _deterministic_bias_dps(self, seg: _Segment, edges: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        """Interval means of warm-up and temperature bias (exact integrals), °/s."""
+        p = self.params
+        out = np.zeros(dt.size)
+        if p.warmup_amplitude_dph:
+            e = np.exp(-(edges - seg.t_on) / p.warmup_tau_s)
+            out += (p.warmup_amplitude_dph / 3600.0 * p.warmup_tau_s) * (e[:-1] - e[1:]) / dt
+        if p.bias_tc_dph_per_c:
+            temp = seg.thermal.temperature_c(edges)
+            # ∫(T − target) = τ (T(t₀) − T(t₁)) for the exponential relaxation toward target
+            rise = p.self_heating_delta_c + p.thermal_tau_s * (temp[:-1] - temp[1:]) / dt
+            out += (p.bias_tc_dph_per_c / 3600.0) * rise
+        return out
+
+    def _prune(self, t_first: float) -> None:
+        """Forget supply segments that ended before the last call's first edge."""
+        starts = [s.t_start for s in self._segments]
+        keep = max(0, int(np.searchsorted(starts, t_first, side="right")) - 1)
+        del self._segments[:keep]
+
+    # ---- truth --------------------------------------------------------------------------
+    def truth(self) -> dict:
+        """True parameters of the unit (for recovery tests) and of the current run."""
+        p, seg = self.params, self._segments[-1]
+        out = asdict(p)
+        sig, tau = self._flicker
+        out.update({
+            "run_bias_dph": seg.run_bias_dps * 3600.0 if seg.on else math.nan,
+            "power_on_time_s": seg.t_on, "ready_time_s": seg.t_ready if seg.on else math.nan,
+            "pulse_deg": p.pulse_deg, "arw_deg_per_rs": p.arw_deg_per_rs,
+            "rrw_dps_per_rs": p.rrw_dps_per_rs,
+            "bias_instability_adev_floor_dph": FLICKER_ADEV_FACTOR * p.bias_instability_dph,
+            "flicker_sigma_dph": (sig * 3600.0).tolist(), "flicker_tau_s": tau.tolist(),
+            "slow_knot_step_s": self._slow.step_s, "vib_resonance_phase_rad": self._vib_phase,
+        })
+        return out
+
+
+def _quantise(angle_pulses: np.ndarray, start: int) -> tuple[np.ndarray, int]:
+    """Counts = changes of the rounded fixed-point accumulator; returns (counts, end state)."""
+    fixed = np.rint(angle_pulses * float(1 << _FRAC_BITS)).astype(np.int64)
+    n = fixed.size
+    peak = float(np.abs(angle_pulses).max()) if n else 0.0
+    chunk = n if peak * n < _MAX_SPAN_PULSES else max(1, int(_MAX_SPAN_PULSES // max(peak, 1.0)))
+    counts = np.empty(n, dtype=np.int64)
+    acc = start
+    for a in range(0, n, chunk):  # one pass unless the span could overflow int64
+        cum = np.cumsum(fixed[a:a + chunk])
+        cum += acc
+        whole = cum >> _FRAC_BITS  # floor division: arithmetic shift
+        counts[a:a + chunk] = np.diff(whole, prepend=acc >> _FRAC_BITS)
+        acc = int(cum[-1] & _FRAC_MASK)  # keep only the sub-pulse remainder
+    return counts, acc
