@@ -72,8 +72,9 @@ def indicated_rate_dps(p: GyroParams, omega_ia_dps) -> np.ndarray:
     fs = p.full_scale_dps
     w = np.clip(np.asarray(omega_ia_dps, dtype=float), -fs, fs)
     half_asym = 0.5e-6 * p.asymmetry_ppm
+    x = w / fs
     return w * (1.0 + 1e-6 * p.scale_factor_error_ppm + half_asym * np.sign(w)) \
-        + 1e-6 * p.nonlinearity_ppm * fs * (w / fs) ** 3
+        + (1e-6 * p.nonlinearity_ppm * fs) * (x * x * x)  # x*x*x: much faster than ** 3
 
 
 def _child_generators(rng: np.random.Generator, n: int) -> list[np.random.Generator]:
@@ -225,24 +226,27 @@ class FiberOpticGyro:
 
     # ---- output -------------------------------------------------------------------------
     def _vibration(self, v, n: int):
-        """(rectified bias °/s, resonance amplitude °/s, noise σ °/s) per interval, or None."""
+        """(rectified bias °/s, resonance amplitude °/s, noise σ °/s), each a scalar or
+        per interval (n,), or None without vibration."""
         p = self.params
         g = np.asarray(v, dtype=float)
-        if g.ndim == 0:
-            g = np.full((n, 1), float(g))
-        elif g.shape == (n,):
-            g = g[:, None]
-        elif g.shape != (n, 3):
+        if g.ndim == 0 or g.shape == (n,):  # along the input axis
+            if not np.all(np.isfinite(g)) or np.any(g < 0):
+                raise ValueError("vibration_g_rms must be finite and ≥ 0")
+            if not np.any(g):
+                return None
+            return (p.vib_rectification_dph_per_g2[0] / 3600.0 * g * g,
+                    p.vib_resonance_dps_per_grms[0] * g, p.vib_noise_dps_per_grms[0] * g)
+        if g.shape != (n, 3):
             raise ValueError(f"vibration_g_rms must be a scalar, shape ({n},) or ({n}, 3), got {g.shape}")
         if not np.all(np.isfinite(g)) or np.any(g < 0):
             raise ValueError("vibration_g_rms must be finite and ≥ 0")
         if not np.any(g):
             return None
-        m = g.shape[1]
-        rect = (g**2) @ (np.array(p.vib_rectification_dph_per_g2[:m]) / 3600.0)
-        amp = np.sqrt((g**2) @ np.square(p.vib_resonance_dps_per_grms[:m]))
-        sigma = np.sqrt((g**2) @ np.square(p.vib_noise_dps_per_grms[:m]))
-        return rect, amp, sigma
+        g2 = g * g
+        return (g2 @ (np.array(p.vib_rectification_dph_per_g2) / 3600.0),
+                np.sqrt(g2 @ np.square(p.vib_resonance_dps_per_grms)),
+                np.sqrt(g2 @ np.square(p.vib_noise_dps_per_grms)))
 
     def pulses(self, t_edges_s: np.ndarray, omega_sensor_dps: np.ndarray, f_sensor_g: np.ndarray,
                vibration_g_rms: float | np.ndarray = 0.0) -> np.ndarray:
@@ -281,35 +285,53 @@ class FiberOpticGyro:
 
         omega_ia = omega @ self._ia
         over = np.abs(omega_ia) > p.full_scale_dps
-        # validity: one segment over the whole interval, powered, booted at its start
-        idx0 = self._seg_index(t[:-1])
-        idx1 = np.searchsorted([s.t_start for s in self._segments], t[1:], side="left") - 1
-        on = np.array([s.on for s in self._segments])
-        t_ready = np.array([s.t_ready for s in self._segments])
-        valid = (idx0 == idx1) & on[idx0] & (t[:-1] >= t_ready[idx0])
         counts = np.zeros(n, dtype=np.int64)
+        valid = np.zeros(n, dtype=bool)
         carry_in = self._running
         self._running = False
-        for i in np.unique(idx0[valid]):
-            run = np.flatnonzero(valid & (idx0 == i))
-            a, b = int(run[0]), int(run[-1]) + 1  # valid intervals of a segment are contiguous
-            seg = self._segments[i]
-            rate = indicated_rate_dps(p, omega_ia[a:b]) + seg.run_bias_dps + noise_dps[a:b]
+        for seg, a, b in self._ready_runs(t):
+            valid[a:b] = True
+            rate = indicated_rate_dps(p, omega_ia[a:b])
+            rate += seg.run_bias_dps
+            rate += noise_dps[a:b]
             rate += self._deterministic_bias_dps(seg, t[a:b + 1], dt[a:b])
             rate += f[a:b] @ self._g_sens_dps
             if vib is not None:
-                rect, amp, sigma = (x[a:b] for x in vib)
+                rect, amp, sigma = (x if np.ndim(x) == 0 else x[a:b] for x in vib)
                 half = math.pi * p.vib_resonance_hz * dt[a:b]  # half the phase advance
                 phase = 2.0 * math.pi * p.vib_resonance_hz * mid[a:b] + self._vib_phase
                 rate += rect + amp * np.sin(phase) * (np.sin(half) / half) + sigma * vib_unit[a:b]
-            angle_pulses = (rate * dt[a:b] + arw_deg[a:b]) * (3600.0 * p.scale_factor_pulses_per_arcsec)
+            rate *= dt[a:b]
+            rate += arw_deg[a:b]
+            rate *= 3600.0 * p.scale_factor_pulses_per_arcsec  # now the angle in pulses
             start = self._acc if (carry_in and a == 0) else _HALF_PULSE
-            counts[a:b], self._acc = _quantise(angle_pulses, start)
+            counts[a:b], self._acc = _quantise(rate, start)
             self._running = b == n
         self._t_edge = float(t[-1])
         self._last_edges, self._last_over = t.copy(), over & valid
         self._prune(t[0])
         return counts
+
+    def _ready_runs(self, t: np.ndarray):
+        """(segment, a, b): intervals a..b-1 lie inside one powered segment after its boot.
+
+        Segment indices of the edges are non-decreasing, so each segment's intervals are
+        one contiguous range, and its ready ones a contiguous tail of it (minus an interval
+        cut by the next change)."""
+        starts = np.array([s.t_start for s in self._segments])
+        lo_seg = max(0, int(np.searchsorted(starts, t[0], side="right")) - 1)
+        hi_seg = int(np.searchsorted(starts, t[-1], side="right")) - 1
+        for i in range(lo_seg, hi_seg + 1):
+            seg = self._segments[i]
+            if not seg.on:
+                continue
+            a = int(np.searchsorted(t, max(seg.t_start, seg.t_ready), side="left"))  # first edge ≥ ready
+            if i + 1 < len(self._segments):  # the last edge ≤ the next change ends the run
+                b = int(np.searchsorted(t, self._segments[i + 1].t_start, side="right")) - 1
+            else:
+                b = t.size - 1
+            if b > a:
+                yield seg, a, b
 
     def _deterministic_bias_dps(self, seg: _Segment, edges: np.ndarray, dt: np.ndarray) -> np.ndarray:
         """Interval means of warm-up and temperature bias (exact integrals), °/s."""
