@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from sim.physics.gyro_noise import KnotBias
 from sim.physics.gyro import (LIMITS, NAVIGATION, STATUS_BOOTING, STATUS_OVER_RANGE, STATUS_READY,
                               STATUS_TEMPERATURE, STATUS_WARMING_UP, TACTICAL, FiberOpticGyro, GyroParams,
                               adev_model_dph, draw_gyro, indicated_rate_dps, out_of_limits)
@@ -228,6 +229,33 @@ def test_vibration_rectification_resonance_and_noise_scale_with_level():
     stds = [np.std(run(unit(noisy, seed=4), edges, 0.0, vib=v) / (k * 5e-4)) for v in (1.0, 4.0)]
     assert stds[0] == pytest.approx(0.003, rel=0.05)
     assert stds[1] / stds[0] == pytest.approx(4.0, rel=0.05)
+
+
+def test_knot_process_is_stationary_gauss_markov_across_steps_and_gaps():
+    # one term σ = 2, τ = 10 s: corr over Δ is exp(−Δ/τ), also across a skipped gap
+    before, after_step, after_gap = [], [], []
+    for seed in range(1500):
+        kb = KnotBias([2.0], [10.0], 0.0, 0.5, np.random.default_rng(seed))
+        before.append(kb.values(np.array([3.0]))[0])  # on a knot: no interpolation
+        after_step.append(kb.values(np.array([8.0]))[0])
+        after_gap.append(kb.values(np.array([18.0]), contiguous=False)[0])
+    before, after_step, after_gap = map(np.array, (before, after_step, after_gap))
+    for x in (before, after_step, after_gap):
+        assert x.std() == pytest.approx(2.0, rel=0.06)
+    assert np.corrcoef(before, after_step)[0, 1] == pytest.approx(math.exp(-0.5), abs=0.05)
+    assert np.corrcoef(after_step, after_gap)[0, 1] == pytest.approx(math.exp(-1.0), abs=0.05)
+
+
+def test_frame_line_pattern_coarse_steps_then_frames():
+    # the serial line steps an idle gyro in 1 s intervals, then streams 2 kHz frames
+    p = quiet(arw_deg_per_rh=0.05, bias_instability_dph=0.5)
+    g = unit(p)
+    run(g, np.arange(0.0, 11.0, 1.0), 0.0)
+    edges = 10.0 + np.arange(0, 40_001) * 5e-4
+    counts = run(g, edges, 20.0, vib=1.0)
+    rate = counts.sum() / (3600.0 * p.scale_factor_pulses_per_arcsec * 20.0)
+    # ARW over 20 s: 0.05/60/√20 = 1.9e-4 °/s; flicker and vibration noise smaller
+    assert rate == pytest.approx(float(indicated_rate_dps(p, 20.0)) + p.bias_dph / 3600.0, abs=1e-3)
 
 
 # ---- determinism ------------------------------------------------------------------------------
