@@ -95,9 +95,10 @@ def averaged_voltage(ctx: Context, average_s: float, nplc: float) -> tuple[float
 
 
 def make_safe(ctx: Context) -> None:
-    """Teardown for every procedure: supply off, meters idle, tables stopped, gyro stopped.
+    """Teardown for every procedure: supply off, meters idle, tables stopped.
 
-    Tries every instrument the station has even when one fails, then raises one error
+    The supply going off is what stops a gyro's frame stream (an unpowered gyro cannot be
+    asked to stop). Tries every instrument the station has even when one fails, then raises one error
     naming all failures.
     """
     inst = ctx.instruments
@@ -107,8 +108,6 @@ def make_safe(ctx: Context) -> None:
     for name in ("dmm", "dmm_temp"):
         if name in inst:
             actions.append((f"{name} abort", inst[name].abort))
-    if "gyro" in inst:
-        actions.append(("gyro stop", inst["gyro"].stop))
     if "turntable" in inst:
         def stop_table() -> None:
             failures = inst["turntable"].stop_all()

@@ -166,7 +166,7 @@ def _solve(u: np.ndarray, y: np.ndarray, z0: np.ndarray, log_bounds: tuple[float
 
     def theta(z: np.ndarray) -> np.ndarray:
         th = z.copy()
-        th[_TAUS] = np.exp(z[_TAUS])
+        th[_TAUS] = np.exp(np.clip(z[_TAUS], -700.0, 700.0))  # a trial step may run τ off; no overflow
         return th
 
     def resid(z: np.ndarray) -> np.ndarray:

@@ -1,0 +1,155 @@
+"""Acceptance of simulated accelerometers end to end: spec → steps → station → store →
+verdict → report; calibration recovers the simulated truth within its stated uncertainty."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import Phase, given, settings, strategies as st
+
+from bench.cli import main
+from bench.procedure import execute
+from bench.spec import parse_spec
+from bench.station import Station, builtin_sim_config
+from bench.store import RunStore
+from procedures.acceptance import CATALOGUE, AcceptanceTest
+
+SHORT_SPEC = """
+[unit]
+model = "QA-TEST"
+kind = "accelerometer"
+serial_pattern = "QA-SIM-*"
+
+[procedures.startup]
+duration_s = 400.0
+rate_hz = 10.0
+off_wait_s = 0.0
+settled_window_s = 100.0
+
+[procedures.tumble]
+positions = 8
+planes = 2
+warmup_s = 60.0
+settle_s = 2.0
+average_s = 4.0
+
+[[measurements]]
+name = "k0"
+procedure = "tumble"
+unit = "mg"
+low = -4.0
+high = 4.0
+
+[[measurements]]
+name = "k1"
+procedure = "tumble"
+unit = "mA/g"
+low = 1.2
+high = 1.46
+
+[[measurements]]
+name = "turn_on_time"
+procedure = "startup"
+unit = "s"
+high = 390.0
+"""
+
+
+@pytest.fixture
+def spec_file(tmp_path):
+    path = tmp_path / "spec.toml"
+    path.write_text(SHORT_SPEC)
+    return path
+
+
+def test_a_unit_inside_its_spec_passes_with_record_and_report(tmp_path, spec_file, capsys):
+    store = str(tmp_path / "b.sqlite")
+    code = main(["--store", store, "acceptance", "--unit", "QA-SIM-0002", "--spec", str(spec_file),
+                 "--seed", "3", "--json", "--report", str(tmp_path / "rep")])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0 and doc["verdict"] == "PASS" and doc["status"] == "passed"
+    names = [m["name"] for m in doc["measurements"]]
+    assert {"k0", "k1", "turn_on_time"} <= set(names)
+    k1 = next(m for m in doc["measurements"] if m["name"] == "k1")
+    assert 0 < k1["uncertainty"] < 1e-3 and k1["unit"] == "mA/g"
+    report = tmp_path / "rep" / doc["run_id"]
+    html = (report / "acceptance_report.html").read_text()
+    assert "QA-SIM-0002" in html and "acceptance_tumble.png" in html and "acceptance_startup.png" in html
+    assert (report / "acceptance_tumble.png").stat().st_size > 10_000
+    with RunStore(store) as s:
+        assert {"output", "temperature", "tumble"} <= set(s.streams(doc["run_id"]))
+        assert any(a.name == "analysis/acceptance/acceptance_report.html"
+                   for a in s.attachments(doc["run_id"]))
+    assert main(["--store", store, "runs", "show", doc["run_id"], "--json"]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    assert shown["verdict"] == "PASS" and len(shown["measurements"]) == len(names)
+
+
+def test_a_unit_clearly_outside_fails_exit_1(tmp_path, spec_file, capsys):
+    station = tmp_path / "st.toml"
+    station.write_text("[simulation]\nseed = 4\n[simulation.accelerometer]\nk0_g = 0.008\n")
+    code = main(["--store", str(tmp_path / "b.sqlite"), "acceptance", "--unit", "QA-SIM-0002",
+                 "--spec", str(spec_file), "--station", str(station), "--json",
+                 "--report", str(tmp_path / "rep")])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 1 and doc["verdict"] == "FAIL" and "k0" in doc["reason"]
+    k0 = next(m for m in doc["measurements"] if m["name"] == "k0")
+    assert k0["outcome"] == "fail" and k0["value"] == pytest.approx(8.0, abs=0.2)
+
+
+def test_bad_arguments_exit_2_with_one_line(tmp_path, capsys):
+    assert main(["--store", str(tmp_path / "b.sqlite"), "acceptance", "--unit", "ZZ-1"]) == 2
+    assert "no built-in spec matches unit 'ZZ-1'" in capsys.readouterr().err
+    assert main(["--store", str(tmp_path / "b.sqlite"), "acceptance", "--spec",
+                 str(tmp_path / "none.toml")]) == 2
+    assert "not found" in capsys.readouterr().err
+
+
+TUMBLE_ONLY = {
+    "unit": {"model": "QA-TEST", "kind": "accelerometer"},
+    "procedures": {"tumble": {"positions": 8, "planes": 2, "warmup_s": 3000.0, "settle_s": 2.0,
+                              "average_s": 5.0}},
+    "measurements": [{"name": n, "procedure": "tumble", "unit": u, "low": lo, "high": hi}
+                     for n, u, lo, hi in (("k0", "mg", -4, 4), ("k1", "mA/g", 1.2, 1.46),
+                                          ("k2", "ug/g^2", -20, 20), ("delta_o", "urad", -70, 70),
+                                          ("delta_p", "urad", -70, 70))],
+}
+PARAM = {"k0": ("k0_g", 1e3), "k1": ("k1_ma_per_g", 1.0), "k2": ("k2_g_per_g2", 1e6),
+         "delta_o": ("delta_o_rad", 1e6), "delta_p": ("delta_p_rad", 1e6)}
+
+
+@settings(max_examples=4, deadline=None, phases=[Phase.explicit, Phase.generate])  # no shrinking: each draw is a whole station run
+@given(k0=st.floats(-3e-3, 3e-3), k1=st.floats(1.25, 1.41), k2=st.floats(-15e-6, 15e-6),
+       delta=st.floats(-60e-6, 60e-6), outside=st.sampled_from(["", "k0", "k1", "k2"]))
+def test_tumble_recovers_drawn_units_and_judges_them(tmp_path_factory, k0, k1, k2, delta, outside):
+    """Inside the spec → pass; one parameter clearly outside → that one fails; every estimate
+    within 4 stated standard errors of the truth (the bias as the unit has it when warm)."""
+    overrides = {"k0_g": k0, "k1_ma_per_g": k1, "k2_g_per_g2": k2, "delta_o_rad": delta,
+                 "delta_p_rad": -delta}
+    overrides.update({"k0": {"k0_g": 6e-3}, "k1": {"k1_ma_per_g": 1.55},
+                      "k2": {"k2_g_per_g2": 40e-6}, "": {}}[outside])
+    config = builtin_sim_config()
+    config.simulation = {"accelerometer": overrides}
+    store = RunStore(tmp_path_factory.mktemp("acc") / "b.sqlite")
+    spec = parse_spec(TUMBLE_ONLY, CATALOGUE)
+    with Station(config, seed=5, unit_serial="QA-SIM-0100") as station:
+        outcome = execute(AcceptanceTest(spec), station, store, unit_serial="QA-SIM-0100", seed=5)
+        truth = station.sim.truth()
+        t_mid = float(store.load(outcome.run_id, "tumble")["t_s"].mean())  # bench clock = sim time
+    # the bias a warm unit shows: K0 + what is left of the warm-up + drift + thermal bias of the
+    # self-heated case (first-order node from ambient since power-on)
+    s = t_mid - truth["power_on_time_s"]
+    warm_bias = (truth["warmup_amplitude_g"] * np.exp(-s / truth["warmup_tau_s"])
+                 + truth["drift_g_per_s"] * s + truth["bias_tc_g_per_c"]
+                 * truth["self_heating_delta_c"] * (1 - np.exp(-s / truth["thermal_tau_s"])))
+    truth["k0_g"] += warm_bias
+    by_name = {m.name: m for m in outcome.measurements}
+    for name, (key, scale) in PARAM.items():
+        m = by_name[name]
+        z = (m.value - truth[key] * scale) / m.uncertainty
+        assert abs(z) < 4.0, (name, m.value, truth[key] * scale, m.uncertainty)
+    expected_fail = {outside} if outside else set()
+    assert {m.name for m in outcome.measurements if m.outcome == "fail"} == expected_fail
+    assert outcome.status == ("failed" if outside else "passed")
