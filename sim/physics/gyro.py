@@ -176,10 +176,14 @@ class FiberOpticGyro:
         t = np.asarray(t_s, dtype=float)
         flat = np.atleast_1d(t).ravel()
         idx = self._seg_index(flat)
-        out = np.empty(flat.shape, dtype=dtype)
-        for i in np.unique(idx):
-            sel = idx == i
-            out[sel] = fn(self._segments[i], flat[sel])
+        lo, hi = (int(idx.min()), int(idx.max())) if idx.size else (0, 0)
+        if lo == hi:  # the usual case: one supply state over all the times
+            out = np.asarray(fn(self._segments[lo], flat), dtype=dtype)
+        else:
+            out = np.empty(flat.shape, dtype=dtype)
+            for i in range(lo, hi + 1):
+                sel = idx == i
+                out[sel] = fn(self._segments[i], flat[sel])
         return out.reshape(t.shape)[()] if t.ndim else out[0].item()
 
     def powered(self, t_s):
@@ -196,11 +200,13 @@ class FiberOpticGyro:
 
     def temperature_c(self, t_s):
         """The on-board temperature sensor's reading in °C (coil + sensor offset)."""
-        return self._per_segment(t_s, lambda s, t: s.thermal.temperature_c(t) + self.params.temp_sensor_offset_c)
+        offset = self.params.temp_sensor_offset_c
+        return self._per_segment(t_s, lambda s, t: s.thermal.temperature_c(t) + offset)
 
     def supply_current_a(self, t_s):
         """Current drawn from the supply in A (constant while powered)."""
-        return self._per_segment(t_s, lambda s, t: np.full(t.shape, self.params.supply_current_a if s.on else 0.0))
+        current = self.params.supply_current_a
+        return self._per_segment(t_s, lambda s, t: np.full(t.shape, current if s.on else 0.0))
 
     def status(self, t_s):
         """Status bit field at ``t_s`` (module docstring); 0 when unpowered."""
@@ -264,7 +270,8 @@ class FiberOpticGyro:
         if n and dt.min() <= 0.0:
             raise ValueError("t_edges_s must be strictly increasing")
         if self._t_edge is not None and t[0] < self._t_edge:
-            raise ValueError(f"t_edges_s[0]={t[0]!r} s precedes the previous call's last edge {self._t_edge!r} s")
+            raise ValueError(f"t_edges_s[0]={t[0]!r} s precedes the previous call's last edge "
+                             f"{self._t_edge!r} s")
         omega = np.asarray(omega_sensor_dps, dtype=float)
         f = np.asarray(f_sensor_g, dtype=float)
         for name, arr in (("omega_sensor_dps", omega), ("f_sensor_g", f)):

@@ -122,7 +122,8 @@ class GyroParams:
                 raise ValueError(f"{low}={getattr(self, low)!r} must be < {high}={getattr(self, high)!r}")
         ratio = self.flicker_tau_max_s / self.flicker_tau_min_s
         if not 10.0 <= ratio <= 1e6:
-            raise ValueError(f"flicker_tau_max_s/flicker_tau_min_s={ratio!r} outside the allowed range [10, 1e6]")
+            raise ValueError(f"flicker_tau_max_s/flicker_tau_min_s={ratio!r} "
+                             "outside the allowed range [10, 1e6]")
 
     def replace(self, **changes) -> GyroParams:
         """A copy with some fields changed (validated)."""
