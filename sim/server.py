@@ -4,6 +4,9 @@ All servers run on one asyncio event loop in one background thread, so the World
 ever touched by that thread — no locks, and commands from different clients are applied
 in the order they arrive, as the physics requires.  A raw-socket SCPI instrument (port
 5025 on real Keysight meters) is what pyvisa-py opens for ``TCPIP::host::port::SOCKET``.
+A serial-line device (a :class:`ByteStreamDevice`, e.g. the FOG's frame output) is served
+as a raw byte stream that pyserial opens as ``socket://host:port``; it writes to its one
+client through a :class:`SerialLink` whenever the world runs it, on the same thread.
 
 Robustness: every message goes through the device's ``process()``, which never raises;
 a misbehaving client is disconnected on a socket error and never takes the server down.
@@ -16,6 +19,7 @@ import logging
 import threading
 import warnings
 from dataclasses import dataclass
+from typing import Protocol
 
 from sim.scpi import MessageFramer, Oversize, ScpiDevice
 
@@ -30,9 +34,41 @@ class Endpoint:
     host: str
     port: int
 
+    transport: str = "scpi"  # "scpi" (VISA raw socket) or "serial" (pyserial socket://)
+
     @property
     def resource(self) -> str:
+        if self.transport == "serial":
+            return f"socket://{self.host}:{self.port}"
         return f"TCPIP::{self.host}::{self.port}::SOCKET"
+
+
+class SerialLink:
+    """The server end of a connected serial line, as a byte-stream device sees it."""
+
+    def __init__(self, writer: asyncio.StreamWriter) -> None:
+        self._writer = writer
+
+    def write(self, data: bytes) -> None:
+        self._writer.write(data)
+
+    @property
+    def pending_bytes(self) -> int:
+        """Bytes written but not yet taken by the socket (user-space send buffer)."""
+        return self._writer.transport.get_write_buffer_size()
+
+
+class ByteStreamDevice(Protocol):
+    """A serial-line device: raw bytes both ways, one client at a time."""
+
+    def connect(self, link: SerialLink) -> bool:
+        """A client opened the line; False refuses it (the line is taken)."""
+
+    def receive(self, link: SerialLink, data: bytes) -> None:
+        """Bytes from the client (never raises)."""
+
+    def disconnect(self, link: SerialLink) -> None:
+        """The client closed the line."""
 
 
 class InstrumentServer:
@@ -43,7 +79,7 @@ class InstrumentServer:
             warnings.warn(f"simulated instruments will listen on {host}, reachable from the network",
                           stacklevel=2)
         self.host = host
-        self._devices: list[tuple[str, str, ScpiDevice, int]] = []
+        self._devices: list[tuple[str, str, ScpiDevice | ByteStreamDevice, int]] = []
         self.endpoints: list[Endpoint] = []
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
@@ -51,7 +87,8 @@ class InstrumentServer:
         self._ready = threading.Event()
         self._error: BaseException | None = None
 
-    def add(self, name: str, kind: str, device: ScpiDevice, port: int = 0) -> None:
+    def add(self, name: str, kind: str, device: ScpiDevice | ByteStreamDevice,
+            port: int = 0) -> None:
         if self._thread is not None:
             raise RuntimeError("add devices before start()")
         self._devices.append((name, kind, device, port))
@@ -88,12 +125,15 @@ class InstrumentServer:
 
     async def _open_all(self) -> None:
         for name, kind, device, port in self._devices:
+            serial = not isinstance(device, ScpiDevice)
+            handler = self._serve_stream if serial else self._serve
             server = await asyncio.start_server(
-                lambda r, w, d=device: self._serve(d, r, w), self.host, port,
+                lambda r, w, d=device, h=handler: h(d, r, w), self.host, port,
                 limit=1 << 22)
             self._servers.append(server)
             bound = server.sockets[0].getsockname()[1]
-            self.endpoints.append(Endpoint(name, kind, self.host, bound))
+            self.endpoints.append(Endpoint(name, kind, self.host, bound,
+                                           "serial" if serial else "scpi"))
 
     def stop(self) -> None:
         if self._loop is not None and self._loop.is_running():
@@ -134,6 +174,30 @@ class InstrumentServer:
             pass
         except Exception:  # never let one client take the server down
             log.exception("client handler failed")
+        finally:
+            try:
+                writer.close()
+            except Exception:
+                pass
+
+    async def _serve_stream(self, device: ByteStreamDevice, reader: asyncio.StreamReader,
+                            writer: asyncio.StreamWriter) -> None:
+        link = SerialLink(writer)
+        try:
+            if not device.connect(link):
+                return  # one client per line: close the second at once
+            try:
+                while True:
+                    data = await reader.read(1 << 16)
+                    if not data:
+                        break
+                    device.receive(link, data)
+            finally:
+                device.disconnect(link)
+        except (ConnectionError, asyncio.IncompleteReadError, asyncio.CancelledError):
+            pass
+        except Exception:  # never let one client take the server down
+            log.exception("serial client handler failed")
         finally:
             try:
                 writer.close()
