@@ -11,6 +11,11 @@ A station is a TOML file::
     address = "TCPIP::192.168.1.20::5025::SOCKET"
     visa_backend = "@py"                 # any VISA backend: "@py", "@ivi", a pyvisa-sim YAML "@sim"
 
+    [instruments.gyro]                   # a serial-line instrument, opened with pyserial
+    driver = "fog_serial"
+    address = "/dev/ttyUSB0"             # or "socket://host:port" (a serial server)
+    baudrate = 921600
+
     [wiring]
     sampling_resistor_ohm = 5000.0
     positive_rail_channel = 2
@@ -38,6 +43,14 @@ DRIVERS = {
     "keysight_34465a": "instruments.multimeter:Keysight34465A",
     "keysight_e36312a": "instruments.power_supply:KeysightE36312A",
     "acutrol_turntable": "instruments.turntable:DualAxisTurntable",
+    "fog_serial": "instruments.fog:SerialGyro",
+}
+#: serial-line driver kinds (opened with pyserial, not VISA):
+#: option -> ("set" of allowed values | "range" lo..hi, allowed, default)
+SERIAL_DRIVERS = {
+    "fog_serial": {"baudrate": ("set", (115200, 230400, 460800, 921600), 921600),
+                   "scale_factor_pulses_per_arcsec": ("range", (1e-6, 1e9), None),
+                   "polarity": ("set", (1, -1), 1)},
 }
 DEFAULT_WIRING = {
     "sampling_resistor_ohm": 5000.0,
@@ -46,6 +59,9 @@ DEFAULT_WIRING = {
     "negative_rail_channel": 3,
     "rail_voltage_v": 15.0,
     "rail_current_limit_a": 0.1,
+    "gyro_supply_channel": 1,
+    "gyro_supply_voltage_v": 5.0,
+    "gyro_current_limit_a": 1.0,
 }
 
 
@@ -94,6 +110,9 @@ WIRING_RANGES = {
     "negative_rail_channel": ((1, 3), True),
     "rail_voltage_v": ((0.0, 25.0), False),
     "rail_current_limit_a": ((0.0, 1.0), False),
+    "gyro_supply_channel": ((1, 3), True),
+    "gyro_supply_voltage_v": ((0.0, 25.0), False),
+    "gyro_current_limit_a": ((0.0, 5.0), False),
 }
 
 
@@ -125,6 +144,8 @@ def parse_station(data: dict, source: str = "<station>") -> StationConfig:
         timeout = table.get("timeout_ms", 10000)
         if not isinstance(timeout, int) or not 100 <= timeout <= 600000:
             raise StationError(f"{where}: timeout_ms {timeout!r} not in 100..600000")
+        if driver in SERIAL_DRIVERS:
+            _check_serial_options(table, SERIAL_DRIVERS[driver], where)
         instruments[name] = InstrumentConfig(
             name, driver, address, table.get("visa_backend", "@py"), timeout,
             {k: v for k, v in table.items()
@@ -142,6 +163,10 @@ def parse_station(data: dict, source: str = "<station>") -> StationConfig:
     if wiring["positive_rail_channel"] == wiring["negative_rail_channel"]:
         raise StationError(f"{source}: [wiring] positive and negative rails are both channel "
                            f"{wiring['positive_rail_channel']}")
+    if wiring["gyro_supply_channel"] in (wiring["positive_rail_channel"],
+                                         wiring["negative_rail_channel"]):
+        raise StationError(f"{source}: [wiring] gyro_supply_channel = "
+                           f"{wiring['gyro_supply_channel']} is an accelerometer rail")
     simulation = data.get("simulation")
     if simulation is not None:
         if not isinstance(simulation, dict):
@@ -152,6 +177,37 @@ def parse_station(data: dict, source: str = "<station>") -> StationConfig:
         raise StationError(f"{source}: [station] clock {clock!r} must be 'wall' or a VISA address")
     return StationConfig(top.get("name", Path(source).stem), instruments, clock,
                          top.get("clock_backend", "@py"), wiring, simulation)
+
+
+def _check_serial_options(table: dict, spec: dict, where: str) -> None:
+    """Options of a serial-line instrument: each known, and in its set or range."""
+    for key, value in table.items():
+        if key in ("driver", "address", "timeout_ms"):
+            continue
+        if key not in spec:
+            raise StationError(f"{where}: option {key!r} not in {sorted(spec)}")
+        kind, allowed, _ = spec[key]
+        number = not isinstance(value, bool) and isinstance(value, (int, float))
+        if kind == "range" and not (number and allowed[0] <= value <= allowed[1]):
+            raise StationError(f"{where}: {key} = {value!r} must be a number in "
+                               f"{allowed[0]:g}..{allowed[1]:g}")
+        if kind == "set" and not (number and value in allowed):
+            raise StationError(f"{where}: {key} = {value!r} not in {'|'.join(map(str, allowed))}")
+
+
+def _open_serial(inst: InstrumentConfig):
+    """A pyserial port for ``socket://host:port`` or a device path, and its driver."""
+    import serial  # imported here so `bench --help` stays fast
+
+    spec = SERIAL_DRIVERS[inst.driver]
+    options = {k: inst.options.get(k, default) for k, (_, _, default) in spec.items()}
+    port = serial.serial_for_url(inst.address, baudrate=options.pop("baudrate"),
+                                 timeout=inst.timeout_ms / 1000.0)
+    try:
+        return port, _driver_class(inst.driver)(port, name=inst.name, **options)
+    except BaseException:
+        port.close()
+        raise
 
 
 def check_simulation(options: dict, source: str = "<station>") -> None:
@@ -229,6 +285,14 @@ class Station:
         from instruments.base import open_resource  # noqa: PLC0415
 
         for name, inst in cfg.instruments.items():
+            if inst.driver in SERIAL_DRIVERS:
+                try:
+                    port, self.instruments[name] = _open_serial(inst)
+                except Exception as exc:
+                    raise StationError(f"cannot open instrument {name!r} ({inst.driver}) at "
+                                       f"{inst.address!r}: {exc}") from exc
+                self._stack.callback(port.close)
+                continue
             try:
                 resource = open_resource(inst.address, backend=inst.visa_backend,
                                          timeout_ms=inst.timeout_ms,
@@ -258,7 +322,7 @@ class Station:
             key = "gyro_serial" if self.unit_kind == "gyro" else "unit_serial"
             sim_opts[key] = self.unit_serial
         for key in ("sampling_resistor_ohm", "temp_resistor_ohm",
-                    "positive_rail_channel", "negative_rail_channel"):
+                    "positive_rail_channel", "negative_rail_channel", "gyro_supply_channel"):
             sim_opts.setdefault(key, cfg.wiring[key])
         try:
             sim_cfg = SimStationConfig(**sim_opts)
@@ -269,7 +333,8 @@ class Station:
         self._stack.callback(self.sim.stop)
         res = self.sim.resources()
         drivers = {"dmm": "keysight_34465a", "dmm_temp": "keysight_34465a",
-                   "supply": "keysight_e36312a", "turntable": "acutrol_turntable"}
+                   "supply": "keysight_e36312a", "turntable": "acutrol_turntable",
+                   "gyro": "fog_serial"}
         instruments = {n: InstrumentConfig(n, d, res[n]) for n, d in drivers.items()}
         return StationConfig("sim", instruments, res["sim"], "@py", cfg.wiring, cfg.simulation)
 

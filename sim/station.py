@@ -6,7 +6,9 @@ Wiring (what a lab would do with cables):
   the unit is powered while both rails sit inside its supply range;
 * accelerometer output current → sampling resistor → ``dmm`` input;
 * the internal AD590-type temperature sensor (1 µA/K) → ``temp_resistor`` → ``dmm_temp``;
-* the accelerometer is fixed to the turntable platform with its input axis along platform z.
+* the accelerometer is fixed to the turntable platform with its input axis along platform z;
+* the fibre-optic gyro sits on the platform too (IA along z), powered from
+  ``gyro_supply_channel``, its frames on a serial line (``sim/station_gyro.py``).
 
 Only this module (and ``bench.station`` which starts it) knows both the physics and the
 instruments; procedures see TCP addresses.
@@ -27,6 +29,7 @@ from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
 from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
 from sim.physics.motion import DualAxisTable
 from sim.server import Endpoint, InstrumentServer
+from sim.station_gyro import StationGyro, check_gyro_serial, station_gyro_params
 from sim.world import World
 
 
@@ -48,6 +51,10 @@ class SimStationConfig:
     #: accelerometer IA, PA, OA as unit vectors in the platform frame (rows)
     mount: tuple[tuple[float, float, float], ...] = ((0, 0, 1), (1, 0, 0), (0, 1, 0))
     accelerometer: dict = field(default_factory=dict)  # overrides of the unit drawn by serial
+    gyro_serial: str = "FOG-SIM-0001"
+    gyro_grade: str = "tactical"     # tactical | navigation
+    gyro: dict = field(default_factory=dict)  # GyroParams overrides of the drawn unit
+    gyro_supply_channel: int = 1
     host: str = "127.0.0.1"
 
     def validate(self) -> None:
@@ -71,6 +78,13 @@ class SimStationConfig:
         m = np.asarray(self.mount, float)
         if m.shape != (3, 3) or not np.allclose(m @ m.T, np.eye(3), atol=1e-6):
             raise ValueError("mount must be three orthonormal rows (IA, PA, OA)")
+        ch = self.gyro_supply_channel
+        if isinstance(ch, bool) or ch not in (1, 2, 3):
+            raise ValueError(f"gyro_supply_channel = {ch!r} not in 1..3")
+        if ch in (self.positive_rail_channel, self.negative_rail_channel):
+            raise ValueError(f"gyro_supply_channel = {ch} is an accelerometer rail")
+        check_gyro_serial(self.gyro_serial)
+        station_gyro_params(self.gyro_serial, self.gyro_grade, self.gyro)
 
 
 class SimulatedStation:
@@ -94,7 +108,12 @@ class SimulatedStation:
                                    line_pickup=LinePickup(amplitude_v=cfg.line_pickup_v,
                                                           nominal_hz=cfg.line_hz, phase_rad=1.1))
         self.turntable = TurntableController(self.world, self.table)
-        names = ["dmm", "dmm_temp", "supply", "turntable"]
+        self._gyro = StationGyro(self.world, self.table, self.supply, serial=cfg.gyro_serial,
+                                 grade=cfg.gyro_grade, overrides=cfg.gyro,
+                                 channel=cfg.gyro_supply_channel,
+                                 latitude_deg=cfg.latitude_deg, g_mps2=self.g_mps2)
+        self.gyro, self.gyro_line = self._gyro.model, self._gyro.line
+        names = ["dmm", "dmm_temp", "supply", "turntable", "gyro"]
         self.sim_control = SimControl(self.world, names)
         self._wire_power()
         self.server = InstrumentServer(cfg.host)
@@ -102,6 +121,7 @@ class SimulatedStation:
                                 ("dmm_temp", "multimeter", self.dmm_temp),
                                 ("supply", "power_supply", self.supply),
                                 ("turntable", "turntable", self.turntable),
+                                ("gyro", "gyro", self.gyro_line),
                                 ("sim", "sim_control", self.sim_control)):
             self.server.add(name, kind, dev)
         self.endpoints: list[Endpoint] = []
@@ -170,3 +190,7 @@ class SimulatedStation:
         return {"g_mps2": self.g_mps2, "g_local_over_g0": self.g_mps2 / STANDARD_GRAVITY_MPS2,
                 "sampling_resistor_ohm": self.config.sampling_resistor_ohm,
                 **self.accel.truth()}
+
+    def gyro_truth(self) -> dict:
+        """The simulated gyro's true parameters (for recovery tests, never for procedures)."""
+        return {"latitude_deg": self.config.latitude_deg, **self.gyro.truth()}
