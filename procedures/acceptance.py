@@ -16,6 +16,7 @@ from bench.procedure import Context, Limit
 from bench.spec import CatalogueEntry, UnitSpec, convert
 from procedures.common import level_table, make_safe
 from procedures.steps import Step, scaled_progress
+from procedures.ratetable import RateTableCalibration
 from procedures.tumble import TumbleCalibration
 from procedures.turn_on import TurnOnTest
 
@@ -23,6 +24,7 @@ from procedures.turn_on import TurnOnTest
 STEPS: dict[str, type] = {
     "startup": TurnOnTest,
     "tumble": TumbleCalibration,
+    "ratetable": RateTableCalibration,
 }
 
 

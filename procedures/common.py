@@ -60,6 +60,17 @@ def power_accelerometer(ctx: Context, on: bool) -> None:
                   f"accelerometer rails ±{w['rail_voltage_v']} V")
 
 
+def power_gyro(ctx: Context, on: bool) -> None:
+    """The gyro's supply channel to ``gyro_supply_voltage_v`` (current-limited) and on, or off."""
+    w, supply = ctx.wiring, ctx.instruments["supply"]
+    ch = int(w["gyro_supply_channel"])
+    if on:
+        supply.ch[ch].apply(float(w["gyro_supply_voltage_v"]), float(w["gyro_current_limit_a"]))
+    supply.set_outputs([ch], on)
+    ctx.run.event(ctx.clock.now(), "gyro_supply_on" if on else "gyro_supply_off",
+                  f"gyro supply CH{ch} {w['gyro_supply_voltage_v']} V")
+
+
 def move_table(ctx: Context, inner_deg: float, outer_deg: float) -> None:
     """Both axes to a position, waiting until each is in position (bench clock)."""
     table = ctx.instruments["turntable"]

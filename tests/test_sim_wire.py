@@ -54,7 +54,8 @@ def test_powered_unit_reads_one_g_through_the_wire(sim_station, rm):
     clock.query("SIM:TIME:ADV 30;*OPC?")
     volts = float(dmm.query("MEAS:VOLT:DC? 10"))
     truth = sim_station.truth()
-    expected = truth["k1_ma_per_g"] * 1e-3 * truth["sampling_resistor_ohm"] * truth["g_local_over_g0"]
+    expected = (truth["k1_ma_per_g"] * 1e-3 * truth["sampling_resistor_ohm"]
+                * (truth["g_local_over_g0"] + truth["k0_g"]))  # the drawn unit's bias too
     assert volts == pytest.approx(expected, rel=2e-3)
     assert float(clock.query("SIM:TIME?")) >= 30.0
     supply.query("OUTP OFF,(@2,3);*OPC?")

@@ -5,9 +5,10 @@ the Earth rate's horizontal part and table wobble average out), its standard err
 the input rate along the input axis in °/s — table rate plus the Earth rate's component
 (:func:`earth_rate_vertical_dps` when the IA is up).
 
-- **Scale factor and bias**: weighted least-squares line ``output = SF·ω + b`` (IEEE 952:
-  the slope of the LS straight line through the input-output data). Bias in °/h is
-  ``3600·b/SF_nominal``: the indicated output at zero input as the gyro's user reads it
+- **Scale factor**: weighted least-squares line ``output = SF·ω + b`` (IEEE 952:
+  the slope of the LS straight line through the input-output data). **Bias** in °/h is
+  ``3600·b/SF_nominal`` with ``b`` the intercept of the asymmetry fit below (the line's own
+  intercept carries the plan's mean of (A/2)|ω|): the indicated output at zero input as the gyro's user reads it
   (through the nominal scale factor), which is the model's B (``ω_out = B + ω(1 + ε …)``);
   the input-equivalent ``b/SF`` differs by the factor 1/(1 + ε).
 - **Scale-factor error**: ``SF/SF_nominal − 1`` in ppm.
@@ -192,14 +193,16 @@ def fit_rate_table(input_rate_dps, output, output_sigma, *, full_scale_dps: floa
                          f"scale factor {sf:.6g}: allowed ratio [0.5, 2]; pass output units per °/s")
     sf_std = math.sqrt(cov[1, 1])
     nominal_abs = abs(nominal_scale_factor)
-    bias = Estimate(float(3600.0 * b / nominal_scale_factor), 3600.0 * math.sqrt(cov[0, 0]) / nominal_abs)
     fs_out = abs(sf * full_scale_dps)
     resid = y - x @ np.array([b, sf])
     resid_var = sigma**2 - np.einsum("ij,jk,ik->i", x, cov, x)  # diag of Σ − X C Xᵀ
     resid_std = np.sqrt(np.clip(resid_var, 0.0, None))
     k = int(np.argmax(np.abs(resid)))
     nonlin = Estimate(float(_PPM * abs(resid[k]) / fs_out), float(_PPM * resid_std[k] / fs_out))
-    (_, s, d), cov3 = _wls(np.column_stack([np.ones_like(w), w, np.abs(w)]), y, sigma)
+    (b3, s, d), cov3 = _wls(np.column_stack([np.ones_like(w), w, np.abs(w)]), y, sigma)
+    # The bias is the intercept of the model with the asymmetry term: a plain line would take
+    # the mean of (A/2)|ω| over the plan into its intercept (≈ 10 °/h for 50 ppm at 500 °/s).
+    bias = Estimate(float(3600.0 * b3 / nominal_scale_factor), 3600.0 * math.sqrt(cov3[0, 0]) / nominal_abs)
 
     def half_line(sign: float) -> Estimate:
         return Estimate(float(s + sign * d), float(math.sqrt(cov3[1, 1] + cov3[2, 2] + 2 * sign * cov3[1, 2])))
