@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib
 import json
+import pkgutil
 import sys
 
 from bench.commands.common import open_store, progress_bar, print_outcome
@@ -26,6 +28,17 @@ def register(sub) -> None:
     p.add_argument("--report", metavar="DIR", default=None,
                    help="with --analyze: also write the report into DIR/<run id>/")
     p.set_defaults(func=run_startup)
+    # Further procedures live in their own modules, each with ``register_procedure(procs, common)``.
+    for name in _procedure_modules():
+        importlib.import_module(name).register_procedure(procs, _common)
+
+
+def _procedure_modules() -> list[str]:
+    """``bench.commands.run_<name>`` modules; each adds ``bench run <name>``."""
+    import bench.commands as pkg  # noqa: PLC0415
+
+    return sorted(f"bench.commands.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)
+                  if m.name.startswith("run_"))
 
 
 def _common(p) -> None:
