@@ -194,7 +194,7 @@ def averaging_factors(n: int, rate_hz: float, taus, points_per_decade: int = 10)
     for t in tau:
         m = round(t * rate_hz) if np.isfinite(t) else -1
         if not 1 <= m <= top:
-            raise ValueError(f"τ = {t!r} s is outside the allowed range [{tau0:.6g}, {top * tau0:.6g}] s "
+            raise ValueError(f"τ = {float(t):g} s is outside the allowed range [{tau0:.6g}, {top * tau0:.6g}] s "
                              f"(one sample interval to half the record of {n} samples at {rate_hz:g} Hz)")
     return np.unique(np.rint(tau * rate_hz).astype(np.int64))
 

@@ -16,8 +16,13 @@ rate unit ``u`` times a power of seconds)::
 **Fit.**  The model is linear in ``(Q², N², B², K², R²)``; they are found by weighted
 least squares with non-negative values — exact NNLS by enumerating the 31 supports
 (the optimum is the unconstrained solution on its support), columns scaled to unit
-norm.  The weight of a point is ``edf/(2·σ²_model²)``, the inverse variance of the
-Allan variance estimate for chi-squared statistics; the EDF needs the noise type at
+norm.  The weight of a point is ``1/(σ²_model²·(2/edf + 0.02²))``: the inverse
+variance of the Allan variance estimate for chi-squared statistics (``2σ⁴/edf``) plus
+a 2 % allowance for the model itself.  Without the allowance the first octaves (EDF
+~10⁵) dominate, and a departure from the model there (a sensor's bandwidth roll-off,
+a quantizer whose error is not white) bends every term — by a factor of several in a
+test with a rounded angle record; 2 % keeps that to tens of per cent while costing
+little precision on records the model does describe.  The EDF needs the noise type at
 each τ, taken as the type of the fitted term that dominates there (Q → white PM α = 2,
 N → white FM 0, B → flicker FM −1, K → random-walk FM −2; a rate ramp is not a
 power-law noise and is given −2).  Fit, noise types and EDF are iterated to a fixed
@@ -31,8 +36,9 @@ measured curve is taken by central differences; for each slope term the point wh
 local slope is nearest the term's slope — and within ±0.25 of it, i.e. nearer than to
 any other term's slope — carries a line of that slope, read at the τ of the table.  B
 is the curve's minimum divided by √(2 ln2/π) ≈ 0.664.  Only points with EDF ≥ 10 are
-read (ADEV scatter ≤ 22 %), so that the last, scattered octaves set neither.  Neighbouring terms lift the
-curve above each line, so read-offs are upper estimates; the fit separates them.
+read (ADEV scatter ≤ 22 %), so that the last, scattered octaves set neither.
+Neighbouring terms lift the curve above each line, so read-offs tend high; noise in the
+curve makes the minimum (B) tend low.  The fit separates the terms.
 """
 
 from __future__ import annotations
@@ -52,6 +58,7 @@ READ_TAU_S = {"Q": math.sqrt(3.0), "N": 1.0, "K": 3.0, "R": math.sqrt(2.0)}
 NOISE_ALPHA = {"Q": 2, "N": 0, "B": -1, "K": -2, "R": -2}
 SLOPE_TOLERANCE = 0.25
 MIN_READ_EDF = 10.0  # ADEV 1σ scatter ≈ 1/√(2·edf) ≤ 22 %
+MODEL_FLOOR = 0.02  # relative uncertainty of σ² granted to the 5-term model itself
 _MAX_ITER = 8
 
 
@@ -130,10 +137,19 @@ def _weighted_nnls(a, avar, weight):
     return coef2, support
 
 
+def _weights(avar: np.ndarray, edf: np.ndarray) -> np.ndarray:
+    """Inverse variance of each Allan variance: chi-squared ``2σ⁴/edf`` plus the model floor."""
+    return 1.0 / (avar ** 2 * (2.0 / edf + MODEL_FLOOR ** 2))
+
+
 def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase: int,
                     terms: tuple[str, ...] = TERMS) -> NoiseFit:
     """Fit the IEEE 952 model to Allan variances ``avar`` at ``tau_s`` (module docstring)."""
     a = design_matrix(tau_s, terms)
+    if not np.any(avar > 0):  # a constant record: nothing to fit
+        zero_alpha = np.zeros(len(tau_s), dtype=int)
+        return NoiseFit(terms, {t: 0.0 for t in terms}, {t: None for t in terms}, zero_alpha,
+                        edf_greenhall(zero_alpha, m, n_phase), None, 0)
     table: dict[int, np.ndarray] = {}
 
     def edf_for(alpha: np.ndarray) -> np.ndarray:  # each noise type's EDF computed once per fit
@@ -144,12 +160,12 @@ def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase:
             out[alpha == value] = table[value][alpha == value]
         return out
 
-    scale = float(np.max(avar)) if np.max(avar) > 0 else 1.0
+    scale = float(np.max(avar))
     y = avar / scale
     alpha = np.zeros(len(tau_s), dtype=int)
     edf = edf_for(alpha)
-    floor = 1e-12 * max(float(np.max(y)), 1e-300)
-    weight = edf / (2.0 * np.maximum(y, floor) ** 2)
+    floor = 1e-12 * float(np.max(y))
+    weight = _weights(np.maximum(y, floor), edf)
     coef2 = np.zeros(len(terms))
     support: tuple[int, ...] = ()
     iterations = 0
@@ -163,7 +179,7 @@ def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase:
                      and np.allclose(new_coef2, coef2, rtol=1e-6, atol=1e-12 * max(float(np.max(new_coef2)), 1e-300)))
         coef2, alpha = new_coef2, new_alpha
         edf = edf_for(alpha)
-        weight = edf / (2.0 * np.maximum(model, floor) ** 2)
+        weight = _weights(np.maximum(model, floor), edf)
         if converged:
             break
     values = {t: math.sqrt(max(c, 0.0) * scale) for t, c in zip(terms, coef2)}
