@@ -127,6 +127,7 @@ class RateTableCalibration:
             done += record_s + p.settle_s + 5.0
             ctx.progress(done, total, f"rate {k + 1}/{plan.size}: {rate:+.4g} °/s")
         table.axis[1].stop()
+        table.axis[1].wait_in_position(ctx.clock.sleep, timeout_s=AT_RATE_TIMEOUT_S)  # at rest
         # IEEE 952's line is an unweighted least-squares line: one common σ (the rms of the
         # per-rate errors) keeps the fitted scale factor and nonlinearity a property of the
         # gyro and the plan, not of how noisy each record's error estimate happened to be.

@@ -80,8 +80,36 @@ def startup_section(store, run_id: str, results: dict[str, Any], out: Path) -> S
     return "Start-up", name, caption
 
 
+def ratetable_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
+    fit = results.get("ratetable.fit")
+    if not fit:
+        return None
+    w = np.asarray(fit["input_rate_dps"])
+    res = np.asarray(fit["residuals_ppm_fs"])
+    err = np.asarray(fit["residual_std_ppm_fs"])
+    fig = Figure(figsize=(9, 3.8))
+    ax = fig.add_subplot()
+    for sign, colour, label in ((1, "C0", "positive rates"), (-1, "C3", "negative rates")):
+        sel = np.sign(w) == sign
+        ax.errorbar(np.abs(w[sel]), res[sel], yerr=err[sel], fmt="o", color=colour, ms=4,
+                    capsize=2, label=label)
+    ax.axhline(0, color="0.5", lw=0.6)
+    ax.set_xscale("log")
+    ax.set(xlabel="|input rate| (°/s)", ylabel="residual (ppm of full-scale output)",
+           title="Rate table: residuals of the least-squares line")
+    ax.legend(fontsize=8)
+    name = _save(fig, out / "acceptance_ratetable.png")
+    sf, asym = fit["scale_factor_error_ppm"], fit["asymmetry_ppm"]
+    caption = (f"{w.size} rates, whole revolutions each; Earth rate {fit['earth_rate_dps'] * 3600:.3f} °/h "
+               f"added to the table rate. Scale-factor error {sf['value']:.2f} ± {sf['std']:.2g} ppm, "
+               f"asymmetry {asym['value']:.2f} ± {asym['std']:.2g} ppm, nonlinearity at "
+               f"{fit['nonlinearity_at_rate_dps']:.4g} °/s.")
+    return "Rate-table calibration", name, caption
+
+
 #: step name → section builder
 SECTIONS: dict[str, Callable[..., Section | None]] = {
     "startup": startup_section,
     "tumble": tumble_section,
+    "ratetable": ratetable_section,
 }
