@@ -250,10 +250,9 @@ def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = 
             fit_input=fit.values.get(name), fit_std_input=fit.stds.get(name),
             read_off_input=None if ro is None else ro.value,
             read_off_tau_s=None if ro is None else ro.tau_s, read_at_tau_s=READ_TAU_S.get(name))
-        if name == "B" and ro is not None and ro.tau_s in (tau[0], tau[-1]) and tau.size > 1:
-            end = "first" if ro.tau_s == tau[0] else "last"
-            notes.append(f"the ADEV minimum is at the {end} τ ({ro.tau_s:.6g} s): the B read-off is an upper "
-                         "bound, the curve has no flat bottom in range")
+        if name == "B" and ro is not None and ro.at_edge and tau.size > 1:
+            notes.append(f"the ADEV minimum is at an end of the readable τ range ({ro.tau_s:.6g} s): the curve "
+                         "has no flat bottom there, so the B read-off is only an upper bound")
     if tau.size < len(ordered) + 1:
         notes.append(f"{tau.size} τ points for {len(ordered)} noise terms: the fit is underdetermined")
     if fit.reduced_chi2 is not None and fit.reduced_chi2 > 4.0:

@@ -35,8 +35,9 @@ indicative.  A term outside the support is reported as 0 with no uncertainty.
 measured curve is taken by central differences; for each slope term the point whose
 local slope is nearest the term's slope — and within ±0.25 of it, i.e. nearer than to
 any other term's slope — carries a line of that slope, read at the τ of the table.  B
-is the curve's minimum divided by √(2 ln2/π) ≈ 0.664.  Only points with EDF ≥ 10 are
-read (ADEV scatter ≤ 22 %), so that the last, scattered octaves set neither.
+is the curve's minimum divided by √(2 ln2/π) ≈ 0.664.  A slope is read only where its
+standard deviation from the neighbours' EDF is ≤ 0.1, and B's minimum only among
+points with EDF ≥ 10, so that the last, scattered octaves set neither.
 Neighbouring terms lift the curve above each line, so read-offs tend high; noise in the
 curve makes the minimum (B) tend low.  The fit separates the terms.
 """
@@ -58,6 +59,7 @@ READ_TAU_S = {"Q": math.sqrt(3.0), "N": 1.0, "K": 3.0, "R": math.sqrt(2.0)}
 NOISE_ALPHA = {"Q": 2, "N": 0, "B": -1, "K": -2, "R": -2}
 SLOPE_TOLERANCE = 0.25
 MIN_READ_EDF = 10.0  # ADEV 1σ scatter ≈ 1/√(2·edf) ≤ 22 %
+MAX_SLOPE_SD = 0.1   # a read slope must be resolved well inside the ±0.25 between terms
 MODEL_FLOOR = 0.02  # relative uncertainty of σ² granted to the 5-term model itself
 _MAX_ITER = 8
 
@@ -211,32 +213,38 @@ class ReadOff:
     value: float
     tau_s: float
     adev: float
+    at_edge: bool = False  # B only: the minimum is the first or last readable point
 
 
 def read_off(tau_s: np.ndarray, adev: np.ndarray, name: str, edf: np.ndarray | None = None) -> ReadOff | None:
     """The graphical IEEE 952 reading of one term (module docstring); None if no region fits.
 
-    Only points with ``edf ≥ MIN_READ_EDF`` are read (all points when fewer than three
-    qualify): the last octaves of a record scatter by tens of per cent and would
-    otherwise set the minimum that B is read from.
+    With ``edf`` given, B's minimum is sought among points with ``edf ≥ MIN_READ_EDF``
+    and a slope is read only where its standard deviation (from the neighbours' EDF,
+    ``var ln σ̂ ≈ 1/(2·edf)``) is at most ``MAX_SLOPE_SD``, so that it tells the terms
+    apart; the last, scattered octaves would otherwise produce any slope.
     """
     tau, dev = np.asarray(tau_s, dtype=float), np.asarray(adev, dtype=float)
     ok = dev > 0
     if not np.any(ok):
         return None
     tau, dev = tau[ok], dev[ok]
-    eligible = np.ones(tau.size, dtype=bool) if edf is None else np.asarray(edf, dtype=float)[ok] >= MIN_READ_EDF
-    if np.count_nonzero(eligible) < 3:
-        eligible[:] = True
-    idx = np.flatnonzero(eligible)
+    edf_ok = np.full(tau.size, np.inf) if edf is None else np.asarray(edf, dtype=float)[ok]
     if name == "B":
+        idx = np.flatnonzero(edf_ok >= MIN_READ_EDF)
+        idx = idx if idx.size else np.arange(tau.size)
         i = int(idx[np.argmin(dev[idx])])
-        return ReadOff(float(dev[i] / B_FACTOR), float(tau[i]), float(dev[i]))
+        return ReadOff(float(dev[i] / B_FACTOR), float(tau[i]), float(dev[i]), i in (idx[0], idx[-1]))
     if tau.size < 3:
         return None
-    gap = np.abs(np.gradient(np.log(dev), np.log(tau)) - SLOPE[name])
-    i = int(idx[np.argmin(gap[idx])])
-    if gap[i] >= SLOPE_TOLERANCE:
+    log_tau, var_log = np.log(tau), 0.5 / edf_ok
+    slope = np.gradient(np.log(dev), log_tau)
+    lo, hi = np.maximum(np.arange(tau.size) - 1, 0), np.minimum(np.arange(tau.size) + 1, tau.size - 1)
+    slope_sd = np.sqrt(var_log[lo] + var_log[hi]) / (log_tau[hi] - log_tau[lo])
+    gap = np.abs(slope - SLOPE[name])
+    idx = np.flatnonzero((slope_sd <= MAX_SLOPE_SD) & (gap < SLOPE_TOLERANCE))
+    if idx.size == 0:
         return None
+    i = int(idx[np.argmin(gap[idx])])
     value = dev[i] * (READ_TAU_S[name] / tau[i]) ** SLOPE[name]
     return ReadOff(float(value), float(tau[i]), float(dev[i]))
