@@ -16,6 +16,7 @@ from bench.procedure import Context, Limit
 from bench.spec import CatalogueEntry, UnitSpec, convert
 from procedures.common import level_table, make_safe
 from procedures.steps import Step, scaled_progress
+from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.ratetable import RateTableCalibration
 from procedures.tumble import TumbleCalibration
 from procedures.turn_on import TurnOnTest
@@ -25,6 +26,8 @@ STEPS: dict[str, type] = {
     "startup": TurnOnTest,
     "tumble": TumbleCalibration,
     "ratetable": RateTableCalibration,
+    "accelerometer_noise": AccelerometerNoise,
+    "gyro_noise": GyroNoise,
 }
 
 

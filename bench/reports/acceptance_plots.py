@@ -107,9 +107,50 @@ def ratetable_section(store, run_id: str, results: dict[str, Any], out: Path) ->
     return "Rate-table calibration", name, caption
 
 
+def _allan_section(title: str, png: str, record, rate_hz: float, unit: str,
+                   out: Path) -> tuple[str, str]:
+    from bench.analysis.allan import overlapping_adev
+    from bench.reports.allan_plot import plot_allan
+
+    result = overlapping_adev(record, rate_hz, "octave", unit=unit)  # the same reduction as the step
+    fig = Figure(figsize=(8, 5))
+    plot_allan(fig.add_subplot(), result, title=title)
+    n, b = result.coefficients["N"], result.coefficients["B"]
+    caption = (f"{result.n_samples} samples at {rate_hz:g} Hz ({result.n_samples / rate_hz / 3600:.2f} h). "
+               f"Read off the slope lines: {n.label} {_fmt(n.read_off)} {n.unit}, "
+               f"{b.label} {_fmt(b.read_off)} {b.unit}; 68 % confidence intervals shown.")
+    return _save(fig, out / png), caption
+
+
+def _fmt(x) -> str:
+    return "—" if x is None else f"{x:.4g}"
+
+
+def accelerometer_noise_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
+    r = results.get("accelerometer_noise.allan")
+    if not r or "noise" not in store.streams(run_id):
+        return None
+    v = np.asarray(store.load(run_id, "noise")["voltage_v"])
+    name, caption = _allan_section("Accelerometer static record: Allan deviation", "acceptance_noise.png",
+                                   v / v.mean(), r["sample_rate_hz"], "g", out)
+    return "Bias stability and noise", name, caption + " (white noise corrected for the DMM aperture in the table)"
+
+
+def gyro_noise_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
+    r = results.get("gyro_noise.allan")
+    if not r or "gyro_static" not in store.streams(run_id):
+        return None
+    rate = np.asarray(store.load(run_id, "gyro_static")["rate_dps"])
+    name, caption = _allan_section("Gyro static record: Allan deviation", "acceptance_gyro_noise.png",
+                                   rate, r["sample_rate_hz"], "dps", out)
+    return "Bias stability and noise", name, caption
+
+
 #: step name → section builder
 SECTIONS: dict[str, Callable[..., Section | None]] = {
     "startup": startup_section,
     "tumble": tumble_section,
     "ratetable": ratetable_section,
+    "accelerometer_noise": accelerometer_noise_section,
+    "gyro_noise": gyro_noise_section,
 }
