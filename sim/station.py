@@ -8,7 +8,13 @@ Wiring (what a lab would do with cables):
 * the internal AD590-type temperature sensor (1 µA/K) → ``temp_resistor`` → ``dmm_temp``;
 * the accelerometer is fixed to the turntable platform with its input axis along platform z;
 * the fibre-optic gyro sits on the platform too (IA along z), powered from
-  ``gyro_supply_channel``, its frames on a serial line (``sim/station_gyro.py``).
+  ``gyro_supply_channel``, its frames on a serial line (``sim/station_gyro.py``);
+* the shaker (``shaker``, a random-vibration controller) moves the same fixture along
+  ``shaker_axis`` (platform frame; default z, the gyro's input axis).  The station has one
+  fixture position: the platform is the shaker's fixture, so the controller refuses
+  ``:STARt`` while the turntable moves (the table does not check back: a procedure keeps
+  it still while shaking).  The vibration drives the gyro's vibration terms; the
+  accelerometer does not see it.
 
 Only this module (and ``bench.station`` which starts it) knows both the physics and the
 instruments; procedures see TCP addresses.
@@ -24,10 +30,12 @@ from sim.devices.dmm import Multimeter
 from sim.devices.dmm_model import LinePickup
 from sim.devices.sim_control import SimControl
 from sim.devices.supply import PowerSupply
+from sim.devices.shaker import ShakerController
 from sim.devices.turntable import TurntableController
 from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
 from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
 from sim.physics.motion import DualAxisTable
+from sim.physics.shaker import Shaker
 from sim.server import Endpoint, InstrumentServer
 from sim.station_gyro import StationGyro, check_gyro_serial, station_gyro_params
 from sim.world import World
@@ -55,6 +63,8 @@ class SimStationConfig:
     gyro_grade: str = "tactical"     # tactical | navigation
     gyro: dict = field(default_factory=dict)  # GyroParams overrides of the drawn unit
     gyro_supply_channel: int = 1
+    #: shaker motion axis as a unit vector in the platform frame
+    shaker_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     host: str = "127.0.0.1"
 
     def validate(self) -> None:
@@ -83,6 +93,11 @@ class SimStationConfig:
             raise ValueError(f"gyro_supply_channel = {ch!r} not in 1..3")
         if ch in (self.positive_rail_channel, self.negative_rail_channel):
             raise ValueError(f"gyro_supply_channel = {ch} is an accelerometer rail")
+        axis = np.asarray(self.shaker_axis, float) if isinstance(self.shaker_axis, (list, tuple)) else None
+        if axis is None or axis.shape != (3,) or not np.all(np.isfinite(axis)) \
+                or abs(float(np.linalg.norm(axis)) - 1.0) > 1e-6:
+            raise ValueError(f"shaker_axis = {self.shaker_axis!r} must be a unit vector [x, y, z] "
+                             "in the platform frame")
         check_gyro_serial(self.gyro_serial)
         station_gyro_params(self.gyro_serial, self.gyro_grade, self.gyro)
 
@@ -108,12 +123,16 @@ class SimulatedStation:
                                    line_pickup=LinePickup(amplitude_v=cfg.line_pickup_v,
                                                           nominal_hz=cfg.line_hz, phase_rad=1.1))
         self.turntable = TurntableController(self.world, self.table)
+        self.shaker = Shaker(self.world.rng("shaker"), cfg.shaker_axis)
+        self.shaker_controller = ShakerController(self.world, self.shaker,
+                                                  table_at_rest=self._table_at_rest)
         self._gyro = StationGyro(self.world, self.table, self.supply, serial=cfg.gyro_serial,
                                  grade=cfg.gyro_grade, overrides=cfg.gyro,
                                  channel=cfg.gyro_supply_channel,
-                                 latitude_deg=cfg.latitude_deg, g_mps2=self.g_mps2)
+                                 latitude_deg=cfg.latitude_deg, g_mps2=self.g_mps2,
+                                 shaker=self.shaker)
         self.gyro, self.gyro_line = self._gyro.model, self._gyro.line
-        names = ["dmm", "dmm_temp", "supply", "turntable", "gyro"]
+        names = ["dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker"]
         self.sim_control = SimControl(self.world, names)
         self._wire_power()
         self.server = InstrumentServer(cfg.host)
@@ -122,6 +141,7 @@ class SimulatedStation:
                                 ("supply", "power_supply", self.supply),
                                 ("turntable", "turntable", self.turntable),
                                 ("gyro", "gyro", self.gyro_line),
+                                ("shaker", "shaker", self.shaker_controller),
                                 ("sim", "sim_control", self.sim_control)):
             self.server.add(name, kind, dev)
         self.endpoints: list[Endpoint] = []
@@ -146,6 +166,9 @@ class SimulatedStation:
         self.supply.listeners.append(on_change)
         self.supply.attach_load(pos, load)
         self.supply.attach_load(neg, load)
+
+    def _table_at_rest(self, t: float) -> bool:
+        return not any(bool(axis.moving(t)) for axis in self.table.axes)
 
     def specific_force_iapo_g(self, t: np.ndarray) -> np.ndarray:
         f_platform = self.table.specific_force_platform_g(t, self.g_mps2)

@@ -12,6 +12,12 @@ Wiring (what a lab would do with cables):
 Each frame's input is the interval mean of the platform's inertial rate and specific
 force (Simpson's rule on the frame edges and midpoints: exact for rates linear or
 quadratic in time within a frame, e.g. a constant-acceleration ramp).
+
+With a shaker (``sim.physics.shaker.Shaker``) the gyro sits on its fixture: each frame's
+vibration input is the shaker's level along each sensor axis, the rms over the frame
+(Simpson on g², exact for the envelope's linear ramps).  The vibration reaches the model
+only through its vibration terms; the frame mean of the oscillating acceleration (zero
+on average) is not added to the specific force.
 """
 
 from __future__ import annotations
@@ -55,11 +61,12 @@ class StationGyro:
 
     def __init__(self, world: World, table: DualAxisTable, supply: PowerSupply, *,
                  serial: str, grade: str, overrides: dict, channel: int,
-                 latitude_deg: float, g_mps2: float) -> None:
+                 latitude_deg: float, g_mps2: float, shaker=None) -> None:
         check_gyro_serial(serial)
         self.params = station_gyro_params(serial, grade, overrides)
         self.model = FiberOpticGyro(self.params, world.rng(f"gyro:{serial}"))
         self.table, self.latitude_deg, self.g_mps2 = table, latitude_deg, g_mps2
+        self.shaker = shaker
         self.line = FogSerialDevice(
             world, self.model, self.inputs, serial=serial,
             scale_factor_pulses_per_arcsec=self.params.scale_factor_pulses_per_arcsec,
@@ -93,4 +100,9 @@ class StationGyro:
         def simpson(x: np.ndarray) -> np.ndarray:
             return (x[0:-1:2] + 4.0 * x[1::2] + x[2::2]) / 6.0
 
-        return GyroInputs(simpson(omega), simpson(force), 0.0)
+        vibration = 0.0
+        if self.shaker is not None and not self.shaker.quiet_between(t[0], t[-1]):
+            g = self.shaker.envelope_grms(t)
+            along = np.abs(GYRO_MOUNT @ self.shaker.axis_platform)  # |cos| to each sensor axis
+            vibration = np.sqrt(simpson(g * g))[:, None] * along[None, :]
+        return GyroInputs(simpson(omega), simpson(force), vibration)

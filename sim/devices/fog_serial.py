@@ -46,7 +46,7 @@ class GyroInputs:
 
     omega_dps: np.ndarray        # (n, 3) inertial angular rate, deg/s
     f_g: np.ndarray              # (n, 3) specific force, standard g
-    vibration_g_rms: float = 0.0
+    vibration_g_rms: float | np.ndarray = 0.0  # g rms: scalar along IA, or (n, 3) per sensor axis
 
 
 #: ``inputs(t_edges_s (n+1,)) -> GyroInputs`` over the n intervals between the edges
