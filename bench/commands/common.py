@@ -65,5 +65,6 @@ def print_outcome(outcome) -> None:
     for m in outcome.measurements:
         lim = f"[{'' if m.limit.low is None else f'{m.limit.low:g}'} .. " \
               f"{'' if m.limit.high is None else f'{m.limit.high:g}'}]"
-        print(f"  {m.name:<22} {m.value:>14.6g} {m.unit:<9} {lim:<18} {m.outcome}")
+        unc = "" if m.uncertainty is None else f"± {m.uncertainty:.2g}"
+        print(f"  {m.name:<22} {m.value:>14.6g} {unc:<11} {m.unit:<9} {lim:<18} {m.outcome}")
     print(f"stored in {outcome.store_path} (bench runs show {outcome.run_id})")

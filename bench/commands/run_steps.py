@@ -1,0 +1,81 @@
+"""``bench run tumble | ratetable | accelerometer_noise | gyro_noise``: one calibration or test
+step as its own run — every produced measurement recorded with its uncertainty, no limits
+(``bench acceptance`` judges them against a unit spec).
+
+Each step's parameters become options (``--positions 12 --planes 2 …``), defaults from the
+step's parameter dataclass.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+
+from bench.commands.common import open_store, print_outcome, progress_bar
+
+#: step name → (module, class, help)
+STEP_COMMANDS = {
+    "tumble": ("procedures.tumble", "TumbleCalibration",
+               "accelerometer multi-position calibration (IEEE 1293) on the turntable"),
+    "ratetable": ("procedures.ratetable", "RateTableCalibration",
+                  "gyro rate-table calibration (IEEE 952): scale factor, bias, nonlinearity, asymmetry"),
+    "accelerometer_noise": ("procedures.noise", "AccelerometerNoise",
+                            "accelerometer static record → Allan deviation: noise density, bias instability"),
+    "gyro_noise": ("procedures.noise", "GyroNoise",
+                   "gyro static record → Allan deviation: ARW, bias instability"),
+}
+#: which parameter dataclass each step class takes
+_PARAMS = {"TumbleCalibration": "TumbleParameters", "RateTableCalibration": "RateTableParameters",
+           "AccelerometerNoise": "AccelerometerNoiseParameters", "GyroNoise": "GyroNoiseParameters"}
+
+
+def _load(name: str):
+    import importlib
+
+    module, cls, _ = STEP_COMMANDS[name]
+    mod = importlib.import_module(module)
+    return getattr(mod, cls), getattr(mod, _PARAMS[cls])
+
+
+def register_procedure(procs, common) -> None:
+    for name, (_, _, help_text) in STEP_COMMANDS.items():
+        p = procs.add_parser(name, help=help_text)
+        common(p)
+        _, params = _load(name)
+        for f in dataclasses.fields(params):
+            kind = int if f.type in (int, "int") else float
+            p.add_argument(f"--{f.name.replace('_', '-')}", dest=f"param_{f.name}", type=kind,
+                           default=f.default, metavar=kind.__name__.upper(),
+                           help=f"[{f.default}]")
+        p.set_defaults(func=run_step, step_name=name)
+
+
+def run_step(args) -> int:
+    from bench.procedure import execute
+    from bench.station import Station, resolve_station
+    from procedures.steps import StepProcedure
+
+    cls, params_cls = _load(args.step_name)
+    values = {f.name: getattr(args, f"param_{f.name}") for f in dataclasses.fields(params_cls)}
+    step = cls(params_cls(**values))  # validated before the station opens
+    if args.seed is not None and not 0 <= args.seed < 2**63:
+        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
+    config = resolve_station(args.station)
+    kind = step.kinds[0]
+    sim = config.simulation or {}
+    default_unit = "FOG-SIM-0001" if kind == "gyro" else "QA-SIM-0001"
+    unit = args.unit or (default_unit if config.simulated else None)
+    seed = args.seed if args.seed is not None else (
+        sim.get("seed", 0) if config.simulation is not None else None)
+    store = open_store(args)
+    with Station(config, seed=seed, unit_serial=unit, unit_kind=kind) as station, \
+            progress_bar(not args.no_progress and not args.json) as progress:
+        outcome = execute(StepProcedure(step), station, store, unit_serial=unit, seed=seed,
+                          progress=progress)
+    if args.json:
+        json.dump(outcome.to_dict(), sys.stdout, indent=2, allow_nan=False)
+        print()
+    else:
+        print_outcome(outcome)
+    return {"passed": 0, "failed": 1}.get(outcome.status, 2)
