@@ -13,10 +13,13 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-## demo: the start-up acquisition (30 min at 100 Hz, simulated) and its start-up model
+## demo: factory acceptance of a simulated accelerometer and a simulated FOG on the simulated
+## station (start-up, tumble, rate table, noise), with verdicts, stored runs and HTML reports
 demo: $(STAMP)
-	$(BIN)/bench --store $(STORE) run startup --station sim --unit QA-SIM-0001 --seed 1 \
-		--analyze --report bench-data/reports
+	$(BIN)/bench --store $(STORE) acceptance --station sim --unit QA-SIM-0003 --seed 1 \
+		--report bench-data/reports
+	$(BIN)/bench --store $(STORE) acceptance --station sim --unit FOG-SIM-0002 --seed 1 \
+		--report bench-data/reports
 
 ## test: the whole suite (hypothesis derandomised in CI)
 test: $(STAMP)

@@ -4,7 +4,7 @@
 * **turn-on time** — time after power-on from which the output averaged over the preceding
   ``smooth_s`` (a causal moving average, as a meter averaging that long would show it; it
   lags an exponential by about ``smooth_s``/2) stays within ± ``band`` of the settled value
-  (0 when it never leaves the band);
+  (the first average's time, ``smooth_s``, when it never leaves the band);
 * **warm-up drift** — change of the fitted start-up trend (Document A's exponential(s) +
   linear term, :func:`bench.analysis.trend.fit_trend`) from ``smooth_s`` after power-on to the
   end of the record, with its standard error by the delta method.
@@ -71,7 +71,8 @@ def turn_on_metrics(t_s, y, *, band: float, smooth_s: float = 10.0,
     smooth = _moving_average(y, n)
     ts = t[n - 1:]  # a moving average is known at the end of its window
     outside = np.flatnonzero(np.abs(smooth - settled) > band)
-    turn_on = 0.0 if outside.size == 0 else float(ts[outside[-1]] + step)
+    # never outside: within the band from the first average there is (smooth_s after power-on)
+    turn_on = float(ts[0]) if outside.size == 0 else float(ts[outside[-1]] + step)
     # Trend on block means: the same fit as the start-up analysis, at a fraction of the cost.
     k = max(1, y.size // _TREND_POINTS)
     m = y.size // k
