@@ -122,7 +122,9 @@ def kalman_ar_fit(z: np.ndarray, ar: np.ndarray, sigma2: float, *, r: float | No
             break
     if k < n:
         out[k:] = _steady_filter(x[k:], phi, ar, gain, phi @ state)
-    return KalmanFit(out + mu, gain, k, q, float(r), p)
+    out += mu
+    out[:p] = z[:p]  # the initial state is the data itself, exactly
+    return KalmanFit(out, gain, k, q, float(r), p)
 
 
 def _steady_filter(x: np.ndarray, phi: np.ndarray, ar: np.ndarray, gain: np.ndarray,
