@@ -44,6 +44,7 @@ DRIVERS = {
     "keysight_e36312a": "instruments.power_supply:KeysightE36312A",
     "acutrol_turntable": "instruments.turntable:DualAxisTurntable",
     "fog_serial": "instruments.fog:SerialGyro",
+    "vibration_controller": "instruments.shaker:VibrationTable",
 }
 #: serial-line driver kinds (opened with pyserial, not VISA):
 #: option -> ("set" of allowed values | "range" lo..hi, allowed, default)
@@ -334,7 +335,7 @@ class Station:
         res = self.sim.resources()
         drivers = {"dmm": "keysight_34465a", "dmm_temp": "keysight_34465a",
                    "supply": "keysight_e36312a", "turntable": "acutrol_turntable",
-                   "gyro": "fog_serial"}
+                   "gyro": "fog_serial", "shaker": "vibration_controller"}
         instruments = {n: InstrumentConfig(n, d, res[n]) for n, d in drivers.items()}
         return StationConfig("sim", instruments, res["sim"], "@py", cfg.wiring, cfg.simulation)
 

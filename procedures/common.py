@@ -106,7 +106,7 @@ def averaged_voltage(ctx: Context, average_s: float, nplc: float) -> tuple[float
 
 
 def make_safe(ctx: Context) -> None:
-    """Teardown for every procedure: supply off, meters idle, tables stopped.
+    """Teardown for every procedure: supply off, meters idle, tables and shaker stopped.
 
     The supply going off is what stops a gyro's frame stream (an unpowered gyro cannot be
     asked to stop). Tries every instrument the station has even when one fails, then raises one error
@@ -125,4 +125,6 @@ def make_safe(ctx: Context) -> None:
             if failures:
                 raise RuntimeError("; ".join(f"axis {f.axis}: {f.error}" for f in failures))
         actions.append(("turntable stop", stop_table))
+    if "shaker" in inst:
+        actions.append(("shaker stop", inst["shaker"].stop))
     each_safely(actions)
