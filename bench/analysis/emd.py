@@ -162,8 +162,11 @@ def _sift_one(r: np.ndarray, imax: np.ndarray, imin: np.ndarray, ws: Workspace,
     while True:
         px, vx, pn, vn = envelope_knots(h, imax, imin, nbsym)
         out = buffers[0] if h is not buffers[0] else buffers[1]
-        st = sift(h, out, Spline.through(px, vx), Spline.through(pn, vn), ws,
-                  thetas[:2] if rilling else None)
+        upper, lower = Spline.through(px, vx), Spline.through(pn, vn)
+        if not rilling and 4 * (px.size + pn.size) < h.size:
+            # long knot intervals: one merged mean spline halves the per-sample work
+            upper, lower = Spline.average(upper, lower), None
+        st = sift(h, out, upper, lower, ws, thetas[:2] if rilling else None)
         if rilling:
             if st.over_theta1 <= thetas[2] * h.size and st.over_theta2 == 0:
                 return h, k, True  # h's own envelopes are symmetric enough: h is the IMF

@@ -179,6 +179,25 @@ class Spline:
         c3, c2, c1, c0 = CubicSpline(x, val).c  # 2-3 knots: scipy's line / parabola
         return cls(pos, x[:-1], c0, c1, c2, c3)
 
+    @classmethod
+    def average(cls, a: Spline, b: Spline) -> Spline:
+        """``(a + b) / 2`` as one piecewise cubic on the union of both knot sets, where both
+        are defined: each polynomial re-expanded (Taylor shift) at the merged interval starts."""
+        lo, hi = max(a.pos[0], b.pos[0]), min(a.pos[-1], b.pos[-1])
+        pos = np.concatenate([a.pos, b.pos])
+        pos.sort(kind="stable")  # two sorted runs: a linear merge
+        pos = pos[np.r_[True, pos[1:] != pos[:-1]]]
+        pos = pos[(pos >= lo) & (pos <= hi)]
+        starts = pos[:-1]
+        parts = []
+        for s in (a, b):
+            i = np.clip(np.searchsorted(s.pos, starts, side="right") - 1, 0, s.pos.size - 2)
+            d = (starts - s.pos[i]).astype(float)
+            c1, c2, c3 = s.c1[i], s.c2[i], s.c3[i]
+            parts.append((s.c0[i] + d * (c1 + d * (c2 + d * c3)), c1 + d * (2.0 * c2 + 3.0 * c3 * d),
+                          c2 + 3.0 * c3 * d, c3))
+        return cls(pos, starts.astype(float), *(0.5 * (p + q) for p, q in zip(*parts)))
+
     def block_ranges(self, starts: np.ndarray, stops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First and last interval touching each block ``[start, stop)``."""
         last = self.pos.size - 2
@@ -258,12 +277,16 @@ class SiftStats:
     over_theta2: int  # samples with |m| > θ2·a
 
 
-def sift(h: np.ndarray, out: np.ndarray, upper: Spline, lower: Spline, ws: Workspace,
+def sift(h: np.ndarray, out: np.ndarray, upper: Spline, lower: Spline | None, ws: Workspace,
          thetas: tuple[float, float] | None = None) -> SiftStats:
     """``out = h − (upper + lower)/2`` in one blocked pass, with the sums and counts of
-    :class:`SiftStats`; ``thetas = (θ1, θ2)`` also counts Rilling's exceedances."""
+    :class:`SiftStats`; ``thetas = (θ1, θ2)`` also counts Rilling's exceedances.  With
+    ``lower=None``, ``upper`` is the envelope mean itself (:meth:`Spline.average`)."""
+    if lower is None and thetas is not None:
+        raise ValueError("Rilling's criterion needs both envelopes")
     ulo, uhi = upper.block_ranges(ws.starts, ws.stops)
-    llo, lhi = lower.block_ranges(ws.starts, ws.stops)
+    if lower is not None:
+        llo, lhi = lower.block_ranges(ws.starts, ws.stops)
     e_mean = e_in = 0.0
     zc = over1 = over2 = 0
     maxima: list[np.ndarray] = []
@@ -273,9 +296,10 @@ def sift(h: np.ndarray, out: np.ndarray, upper: Spline, lower: Spline, ws: Works
         m = b - a
         u, lo, t, tmp, flag = ws.u[:m], ws.lo[:m], ws.t[:m], ws.tmp[:m], ws.flag
         upper.evaluate_block(a, b, int(ulo[k]), int(uhi[k]), ws, u)
-        lower.evaluate_block(a, b, int(llo[k]), int(lhi[k]), ws, lo)
-        u += lo
-        u *= 0.5  # u is now the envelope mean
+        if lower is not None:
+            lower.evaluate_block(a, b, int(llo[k]), int(lhi[k]), ws, lo)
+            u += lo
+            u *= 0.5  # u is now the envelope mean
         if thetas is not None:
             lo -= u  # -(upper - lower)/2
             np.abs(lo, out=lo)
@@ -298,7 +322,7 @@ def sift(h: np.ndarray, out: np.ndarray, upper: Spline, lower: Spline, ws: Works
         w = out[w0:b]
         d = ws.d[: w.size - 1]
         np.subtract(w[1:], w[:-1], out=d)
-        if np.count_nonzero(d) != d.size:
+        if np.equal(d, 0.0, out=flag[: d.size]).any():  # cheaper than count_nonzero on floats
             exact = False
             continue
         up = np.greater(d, 0, out=flag[: d.size])
@@ -309,7 +333,7 @@ def sift(h: np.ndarray, out: np.ndarray, upper: Spline, lower: Spline, ws: Works
             maxima.append(pos[first::2])
             minima.append(pos[1 - first :: 2])
         z = out[max(a - 1, 0) : b]
-        if np.count_nonzero(z) != z.size:
+        if np.equal(z, 0.0, out=flag[: z.size]).any():
             exact = False
             continue
         sgn = np.greater(z, 0, out=flag[: z.size])
