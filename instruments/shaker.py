@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Sequence
 
-from .base import SCPIInstrument, control, format_number, in_range, measurement, parse_bool
+from .base import SCPIInstrument, control, in_range, measurement, parse_bool
 from .protocols import Wait
 
 STATES = ("IDLE", "RAMP", "RUN", "ABORT")
@@ -60,6 +60,11 @@ class SineProfileSpec:
     @property
     def grms(self) -> float:
         return self.peak_g / math.sqrt(2.0)
+
+
+def _exact(x: float) -> str:
+    """A profile value in full (shortest round-trip) precision: ``:PROF?`` gives it back as set."""
+    return repr(float(x))
 
 
 class VibrationAbortedError(RuntimeError):
@@ -138,8 +143,7 @@ class VibrationTable(SCPIInstrument):
             if not hi > lo:
                 raise ValueError(f"f_hi_hz={f_hi_hz!r} is outside the allowed range ({lo:g}, {lim.f_max_hz:g}]")
             asd = in_range("asd_g2hz", g * g / (hi - lo), (1e-9, lim.max_asd_g2hz))
-            self.configure_command(f":PROF:RAND:FLAT {format_number(asd)},{format_number(lo)},"
-                                   f"{format_number(hi)}")
+            self.configure_command(f":PROF:RAND:FLAT {_exact(asd)},{_exact(lo)},{_exact(hi)}")
             return RandomProfileSpec((lo, hi), (asd, asd))
         if freqs_hz is None or asd_g2hz is None:
             raise ValueError("give breakpoints freqs_hz and asd_g2hz, or grms")
@@ -157,14 +161,14 @@ class VibrationTable(SCPIInstrument):
         if g > lim.max_grms:
             raise ValueError(f"profile g rms={g:.6g} is outside the allowed range [0, {lim.max_grms:g}]")
         self.configure_command(":PROF:RAND " + ",".join(
-            f"{format_number(a)},{format_number(b)}" for a, b in zip(f, p)))
+            f"{_exact(a)},{_exact(b)}" for a, b in zip(f, p)))
         return RandomProfileSpec(tuple(f), tuple(p))
 
     def set_sine(self, freq_hz: float, peak_g: float) -> SineProfileSpec:
         """Sine dwell at ``freq_hz`` with ``peak_g`` peak acceleration."""
         f = in_range("freq_hz", freq_hz, (self.limits.f_min_hz, self.limits.f_max_hz))
         g = in_range("peak_g", peak_g, (1e-6, self.limits.max_sine_peak_g))
-        self.configure_command(f":PROF:SINE {format_number(f)},{format_number(g)}")
+        self.configure_command(f":PROF:SINE {_exact(f)},{_exact(g)}")
         return SineProfileSpec(f, g)
 
     def start(self) -> None:

@@ -108,6 +108,9 @@ class _Recorder:
             if frames.dropped or frames.corrupt:
                 raise RuntimeError(f"gyro line: {frames.dropped} frames dropped, {frames.corrupt} "
                                    "corrupt; the segments' means need every frame")
+            if state == "ABORT":  # interlock or emergency stop: the frames so far are stored
+                raise RuntimeError(f"shaker in ABORT at {now:.6g} s (interlock or emergency stop); "
+                                   f"frames recorded up to {t[-1]:.6g} s")
             self.t.append(t)
             self.rate.append(frames.rate_dps)
             self.level.append(np.full(n, level))
