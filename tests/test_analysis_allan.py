@@ -16,6 +16,7 @@ from scipy.optimize import nnls
 from scipy.signal import lfilter
 from scipy.stats import chi2
 
+from bench.analysis import allan_core
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.allan_noise import B_FACTOR, design_matrix, nnls_enumerated
 from bench.analysis.allan_stats import adev_interval, chi2_ppf, edf_greenhall
@@ -100,17 +101,34 @@ def test_nbs14_1000_point_published_values():
     np.testing.assert_allclose(phase.adev, [2.922319e-01, 9.159953e-02, 3.241343e-02], rtol=2e-6)
 
 
+def longdouble_sums(y: np.ndarray, ms: np.ndarray) -> np.ndarray:
+    """Σ of squared second differences of the running sum, in extended precision."""
+    yl = y.astype(np.longdouble)
+    s = np.concatenate([[np.longdouble(0)], np.cumsum(yl - yl.mean())])
+    return np.array([np.sum((s[2 * k:] - 2 * s[k:s.size - k] + s[:s.size - 2 * k]) ** 2) for k in ms]).astype(float)
+
+
 def test_octave_engine_is_exact_where_a_running_sum_loses_digits():
     """A pure random walk of rate on a large offset against an extended-precision reference."""
     n = 100_000
     y = 1e4 + np.cumsum(np.random.default_rng(2).normal(size=n))
     ours = overlapping_adev(y, 1.0, unit=None)
-    yl = y.astype(np.longdouble)
-    s = np.concatenate([[np.longdouble(0)], np.cumsum(yl - yl.mean())])
     m = ours.averaging_factor
-    ref = np.array([np.sum((s[2 * k:] - 2 * s[k:s.size - k] + s[:s.size - 2 * k]) ** 2) for k in m])
-    ref = np.sqrt((ref / (2 * (n + 1 - 2 * m) * m.astype(np.longdouble) ** 2)).astype(float))
+    ref = np.sqrt(longdouble_sums(y, m) / (2 * (n + 1 - 2 * m) * m.astype(float) ** 2))
     assert_rel(ours.adev, ref, rel=1e-13)
+
+
+@pytest.mark.parametrize("chunk", [16, 256, 4096])
+@pytest.mark.parametrize("kind", ["white", "random-walk", "mixed"])
+def test_octave_engine_paths(kind, chunk):
+    """Small chunks drive every path of the engine — chunk totals with edge pieces
+    (m < chunk) and whole-chunk lookups (m ≥ chunk), the per-chunk direct sum, and the
+    switch to direct levels with in-place writes — against extended precision."""
+    y = record(kind, 5001, seed=chunk)
+    levels = allan_core.octave_levels(y.size)
+    ms = 2 ** np.arange(levels)
+    assert_rel(allan_core.octave_sums(y, levels, chunk=chunk), longdouble_sums(y, ms), rel=1e-12)
+    assert_rel(allan_core.cumsum_sums(y, ms, chunk=chunk), longdouble_sums(y, ms), rel=1e-9)
 
 
 # --- statistics against scipy / allantools ---------------------------------------------

@@ -48,7 +48,7 @@ def sumsq(v: np.ndarray) -> float:
     total = 0.0
     if k:
         rows = v[:k * _ROW].reshape(k, _ROW)
-        total = float(np.vecdot(rows, rows).sum())
+        total = sum(np.vecdot(rows, rows).tolist())  # a Python sum of k floats: less call overhead
     if n > k * _ROW:
         tail = v[k * _ROW:]
         total += float(np.dot(tail, tail))
@@ -68,6 +68,10 @@ def octave_sums(y: np.ndarray, levels: int, chunk: int = CHUNK) -> np.ndarray:
     """``Σ_n (D_m[n+m] − D_m[n])²`` for ``m = 2^k``, ``k < levels`` (module docstring).
 
     ``y`` is a finite float64 rate record (not modified); ``chunk`` a power of two.
+    A chunk's new window sums go to a buffer and are copied back, so that the old ones
+    stay available for a direct sum.  Once more than half the chunks of a level needed
+    the direct sum, the remaining levels sum directly (a slowly wandering rate dominates
+    ever more as τ grows), keep no chunk totals and write the new sums in place.
     """
     d = y - y.mean()  # window sums of length 1; the mean is removed for precision only
     length, c = d.size, chunk
@@ -75,17 +79,25 @@ def octave_sums(y: np.ndarray, levels: int, chunk: int = CHUNK) -> np.ndarray:
     totals = np.array([sumsq(d[s:s + c]) for s in range(0, length, c)])
     add_buf, sub_buf = np.empty(c), np.empty(c)
     out = np.zeros(levels)
+    direct = False
     for k in range(levels):
         m = 1 << k
         terms = length - m  # also the valid length of the next level's window sums
         next_totals = np.empty(-(-terms // c))
-        acc = 0.0
+        acc, fallbacks = 0.0, 0
         for j, s in enumerate(range(0, terms, c)):
             e, end = min(s + c, terms), min(s + c, length)
             a, b = d[s + m:e + m], d[s:e]
+            if direct:
+                diff = sub_buf[:e - s]
+                np.subtract(a, b, out=diff)
+                acc += sumsq(diff)
+                np.add(a, b, out=b)  # numpy buffers the operands itself if a overlaps b
+                continue
             nxt = add_buf[:e - s]
             np.add(a, b, out=nxt)
             w = sumsq(nxt)
+            next_totals[j] = w
             # Σb² and Σa² from this level's chunk totals (a is b shifted by m)
             sbb = totals[j] - (sumsq(d[e:end]) if e < end else 0.0)
             if m >= c:
@@ -97,10 +109,11 @@ def octave_sums(y: np.ndarray, levels: int, chunk: int = CHUNK) -> np.ndarray:
                 diff = sub_buf[:e - s]  # cancellation: sum the differences directly
                 np.subtract(a, b, out=diff)
                 fast = sumsq(diff)
+                fallbacks += 1
             acc += fast
-            next_totals[j] = w
             d[s:e] = nxt  # later chunks read only d[e:], still this level's sums
         out[k] = acc
+        direct = direct or 2 * fallbacks > len(next_totals)
         totals, length = next_totals, terms
     return out
 
