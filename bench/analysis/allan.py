@@ -102,7 +102,8 @@ class AllanResult:
     ``adev`` and ``adev_ci`` (rows ``(lo, hi)``) are in the record's rate unit
     (``units["adev"]``); ``edf`` the equivalent degrees of freedom behind the interval,
     ``noise_alpha`` the power-law exponent assumed for it, ``n_terms`` the number of
-    overlapping differences and ``averaging_factor`` m = τ/τ0.
+    overlapping differences and ``averaging_factor`` m = τ/τ0.  ``n_samples`` counts
+    rate samples (one fewer than the points of a phase record).
     """
 
     tau_s: np.ndarray

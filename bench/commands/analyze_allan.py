@@ -112,8 +112,8 @@ def analyze_allan_csv(args) -> int:
             doc["report"] = str(report)
         print(json.dumps(doc, indent=2, allow_nan=False))
     else:
-        print(f"Allan deviation of {args.input}: {result.n_samples} samples at {rate:.6g} Hz "
-              f"({result.n_samples / rate:.6g} s)")
+        print(f"Allan deviation of {args.input}: {t.size} samples at {rate:.6g} Hz "
+              f"({(t[-1] - t[0]):.6g} s, {args.data_type})")
         print(_table(result))
         for note in result.notes:
             print(f"note: {note}")
