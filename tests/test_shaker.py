@@ -141,6 +141,9 @@ def test_envelope_ramps_runs_stops_and_aborts():
         sh.start(42.0)
     sh.reset_abort(42.0)
     assert sh.state(42.0) == "IDLE"
+    sh.start(50.0)
+    sh.stop(50.0)  # stopped before it rose: at rest at once, not a ramp of zero height
+    assert sh.state(50.0) == "IDLE" and sh.quiet_between(49.0, 60.0)
 
 
 def test_measured_level_follows_the_envelope():

@@ -76,8 +76,10 @@ class Shaker:
         """From the level at ``t``, linearly to ``target_grms`` over ``duration_s``."""
         now = float(self.envelope_grms(t))
         keep = self._knot_t < t
-        self._knot_t = np.concatenate([self._knot_t[keep], [t, t + duration_s]])
-        self._knot_g = np.concatenate([self._knot_g[keep], [now, target_grms]])
+        # already there: hold (no ramp of zero height, which would read RAMP for a while)
+        times, levels = ([t], [now]) if now == target_grms else ([t, t + duration_s], [now, target_grms])
+        self._knot_t = np.concatenate([self._knot_t[keep], times])
+        self._knot_g = np.concatenate([self._knot_g[keep], levels])
 
     def set_profile(self, t_s: float, profile: Profile) -> None:
         """A new profile (idle only); ValueError naming a limit the profile × level exceeds."""
