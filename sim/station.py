@@ -56,6 +56,9 @@ class SimStationConfig:
     negative_rail_channel: int = 3
     line_hz: float = 50.0
     line_pickup_v: float = 3e-6
+    #: meters without reading noise or zero offset (set line_pickup_v = 0 too): a station on
+    #: which a noiseless unit's calibration must come out exact — a check of the arithmetic
+    ideal_meters: bool = False
     #: accelerometer IA, PA, OA as unit vectors in the platform frame (rows)
     mount: tuple[tuple[float, float, float], ...] = ((0, 0, 1), (1, 0, 0), (0, 1, 0))
     accelerometer: dict = field(default_factory=dict)  # overrides of the unit drawn by serial
@@ -77,6 +80,8 @@ class SimStationConfig:
             raise ValueError(f"seed = {self.seed!r} not in 0..2**63-1")
         if not isinstance(self.unit_serial, str) or not 0 < len(self.unit_serial) <= 64:
             raise ValueError(f"unit_serial = {self.unit_serial!r} must be text of 1..64 characters")
+        if not isinstance(self.ideal_meters, bool):
+            raise ValueError(f"ideal_meters = {self.ideal_meters!r} must be true or false")
         if not isinstance(self.accelerometer, dict):
             raise ValueError(f"accelerometer = {self.accelerometer!r} must be a table of parameters")
         if not -90 <= self.latitude_deg <= 90:
@@ -118,10 +123,11 @@ class SimulatedStation:
         pickup = LinePickup(amplitude_v=cfg.line_pickup_v, nominal_hz=cfg.line_hz)
         self.supply = PowerSupply(self.world)
         self.dmm = Multimeter(self.world, "dmm", self._accel_volts, serial="MY59001234",
-                              line_pickup=pickup)
+                              line_pickup=pickup, ideal=cfg.ideal_meters)
         self.dmm_temp = Multimeter(self.world, "dmm_temp", self._temp_volts, serial="MY59001235",
                                    line_pickup=LinePickup(amplitude_v=cfg.line_pickup_v,
-                                                          nominal_hz=cfg.line_hz, phase_rad=1.1))
+                                                          nominal_hz=cfg.line_hz, phase_rad=1.1),
+                                   ideal=cfg.ideal_meters)
         self.turntable = TurntableController(self.world, self.table)
         self.shaker = Shaker(self.world.rng("shaker"), cfg.shaker_axis)
         self.shaker_controller = ShakerController(self.world, self.shaker,

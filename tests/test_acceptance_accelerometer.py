@@ -153,3 +153,27 @@ def test_tumble_recovers_drawn_units_and_judges_them(tmp_path_factory, k0, k1, k
     expected_fail = {outside} if outside else set()
     assert {m.name for m in outcome.measurements if m.outcome == "fail"} == expected_fail
     assert outcome.status == ("failed" if outside else "passed")
+
+
+def test_noiseless_unit_on_ideal_meters_calibrates_exactly_through_the_whole_station(tmp_path):
+    """Issue 6: K0, K1, K2, K3 and δ to 1e-9 relative — here end to end (table geometry,
+    local gravity, mount, sampling resistor, DMM, wire, fit), not only in the estimator."""
+    from procedures.steps import StepProcedure
+    from procedures.tumble import TumbleCalibration
+
+    quiet = {"white_density_g_per_rthz": 0.0, "gm_sigma_g": (), "gm_tau_s": (),
+             "warmup_amplitude_g": 0.0, "drift_g_per_s": 0.0, "bias_tc_g_per_c": 0.0,
+             "k3_g_per_g3": 3e-6, "kip_g_per_g2": 4e-6, "kio_g_per_g2": -6e-6}
+    config = builtin_sim_config()
+    config.simulation = {"ideal_meters": True, "line_pickup_v": 0.0, "accelerometer": quiet}
+    store = RunStore(tmp_path / "b.sqlite")
+    step = TumbleCalibration(positions=12, planes=2, warmup_s=10.0, settle_s=5.0, average_s=2.0)
+    with Station(config, seed=1, unit_serial="QA-SIM-0009") as station:
+        outcome = execute(StepProcedure(step), station, store, unit_serial="QA-SIM-0009", seed=1)
+        truth = station.sim.truth()
+    assert outcome.status == "passed", outcome.reason
+    by_name = {m.name: m.value for m in outcome.measurements}
+    for name, key in (("k0", "k0_g"), ("k1", "k1_ma_per_g"), ("k2", "k2_g_per_g2"),
+                      ("k3", "k3_g_per_g3"), ("delta_o", "delta_o_rad"), ("delta_p", "delta_p_rad"),
+                      ("kip", "kip_g_per_g2"), ("kio", "kio_g_per_g2")):
+        assert by_name[name] == pytest.approx(truth[key], rel=1e-9), name

@@ -88,7 +88,7 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
 
     def __init__(self, world: World, name: str, input_signal: InputSignal,
                  serial: str = "MY59001234", options: tuple[str, ...] = ("DIG", "MEM"),
-                 line_pickup: LinePickup | None = None) -> None:
+                 line_pickup: LinePickup | None = None, ideal: bool = False) -> None:
         super().__init__(("Keysight Technologies", "34465A", serial,
                           "A.03.01-02.40-03.01-00.52-01-02"),
                          options=",".join(options) if options else "0")
@@ -96,7 +96,7 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
         self.has_dig = "DIG" in options
         self.memory = _Memory(2_000_000 if "MEM" in options else 50_000)
         self.pickup = line_pickup or LinePickup()
-        self.converter = DmmConverter(world.rng(f"{name}.converter"))
+        self.converter = DmmConverter(world.rng(f"{name}.converter"), noise_scale=0.0 if ideal else 1.0)
         self.display = ""
         self.format_real = False
         self.swapped = False

@@ -116,9 +116,13 @@ def noise_ppm(fe: DmmFrontEnd) -> float:
 class DmmConverter:
     """Turns the averaged input voltage into readings: noise, zero offset, overload."""
 
-    def __init__(self, rng: np.random.Generator, zero_offset_sigma_v: float = 1.5e-6) -> None:
+    def __init__(self, rng: np.random.Generator, zero_offset_sigma_v: float = 1.5e-6,
+                 noise_scale: float = 1.0) -> None:
+        # noise_scale 0: an ideal converter (a station for checking procedures' arithmetic
+        # end to end); the draws still happen, so the other streams never shift
         self.rng = rng
-        self.zero_offset_v = float(rng.normal(0.0, zero_offset_sigma_v))
+        self.noise_scale = float(noise_scale)
+        self.zero_offset_v = float(rng.normal(0.0, zero_offset_sigma_v)) * self.noise_scale
         self._once_offset = None
 
     def convert(self, mean_input_v: np.ndarray, fe: DmmFrontEnd) -> np.ndarray:
@@ -134,13 +138,13 @@ class DmmConverter:
         else:
             rng_v = fe.range_v
             factor = LOW_RANGE_NOISE_FACTOR.get(rng_v, 1.0)
-        sigma = noise_ppm(fe) * 1e-6 * rng_v * factor
+        sigma = noise_ppm(fe) * 1e-6 * rng_v * factor * self.noise_scale
         readings = mean_input_v + self.rng.normal(0.0, 1.0, n) * sigma
         if fe.autozero == "OFF":
             readings += self.zero_offset_v
         elif fe.autozero == "ONCE":
             if self._once_offset is None:
-                self._once_offset = float(self.rng.normal(0.0, np.max(sigma)))
+                self._once_offset = float(self.rng.normal(0.0, 1.0)) * float(np.max(sigma))
             readings += self._once_offset
         over = np.abs(mean_input_v) > 1.2 * rng_v
         readings[over] = np.copysign(OVERLOAD, mean_input_v[over])
