@@ -1,16 +1,21 @@
 """The inner loop of :mod:`bench.analysis.emd`: extrema, mirrored envelope knots and one sifting.
 
-Speed notes (what made the EMD ≥ 10× faster than PyEMD at 3.5·10⁵ samples):
+Speed notes (measured beside PyEMD in ``benchmarks/bench_emd.py``; the sifting count is
+fixed by the stop criterion, so only the cost of one sifting can be cut):
 
-* One sifting is a single pass over the record in cache-sized blocks: both envelopes,
-  their mean, the subtraction, the sums of the SD criterion, the extrema and the zero
-  crossings of the result are computed block by block while the block is in cache.
-  Whole-record temporaries made every step memory-bound.
+* One sifting is a single pass over the record in cache-sized blocks: the envelopes
+  (or, when knot intervals are long, one merged mean spline), the subtraction, the
+  sums of the SD criterion, the extrema and the zero crossings of the result are
+  computed block by block while the block is in cache.  Whole-record temporaries made
+  every step memory-bound.
 * The extrema of the sifted result are found in the same pass, so each sifting finds
   extrema once (PyEMD does it three times).
-* Spline coefficients come from one symmetric tridiagonal solve per envelope (LAPACK ``ptsv``);
-  a sample's interval is known from the block's knot range (``np.repeat`` of the
-  per-interval sample counts), so no per-sample search happens.
+* Spline coefficients come from one symmetric tridiagonal solve per envelope (LAPACK
+  ``ptsv``); a sample's interval is known from the block's knot range (a running count
+  of knots, or ``np.repeat`` of the per-interval sample counts), so no per-sample
+  search happens.
+* Sums use ``einsum``, not BLAS ``dot``: on a busy machine a BLAS call may wake its
+  thread pool and cost milliseconds.
 """
 
 from __future__ import annotations
