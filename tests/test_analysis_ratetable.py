@@ -128,7 +128,8 @@ def noisy_runs(g, sigma_dps, draws, seed):
     rng = np.random.default_rng(seed)
     sigma = g["sf_nominal"] * sigma_dps * rng.uniform(0.5, 2.0, w.size)  # unequal per rate
     (b, sf), resid = reference_line(w, clean, sigma)
-    truth = {"scale_factor": sf, "bias_dph": 3600 * b / g["sf_nominal"],
+    (b3, _, _), _ = reference_line_with_asymmetry(w, clean, sigma)  # the bias's model
+    truth = {"scale_factor": sf, "bias_dph": 3600 * b3 / g["sf_nominal"],
              "asymmetry_ppm": reference_asymmetry_ppm(w, clean, sigma, g["sf_nominal"]),
              "nonlinearity_ppm": 1e6 * np.abs(resid).max() / abs(sf * g["fs_dps"])}
     for _ in range(draws):

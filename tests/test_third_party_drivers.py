@@ -38,7 +38,8 @@ def test_pymeasure_34410a_reads_the_accelerometer_output(sim_station):
     dmm = Agilent34410A(sim_station.resources()["dmm"], **VISA)
     volts = dmm.voltage_dc
     truth = sim_station.truth()
-    expected = truth["k1_a_per_g"] * truth["sampling_resistor_ohm"] * truth["g_local_over_g0"]
+    expected = (truth["k1_a_per_g"] * truth["sampling_resistor_ohm"]
+                * (truth["g_local_over_g0"] + truth["k0_g"]))  # the drawn unit's bias too
     assert volts == pytest.approx(expected, rel=2e-3)
     assert dmm.ask("SYST:ERR?").strip() == '+0,"No error"'
 
