@@ -22,6 +22,17 @@ def test_the_real_rig_template_names_every_instrument_the_startup_procedure_need
     assert cfg.wiring["positive_rail_channel"] == 2
 
 
+def test_the_acceptance_rig_template_has_what_every_step_and_the_vibration_test_need():
+    from procedures.acceptance import STEPS
+    from procedures.vibration import VibrationTest
+
+    cfg = load_station(STATIONS / "lab-acceptance-rig.toml")
+    assert not cfg.simulated
+    needed = {r for cls in STEPS.values() for r in cls.requires} | set(VibrationTest.requires)
+    assert needed <= set(cfg.instruments)
+    assert cfg.instruments["gyro"].driver == "fog_serial" and cfg.wiring["gyro_supply_channel"] == 1
+
+
 def test_a_simulated_station_file_sets_the_world(tmp_path):
     cfg = load_station(STATIONS / "sim-custom.toml")
     assert cfg.simulated
