@@ -14,7 +14,8 @@ import sys
 
 #: subcommand modules; each has ``register(subparsers)`` and sets ``func(args) -> int``
 COMMAND_MODULES = ("bench.commands.run", "bench.commands.sim", "bench.commands.runs",
-                   "bench.commands.analyze", "bench.commands.acceptance")
+                   "bench.commands.analyze", "bench.commands.acceptance",
+                   "bench.commands.doctor")
 
 
 class UsageError(Exception):
