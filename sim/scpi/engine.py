@@ -66,6 +66,8 @@ from .tree import Node, compile_pattern, resolve
 __all__ = ["ScpiDevice"]
 
 _CACHE_LIMIT = 4096
+#: IEEE 488.2 §7.6.1.2: a program mnemonic has at most 12 characters (suffix excluded)
+MAX_MNEMONIC_CHARS = 12
 
 
 class ScpiDevice(CommonCommands):
@@ -286,6 +288,9 @@ class ScpiDevice(CommonCommands):
         if "?" in name or not name[1:].isalpha():
             self.push_error(-102, f"malformed common command header {name[:40]!r}")
             return None
+        if len(name) - 1 > MAX_MNEMONIC_CHARS:
+            self.push_error(-112, f"common command header {name[:40]!r} too long")
+            return None
         node = self._commons.get(name.upper())
         entry = None if node is None else (node.query_entry if query else node.set_entry)
         if entry is None:
@@ -301,6 +306,8 @@ class ScpiDevice(CommonCommands):
         tokens = body.upper().split(":")
         if "?" in body or "*" in body or any(not t or not t[0].isalpha() for t in tokens):
             return (-102, f"malformed header {name[:40]!r}")
+        if any(len(t.rstrip("0123456789")) > MAX_MNEMONIC_CHARS for t in tokens):
+            return (-112, f"a mnemonic of {name[:40]!r} exceeds {MAX_MNEMONIC_CHARS} characters")
         try:
             target, given = resolve(self._root if absolute else node, tokens)
         except LookupError as exc:
