@@ -4,6 +4,18 @@ A driver talks only through an open pyvisa ``MessageBasedResource`` (or anything
 the same ``write``/``query``/``query_binary_values`` methods); it never knows whether a
 simulator or real hardware answers.
 
+Faults on the wire (policy, docs/ARCHITECTURE.md "Driver fault policy"): a query that gets
+no reply raises :class:`InstrumentTimeout`, a broken connection
+:class:`InstrumentConnectionError`, a reply that cannot be decoded or parsed
+:class:`InstrumentReplyError` — each naming the instrument and the command, on one line.
+After any of these the session may hold stale bytes, so the next operation first reopens
+the resource (reconnect).  Only idempotent queries are re-sent (at most
+:data:`QUERY_RETRIES` times, each after a reconnect): setting readbacks (every
+:class:`Setting` getter) and the headers in ``idempotent_queries``.  Commands are never
+re-sent, except those that only bring the station to rest (``OUTP OFF``, ``ABOR``,
+``:STOP``, ``:MODE:OFF``), which are sent once more over a new connection when the first
+attempt was lost — sending them twice is harmless, losing one is not.
+
 Each setting is declared once with :func:`control` / :func:`measurement`: the SCPI
 command, the validator, the allowed values and a docstring (the PyMeasure style).
 Setting a value validates it *before* anything goes on the wire, writes one command,
@@ -23,6 +35,9 @@ import re
 from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
+
+from .wire import (QUERY_RETRIES, InstrumentConnectionError, InstrumentReplyError,  # noqa: F401
+                   InstrumentTimeout, WireFaults, safe_to_resend)
 
 log = logging.getLogger(__name__)
 
@@ -61,10 +76,6 @@ class InstrumentError(RuntimeError):
         if self.further:
             text += " (also: " + "; ".join(f'{c:+d},"{m}"' for c, m in self.further) + ")"
         super().__init__(text)
-
-
-class InstrumentReplyError(RuntimeError):
-    """A reply did not have the form the programming reference documents."""
 
 
 class UnsupportedInstrumentError(RuntimeError):
@@ -256,7 +267,9 @@ class Setting:
             return self
         if self.get_cmd is None:
             raise AttributeError(f"{self.name} is write-only")
-        return self.parse(owner.query(self.get_cmd.format(**owner.command_fields())))
+        command = self.get_cmd.format(**owner.command_fields())
+        # a setting's readback has no side effect: safe to ask again after a failure
+        return owner.query_value(command, self.parse, retry=True)
 
     def __set__(self, owner: Any, value: Any) -> None:
         if self.set_cmd is None:
@@ -280,12 +293,17 @@ def measurement(get_cmd: str, doc: str, parse: Callable[[str], Any] = parse_floa
 # --- instruments and channels ---------------------------------------------------------
 
 
-class SCPIInstrument:
+class SCPIInstrument(WireFaults):
     """Base of every SCPI driver: wire access, error queue, configuration groups, IEEE 488.2.
 
     ``resource`` is an open pyvisa MessageBasedResource with ``\\n`` terminations (see
     :func:`open_resource`).  The constructor does no I/O.
     """
+
+    #: query headers (upper case, as this driver sends them) that read without side
+    #: effects and may be re-sent after a failure; drivers add theirs.  Deliberately absent:
+    #: ``SYST:ERR?`` and ``*ESR?`` (reading consumes), ``*OPC?`` (a synchronisation point).
+    idempotent_queries: frozenset[str] = frozenset({"*IDN?", "*OPT?", "*STB?"})
 
     def __init__(self, resource: Any, name: str | None = None) -> None:
         self.resource = resource
@@ -293,16 +311,30 @@ class SCPIInstrument:
         self._group_depth = 0
         self._group_commands: list[str] = []
         self._identity: Identity | None = None
+        self._stale = False  # a transfer failed: reopen before the next one
 
     # wire access
     def write(self, command: str) -> None:
+        """Send ``command`` once (never re-sent here; see :meth:`configure_command`)."""
         log.debug("%s <- %s", self.name, command)
-        self.resource.write(command)
+        self._transact(command, lambda: self.resource.write(command), retry=False)
 
-    def query(self, command: str) -> str:
-        reply = self.resource.query(command).strip()
-        log.debug("%s <- %s -> %s", self.name, command, reply)
-        return reply
+    def query(self, command: str, *, retry: bool | None = None) -> str:
+        """Send a query and return its reply, stripped.  ``retry`` (default: the header is
+        in ``idempotent_queries``) allows :data:`QUERY_RETRIES` more attempts."""
+        return self.query_value(command, lambda reply: reply, retry=retry)
+
+    def query_value(self, command: str, parse: Callable[[str], Any], *,
+                    retry: bool | None = None) -> Any:
+        """``parse(reply)`` of a query; a reply that fails to parse counts as garbled."""
+        if retry is None:
+            retry = command.split(maxsplit=1)[0].upper() in self.idempotent_queries if command.strip() else False
+
+        def once() -> Any:
+            reply = self.resource.query(command).strip()
+            log.debug("%s <- %s -> %s", self.name, command, reply)
+            return parse(reply)
+        return self._transact(command, once, retry=retry)
 
     def query_real64(self, command: str) -> np.ndarray:
         """Query a definite-length block of little-endian float64 (``FORM REAL,64``,
@@ -313,6 +345,9 @@ class SCPIInstrument:
         them (pyvisa-py then moves 100 k readings ~20x slower).  The terminator after the
         block is read and checked, so the session stays in step with the instrument.
         """
+        return self._transact(command, lambda: self._query_real64(command), retry=False)
+
+    def _query_real64(self, command: str) -> np.ndarray:
         res = self.resource
         res.write(command)
         saved = res.read_termination
@@ -344,11 +379,23 @@ class SCPIInstrument:
         return setting_name
 
     def configure_command(self, command: str) -> None:
-        """Write a configuring command; check the error queue now, or at the group's end."""
-        self.write(command)
-        if self._group_depth:
-            self._group_commands.append(command)
-        else:
+        """Write a configuring command; check the error queue now, or at the group's end.
+
+        A command that only brings the instrument to rest (``OUTP OFF``, ``ABOR``,
+        ``:STOP``, ``:MODE:OFF``) whose transfer or check failed on the wire is sent once
+        more over a reopened connection; any other command is never re-sent.
+        """
+        try:
+            self.write(command)
+            if self._group_depth:
+                self._group_commands.append(command)
+            else:
+                self.check_errors(command)
+        except (InstrumentTimeout, InstrumentConnectionError) as exc:
+            if self._group_depth or not safe_to_resend(command):
+                raise
+            log.warning("%s: %s; sending %r again", self.name, exc, command)
+            self.write(command)
             self.check_errors(command)
 
     @contextlib.contextmanager
@@ -377,7 +424,10 @@ class SCPIInstrument:
         """Read ``SYST:ERR?`` until ``+0,"No error"``; raise :class:`InstrumentError` if any."""
         errors: list[tuple[int, str]] = []
         for _ in range(MAX_ERROR_READS):
-            code, message = parse_error_reply(self.query("SYST:ERR?"))
+            # never re-sent: reading consumes the entry, a lost reply would lose the error
+            code, message = self._transact(
+                "SYST:ERR?", lambda: parse_error_reply(self.resource.query("SYST:ERR?").strip()),
+                retry=False, after=command)
             if code == 0:
                 break
             errors.append((code, message))
@@ -466,8 +516,12 @@ class InstrumentChannel:
     def write(self, command: str) -> None:
         self.parent.write(command)
 
-    def query(self, command: str) -> str:
-        return self.parent.query(command)
+    def query(self, command: str, *, retry: bool | None = None) -> str:
+        return self.parent.query(command, retry=retry)
+
+    def query_value(self, command: str, parse: Callable[[str], Any], *,
+                    retry: bool | None = None) -> Any:
+        return self.parent.query_value(command, parse, retry=retry)
 
     def command_fields(self) -> dict[str, Any]:
         return {self.field_name: self.number}

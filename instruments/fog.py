@@ -21,7 +21,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from .base import Identity, InstrumentReplyError, in_range, in_set, int_in_range
+from .base import QUERY_RETRIES, Identity, InstrumentReplyError, in_range, in_set, int_in_range
 from .fog_decode import FRAME_BYTES, Decoded, FrameDecoder
 from .protocols import Wait
 
@@ -55,6 +55,22 @@ class GyroTimeout(TimeoutError):
     def __init__(self, message: str, frames: "GyroFrames | None" = None) -> None:
         super().__init__(message)
         self.frames = frames
+
+
+class GyroLineError(ConnectionError):
+    """The serial line broke (port closed, serial server gone) during ``command``;
+    ``frames`` holds what arrived before.  The port is reopened before the next command."""
+
+    def __init__(self, name: str, command: str, cause: BaseException,
+                 frames: "GyroFrames | None" = None) -> None:
+        self.name, self.command, self.frames = name, command, frames
+        text = " ".join(str(cause).split()) or type(cause).__name__
+        super().__init__(f"{name}: line lost at {command!r} ({type(cause).__name__}: {text[:120]})")
+
+
+def _line_broken(exc: BaseException) -> bool:
+    """A port failure (pyserial's SerialException is an OSError), not a timeout."""
+    return isinstance(exc, OSError) and not isinstance(exc, TimeoutError)
 
 
 @dataclass(frozen=True)
@@ -148,6 +164,7 @@ class SerialGyro:
         self._decoder = FrameDecoder()
         self.streaming = False
         self.counters = LineCounters()
+        self._stale = False  # the line broke: reopen the port before the next transfer
 
     # -- ASCII commands ---------------------------------------------------------------------
     def _read_line(self, command: str) -> bytes:
@@ -158,14 +175,35 @@ class SerialGyro:
                               f"{self.reply_timeout_s:g} s (got {line[:40]!r}; unit unpowered?)")
         return line
 
-    def _command(self, command: str, expect: str) -> str:
-        """Send one line while stopped; return the reply after ``expect`` (a prefix)."""
+    def _command(self, command: str, expect: str, *, retry: bool = False) -> str:
+        """Send one line while stopped; return the reply after ``expect`` (a prefix).
+
+        ``retry`` (only for the read-only ``$ID?`` and ``$CFG?``): up to QUERY_RETRIES more
+        attempts after a timeout, a lost line or a garbled reply."""
         if self.streaming:
             raise RuntimeError(f"{self.name}: {command!r} refused while streaming; stop() first")
-        self.port.reset_input_buffer()  # stale bytes (a stream cut by power loss) are not a reply
-        log.debug("%s <- %s", self.name, command)
-        self.port.write(command.encode("ascii") + b"\r\n")
-        reply = self._read_line(command).decode("ascii", errors="replace").strip()
+        attempts = 1 + (QUERY_RETRIES if retry else 0)
+        for attempt in range(1, attempts + 1):
+            try:
+                return self._command_once(command, expect)
+            except (GyroTimeout, GyroLineError, InstrumentReplyError) as exc:
+                if attempt == attempts:
+                    raise
+                log.warning("%s; asking again", exc)
+        raise AssertionError("unreachable")
+
+    def _command_once(self, command: str, expect: str) -> str:
+        self._reopen_if_lost(command)
+        try:
+            self.port.reset_input_buffer()  # stale bytes (a stream cut by power loss) are not a reply
+            log.debug("%s <- %s", self.name, command)
+            self.port.write(command.encode("ascii") + b"\r\n")
+            reply = self._read_line(command).decode("ascii", errors="replace").strip()
+        except Exception as exc:
+            if _line_broken(exc):
+                self._stale = True
+                raise GyroLineError(self.name, command, exc) from exc
+            raise
         log.debug("%s -> %s", self.name, reply)
         if reply.startswith("$ERR,"):
             _, code, message = (reply.split(",", 2) + ["", ""])[:3]
@@ -178,15 +216,27 @@ class SerialGyro:
                                        f"expected {expect!r}...")
         return reply[len(expect):]
 
+    def _reopen_if_lost(self, command: str) -> None:
+        if not self._stale:
+            return
+        try:
+            self.port.close()
+            self.port.open()
+        except Exception as exc:
+            raise GyroLineError(self.name, f"reopen before {command}", exc) from exc
+        self._stale = False
+        self._decoder.reset()  # a frame cut by the break is not continued by the new line
+        log.warning("%s: line reopened", self.name)
+
     def identify(self) -> Identity:
         """``$ID?`` → manufacturer, model, serial, firmware (read once, cached)."""
         if self._identity is None:
-            self._identity = Identity.parse(self._command("$ID?", "$ID,"))
+            self._identity = Identity.parse(self._command("$ID?", "$ID,", retry=True))
         return self._identity
 
     def read_config(self) -> GyroConfig:
         """``$CFG?``, parsed; also refreshes the cached configuration."""
-        fields = dict(item.split("=", 1) for item in self._command("$CFG?", "$CFG,").split(",")
+        fields = dict(item.split("=", 1) for item in self._command("$CFG?", "$CFG,", retry=True).split(",")
                       if "=" in item)
         try:
             cfg = GyroConfig(int(fields["RATE"]), int(fields["BAUD"]), int(fields["FRAME"]),
@@ -274,9 +324,18 @@ class SerialGyro:
         if not self.streaming:
             return self._convert([])
         with self._port_timeout_restored():
-            return self._stop_stream()
+            try:
+                return self._stop_stream()
+            except Exception as exc:
+                if not _line_broken(exc):
+                    raise
+                self._stale = True
+                self.streaming = False
+                raise GyroLineError(self.name, "$STOP", exc) from exc
 
     def _stop_stream(self) -> GyroFrames:
+        # a broken line is reopened first: the unit goes on streaming through a line break
+        self._reopen_if_lost("$STOP")
         self.port.write(b"$STOP\r\n")
         pending = self._decoder.take_tail()
         self.streaming = False
@@ -319,13 +378,21 @@ class SerialGyro:
         timeout_s = in_range("timeout_s", timeout_s, (0.0, 86400.0))
         if not self.streaming:
             raise RuntimeError(f"{self.name}: read_frames() before start()")
+        blocks: list[Decoded] = []
         with self._port_timeout_restored():
-            return self._read_frames(n, timeout_s, wait)
+            try:
+                return self._read_frames(n, timeout_s, wait, blocks)
+            except Exception as exc:
+                if not _line_broken(exc):
+                    raise
+                self._stale = True  # the unit still streams: stop() reopens and stops it
+                raise GyroLineError(self.name, f"reading {n} frames", exc,
+                                    self._convert(blocks)) from exc
 
-    def _read_frames(self, n: int, timeout_s: float, wait: Wait | None) -> GyroFrames:
+    def _read_frames(self, n: int, timeout_s: float, wait: Wait | None,
+                     blocks: list[Decoded]) -> GyroFrames:
         rate = self.rate_hz
         deadline = time.monotonic() + timeout_s
-        blocks: list[Decoded] = []
         have = 0
         first = True
         while have < n:

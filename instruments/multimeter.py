@@ -120,6 +120,11 @@ class Keysight34465A(SCPIInstrument):
     and the line frequency (``SYST:LFR?``, needed to turn NPLC into seconds).
     """
 
+    #: read-only queries, safe to re-send (``R?``, ``FETC?``, ``READ?``, ``MEAS?`` are not:
+    #: they remove readings or trigger a measurement)
+    idempotent_queries = SCPIInstrument.idempotent_queries | {"DATA:POIN?", "DATA:LAST?",
+                                                              "SYST:LFR?"}
+
     def __init__(self, resource: Any, name: str | None = None) -> None:
         super().__init__(resource, name)
         model = self.idn.model.upper()

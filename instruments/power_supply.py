@@ -105,6 +105,9 @@ class KeysightE36312A(SCPIInstrument):
     ``supply.ch[n]`` is output ``n``; supply-wide commands take channel lists.
     """
 
+    #: the supply's MEAS? reads its output back (no trigger model): safe to re-send
+    idempotent_queries = SCPIInstrument.idempotent_queries | {"MEAS:VOLT?", "MEAS:CURR?"}
+
     def __init__(self, resource: Any, name: str | None = None) -> None:
         super().__init__(resource, name)
         model = self.idn.model.upper()

@@ -10,6 +10,11 @@ client through a :class:`SerialLink` whenever the world runs it, on the same thr
 
 Robustness: every message goes through the device's ``process()``, which never raises;
 a misbehaving client is disconnected on a socket error and never takes the server down.
+
+Faults (``sim.faults``): when ``faults`` is set, each instrument's :class:`sim.faults.Gate`
+decides whether a client is admitted, whether a message reaches the device (stall, power
+loss, injected errors) and how a reply leaves (garbled, delayed); it can close the
+instrument's connections (a dropped cable).
 """
 
 from __future__ import annotations
@@ -86,6 +91,8 @@ class InstrumentServer:
         self._servers: list[asyncio.base_events.Server] = []
         self._ready = threading.Event()
         self._error: BaseException | None = None
+        #: a ``sim.faults.FaultInjector`` (or None): per-instrument gates, see the module doc
+        self.faults = None
 
     def add(self, name: str, kind: str, device: ScpiDevice | ByteStreamDevice,
             port: int = 0) -> None:
@@ -128,7 +135,7 @@ class InstrumentServer:
             serial = not isinstance(device, ScpiDevice)
             handler = self._serve_stream if serial else self._serve
             server = await asyncio.start_server(
-                lambda r, w, d=device, h=handler: h(d, r, w), self.host, port,
+                lambda r, w, d=device, h=handler, n=name: h(d, r, w, n), self.host, port,
                 limit=1 << 22)
             self._servers.append(server)
             bound = server.sockets[0].getsockname()[1]
@@ -153,10 +160,16 @@ class InstrumentServer:
         return fn(*args)
 
     # -- one client connection ---------------------------------------------------------------
+    def _gate(self, name: str):
+        return None if self.faults is None else self.faults.gates.get(name)
+
     async def _serve(self, device: ScpiDevice, reader: asyncio.StreamReader,
-                     writer: asyncio.StreamWriter) -> None:
+                     writer: asyncio.StreamWriter, name: str = "") -> None:
         framer = MessageFramer(max_message_bytes=device.max_message_bytes)
+        gate = self._gate(name)
         try:
+            if gate is not None and not gate.admit(writer):
+                return  # reconnects refused for now: close at once
             while True:
                 data = await reader.read(1 << 16)
                 if not data:
@@ -166,8 +179,14 @@ class InstrumentServer:
                         device.push_error(-223, "message longer than "
                                                 f"{device.max_message_bytes} bytes discarded")
                         continue
+                    if gate is not None and gate.intercept(device, message):
+                        continue
                     reply = device.process(message)
                     if reply:
+                        if gate is not None:
+                            reply, delay_s = gate.outgoing(reply)
+                            if delay_s:
+                                await asyncio.sleep(delay_s)
                         writer.write(reply)
                         await writer.drain()
         except (ConnectionError, asyncio.IncompleteReadError, asyncio.CancelledError):
@@ -175,15 +194,20 @@ class InstrumentServer:
         except Exception:  # never let one client take the server down
             log.exception("client handler failed")
         finally:
+            if gate is not None:
+                gate.release(writer)
             try:
                 writer.close()
             except Exception:
                 pass
 
     async def _serve_stream(self, device: ByteStreamDevice, reader: asyncio.StreamReader,
-                            writer: asyncio.StreamWriter) -> None:
+                            writer: asyncio.StreamWriter, name: str = "") -> None:
         link = SerialLink(writer)
+        gate = self._gate(name)
         try:
+            if gate is not None and not gate.admit(writer):
+                return
             if not device.connect(link):
                 return  # one client per line: close the second at once
             try:
@@ -191,7 +215,8 @@ class InstrumentServer:
                     data = await reader.read(1 << 16)
                     if not data:
                         break
-                    device.receive(link, data)
+                    if gate is None or not gate.silent():
+                        device.receive(link, data)
             finally:
                 device.disconnect(link)
         except (ConnectionError, asyncio.IncompleteReadError, asyncio.CancelledError):
@@ -199,6 +224,8 @@ class InstrumentServer:
         except Exception:  # never let one client take the server down
             log.exception("serial client handler failed")
         finally:
+            if gate is not None:
+                gate.release(writer)
             try:
                 writer.close()
             except Exception:

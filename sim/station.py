@@ -32,6 +32,7 @@ from sim.devices.sim_control import SimControl
 from sim.devices.supply import PowerSupply
 from sim.devices.shaker import ShakerController
 from sim.devices.turntable import TurntableController
+from sim.faults import FaultInjector
 from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
 from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
 from sim.physics.motion import DualAxisTable
@@ -139,9 +140,16 @@ class SimulatedStation:
                                  shaker=self.shaker)
         self.gyro, self.gyro_line = self._gyro.model, self._gyro.line
         names = ["dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker"]
-        self.sim_control = SimControl(self.world, names)
-        self._wire_power()
         self.server = InstrumentServer(cfg.host)
+        gyro_ch = cfg.gyro_supply_channel
+        #: fault injection (``sim.faults``): ``station.faults.inject("stall", "dmm", at_s=...)``
+        self.faults = FaultInjector(
+            self.world, dict(zip(names, (self.dmm, self.dmm_temp, self.supply, self.turntable,
+                                         self.gyro_line, self.shaker_controller))),
+            call=self.server.call, gyro_volts=lambda: self.supply.read(gyro_ch).voltage_v)
+        self.server.faults = self.faults
+        self.sim_control = SimControl(self.world, names, self.faults)
+        self._wire_power()
         for name, kind, dev in (("dmm", "multimeter", self.dmm),
                                 ("dmm_temp", "multimeter", self.dmm_temp),
                                 ("supply", "power_supply", self.supply),

@@ -178,7 +178,7 @@ def test_stop_all_survives_an_io_failure() -> None:
 
     fake.write = flaky_write  # type: ignore[method-assign]
     failures = table.stop_all()
-    assert [(f.axis, type(f.error)) for f in failures] == [(1, OSError)]
+    assert [f.axis for f in failures] == [1] and isinstance(failures[0].error, OSError)
     assert ":STOP 2" in fake.written
 
 

@@ -9,8 +9,8 @@ delivered (nobody connected, or the client stopped reading and the send buffer i
 are never computed — the gyro model accepts a gap between calls and carries its noise
 processes across it exactly — so even a year-long advance costs little.
 
-Faults are meant to plug in here later (issue 8): the encoded bytes pass through
-:meth:`FogSerialDevice._transmit`, the one place a corruption or loss model can act.
+Faults (``sim.faults``) plug in at :meth:`FogSerialDevice._transmit`, the one place the
+encoded frames pass: ``fault_hook.transmit(bytes)`` may corrupt, drop or silence them.
 """
 
 from __future__ import annotations
@@ -96,6 +96,8 @@ class FogSerialDevice:
         #: counters for tests and diagnostics
         self.frames_sent = 0
         self.frames_lost = 0
+        #: ``sim.faults.Gate`` (or None): frames pass through its ``transmit(bytes)``
+        self.fault_hook = None
         world.add_activity(self)
 
     # -- the line (ByteStreamDevice) -------------------------------------------------------
@@ -138,7 +140,8 @@ class FogSerialDevice:
 
     def _send(self, text: str) -> None:
         if self._link is not None:
-            self._link.write(text.encode("ascii") + b"\r\n")
+            # "replace": an error echoing binary junk must not fail the reply (and drop the line)
+            self._link.write(text.encode("ascii", "replace") + b"\r\n")
 
     def _reply_error(self, exc: LineError) -> None:
         if self.state != "STREAMING":  # never interleave text with frames
@@ -283,5 +286,7 @@ class FogSerialDevice:
         self.frames_sent += n
 
     def _transmit(self, data: bytes) -> None:
-        if self._link is not None:
+        if self.fault_hook is not None:
+            data = self.fault_hook.transmit(data)
+        if self._link is not None and data:
             self._link.write(data)

@@ -43,7 +43,8 @@ class TurntableController(ScpiDevice):
         bits |= STATUS_MOVING if bool(axis.moving(t)) else 0
         bits |= STATUS_AT_RATE if axis.mode == "RATE" and bool(axis.at_rate(t)) else 0
         bits |= STATUS_LIMIT if bool(axis.limit_reached(t)) else 0
-        bits |= STATUS_INTERLOCK_OPEN if not self.interlock_closed else 0
+        # a trip opens the interlock chain until :INT:RES (bit 16 with the fault bit 32)
+        bits |= STATUS_INTERLOCK_OPEN if not self.interlock_closed or self.tripped else 0
         bits |= STATUS_FAULT if self.tripped else 0
         return bits
 
