@@ -1,0 +1,238 @@
+"""Sensor models, FRF fit and the combined state-space model of Document B's rate fusion.
+
+Two coaxial angular-rate sensors see the same true rate ``ω`` (any rate unit, e.g. dps):
+
+* the **HF sensor** (MHD): a high-pass ``G1(s) = k1·(s/ωh)ⁿ / D(s/ωh)`` with corner
+  ``f_h`` of a few Hz, ``n = 1`` or ``2``;
+* the **LF sensor** (FOG/MEMS class): a low-pass ``G2(s) = k2 / D(s/ωl)`` with corner
+  ``f_l`` of tens of Hz;
+
+with ``D(p) = 1 + p`` (first order) or ``1 + 2ζp + p²`` (second order), ``ω = 2πf``.
+
+The true rate is modelled as a random walk driven by white noise of spectral density
+``q`` (rate unit²/s): ``ω̇ = w``.  The combined continuous model, state
+``x = [ω, x_hf…, x_lf…]``::
+
+    ẋ = A x + B w,     y1 = H1 x + v1,     y2 = H2 x + v2
+
+Each sensor is realised from the low-pass states of its own dynamics (``u`` its input):
+first-order LP ``ż = ωc(u − z)``; second-order LP ``ż = v, v̇ = ωc²(u − z) − 2ζωc v``.
+A low-pass sensor reads ``k·z``; a high-pass sensor reads ``k(u − z)`` (first order) or
+``k(u − z − (2ζ/ωc)v)`` (second order), the complement of the same low-pass.
+
+Discretisation: Document B's ``Φ = I + A·Ts`` with ``Q = B q Bᵀ Ts`` (``"euler"``), or the
+exact zero-order-hold ``Φ = e^{A·Ts}`` with Van Loan's ``Q = ∫₀^Ts e^{Aτ} B q Bᵀ e^{Aᵀτ} dτ``
+(``"zoh"``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+from scipy.optimize import least_squares
+
+KINDS = ("highpass", "lowpass")
+DISCRETIZATIONS = ("euler", "zoh")
+ORDER_GAIN_FACTOR = 2.0  # a higher order is kept only if it divides the relative RMS misfit by this
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """One sensor's transfer function: ``kind`` high/low-pass, ``order`` 1 or 2, corner
+    ``corner_hz``, passband ``gain`` (output unit per rate unit), damping ``zeta`` (order 2)."""
+
+    kind: str
+    order: int
+    corner_hz: float
+    gain: float = 1.0
+    zeta: float = math.sqrt(0.5)
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"kind {self.kind!r} must be one of {', '.join(KINDS)}")
+        if self.order not in (1, 2):
+            raise ValueError(f"order {self.order} must be 1 or 2")
+        if not (math.isfinite(self.corner_hz) and self.corner_hz > 0):
+            raise ValueError(f"corner_hz {self.corner_hz} must be a finite value > 0")
+        if not (math.isfinite(self.gain) and self.gain != 0):
+            raise ValueError(f"gain {self.gain} must be finite and non-zero")
+        if not (math.isfinite(self.zeta) and self.zeta > 0):
+            raise ValueError(f"zeta {self.zeta} must be a finite value > 0")
+
+    def response(self, freq_hz) -> np.ndarray:
+        """Complex frequency response at ``freq_hz`` (Hz)."""
+        return _response(np.asarray(freq_hz, dtype=float), self.kind, self.order, self.corner_hz, self.gain, self.zeta)
+
+    def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """``(A, b, c, d)`` with ``ẋ = A x + b u``, ``y = c x + d u`` (``u`` the true rate)."""
+        wc = 2 * math.pi * self.corner_hz
+        if self.order == 1:
+            a, b = np.array([[-wc]]), np.array([wc])
+            c_lp = np.array([1.0])
+        else:
+            a = np.array([[0.0, 1.0], [-wc * wc, -2 * self.zeta * wc]])
+            b = np.array([0.0, wc * wc])
+            c_lp = np.array([1.0, 0.0])
+        if self.kind == "lowpass":
+            return a, b, self.gain * c_lp, 0.0
+        c_hp = -np.array([1.0]) if self.order == 1 else -np.array([1.0, 2 * self.zeta / wc])
+        return a, b, self.gain * c_hp, self.gain
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "order": int(self.order), "corner_hz": float(self.corner_hz),
+                "gain": float(self.gain), "zeta": float(self.zeta)}
+
+
+def _response(f, kind, order, corner_hz, gain, zeta):
+    p = 1j * f / corner_hz
+    den = 1 + p if order == 1 else 1 + 2 * zeta * p + p * p
+    num = 1.0 if kind == "lowpass" else p ** order
+    return gain * num / den
+
+
+@dataclass(frozen=True)
+class TransferFit:
+    """Result of :func:`fit_transfer_function`: the chosen model, its relative RMS misfit
+    ``residual`` (``rms(|Ĝ−G|/|G|)``), the misfit of every order tried, and the rule used."""
+
+    model: SensorModel
+    residual: float
+    residual_by_order: dict
+    rule: str
+
+    @property
+    def corner_hz(self) -> float:
+        return self.model.corner_hz
+
+    @property
+    def gain(self) -> float:
+        return self.model.gain
+
+    @property
+    def order(self) -> int:
+        return self.model.order
+
+    def to_dict(self) -> dict:
+        return {"model": self.model.to_dict(), "residual": float(self.residual),
+                "residual_by_order": {str(k): float(v) for k, v in self.residual_by_order.items()}, "rule": self.rule}
+
+
+def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max_order: int = 2) -> TransferFit:
+    """Fit a high- or low-pass of order 1…``max_order`` to a measured FRF.
+
+    Each order is fitted by nonlinear least squares on the *relative* complex misfit
+    ``(Ĝ(f) − G(f))/|G(f)|`` (every frequency weighs the same whatever its magnitude),
+    over log-gain, log-corner and (order 2) log-damping, started from the passband gain and
+    the −3 dB crossing.  **Order rule**: start at order 1; order ``n+1`` replaces ``n`` only if
+    its relative RMS misfit is below ``1/ORDER_GAIN_FACTOR`` (half) of order ``n``'s — one
+    more parameter must explain at least half of the remaining misfit, not just noise.
+    """
+    f = np.asarray(freq_hz, dtype=float).ravel()
+    g = np.asarray(response_complex, dtype=complex).ravel()
+    if kind not in KINDS:
+        raise ValueError(f"kind {kind!r} must be one of {', '.join(KINDS)}")
+    if max_order not in (1, 2):
+        raise ValueError(f"max_order {max_order} must be 1 or 2")
+    if f.size != g.size:
+        raise ValueError(f"freq_hz has {f.size} values and response_complex {g.size}; they must match")
+    if f.size < 2 * max_order + 1:
+        raise ValueError(f"{f.size} FRF points; at least {2 * max_order + 1} are needed for order {max_order}")
+    if not (np.all(np.isfinite(f)) and np.all(f > 0) and np.all(np.isfinite(g)) and np.all(np.abs(g) > 0)):
+        raise ValueError("freq_hz must be finite and > 0 and response_complex finite and non-zero")
+    order_idx = np.argsort(f)
+    f, g = f[order_idx], g[order_idx]
+    mag = np.abs(g)
+    # start: passband gain (sign from phase there) and the frequency where |G| crosses gain/√2
+    pass_i = -1 if kind == "highpass" else 0
+    k0 = float(np.real(g[pass_i]) / abs(np.real(g[pass_i])) * mag[pass_i]) if np.real(g[pass_i]) != 0 else mag[pass_i]
+    level = np.abs(k0) / math.sqrt(2)
+    below = mag < level
+    cross = np.flatnonzero(below[:-1] != below[1:])
+    fc0 = float(f[cross[0]]) if cross.size else float(np.sqrt(f[0] * f[-1]))
+
+    fits, residuals = {}, {}
+    for order in range(1, max_order + 1):
+        def misfit(p, order=order):
+            zeta = math.exp(p[2]) if order == 2 else 1.0
+            model = _response(f, kind, order, math.exp(p[1]), math.copysign(math.exp(p[0]), k0), zeta)
+            r = (model - g) / mag
+            return np.concatenate([r.real, r.imag])
+
+        x0 = [math.log(abs(k0)), math.log(fc0)] + ([math.log(math.sqrt(0.5))] if order == 2 else [])
+        sol = least_squares(misfit, x0, method="lm")
+        zeta = math.exp(sol.x[2]) if order == 2 else math.sqrt(0.5)
+        fits[order] = SensorModel(kind, order, math.exp(sol.x[1]), math.copysign(math.exp(sol.x[0]), k0), zeta)
+        residuals[order] = float(np.sqrt(np.mean(np.abs(fits[order].response(f) - g) ** 2 / mag ** 2)))
+    chosen = 1
+    for order in range(2, max_order + 1):
+        if residuals[order] < residuals[chosen] / ORDER_GAIN_FACTOR:
+            chosen = order
+    rule = f"lowest order unless the next divides the relative RMS misfit by ≥ {ORDER_GAIN_FACTOR:g}"
+    return TransferFit(fits[chosen], residuals[chosen], residuals, rule)
+
+
+@dataclass(frozen=True)
+class FusionModel:
+    """Combined continuous model of the true rate and both sensors (see module docstring).
+
+    ``q`` is the spectral density of the white noise driving the rate random walk (rate²/s).
+    """
+
+    hf: SensorModel
+    lf: SensorModel
+    q: float
+
+    def __post_init__(self):
+        if not (math.isfinite(self.q) and self.q > 0):
+            raise ValueError(f"q {self.q} must be a finite value > 0 (rate²/s)")
+
+    @property
+    def n_states(self) -> int:
+        return 1 + self.hf.order + self.lf.order
+
+    def continuous(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(A, B, H1, H2)``: ``A`` n×n, ``B`` n×1 (process noise into ``ω``), ``H1``/``H2`` 1×n."""
+        n = self.n_states
+        a = np.zeros((n, n))
+        h = []
+        i = 1
+        for sensor in (self.hf, self.lf):
+            sa, sb, sc, sd = sensor.state_space()
+            m = sensor.order
+            a[i:i + m, i:i + m] = sa
+            a[i:i + m, 0] = sb
+            row = np.zeros((1, n))
+            row[0, 0] = sd
+            row[0, i:i + m] = sc
+            h.append(row)
+            i += m
+        b = np.zeros((n, 1))
+        b[0, 0] = 1.0
+        return a, b, h[0], h[1]
+
+    def discretize(self, ts_s: float, method: str = "euler") -> tuple[np.ndarray, np.ndarray]:
+        """``(Φ, Q)`` for sample interval ``ts_s``: ``"euler"`` (Document B, ``Φ = I + A·Ts``,
+        ``Q = B q Bᵀ Ts``) or ``"zoh"`` (exact ``e^{A·Ts}``, Van Loan ``Q``)."""
+        if not (math.isfinite(ts_s) and ts_s > 0):
+            raise ValueError(f"ts_s {ts_s} must be a finite value > 0")
+        if method not in DISCRETIZATIONS:
+            raise ValueError(f"discretization {method!r} must be one of {', '.join(DISCRETIZATIONS)}")
+        a, b, _, _ = self.continuous()
+        n = a.shape[0]
+        qc = self.q * (b @ b.T)
+        if method == "euler":
+            return np.eye(n) + a * ts_s, qc * ts_s
+        # Van Loan: expm([[-A, Qc], [0, Aᵀ]]·Ts) = [[·, Φ⁻¹Q], [0, Φᵀ]]
+        m = np.zeros((2 * n, 2 * n))
+        m[:n, :n], m[:n, n:], m[n:, n:] = -a, qc, a.T
+        e = expm(m * ts_s)
+        phi = e[n:, n:].T
+        q = phi @ e[:n, n:]
+        return phi, 0.5 * (q + q.T)
+
+    def to_dict(self) -> dict:
+        return {"hf": self.hf.to_dict(), "lf": self.lf.to_dict(), "q": float(self.q),
+                "state": ["rate"] + [f"hf_{i}" for i in range(self.hf.order)] + [f"lf_{i}" for i in range(self.lf.order)]}
