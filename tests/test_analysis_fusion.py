@@ -247,3 +247,12 @@ def test_bad_input_raises_value_error():
         SensorModel("lowpass", 1, -3.0)
     with pytest.raises(ValueError, match="discretization"):
         FusionModel(HF, LF, 1.0).discretize(1e-3, "tustin")
+
+
+def test_fusion_metrics_imports_on_its_own():
+    import subprocess
+    import sys
+
+    code = "import bench.analysis.fusion_metrics as m; from bench.analysis.fusion import analyze_fusion as a; " \
+           "assert a is m.analyze_fusion"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 0

@@ -4,7 +4,8 @@ The model is :class:`~bench.analysis.fusion_models.FusionModel` (true rate as a 
 walk, each sensor's transfer function as states).  Per sample ``k``:
 
 1. predict ``x⁻ = Φ x``, ``P⁻ = Φ P Φᵀ + Q``;
-2. ``R1 = f1(x⁻)``; ``K1 = P⁻H1ᵀ(H1P⁻H1ᵀ + R1)⁻¹``; ``x1 = x⁻ + K1(ω1 − H1x⁻)``; ``P1 = (I − K1H1)P⁻``;
+2. ``R1 = f1(x⁻)``; ``K1 = P⁻H1ᵀ(H1P⁻H1ᵀ + R1)⁻¹``; ``x1 = x⁻ + K1(ω1 − H1x⁻)``;
+   ``P1 = (I − K1H1)P⁻``;
 3. ``R2 = f2(x1)``; the same update with the LF reading ``ω2`` from ``(x1, P1)``;
 4. the fused rate is the first component of ``x2``.
 
@@ -12,7 +13,8 @@ walk, each sensor's transfer function as states).  Per sample ``k``:
 has a lower and an upper noise threshold ``r_lower ≤ r_upper`` (its unit²).  The
 *segmentation index* is ``s = (y − H x)² − H P Hᵀ`` from its current reading ``y`` and the
 state ``(x, P)`` it updates: the squared innovation less the prediction's share of it, an
-instantaneous sample of the measurement-noise variance (Sage–Husa), in the thresholds' unit.  ``s < r_lower`` picks interval 0 ("consistent"), ``r_lower ≤ s ≤ r_upper``
+instantaneous sample of the measurement-noise variance (Sage–Husa), in the thresholds'
+unit.  ``s < r_lower`` picks interval 0 ("consistent"), ``r_lower ≤ s ≤ r_upper``
 interval 1 ("normal"), ``s > r_upper`` interval 2 ("disturbed").  Interval ``i`` has the noise
 function ``f_i(x) = a_i + b_i·(H x)²`` — a white floor plus a model error proportional to the
 signal the sensor should read — evaluated at the state being updated.  ``R`` is clipped to
@@ -319,7 +321,8 @@ def tune_fusion_params(hf_model: SensorModel, lf_model: SensorModel, hf_noise_va
     Procedure: (1) σ² of each sensor = the variance of its noise record (a static record,
     or the residual of the sensor against its fitted model driven by the reference);
     (2) ε of each sensor: given by the caller, e.g. :func:`passband_misfit` of its FRF fit
-    (how far the model is off where the sensor is trusted; default 0, see the module doc); (3) thresholds and interval functions = the defaults of
+    (how far the model is off where the sensor is trusted; default 0, see the module doc);
+    (3) thresholds and interval functions = the defaults of
     :meth:`AdaptiveNoise.from_noise` (``r_lower = σ²``, ``r_upper = upper_factor·σ²``, ``a = (σ², σ²,
     inflate·σ²)``, ``b = ε²``); (4) ``q`` = :func:`estimate_process_noise` on the readings."""
     q = estimate_process_noise(hf, lf, ts_s, FusionModel(hf_model, lf_model, 1.0), hf_noise_var, lf_noise_var)
@@ -330,5 +333,15 @@ def tune_fusion_params(hf_model: SensorModel, lf_model: SensorModel, hf_noise_va
     return model, params
 
 
-# the whole comparison lives in fusion_metrics (size); re-exported here as the entry point
-from bench.analysis.fusion_metrics import FusionAnalysis, analyze_fusion  # noqa: E402,F401
+def __getattr__(name: str):
+    """``analyze_fusion``/``FusionAnalysis`` live in fusion_metrics (size); served from here
+    lazily, since fusion_metrics imports this module."""
+    if name in ("FusionAnalysis", "analyze_fusion"):
+        from bench.analysis import fusion_metrics
+
+        return getattr(fusion_metrics, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["AdaptiveNoise", "FusionParams", "FilterRun", "sequential_kalman", "sequential_fusion",
+           "fixed_r_kalman", "complementary_filter", "tune_fusion_params"]

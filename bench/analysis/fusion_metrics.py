@@ -22,10 +22,11 @@ import numpy as np
 from scipy.stats import chi2
 
 from bench.analysis import fusion as fu
-from bench.analysis.fusion_models import FusionModel, SensorModel, TransferFit, fit_transfer_function
+from bench.analysis.fusion_models import FusionModel, SensorModel, fit_transfer_function
 
 DEFAULT_HF = SensorModel("highpass", 1, 2.0, 1.0)  # MHD-class: first-order high-pass at 2 Hz
 DEFAULT_LF = SensorModel("lowpass", 1, 30.0, 1.0)  # FOG/MEMS-class: first-order low-pass at 30 Hz
+FusionParams = fu.FusionParams
 METHODS = ("fused", "hf", "lf", "fixed_r_kf", "complementary")
 
 
@@ -133,9 +134,6 @@ class FusionAnalysis:
             "r_range": {k: floats(v) for k, v in self.r_range.items()},
             "notes": list(self.notes),
         }
-
-
-FusionParams = fu.FusionParams
 
 
 def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_model: SensorModel | None = None,

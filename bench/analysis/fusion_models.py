@@ -235,4 +235,5 @@ class FusionModel:
 
     def to_dict(self) -> dict:
         return {"hf": self.hf.to_dict(), "lf": self.lf.to_dict(), "q": float(self.q),
-                "state": ["rate"] + [f"hf_{i}" for i in range(self.hf.order)] + [f"lf_{i}" for i in range(self.lf.order)]}
+                "state": ["rate"] + [f"hf_{i}" for i in range(self.hf.order)]
+                + [f"lf_{i}" for i in range(self.lf.order)]}

@@ -77,7 +77,8 @@ def _check_time(t: np.ndarray, rate_hz: float) -> None:
     dt = np.diff(t) * rate_hz
     k = int(np.argmax(np.abs(dt - 1)))
     if abs(dt[k] - 1) > SAMPLING_TOLERANCE:
-        raise ValueError(f"the time step after row {k + 2} is {dt[k] / rate_hz:.6g} s, not 1/rate = {1 / rate_hz:.6g} s "
+        raise ValueError(f"the time step after row {k + 2} is {dt[k] / rate_hz:.6g} s, "
+                         f"not 1/rate = {1 / rate_hz:.6g} s "
                          f"(allowed ±{SAMPLING_TOLERANCE:.0%}); the record must be uniform at --rate-hz")
 
 
@@ -119,7 +120,8 @@ def analyze_fusion_csv(args) -> int:
         print(json.dumps(doc, indent=2, allow_nan=False))
         return 0
     m = analysis.model
-    print(f"fusion of {args.input}: {analysis.n_samples} samples at {args.rate_hz:.6g} Hz; models {analysis.model_source}")
+    print(f"fusion of {args.input}: {analysis.n_samples} samples at {args.rate_hz:.6g} Hz; "
+          f"models {analysis.model_source}")
     print(f"  HF {m.hf.kind} order {m.hf.order} corner {m.hf.corner_hz:.4g} Hz gain {m.hf.gain:.5g}; "
           f"LF {m.lf.kind} order {m.lf.order} corner {m.lf.corner_hz:.4g} Hz gain {m.lf.gain:.5g}; q {m.q:.4g}")
     for name, s in analysis.nis.items():
