@@ -394,7 +394,7 @@ class SCPIInstrument(WireFaults):
         except (InstrumentTimeout, InstrumentConnectionError) as exc:
             if self._group_depth or not safe_to_resend(command):
                 raise
-            log.warning("%s: %s; sending %r again", self.name, exc, command)
+            log.warning("%s; sending %r again", exc, command)
             self.write(command)
             self.check_errors(command)
 

@@ -49,10 +49,12 @@ class InstrumentTimeout(TimeoutError):
 class InstrumentConnectionError(ConnectionError):
     """The connection to the instrument broke (or could not be reopened) during ``command``."""
 
-    def __init__(self, instrument_name: str, command: str, cause: BaseException) -> None:
+    def __init__(self, instrument_name: str, command: str, cause: BaseException,
+                 after: str = "") -> None:
         self.instrument_name, self.command = instrument_name, command
         text = " ".join(str(cause).split()) or type(cause).__name__
-        super().__init__(f"{instrument_name}: connection lost at {command!r} "
+        context = f" after {after!r}" if after else ""
+        super().__init__(f"{instrument_name}: connection lost at {command!r}{context} "
                          f"({type(cause).__name__}: {text[:160]})")
 
 
@@ -81,7 +83,7 @@ class WireFaults:
                 self._stale = True  # a late reply or half a block may follow: reopen first
                 if attempt == attempts:
                     raise failure from exc
-                log.warning("%s: %s; asking again", self.name, failure)
+                log.warning("%s; asking again", failure)
         raise AssertionError("unreachable")
 
     def _classify(self, exc: Exception, command: str, attempt: int,
@@ -91,10 +93,11 @@ class WireFaults:
             return InstrumentTimeout(self.name, command, getattr(self.resource, "timeout", "?"),
                                      attempt, after)
         if isinstance(exc, (UnicodeDecodeError, InstrumentReplyError)):
-            return InstrumentReplyError(f"{self.name}: garbled reply to {command!r}: "
+            context = f" after {after!r}" if after else ""
+            return InstrumentReplyError(f"{self.name}: garbled reply to {command!r}{context}: "
                                         f"{' '.join(str(exc).split())[:160]}")
         if isinstance(exc, OSError) or type(exc).__name__ == "VisaIOError":
-            return InstrumentConnectionError(self.name, command, exc)
+            return InstrumentConnectionError(self.name, command, exc, after)
         return None
 
     def reconnect(self, command: str = "reconnect") -> None:
