@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 
 from bench.clock import Clock
+from bench.site import DEFAULT_SITE
 from bench.store import RunStore, RunWriter
 from bench.version import code_version
 
@@ -55,7 +56,8 @@ class Measurement:
         return self.limit.outcome(self.value)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "value": self.value, "unit": self.unit,
+        value = self.value if math.isfinite(self.value) else None  # JSON has no NaN: null
+        return {"name": self.name, "value": value, "unit": self.unit,
                 "low": self.limit.low, "high": self.limit.high, "marginal": self.limit.marginal,
                 "outcome": self.outcome, "description": self.description,
                 "uncertainty": self.uncertainty}
@@ -79,6 +81,8 @@ class Context:
     wiring: dict[str, Any]
     progress: Progress = _no_progress
     measurements: list[Measurement] = field(default_factory=list)
+    #: latitude_deg, height_m and optionally local_g_mps2 of the station
+    site: dict[str, Any] = field(default_factory=lambda: dict(DEFAULT_SITE))
 
     def measure(self, name: str, value: float, unit: str, limit: Limit | None = None,
                 description: str = "", uncertainty: float | None = None) -> Measurement:
@@ -126,7 +130,8 @@ def execute(procedure: Procedure, station, store: RunStore, *, unit_serial: str 
     run = store.create_run(procedure=procedure.name, parameters=procedure.parameters(),
                            station=station.snapshot(), unit_serial=unit_serial, seed=seed,
                            code_version=code_version())
-    ctx = Context(station.instruments, station.clock, run, station.config.wiring, progress)
+    ctx = Context(station.instruments, station.clock, run, station.config.wiring, progress,
+                  site=dict(getattr(station.config, "site", None) or DEFAULT_SITE))
     status, reason = "aborted", None
     try:
         procedure.setup(ctx)

@@ -10,6 +10,9 @@ from __future__ import annotations
 import math
 
 STANDARD_GRAVITY_MPS2 = 9.80665
+#: the site of a station that names none (Nanjing, where Document A's lab is; the simulated
+#: station's default too)
+DEFAULT_SITE = {"latitude_deg": 32.06, "height_m": 10.0}
 EARTH_RATE_DPH = 15.041067  # sidereal rotation, deg/h (7.292115e-5 rad/s)
 _A_M, _F = 6378137.0, 1 / 298.257223563
 _GE, _GP = 9.7803253359, 9.8321849378  # normal gravity at the equator and the pole
@@ -42,3 +45,8 @@ def normal_gravity_mps2(latitude_deg: float, height_m: float = 0.0) -> float:
 def earth_rate_vertical_dph(latitude_deg: float) -> float:
     """Earth rate along the local Up axis, deg/h (positive in the northern hemisphere)."""
     return EARTH_RATE_DPH * math.sin(_latitude(latitude_deg))
+
+
+def site_gravity_mps2(site: dict) -> float:
+    """Local gravity of a station's site: measured ``local_g_mps2`` if given, else normal gravity."""
+    return float(site.get("local_g_mps2") or normal_gravity_mps2(site["latitude_deg"], site["height_m"]))

@@ -127,6 +127,8 @@ class CatalogueEntry:
     produces: Mapping[str, tuple[str, str]]
     kinds: tuple[str, ...]
     check_parameters: Callable[[dict[str, Any]], Any] = field(default=lambda params: params)
+    #: which measurements a parameter table can produce (None: all of ``produces``)
+    producible: Callable[[dict[str, Any]], set[str]] | None = None
 
 
 def _number(value: Any, where: str) -> float:
@@ -153,6 +155,10 @@ def parse_spec(data: dict, catalogue: Mapping[str, CatalogueEntry], source: str 
     unit = data.get("unit")
     if not isinstance(unit, dict):
         raise SpecError(f"{source}: missing [unit] table (model, kind)")
+    extra = set(unit) - {"model", "kind", "serial_pattern", "description"}
+    if extra:
+        raise SpecError(f"{source}: [unit] unknown key(s) {sorted(extra)}; allowed: model, kind, "
+                        "serial_pattern, description")
     model = _text(unit, "model", f"{source}: [unit]")
     kind = _text(unit, "kind", f"{source}: [unit]")
     if kind not in KINDS:
@@ -196,6 +202,11 @@ def parse_spec(data: dict, catalogue: Mapping[str, CatalogueEntry], source: str 
         produced = catalogue[proc].produces
         if name not in produced:
             raise SpecError(f"{where}: {proc} produces {sorted(produced)}, not {name!r}")
+        if catalogue[proc].producible is not None:
+            can = catalogue[proc].producible(checked[proc])
+            if name not in can:
+                raise SpecError(f"{where}: {proc} with these parameters cannot produce it "
+                                f"(it can: {sorted(can)}) — e.g. more positions or planes")
         if (proc, name) in seen:
             raise SpecError(f"{where}: listed twice for {proc}")
         seen.add((proc, name))

@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.clock import Clock, SimulatedClock, WallClock
+from bench.site import DEFAULT_SITE
 
 #: driver kind -> "module:Class"; a driver takes an open pyvisa resource and a name
 DRIVERS = {
@@ -66,6 +67,10 @@ DEFAULT_WIRING = {
 }
 
 
+SITE_RANGES = {"latitude_deg": (-90.0, 90.0), "height_m": (-1000.0, 10000.0),
+               "local_g_mps2": (9.7, 9.9)}
+
+
 class StationError(ValueError):
     """A station file or address that cannot be used (message names the value)."""
 
@@ -88,6 +93,9 @@ class StationConfig:
     clock_backend: str = "@py"
     wiring: dict[str, Any] = field(default_factory=lambda: dict(DEFAULT_WIRING))
     simulation: dict[str, Any] | None = None  # present → start an embedded simulated world
+    #: where the bench is: latitude_deg, height_m (gravity and Earth rate follow), optional
+    #: local_g_mps2 (measured gravity, overrides the normal-gravity formula)
+    site: dict[str, Any] = field(default_factory=lambda: dict(DEFAULT_SITE))
 
     @property
     def simulated(self) -> bool:
@@ -127,10 +135,10 @@ def _table(data: dict, key: str, source: str) -> dict:
 def parse_station(data: dict, source: str = "<station>") -> StationConfig:
     """Validate a station table (as read from TOML) into a :class:`StationConfig`."""
     top = _table(data, "station", source)
-    unknown = set(data) - {"station", "instruments", "wiring", "simulation"}
+    unknown = set(data) - {"station", "instruments", "wiring", "simulation", "site"}
     if unknown:
         raise StationError(f"{source}: unknown table(s) {sorted(unknown)}; allowed: "
-                           "station, instruments, wiring, simulation")
+                           "station, instruments, wiring, simulation, site")
     instruments: dict[str, InstrumentConfig] = {}
     for name, table in _table(data, "instruments", source).items():
         where = f"{source}: [instruments.{name}]"
@@ -176,8 +184,27 @@ def parse_station(data: dict, source: str = "<station>") -> StationConfig:
     clock = top.get("clock", "wall")
     if not isinstance(clock, str):
         raise StationError(f"{source}: [station] clock {clock!r} must be 'wall' or a VISA address")
+    site = _parse_site(data, simulation, source)
     return StationConfig(top.get("name", Path(source).stem), instruments, clock,
-                         top.get("clock_backend", "@py"), wiring, simulation)
+                         top.get("clock_backend", "@py"), wiring, simulation, site)
+
+
+def _parse_site(data: dict, simulation: dict | None, source: str) -> dict[str, Any]:
+    """[site], else the simulated world's own latitude and height, else the default site."""
+    table = _table(data, "site", source)
+    for key, value in table.items():
+        if key not in SITE_RANGES:
+            raise StationError(f"{source}: [site] {key!r} not in {sorted(SITE_RANGES)}")
+        lo, hi = SITE_RANGES[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
+            raise StationError(f"{source}: [site] {key} = {value!r} must be a number in {lo:g}..{hi:g}")
+    site = dict(DEFAULT_SITE)
+    if simulation is not None:
+        site.update({k: float(simulation[k]) for k in ("latitude_deg", "height_m") if k in simulation})
+        if simulation.get("g_mps2"):
+            site["local_g_mps2"] = float(simulation["g_mps2"])
+    site.update({k: float(v) for k, v in table.items()})
+    return site
 
 
 def _check_serial_options(table: dict, spec: dict, where: str) -> None:
@@ -337,12 +364,14 @@ class Station:
                    "supply": "keysight_e36312a", "turntable": "acutrol_turntable",
                    "gyro": "fog_serial", "shaker": "vibration_controller"}
         instruments = {n: InstrumentConfig(n, d, res[n]) for n, d in drivers.items()}
-        return StationConfig("sim", instruments, res["sim"], "@py", cfg.wiring, cfg.simulation)
+        return StationConfig("sim", instruments, res["sim"], "@py", cfg.wiring, cfg.simulation,
+                             cfg.site)
 
     def snapshot(self) -> dict[str, Any]:
         """Each instrument's identity and settings, for the run record."""
         snap: dict[str, Any] = {"name": self.config.name, "simulated": self.config.simulated,
-                                "wiring": self.config.wiring, "instruments": {}}
+                                "wiring": self.config.wiring, "site": self.config.site,
+                                "instruments": {}}
         for name, driver in self.instruments.items():
             entry: dict[str, Any] = {"address": self.config.instruments[name].address,
                                      "driver": self.config.instruments[name].driver}

@@ -10,6 +10,7 @@ results under ``<step>.*``.  Any fault aborts the sequence through the runner's 
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from bench.procedure import Context, Limit
@@ -31,22 +32,39 @@ STEPS: dict[str, type] = {
 }
 
 
+def _build(cls: type, params: dict[str, Any]):
+    allowed = [f.name for f in dataclasses.fields(cls.Parameters)]
+    unknown = sorted(set(params) - set(allowed))
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {unknown}; allowed: {allowed}")
+    return cls(**params)
+
+
 def _checker(cls: type):
     def check(params: dict[str, Any]) -> None:
-        cls(**params)
+        _build(cls, params)
     return check
 
 
-#: what each step offers a spec (measurements, sensor kinds, parameter check)
+def _producible(cls: type):
+    def producible(params: dict[str, Any]) -> set[str]:
+        step = _build(cls, params)
+        return step.producible() if hasattr(step, "producible") else set(cls.produces)
+    return producible
+
+
+#: what each step offers a spec (measurements, sensor kinds, parameter check, what a given
+#: parameter set can produce — e.g. a 4-position tumble cannot separate K3 from K1)
 CATALOGUE: dict[str, CatalogueEntry] = {
-    name: CatalogueEntry(cls.produces, cls.kinds, _checker(cls)) for name, cls in STEPS.items()
+    name: CatalogueEntry(cls.produces, cls.kinds, _checker(cls), _producible(cls))
+    for name, cls in STEPS.items()
 }
 
 
 def make_step(name: str, params: dict[str, Any]) -> Step:
     if name not in STEPS:
         raise ValueError(f"procedure {name!r} unknown; known: {sorted(STEPS)}")
-    return STEPS[name](**params)
+    return _build(STEPS[name], params)
 
 
 class AcceptanceTest:

@@ -25,6 +25,8 @@ def check_ranges(values: dict[str, Any], ranges: dict[str, tuple[float, float]],
     """ValueError naming the first parameter outside its inclusive range."""
     for name, (lo, hi) in ranges.items():
         value = values[name]
+        if value is None:  # optional parameter left to the station (e.g. its site)
+            continue
         ok = (not isinstance(value, bool) and isinstance(value, (int, float))
               and math.isfinite(value) and lo <= value <= hi)
         if ok and name in integers and value != int(value):
@@ -86,11 +88,13 @@ def level_table(ctx: Context) -> None:
     ctx.run.event(ctx.clock.now(), "levelled", "turntable at 0°, 0°: platform z up")
 
 
-def averaged_voltage(ctx: Context, average_s: float, nplc: float) -> tuple[float, float, int]:
+def averaged_voltage(ctx: Context, average_s: float, nplc: float, *, stream: str | None = None,
+                     tag: int = 0) -> tuple[float, float, int]:
     """Mean DC voltage of the ``dmm`` over ``average_s``: (mean V, standard error V, n).
 
     A timed trace of readings at the given NPLC (autozero off, one reading per interval);
-    the standard error treats the readings as independent.
+    the standard error treats the readings as independent. With ``stream`` every reading is
+    stored first (``position`` = ``tag``), so an overload still leaves the readings behind.
     """
     dmm = ctx.instruments["dmm"]
     interval = nplc / dmm.line_frequency_hz + 0.002
@@ -99,10 +103,38 @@ def averaged_voltage(ctx: Context, average_s: float, nplc: float) -> tuple[float
     dmm.initiate()
     ctx.clock.sleep(plan.duration_s)
     volts = dmm.fetch_all()
+    if stream is not None:
+        ctx.run.append(stream, position=np.full(volts.size, tag), voltage_v=volts)
     if not np.all(np.isfinite(volts)):
         raise RuntimeError(f"dmm overload: {int(np.sum(~np.isfinite(volts)))} of {volts.size} "
                            "readings out of range while averaging")
     return float(volts.mean()), float(volts.std(ddof=1) / math.sqrt(volts.size)), volts.size
+
+
+FRAME_TIMEOUT_MARGIN_S = 60.0  # wall time allowed beyond a record's own length
+
+
+def read_gyro_frames(ctx: Context, n: int, store, *, stop: bool = False):
+    """The next ``n`` frames from the streaming ``gyro``; ``store(frames)`` is called first —
+    also with the partial frames of a timeout — so nothing acquired is lost, then a line with
+    dropped or corrupt frames raises (a whole-record mean or an Allan deviation needs every
+    frame). ``stop``: stop the stream after reading."""
+    gyro = ctx.instruments["gyro"]
+    timeout_s = n / gyro.rate_hz + FRAME_TIMEOUT_MARGIN_S  # a real unit needs the record's time
+    try:
+        frames = gyro.read_frames(n, timeout_s=timeout_s, wait=ctx.clock.sleep)
+    except Exception as exc:
+        partial = getattr(exc, "frames", None)  # a GyroTimeout carries what did arrive
+        if partial is not None and len(partial):
+            store(partial)
+        raise
+    store(frames)
+    if stop:
+        gyro.stop()
+    if frames.dropped or frames.corrupt:
+        raise RuntimeError(f"gyro line: {frames.dropped} frames dropped, {frames.corrupt} corrupt "
+                           f"in a {n}-frame record (stored); the analysis needs every frame")
+    return frames
 
 
 def make_safe(ctx: Context) -> None:

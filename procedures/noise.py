@@ -20,7 +20,8 @@ import numpy as np
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.allan_stats import adev_interval, edf_greenhall
 from bench.procedure import Context
-from procedures.common import Estimate, check_ranges, power_accelerometer, power_gyro
+from procedures.common import (Estimate, check_ranges, level_table, power_accelerometer, power_gyro,
+                               read_gyro_frames)
 
 ACCEL_NOISE_PRODUCES = {
     "noise_density": ("g/rtHz", "white-noise density, one-sided (√2 × IEEE 952 N)"),
@@ -63,7 +64,7 @@ class AccelerometerNoiseParameters:
     chunk_s: float = 300.0
 
     def validate(self) -> None:
-        check_ranges(asdict(self), {"duration_s": (60, 86400), "rate_hz": (0.1, 100),
+        check_ranges(asdict(self), {"duration_s": (60, 86400), "rate_hz": (1, 100),
                                     "warmup_s": (0, 86400), "chunk_s": (1, 3600)})
         if self.duration_s * self.rate_hz > 2_000_000:
             raise ValueError(f"duration_s × rate_hz = {self.duration_s * self.rate_hz:.0f} readings exceeds 2e6")
@@ -74,6 +75,8 @@ class AccelerometerNoise:
     requires = ("dmm", "supply", "turntable")
     kinds = ("accelerometer",)
     produces = ACCEL_NOISE_PRODUCES
+
+    Parameters = AccelerometerNoiseParameters
 
     def __init__(self, params: AccelerometerNoiseParameters | None = None, **overrides) -> None:
         self.p = params or AccelerometerNoiseParameters(**overrides)
@@ -88,12 +91,15 @@ class AccelerometerNoise:
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
         dmm = ctx.instruments["dmm"]
+        level_table(ctx)  # IA up: the record's mean is then 1 g (the normalisation below)
         power_accelerometer(ctx, on=True)
         ctx.progress(0, self.duration_s(), "warming up")
         ctx.clock.sleep(p.warmup_s)
         interval = 1.0 / p.rate_hz
         n = int(round(p.duration_s * p.rate_hz))
-        aperture = interval - _DMM_OVERHEAD_S
+        # whole mains cycles reject line pickup; the gap it leaves is corrected below
+        cycles = math.floor((interval - _DMM_OVERHEAD_S) * dmm.line_frequency_hz)
+        aperture = cycles / dmm.line_frequency_hz if cycles >= 1 else interval - _DMM_OVERHEAD_S
         plan = dmm.configure_timed_trace(n, interval, aperture_s=aperture, range_v=10.0)
         ctx.run.add_stream("noise", {"t_s": "s", "voltage_v": "V"}, "static output record")
         t0 = ctx.clock.now() + plan.trigger_delay_s
@@ -143,6 +149,8 @@ class GyroNoise:
     kinds = ("gyro",)
     produces = GYRO_NOISE_PRODUCES
 
+    Parameters = GyroNoiseParameters
+
     def __init__(self, params: GyroNoiseParameters | None = None, **overrides) -> None:
         self.p = params or GyroNoiseParameters(**overrides)
         self.p.validate()
@@ -156,6 +164,7 @@ class GyroNoise:
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
         gyro = ctx.instruments["gyro"]
+        level_table(ctx)  # at rest, input axis up
         power_gyro(ctx, on=True)
         ctx.progress(0, self.duration_s(), "gyro warming up")
         ctx.clock.sleep(p.warmup_s)
@@ -167,15 +176,16 @@ class GyroNoise:
         chunk = max(1, int(p.chunk_s * p.frame_rate_hz))
         t0 = ctx.clock.now()
         gyro.start()
-        parts, got = [], 0
-        while got < n_total:
-            frames = gyro.read_frames(min(chunk, n_total - got), timeout_s=120.0, wait=ctx.clock.sleep)
-            if frames.dropped or frames.corrupt:
-                raise RuntimeError(f"gyro line: {frames.dropped} frames dropped, {frames.corrupt} "
-                                   "corrupt in the static record (Allan deviation needs a gap-free record)")
-            ctx.run.append("gyro_static", t_s=t0 + (got + np.arange(len(frames)) + 1) / p.frame_rate_hz,
+        parts: list[np.ndarray] = []
+
+        def store(frames) -> None:
+            ctx.run.append("gyro_static", t_s=t0 + (frames.index + 1) / p.frame_rate_hz,
                            counts=frames.counts, rate_dps=frames.rate_dps,
                            temperature_c=frames.temperature_c, status=frames.status)
+
+        got = 0
+        while got < n_total:
+            frames = read_gyro_frames(ctx, min(chunk, n_total - got), store)
             parts.append(frames.rate_dps)
             got += len(frames)
             ctx.progress(p.warmup_s + got / p.frame_rate_hz, self.duration_s(), "static record")

@@ -8,7 +8,7 @@
    frame and the per-rate mean with its standard error.
 3. Fit scale factor, bias, nonlinearity and asymmetry with uncertainties
    (:func:`bench.analysis.ratetable.fit_rate_table`); the input rate includes the Earth
-   rate's vertical component at the site's latitude.
+   rate's vertical component at the station's site latitude (``[site]`` of the station file).
 
 Indicated rates are the gyro's pulses through its nominal scale factor, in °/s.
 """
@@ -23,7 +23,7 @@ import numpy as np
 from bench.analysis.ratetable import fit_rate_table, rate_plan, whole_revolution_duration_s
 from bench.procedure import Context
 from bench.site import earth_rate_vertical_dph
-from procedures.common import Estimate, check_ranges, power_gyro
+from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 
 RATETABLE_PRODUCES = {
     "scale_factor_error": ("ppm", "scale factor relative to nominal, minus 1"),
@@ -45,13 +45,15 @@ class RateTableParameters:
     settle_s: float = 2.0          # after "at rate", before recording
     frame_rate_hz: int = 1000
     full_scale_dps: float = 0.0    # 0: the gyro's own ($CFG?)
-    latitude_deg: float = 32.06
+    latitude_deg: float | None = None  # None: the station's site
+    boot_wait_s: float = 5.0       # powered, before the gyro is asked its configuration
 
     def validate(self) -> None:
         check_ranges(asdict(self), {
             "rates_per_sign": (1, 30), "min_fraction": (1e-4, 0.99), "max_fraction": (0.01, 1.0),
             "min_record_s": (1, 36000), "warmup_s": (0, 86400), "settle_s": (0, 600),
-            "frame_rate_hz": (1, 4608), "full_scale_dps": (0, 5000), "latitude_deg": (-90, 90)},
+            "frame_rate_hz": (1, 4608), "full_scale_dps": (0, 5000), "latitude_deg": (-90, 90),
+            "boot_wait_s": (0, 600)},
             integers=("rates_per_sign", "frame_rate_hz"))
         if not self.min_fraction < self.max_fraction:
             raise ValueError(f"min_fraction = {self.min_fraction} must be < max_fraction = {self.max_fraction}")
@@ -62,6 +64,8 @@ class RateTableCalibration:
     requires = ("gyro", "supply", "turntable")
     kinds = ("gyro",)
     produces = RATETABLE_PRODUCES
+
+    Parameters = RateTableParameters
 
     def __init__(self, params: RateTableParameters | None = None, **overrides) -> None:
         self.p = params or RateTableParameters(**overrides)
@@ -83,14 +87,35 @@ class RateTableCalibration:
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
         gyro, table = ctx.instruments["gyro"], ctx.instruments["turntable"]
+        level_table(ctx)  # input axis up: the Earth rate's vertical component is the one sensed
         power_gyro(ctx, on=True)
-        total = self.duration_s()
-        ctx.progress(0, total, "gyro warming up")
-        ctx.clock.sleep(p.warmup_s)
+        ctx.clock.sleep(p.boot_wait_s)
         gyro.configure(rate_hz=p.frame_rate_hz)
         fs = p.full_scale_dps or gyro.config.full_scale_dps
         plan = self._plan(fs)
-        earth_dps = earth_rate_vertical_dph(p.latitude_deg) / 3600.0
+        latitude = p.latitude_deg if p.latitude_deg is not None else ctx.site["latitude_deg"]
+        earth_dps = earth_rate_vertical_dph(latitude) / 3600.0
+        axis = table.axis[1]
+        previous_limit = axis.rate_limit_dps
+        # the user rate limit (often 30 °/s) must admit the plan; set now, so a table that
+        # cannot do it refuses before the warm-up, and put back afterwards whatever happens
+        axis.rate_limit_dps = float(np.max(np.abs(plan))) * 1.02
+        try:
+            return self._rates(ctx, plan, fs, earth_dps, latitude)
+        finally:
+            try:
+                axis.stop()
+                axis.wait_in_position(ctx.clock.sleep, timeout_s=AT_RATE_TIMEOUT_S)  # at rest
+            finally:
+                axis.rate_limit_dps = previous_limit
+
+    def _rates(self, ctx: Context, plan: np.ndarray, fs: float, earth_dps: float,
+               latitude: float) -> dict[str, Estimate]:
+        p = self.p
+        gyro, axis = ctx.instruments["gyro"], ctx.instruments["turntable"].axis[1]
+        total = self.duration_s()
+        ctx.progress(0, total, "gyro warming up")
+        ctx.clock.sleep(max(p.warmup_s - p.boot_wait_s, 0.0))
         ctx.run.add_stream("gyro_frames", {"t_s": "s", "table_rate_dps": "deg/s", "counts": "pulses",
                                            "rate_dps": "deg/s", "temperature_c": "degC",
                                            "status": "1"}, "every gyro frame recorded at rate")
@@ -99,26 +124,24 @@ class RateTableCalibration:
             "output_se_dps": "deg/s", "frames": "1", "revolutions": "1", "dropped": "1",
             "corrupt": "1"}, "mean indicated rate per table rate (whole revolutions)")
         means, errors = np.empty(plan.size), np.empty(plan.size)
-        table.axis[1].rate_limit_dps = float(np.max(np.abs(plan))) * 1.02  # the user limit (default 30 °/s)
         done = p.warmup_s
         for k, rate in enumerate(plan):
-            table.axis[1].set_rate(float(rate))
-            table.axis[1].wait_at_rate(ctx.clock.sleep, timeout_s=AT_RATE_TIMEOUT_S)
+            axis.set_rate(float(rate))
+            axis.wait_at_rate(ctx.clock.sleep, timeout_s=AT_RATE_TIMEOUT_S)
             ctx.clock.sleep(p.settle_s)
             record_s = whole_revolution_duration_s(float(rate), p.min_record_s)
             n = int(round(record_s * p.frame_rate_hz))
             record_s = n / p.frame_rate_hz
             t_start = ctx.clock.now()
+
+            def store(frames, rate=float(rate), t_start=t_start) -> None:
+                ctx.run.append("gyro_frames", t_s=t_start + frames.t_s,
+                               table_rate_dps=np.full(len(frames), rate), counts=frames.counts,
+                               rate_dps=frames.rate_dps, temperature_c=frames.temperature_c,
+                               status=frames.status)
+
             gyro.start()
-            frames = gyro.read_frames(n, timeout_s=max(60.0, record_s / 10), wait=ctx.clock.sleep)
-            gyro.stop()
-            ctx.run.append("gyro_frames", t_s=t_start + frames.t_s,
-                           table_rate_dps=np.full(len(frames), float(rate)), counts=frames.counts,
-                           rate_dps=frames.rate_dps, temperature_c=frames.temperature_c,
-                           status=frames.status)
-            if frames.dropped or frames.corrupt:
-                raise RuntimeError(f"gyro line at {rate:g} °/s: {frames.dropped} frames dropped, "
-                                   f"{frames.corrupt} corrupt; the whole-revolution mean needs every frame")
+            frames = read_gyro_frames(ctx, n, store, stop=True)
             revolutions = record_s * abs(rate) / 360.0
             means[k], errors[k] = frames.rate_dps.mean(), _standard_error(frames.rate_dps, revolutions)
             ctx.run.append("ratetable", table_rate_dps=[rate], input_rate_dps=[rate + earth_dps],
@@ -126,15 +149,13 @@ class RateTableCalibration:
                            revolutions=[revolutions], dropped=[frames.dropped], corrupt=[frames.corrupt])
             done += record_s + p.settle_s + 5.0
             ctx.progress(done, total, f"rate {k + 1}/{plan.size}: {rate:+.4g} °/s")
-        table.axis[1].stop()
-        table.axis[1].wait_in_position(ctx.clock.sleep, timeout_s=AT_RATE_TIMEOUT_S)  # at rest
         # IEEE 952's line is an unweighted least-squares line: one common σ (the rms of the
         # per-rate errors) keeps the fitted scale factor and nonlinearity a property of the
         # gyro and the plan, not of how noisy each record's error estimate happened to be.
         common = np.full(plan.size, float(np.sqrt(np.mean(errors**2))))
         fit = fit_rate_table(plan + earth_dps, means, common, full_scale_dps=fs)
         ctx.run.set_result("ratetable.fit", {**fit.to_dict(), "earth_rate_dps": earth_dps,
-                                             "table_rates_dps": plan.tolist()})
+                                             "latitude_deg": latitude, "table_rates_dps": plan.tolist()})
         return {"scale_factor_error": _est(fit.scale_factor_error_ppm), "bias": _est(fit.bias_dph),
                 "nonlinearity": _est(fit.nonlinearity_ppm), "asymmetry": _est(fit.asymmetry_ppm)}
 

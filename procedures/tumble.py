@@ -8,8 +8,10 @@
    this plan; the rest are named as not identifiable) with standard errors.
 
 The specific force at each position comes from the table angles, the fixture's mount
-(IA along platform z by default) and local gravity (latitude and height, or given).
-Output current = voltage / sampling resistor (station wiring).
+(IA along platform z by default) and local gravity.
+Output current = voltage / sampling resistor (station wiring). Local gravity: the
+station's ``[site]`` (measured ``local_g_mps2``, else normal gravity at its latitude and
+height) unless the step is given ``local_g_mps2``.
 """
 
 from __future__ import annotations
@@ -20,8 +22,9 @@ import numpy as np
 
 from bench.analysis.tumble import fit_tumble, specific_force_iapo_g, tumble_positions
 from bench.procedure import Context
-from bench.site import STANDARD_GRAVITY_MPS2, normal_gravity_mps2
-from procedures.common import Estimate, averaged_voltage, check_ranges, move_table, power_accelerometer
+from bench.site import STANDARD_GRAVITY_MPS2, site_gravity_mps2
+from procedures.common import (Estimate, averaged_voltage, check_ranges, move_table,
+                               power_accelerometer)
 
 #: produced measurement → (unit, description); names follow IEEE 1293 symbols
 TUMBLE_PRODUCES = {
@@ -48,25 +51,17 @@ class TumbleParameters:
     settle_s: float = 5.0         # after in position, before averaging
     average_s: float = 10.0       # averaging time per position
     nplc: float = 10.0
-    latitude_deg: float = 32.06
-    height_m: float = 10.0
-    local_g_mps2: float = 0.0     # 0: normal gravity at latitude and height
+    local_g_mps2: float | None = None  # None: the station's site (measured g, else normal gravity)
 
     def validate(self) -> None:
         check_ranges(asdict(self), {
             "positions": (4, 72), "planes": (1, 2), "warmup_s": (0, 86400), "settle_s": (0, 600),
-            "average_s": (0.5, 3600), "nplc": (0.02, 100), "latitude_deg": (-90, 90),
-            "height_m": (-1000, 10000), "local_g_mps2": (0, 9.9)}, integers=("positions", "planes"))
+            "average_s": (0.5, 3600), "nplc": (0.02, 100), "local_g_mps2": (9.7, 9.9)},
+            integers=("positions", "planes"))
         if self.positions % 4:
             raise ValueError(f"positions = {self.positions} must be a multiple of 4")
-        if self.local_g_mps2 and not 9.7 <= self.local_g_mps2 <= 9.9:
-            raise ValueError(f"local_g_mps2 = {self.local_g_mps2} not in 9.7..9.9 (or 0: computed)")
         if self.nplc not in (0.02, 0.06, 0.2, 1.0, 10.0, 100.0):
             raise ValueError(f"nplc = {self.nplc} not in 0.02|0.06|0.2|1|10|100")
-
-    @property
-    def g_mps2(self) -> float:
-        return self.local_g_mps2 or normal_gravity_mps2(self.latitude_deg, self.height_m)
 
 
 class TumbleCalibration:
@@ -75,10 +70,18 @@ class TumbleCalibration:
     kinds = ("accelerometer",)
     produces = TUMBLE_PRODUCES
 
+    Parameters = TumbleParameters
+
     def __init__(self, params: TumbleParameters | None = None, **overrides) -> None:
         self.p = params or TumbleParameters(**overrides)
         self.p.validate()
         self.plan = tumble_positions(self.p.positions, self.p.planes)
+
+    def producible(self) -> set[str]:
+        """The measurements this plan can produce: the identifiable IEEE 1293 terms."""
+        forces = specific_force_iapo_g(self.plan[:, 0], self.plan[:, 1])
+        fit = fit_tumble(forces, 1e-3 * (forces[:, 0] + 1e-3))  # identifiability needs positions only
+        return {name for name, key in _PARAM.items() if key in fit.params} | {"fit_residual_rms"}
 
     def parameters(self) -> dict:
         return asdict(self.p)
@@ -92,6 +95,8 @@ class TumbleCalibration:
         ctx.run.add_stream("tumble", {"t_s": "s", "inner_deg": "deg", "outer_deg": "deg",
                                       "voltage_v": "V", "voltage_se_v": "V", "n_readings": "1"},
                            "mean output per tumble position")
+        ctx.run.add_stream("tumble_readings", {"position": "1", "voltage_v": "V"},
+                           "every DMM reading, by position index")
         move_table(ctx, *plan[0])
         power_accelerometer(ctx, on=True)
         ctx.progress(0, self.duration_s(), "warming up")
@@ -100,13 +105,14 @@ class TumbleCalibration:
         for k, (inner, outer) in enumerate(plan):
             move_table(ctx, inner, outer)
             ctx.clock.sleep(p.settle_s)
-            mean, se, n = averaged_voltage(ctx, p.average_s, p.nplc)
+            mean, se, n = averaged_voltage(ctx, p.average_s, p.nplc, stream="tumble_readings", tag=k)
             means[k], errors[k] = mean, se
             ctx.run.append("tumble", t_s=[ctx.clock.now()], inner_deg=[inner], outer_deg=[outer],
                            voltage_v=[mean], voltage_se_v=[se], n_readings=[n])
             ctx.progress(p.warmup_s + (k + 1) * (self.duration_s() - p.warmup_s) / len(plan),
                          self.duration_s(), f"position {k + 1}/{len(plan)} ({inner:g}°, {outer:g}°)")
-        g_over_g0 = p.g_mps2 / STANDARD_GRAVITY_MPS2
+        g_mps2 = p.local_g_mps2 or site_gravity_mps2(ctx.site)
+        g_over_g0 = g_mps2 / STANDARD_GRAVITY_MPS2
         forces = specific_force_iapo_g(plan[:, 0], plan[:, 1], g_over_g0)
         # Readings within a position are correlated (coloured noise), so their standard error
         # understates the scatter between positions: σ comes from the residuals when the plan
@@ -114,7 +120,7 @@ class TumbleCalibration:
         fit = fit_tumble(forces, means, None, output_unit_per_ma=ohm * 1e-3)
         if fit.dof == 0:
             fit = fit_tumble(forces, means, errors, output_unit_per_ma=ohm * 1e-3)
-        ctx.run.set_result("tumble.fit", {**fit.to_dict(), "g_mps2": p.g_mps2,
+        ctx.run.set_result("tumble.fit", {**fit.to_dict(), "g_mps2": g_mps2, "site": ctx.site,
                                           "positions": plan.tolist()})
         out = {name: Estimate(fit.params[key].value, fit.params[key].std)
                for name, key in _PARAM.items() if key in fit.params}

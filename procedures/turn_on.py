@@ -47,6 +47,8 @@ class TurnOnTest:
     kinds = ("accelerometer",)
     produces = TURN_ON_PRODUCES
 
+    Parameters = TurnOnParameters
+
     def __init__(self, params: TurnOnParameters | None = None, **overrides) -> None:
         self.p = params or TurnOnParameters(**overrides)
         self.p.validate()
@@ -60,6 +62,7 @@ class TurnOnTest:
         return self.p.duration_s + self.p.off_wait_s
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
+        self.acquisition.setup(ctx)  # meters reset, supply off, table level: IA up
         self.acquisition.run(ctx)
         streams = ctx.run.store.streams(ctx.run.id)
         if "output" not in streams:  # the level check failed: nothing to reduce

@@ -66,6 +66,11 @@ def run_acceptance(args) -> int:
     if spec.serial_pattern and not spec.applies_to(unit):
         print(f"bench: warning: unit {unit!r} does not match the spec's serial pattern "
               f"{spec.serial_pattern!r}", file=sys.stderr)
+    report_root = Path(args.report)
+    try:  # a report folder that cannot exist is refused before the unit is touched
+        report_root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--report {args.report!r} cannot be created: {exc.strerror}") from None
     sim = config.simulation or {}
     seed = args.seed if args.seed is not None else (
         sim.get("seed", 0) if config.simulation is not None else None)
@@ -73,21 +78,28 @@ def run_acceptance(args) -> int:
     with Station(config, seed=seed, unit_serial=unit, unit_kind=spec.kind) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
         outcome = execute(procedure, station, store, unit_serial=unit, seed=seed, progress=progress)
-    folder = Path(args.report) / outcome.run_id
-    report = write_acceptance_report(store, outcome.run_id, folder)
-    mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
-    for f in sorted(folder.iterdir()):
-        if f.is_file() and f.suffix in mime:
-            store.attach_analysis(outcome.run_id, f"analysis/acceptance/{f.name}", f.read_bytes(),
-                                  mime[f.suffix])
+    folder = report_root / outcome.run_id
+    report_error = None
+    try:
+        report = write_acceptance_report(store, outcome.run_id, folder)
+        mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
+        for f in sorted(folder.iterdir()):
+            if f.is_file() and f.suffix in mime:
+                store.attach_analysis(outcome.run_id, f"analysis/acceptance/{f.name}",
+                                      f.read_bytes(), mime[f.suffix])
+    except OSError as exc:  # the verdict is stored and still printed
+        report, report_error = None, f"the report could not be written: {exc}"
     doc = acceptance_document(store, outcome.run_id)
-    doc.update(report=str(report), store=str(store.path),
+    doc.update(report=None if report is None else str(report), store=str(store.path),
                wall_time_s=round(time.perf_counter() - started, 2))
     if args.json:
         json.dump(doc, sys.stdout, indent=2, allow_nan=False, default=str)
         print()
     else:
         print_verdict(doc)
+    if report_error:
+        print(f"bench: error: run {outcome.run_id} is stored, but {report_error}", file=sys.stderr)
+        return 2
     return {"passed": 0, "failed": 1}.get(outcome.status, 2)
 
 
@@ -99,9 +111,11 @@ def print_verdict(doc: dict) -> None:
         unc = "" if m.get("uncertainty") is None else f"{m['uncertainty']:.2g}"
         low = "" if m["low"] is None else f"{m['low']:g}"
         high = "" if m["high"] is None else f"{m['high']:g}"
-        print(f"  {m['name']:<18} {m['value']:>13.6g} {unc:>9} {m['unit']:<8} {low:>9} {high:>9}  "
+        value = "—" if m["value"] is None else f"{m['value']:.6g}"  # None: not produced
+        print(f"  {m['name']:<18} {value:>13} {unc:>9} {m['unit']:<8} {low:>9} {high:>9}  "
               f"{m['outcome'].upper()}")
     print(f"run {doc['run_id']} stored in {doc['store']} (bench runs show {doc['run_id']})")
-    print(f"report: {doc['report']}")
+    if doc.get("report"):
+        print(f"report: {doc['report']}")
     if "wall_time_s" in doc:
         print(f"wall time: {doc['wall_time_s']:.1f} s")

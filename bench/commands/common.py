@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import sys
 
 from bench.store import RunStore
@@ -66,5 +67,6 @@ def print_outcome(outcome) -> None:
         lim = f"[{'' if m.limit.low is None else f'{m.limit.low:g}'} .. " \
               f"{'' if m.limit.high is None else f'{m.limit.high:g}'}]"
         unc = "" if m.uncertainty is None else f"± {m.uncertainty:.2g}"
-        print(f"  {m.name:<22} {m.value:>14.6g} {unc:<11} {m.unit:<9} {lim:<18} {m.outcome}")
+        value = f"{m.value:.6g}" if math.isfinite(m.value) else "—"  # not produced
+        print(f"  {m.name:<22} {value:>14} {unc:<11} {m.unit:<9} {lim:<18} {m.outcome}")
     print(f"stored in {outcome.store_path} (bench runs show {outcome.run_id})")

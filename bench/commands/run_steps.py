@@ -25,17 +25,12 @@ STEP_COMMANDS = {
     "gyro_noise": ("procedures.noise", "GyroNoise",
                    "gyro static record → Allan deviation: ARW, bias instability"),
 }
-#: which parameter dataclass each step class takes
-_PARAMS = {"TumbleCalibration": "TumbleParameters", "RateTableCalibration": "RateTableParameters",
-           "AccelerometerNoise": "AccelerometerNoiseParameters", "GyroNoise": "GyroNoiseParameters"}
-
-
 def _load(name: str):
     import importlib
 
     module, cls, _ = STEP_COMMANDS[name]
-    mod = importlib.import_module(module)
-    return getattr(mod, cls), getattr(mod, _PARAMS[cls])
+    step = getattr(importlib.import_module(module), cls)
+    return step, step.Parameters
 
 
 def register_procedure(procs, common) -> None:
@@ -45,9 +40,9 @@ def register_procedure(procs, common) -> None:
         _, params = _load(name)
         for f in dataclasses.fields(params):
             kind = int if f.type in (int, "int") else float
+            default = "the station's" if f.default is None else f.default
             p.add_argument(f"--{f.name.replace('_', '-')}", dest=f"param_{f.name}", type=kind,
-                           default=f.default, metavar=kind.__name__.upper(),
-                           help=f"[{f.default}]")
+                           default=f.default, metavar=kind.__name__.upper(), help=f"[{default}]")
         p.set_defaults(func=run_step, step_name=name)
 
 
@@ -74,7 +69,7 @@ def run_step(args) -> int:
         outcome = execute(StepProcedure(step), station, store, unit_serial=unit, seed=seed,
                           progress=progress)
     if args.json:
-        json.dump(outcome.to_dict(), sys.stdout, indent=2, allow_nan=False)
+        json.dump(outcome.to_dict(), sys.stdout, indent=2, allow_nan=False)  # NaN → null in to_dict
         print()
     else:
         print_outcome(outcome)

@@ -94,7 +94,8 @@ def show_run(args) -> int:
             unc = "" if m.get("uncertainty") is None else f"{m['uncertainty']:.2g}"
             low = "" if m.get("low") is None else f"{m['low']:g}"
             high = "" if m.get("high") is None else f"{m['high']:g}"
-            print(f"  {m['name']:<22} {m['value']:>14.6g} {unc:>9} {m['unit']:<9} {low:>10} "
+            value = "—" if m["value"] is None else f"{m['value']:.6g}"
+            print(f"  {m['name']:<22} {value:>14} {unc:>9} {m['unit']:<9} {low:>10} "
                   f"{high:>10}  {m['outcome']}")
     attachments = store.attachments(args.run_id)
     if attachments:

@@ -68,7 +68,7 @@ def write_acceptance_report(store, run_id: str, directory: str | Path) -> Path:
     (out / "acceptance.json").write_text(json.dumps(doc, indent=2, default=str))
     rows = []
     for m in doc["measurements"]:
-        value = _num(m["value"]) + ("" if m.get("uncertainty") is None
+        value = ("not produced" if m["value"] is None else _num(m["value"])) + ("" if m.get("uncertainty") is None
                                     else f" ± {m['uncertainty']:.2g}")
         rows.append(_row([m["name"], m["description"], value, m["unit"], _num(m["low"]),
                           _num(m["high"]), _num(m["marginal"]) if m["marginal"] else "",
