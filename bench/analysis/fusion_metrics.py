@@ -87,7 +87,7 @@ def nis_check(nis, dof: int, alpha: float = 0.05, rate=None) -> NisStats:
     finite = bool(np.all(np.isfinite(nis))) and (rate is None or bool(np.all(np.isfinite(rate))))
     mean = float(np.mean(nis)) if finite else math.inf
     tenths = [float(np.mean(c)) for c in np.array_split(nis, min(10, n))]
-    diverged = (not finite) or (tenths[-1] > upper and tenths[-1] > 10 * float(np.median(tenths)))
+    diverged = bool((not finite) or (tenths[-1] > upper and tenths[-1] > 10 * float(np.median(tenths))))
     return NisStats(mean, float(lower), float(upper), n, dof, bool(finite and lower <= mean <= upper), diverged)
 
 
