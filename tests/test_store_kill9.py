@@ -71,7 +71,10 @@ def _kill_after(path, seed: int, delay_s: float) -> tuple[str | None, dict[str, 
         rest, _ = child.communicate(timeout=30)
     committed = {"a": 0, "b": 0}
     for line in rest.splitlines():
-        stream, i = line.split()
+        fields = line.split()
+        if len(fields) != 2 or not fields[1].isdigit():
+            continue  # a line cut short by the kill reports nothing
+        stream, i = fields
         committed[stream] = int(i) + 1 - (3 if stream == "b" else 0)  # b starts at chunk 3
     return first[1], committed
 
@@ -165,5 +168,8 @@ def test_cli_run_killed_mid_run_shows_aborted_interrupted(tmp_path):
     doc = json.loads(show.stdout)
     assert doc["id"] == run_id
     assert (doc["status"], doc["reason"]) == ("aborted", "interrupted")
+    text = subprocess.run([sys.executable, "-m", "bench.cli", "--store", str(store), "runs",
+                           "show", run_id], capture_output=True, text=True, timeout=60).stdout
+    assert "status     aborted — interrupted" in text
     with RunStore(store) as s:
         assert sum(len(s.load(run_id, name)["t_s"]) for name in s.streams(run_id)) >= rows
