@@ -177,3 +177,50 @@ def test_noiseless_unit_on_ideal_meters_calibrates_exactly_through_the_whole_sta
                       ("k3", "k3_g_per_g3"), ("delta_o", "delta_o_rad"), ("delta_p", "delta_p_rad"),
                       ("kip", "kip_g_per_g2"), ("kio", "kio_g_per_g2")):
         assert by_name[name] == pytest.approx(truth[key], rel=1e-9), name
+
+
+def test_noise_after_the_tumble_is_measured_level_and_the_site_reaches_the_steps(tmp_path):
+    """The noise step sets its own orientation (after a tumble that ends tilted), and a
+    station's site (here 39.9° N, 44 m) gives the tumble its gravity."""
+    spec = parse_spec({
+        "unit": {"model": "QA-TEST", "kind": "accelerometer"},
+        "procedures": {"tumble": {"positions": 8, "planes": 2, "warmup_s": 600.0, "settle_s": 2.0,
+                                  "average_s": 4.0},
+                       "accelerometer_noise": {"duration_s": 900.0, "warmup_s": 0.0}},
+        "measurements": [
+            {"name": "k1", "procedure": "tumble", "unit": "mA/g", "low": 1.2, "high": 1.46},
+            {"name": "noise_density", "procedure": "accelerometer_noise", "unit": "ug/rtHz", "high": 2.2}],
+    }, CATALOGUE)
+    config = builtin_sim_config()
+    config.simulation = {"latitude_deg": 39.9, "height_m": 44.0}
+    config.site = {"latitude_deg": 39.9, "height_m": 44.0}
+    store = RunStore(tmp_path / "b.sqlite")
+    with Station(config, seed=2, unit_serial="QA-SIM-0003") as station:
+        outcome = execute(AcceptanceTest(spec), station, store, unit_serial="QA-SIM-0003", seed=2)
+        truth = station.sim.truth()
+    assert outcome.status == "passed", outcome.reason
+    m = {x.name: x for x in outcome.measurements}
+    assert abs(m["k1"].value - truth["k1_ma_per_g"]) < 4 * m["k1"].uncertainty
+    fit = store.results(outcome.run_id)["tumble.fit"]
+    assert fit["g_mps2"] == pytest.approx(truth["g_mps2"], rel=1e-9)
+    # one-sided density; the level record reads the truth within the DMM's few per cent
+    expected = truth["white_density_g_per_rthz"] * 1e6
+    assert expected * 0.95 < m["noise_density"].value < expected * 1.12
+
+
+def test_a_measurement_not_produced_is_null_in_json_and_fails(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text('[unit]\nmodel = "QA-TEST"\nkind = "accelerometer"\n'
+                    "[procedures.startup]\nduration_s = 300.0\nrate_hz = 10.0\noff_wait_s = 0.0\n"
+                    "settled_window_s = 60.0\n"
+                    '[[measurements]]\nname = "turn_on_time"\nprocedure = "startup"\nunit = "s"\n'
+                    "high = 900.0\n")
+    station = tmp_path / "st.toml"  # the fixture's resistor is not the one the wiring states
+    station.write_text("[simulation]\nsampling_resistor_ohm = 2500.0\n")
+    code = main(["--store", str(tmp_path / "b.sqlite"), "acceptance", "--unit", "QA-SIM-0002",
+                 "--spec", str(spec), "--station", str(station), "--json",
+                 "--report", str(tmp_path / "rep")])
+    doc = json.loads(capsys.readouterr().out)  # valid JSON: no NaN
+    assert code == 1 and doc["verdict"] == "FAIL"
+    turn_on = next(m for m in doc["measurements"] if m["name"] == "turn_on_time")
+    assert turn_on["value"] is None and turn_on["outcome"] == "fail"

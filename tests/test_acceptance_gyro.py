@@ -40,7 +40,8 @@ def run_acceptance(tmp_path, serial, overrides=None, seed=2):
                           unit_serial=serial, seed=seed)
         params = station.sim.gyro.params
         safe = ([ch.output for ch in station.sim.supply.channels.values()],
-                [float(a.rate_dps(station.sim.world.now)) for a in station.sim.table.axes])
+                [float(a.rate_dps(station.sim.world.now)) for a in station.sim.table.axes],
+                station.sim.table.inner.rate_limit_dps)
     return store, outcome, params, safe
 
 
@@ -63,10 +64,12 @@ def test_rate_table_recovers_the_unit_and_judges_it(tmp_path_factory, eps, asym,
                       ("nonlinearity", "nonlinearity_ppm")):
         m, expected = by_name[name], getattr(truth, key).value
         assert abs(m.value - expected) < 4 * m.uncertainty + 0.05, (name, m.value, expected, m.uncertainty)
+    assert store.results(outcome.run_id)["ratetable.fit"]["latitude_deg"] == 32.06  # the site's
     failed = {m.name for m in outcome.measurements if m.outcome == "fail"}
     assert failed == ({outside} if outside else set())
     assert safe[0] == [False, False, False]  # supply off
     assert max(abs(r) for r in safe[1]) < 0.05  # table at rest (servo settling left)
+    assert safe[2] == 30.0  # the user rate limit the calibration raised is put back
     frames = store.load(outcome.run_id, "gyro_frames")
     assert frames["t_s"].size == int(rows["frames"].sum())  # every frame kept
 

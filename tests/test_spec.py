@@ -95,3 +95,31 @@ def test_conversions_are_right_and_dimensions_checked():
     assert convert(60.0, "deg/h/rtHz", "deg/rth") == pytest.approx(1.0)
     with pytest.raises(ValueError, match="cannot convert"):
         convert(1.0, "g", "s")
+
+
+def test_a_plan_that_cannot_identify_a_term_is_refused():
+    data = spec_with(measurements__name="k3", procedures__tumble={"positions": 4, "planes": 1},
+                     measurements__unit="ug/g^3")
+    with pytest.raises(SpecError, match="cannot produce it"):
+        parse_spec(data, CATALOGUE)
+    data = spec_with(measurements__name="delta_o", measurements__unit="urad")  # one plane: no a_p
+    with pytest.raises(SpecError, match="cannot produce it"):
+        parse_spec(data, CATALOGUE)
+
+
+def test_unknown_unit_keys_and_parameters_are_named():
+    with pytest.raises(SpecError, match="serial-pattern"):
+        parse_spec(spec_with(**{"unit__serial-pattern": "M-*"}), CATALOGUE)
+    with pytest.raises(SpecError, match="allowed: \\['positions'"):
+        parse_spec(spec_with(procedures__tumble={"bogus": 1}), CATALOGUE)
+
+
+@pytest.mark.parametrize("unit,base,factor", [
+    ("mg", "g", 1e-3), ("ug", "g", 1e-6), ("m/s^2", "g", 1 / 9.80665), ("A/g", "mA/g", 1e3),
+    ("ug/g^2", "g/g^2", 1e-6), ("ug/g^3", "g/g^3", 1e-6), ("mrad", "rad", 1e-3),
+    ("urad", "rad", 1e-6), ("deg", "rad", 0.017453292519943295), ("arcsec", "rad", 4.84813681109536e-06),
+    ("deg/s", "deg/h", 3600.0), ("%", "ppm", 1e4), ("min", "s", 60.0), ("ug/rtHz", "g/rtHz", 1e-6),
+    ("deg/h/rtHz", "deg/rth", 1 / 60),
+])
+def test_every_unit_factor_is_pinned(unit, base, factor):
+    assert convert(1.0, unit, base) == pytest.approx(factor, rel=1e-12)
