@@ -39,6 +39,10 @@ WAIT_STEP_FRAMES = 16384
 READ_CHUNK_BYTES = 1 << 20
 #: reply timeout of the snapshot's queries (a real unit answers in milliseconds)
 SNAPSHOT_TIMEOUT_S = 0.5
+#: line time (s, at least SILENT_FRAMES frame periods) let pass without a byte before a
+#: ``wait``-paced read gives up: the unit is unpowered or hung, waiting longer only hides it
+SILENT_S = 1.0
+SILENT_FRAMES = 10
 
 
 class GyroCommandError(RuntimeError):
@@ -395,6 +399,8 @@ class SerialGyro:
         deadline = time.monotonic() + timeout_s
         have = 0
         first = True
+        silent_s = 0.0  # line time waited since the last byte arrived
+        silent_limit_s = max(SILENT_S, SILENT_FRAMES / rate)
         while have < n:
             need = (n - have) * FRAME_BYTES - self._decoder.pending_bytes
             left = deadline - time.monotonic()
@@ -409,6 +415,11 @@ class SerialGyro:
                 self.port.timeout = max(min(left, SETTLE_S), 0.0)
                 data = self.port.read(min(step * FRAME_BYTES - self._decoder.pending_bytes,
                                           READ_CHUNK_BYTES))
+                silent_s = 0.0 if data else silent_s + step / rate
+                if silent_s >= silent_limit_s:
+                    frames = self._convert(blocks)
+                    raise GyroTimeout(f"{self.name}: no frame in {silent_s:g} s of line time "
+                                      f"({have} of {n} frames; unit unpowered or hung?)", frames)
             first = False
             if data:
                 block = self._decoder.feed(data)

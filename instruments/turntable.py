@@ -86,9 +86,10 @@ class AxisStatus:
 class AxisFaultError(RuntimeError):
     """An axis reported a fault or an open interlock while the driver waited on it."""
 
-    def __init__(self, axis: int, status: AxisStatus, what: str) -> None:
+    def __init__(self, axis: int, status: AxisStatus, what: str, instrument: str = "") -> None:
         self.axis, self.status = axis, status
-        super().__init__(f"axis {axis}: {what} (status {status.raw})")
+        where = f"{instrument}: axis {axis}" if instrument else f"axis {axis}"
+        super().__init__(f"{where}: {what} (status {status.raw})")
 
 
 class TableAxis(InstrumentChannel):
@@ -187,9 +188,10 @@ class TableAxis(InstrumentChannel):
         while True:
             status = self.status
             if status.fault:
-                raise AxisFaultError(self.number, status, "fault")
+                what = "fault, interlock tripped" if status.interlock_open else "fault"
+                raise AxisFaultError(self.number, status, what, self.parent.name)
             if status.interlock_open:
-                raise AxisFaultError(self.number, status, "interlock open")
+                raise AxisFaultError(self.number, status, "interlock open", self.parent.name)
             if done(status):
                 return status
             remaining = timeout - waited

@@ -159,7 +159,7 @@ def test_an_interlock_trip_stops_the_axes_and_latches(rig):
     rig.fault('SIM:FAUL:INT "turntable"')
     status = rig.table.axis[1].status
     assert status.interlock_open and status.fault and status.raw & 16
-    with pytest.raises(AxisFaultError, match="axis 1: fault"):
+    with pytest.raises(AxisFaultError, match="turntable: axis 1: fault, interlock tripped"):
         rig.table.axis[1].wait_at_rate(rig.wait, timeout_s=10)
     rig.wait(30)
     assert rig.table.axis[1].rate_dps == 0.0  # coasted to rest
@@ -293,3 +293,15 @@ def test_a_stalled_gyro_times_out_naming_the_command_and_recovers(rig):
     assert gyro.read_config().state == "STOPPED"
     gyro.close()
     assert math.isfinite(rig.station.world.now)
+
+
+def test_a_gyro_losing_power_mid_stream_is_noticed_in_line_time_not_wall_time(rig):
+    gyro = _gyro(rig)
+    gyro.configure(rate_hz=1000)
+    gyro.start()
+    gyro.read_frames(200, wait=rig.wait)
+    rig.station.faults.inject("power", "gyro", at_s=rig.station.world.now + 0.1)
+    with pytest.raises(GyroTimeout, match=r"gyro: no frame in .* s of line time") as info:
+        gyro.read_frames(5000, timeout_s=600, wait=rig.wait)  # the wall limit never matters
+    assert 50 <= len(info.value.frames) <= 150  # the 0.1 s before the power went
+    gyro.close()
