@@ -362,3 +362,114 @@ def test_second_client_is_served_while_the_first_misbehaves(station):
         supply.close()
         gyro.close()
     assert served == 40 and not failures, failures
+
+
+# -- (a') the gyro line's command language, in process ---------------------------------------
+BAUDS = (115200, 230400, 460800, 921600)
+
+
+class _Link:
+    """The server end of the line as the device sees it; collects what the unit sends."""
+
+    def __init__(self) -> None:
+        self.out = bytearray()
+        self.pending_bytes = 0
+
+    def write(self, data: bytes) -> None:
+        self.out += data
+
+    def lines(self) -> list[bytes]:
+        text, self.out = bytes(self.out), bytearray()
+        return [ln for ln in text.split(b"\r\n") if ln]
+
+
+class GyroLineMachine(RuleBasedStateMachine):
+    """Model: RATE, BAUD and STOPPED/STREAMING.  Every line gets exactly one reply while
+    stopped ($OK/$ID/$CFG or $ERR,<1..4>), a refused setting changes nothing, and while
+    streaming only $STOP is answered (the world does not advance: no frames)."""
+
+    @initialize()
+    def build(self):
+        self.sim = SimulatedStation()
+        self.sim.supply.process(b"APPL CH1,5,1;:OUTP ON,(@1)")
+        self.line, self.link = self.sim.gyro_line, _Link()
+        assert self.line.connect(self.link)
+        self.send(b"$CFG?")
+        cfg = dict(f.split("=") for f in self.link.lines()[0].decode().split(",")[1:])
+        self.rate, self.baud, self.streaming = int(cfg["RATE"]), int(cfg["BAUD"]), False
+
+    def send(self, line: bytes) -> None:
+        self.line.receive(self.link, line + b"\r\n")
+
+    def one_reply(self) -> bytes:
+        replies = self.link.lines()
+        assert len(replies) == (0 if self.streaming else 1), replies
+        return replies[0] if replies else b""
+
+    @rule(rate=st.integers(-5, 12000))
+    def set_rate(self, rate):
+        self.send(f"$RATE {rate}".encode())
+        reply = self.one_reply()
+        if self.streaming:
+            return
+        if 1 <= rate <= 10000 and rate * 200 <= self.baud:
+            assert reply == f"$OK,RATE,{rate}".encode()
+            self.rate = rate
+        else:
+            assert reply.startswith(b"$ERR,3,"), reply
+
+    @rule(baud=st.sampled_from(BAUDS + (9600, 0, 1000000)))
+    def set_baud(self, baud):
+        self.send(f"$BAUD,{baud}".encode())
+        reply = self.one_reply()
+        if self.streaming:
+            return
+        if baud in BAUDS and self.rate * 200 <= baud:
+            assert reply == f"$OK,BAUD,{baud}".encode()
+            self.baud = baud
+        else:
+            assert reply.startswith(b"$ERR,3,"), reply
+
+    @rule(line=st.sampled_from([b"$FOO", b"$RATE abc", b"$RATE 1.5", b"$RATE", b"$ID? x",
+                                b"$CFG? 1", b"$START 1", b"ID?", b"$" + b"Z" * 80,
+                                b"\xff\xfe$ID?", b"$RATE nan", b"$BAUD 1e999"]))
+    def invalid_line(self, line):
+        self.send(line)
+        reply = self.one_reply()
+        if not self.streaming:
+            assert reply[:5] == b"$ERR," and reply[5:6] in b"1234" and reply[6:7] == b",", reply
+
+    @rule(junk=st.binary(max_size=100))
+    def junk(self, junk):
+        self.send(junk.replace(b"\n", b"").replace(b"\r", b""))
+        for reply in self.link.lines():  # an empty line gets no reply; anything else $ERR
+            assert not self.streaming and reply.startswith(b"$ERR,"), reply
+
+    @rule()
+    def start(self):
+        self.send(b"$START")
+        assert self.one_reply() in (b"", b"$OK,START")
+        self.streaming = True
+
+    @rule()
+    def stop(self):
+        self.send(b"$stop")
+        self.streaming = False
+        assert self.one_reply() == b"$OK,STOP"
+
+    @invariant()
+    def configuration_matches_the_model(self):
+        if not hasattr(self, "line") or self.streaming:
+            return
+        self.send(b"$CFG?")
+        cfg = self.one_reply().decode()
+        assert f"RATE={self.rate}," in cfg and f"BAUD={self.baud}," in cfg and "STATE=STOPPED" in cfg
+        self.send(b"$ID?")
+        assert self.one_reply().startswith(b"$ID,BENCHSIM,SFOG-2K,")
+
+
+def test_gyro_line_state_machine():
+    GyroLineMachine.TestCase.settings = settings(max_examples=15, stateful_step_count=25,
+                                                 deadline=None,
+                                                 suppress_health_check=[HealthCheck.too_slow])
+    GyroLineMachine.TestCase().runTest()
