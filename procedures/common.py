@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.trend import Estimate  # value and standard uncertainty (None: unknown)
+from bench.analysis.trend import Estimate  # noqa: F401 - the steps' value ± standard uncertainty
 from bench.procedure import Context, each_safely
 
 #: fastest integration that fits a reading interval, per mains frequency (NPLC values)

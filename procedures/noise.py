@@ -20,6 +20,7 @@ import numpy as np
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.allan_stats import adev_interval, edf_greenhall
 from bench.procedure import Context
+from procedures.steps import ParameterizedStep
 from procedures.common import (Estimate, check_ranges, level_table, power_accelerometer, power_gyro,
                                read_gyro_frames)
 
@@ -70,20 +71,13 @@ class AccelerometerNoiseParameters:
             raise ValueError(f"duration_s × rate_hz = {self.duration_s * self.rate_hz:.0f} readings exceeds 2e6")
 
 
-class AccelerometerNoise:
+class AccelerometerNoise(ParameterizedStep):
     name = "accelerometer_noise"
     requires = ("dmm", "supply", "turntable")
     kinds = ("accelerometer",)
     produces = ACCEL_NOISE_PRODUCES
 
     Parameters = AccelerometerNoiseParameters
-
-    def __init__(self, params: AccelerometerNoiseParameters | None = None, **overrides) -> None:
-        self.p = params or AccelerometerNoiseParameters(**overrides)
-        self.p.validate()
-
-    def parameters(self) -> dict:
-        return asdict(self.p)
 
     def duration_s(self) -> float:
         return self.p.warmup_s + self.p.duration_s
@@ -143,20 +137,13 @@ class GyroNoiseParameters:
                              "frames exceeds 5e7")
 
 
-class GyroNoise:
+class GyroNoise(ParameterizedStep):
     name = "gyro_noise"
     requires = ("gyro", "supply", "turntable")
     kinds = ("gyro",)
     produces = GYRO_NOISE_PRODUCES
 
     Parameters = GyroNoiseParameters
-
-    def __init__(self, params: GyroNoiseParameters | None = None, **overrides) -> None:
-        self.p = params or GyroNoiseParameters(**overrides)
-        self.p.validate()
-
-    def parameters(self) -> dict:
-        return asdict(self.p)
 
     def duration_s(self) -> float:
         return self.p.warmup_s + self.p.duration_s

@@ -23,6 +23,7 @@ import numpy as np
 from bench.analysis.ratetable import fit_rate_table, rate_plan, whole_revolution_duration_s
 from bench.procedure import Context
 from bench.site import earth_rate_vertical_dph
+from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 
 RATETABLE_PRODUCES = {
@@ -59,20 +60,13 @@ class RateTableParameters:
             raise ValueError(f"min_fraction = {self.min_fraction} must be < max_fraction = {self.max_fraction}")
 
 
-class RateTableCalibration:
+class RateTableCalibration(ParameterizedStep):
     name = "ratetable"
     requires = ("gyro", "supply", "turntable")
     kinds = ("gyro",)
     produces = RATETABLE_PRODUCES
 
     Parameters = RateTableParameters
-
-    def __init__(self, params: RateTableParameters | None = None, **overrides) -> None:
-        self.p = params or RateTableParameters(**overrides)
-        self.p.validate()
-
-    def parameters(self) -> dict:
-        return asdict(self.p)
 
     def _plan(self, full_scale_dps: float) -> np.ndarray:
         p = self.p

@@ -34,8 +34,20 @@ class Step(Protocol):
     def run(self, ctx: Context) -> dict[str, Estimate]: ...
 
 
-def parameters_of(step: Any) -> dict[str, Any]:
-    return asdict(step.p)
+class ParameterizedStep:
+    """What every step shares: a parameter dataclass (``Parameters``, with ``validate()``),
+    built from keywords or given whole, validated at construction, recorded as a dict."""
+
+    Parameters: type
+
+    def __init__(self, params: Any = None, **overrides: Any) -> None:
+        if params is not None and overrides:
+            raise ValueError("give a parameter object or keywords, not both")
+        self.p = params if params is not None else self.Parameters(**overrides)
+        self.p.validate()
+
+    def parameters(self) -> dict[str, Any]:
+        return asdict(self.p)
 
 
 def scaled_progress(progress, offset: float, weight: float, total: float, label: str):

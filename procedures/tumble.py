@@ -23,6 +23,7 @@ import numpy as np
 from bench.analysis.tumble import fit_tumble, specific_force_iapo_g, tumble_positions
 from bench.procedure import Context
 from bench.site import STANDARD_GRAVITY_MPS2, site_gravity_mps2
+from procedures.steps import ParameterizedStep
 from procedures.common import (Estimate, averaged_voltage, check_ranges, move_table,
                                power_accelerometer)
 
@@ -64,7 +65,7 @@ class TumbleParameters:
             raise ValueError(f"nplc = {self.nplc} not in 0.02|0.06|0.2|1|10|100")
 
 
-class TumbleCalibration:
+class TumbleCalibration(ParameterizedStep):
     name = "tumble"
     requires = ("dmm", "supply", "turntable")
     kinds = ("accelerometer",)
@@ -73,8 +74,7 @@ class TumbleCalibration:
     Parameters = TumbleParameters
 
     def __init__(self, params: TumbleParameters | None = None, **overrides) -> None:
-        self.p = params or TumbleParameters(**overrides)
-        self.p.validate()
+        super().__init__(params, **overrides)
         self.plan = tumble_positions(self.p.positions, self.p.planes)
 
     def producible(self) -> set[str]:
@@ -82,9 +82,6 @@ class TumbleCalibration:
         forces = specific_force_iapo_g(self.plan[:, 0], self.plan[:, 1])
         fit = fit_tumble(forces, 1e-3 * (forces[:, 0] + 1e-3))  # identifiability needs positions only
         return {name for name, key in _PARAM.items() if key in fit.params} | {"fit_residual_rms"}
-
-    def parameters(self) -> dict:
-        return asdict(self.p)
 
     def duration_s(self) -> float:
         return self.p.warmup_s + len(self.plan) * (self.p.settle_s + self.p.average_s + 3.0)

@@ -14,6 +14,7 @@ import numpy as np
 
 from bench.analysis.turn_on import turn_on_metrics
 from bench.procedure import Context
+from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges
 from procedures.startup import StartupAcquisition, StartupParameters
 
@@ -41,7 +42,7 @@ class TurnOnParameters:
                              "2 × settled_window_s")
 
 
-class TurnOnTest:
+class TurnOnTest(ParameterizedStep):
     name = "startup"
     requires = ("dmm", "dmm_temp", "supply", "turntable")
     kinds = ("accelerometer",)
@@ -50,13 +51,9 @@ class TurnOnTest:
     Parameters = TurnOnParameters
 
     def __init__(self, params: TurnOnParameters | None = None, **overrides) -> None:
-        self.p = params or TurnOnParameters(**overrides)
-        self.p.validate()
+        super().__init__(params, **overrides)
         self.acquisition = StartupAcquisition(StartupParameters(
             duration_s=self.p.duration_s, rate_hz=self.p.rate_hz, off_wait_s=self.p.off_wait_s))
-
-    def parameters(self) -> dict:
-        return asdict(self.p)
 
     def duration_s(self) -> float:
         return self.p.duration_s + self.p.off_wait_s

@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.procedure import Context
+from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges, power_gyro
 
 VIBRATION_PRODUCES = {
@@ -124,18 +125,13 @@ class _Recorder:
         return t, rate, level, segment, steady
 
 
-class VibrationTest:
+class VibrationTest(ParameterizedStep):
     name = "vibration"
     requires = ("gyro", "supply", "shaker")
     kinds = ("gyro",)
     produces = VIBRATION_PRODUCES
 
-    def __init__(self, params: VibrationParameters | None = None, **overrides) -> None:
-        self.p = params or VibrationParameters(**overrides)
-        self.p.validate()
-
-    def parameters(self) -> dict:
-        return asdict(self.p)
+    Parameters = VibrationParameters
 
     def duration_s(self) -> float:
         p = self.p
