@@ -158,7 +158,7 @@ class Keysight34465A(SCPIInstrument):
     @property
     def line_frequency_hz(self) -> float:
         """Power-line frequency the meter measured (``SYST:LFR?``), 50 or 60 Hz."""
-        self._line_frequency_hz = parse_float(self.query("SYST:LFR?"))
+        self._line_frequency_hz = self.query_value("SYST:LFR?", parse_float)
         return self._line_frequency_hz
 
     # --- settings, one declaration each ----------------------------------------------
@@ -344,7 +344,7 @@ class Keysight34465A(SCPIInstrument):
 
     def points_available(self) -> int:
         """``DATA:POIN?``: readings waiting in reading memory."""
-        return parse_int(self.query("DATA:POIN?"))
+        return self.query_value("DATA:POIN?", parse_int)
 
     def fetch_all(self) -> np.ndarray:
         """``FETC?``: every reading of the finished acquisition, volts (NaN on overload).
