@@ -305,3 +305,24 @@ def test_a_gyro_losing_power_mid_stream_is_noticed_in_line_time_not_wall_time(ri
         gyro.read_frames(5000, timeout_s=600, wait=rig.wait)  # the wall limit never matters
     assert 50 <= len(info.value.frames) <= 150  # the 0.1 s before the power went
     gyro.close()
+
+
+def _corrupted_record(seed: int) -> tuple[bytes, int, int]:
+    r = Rig(seed)
+    try:
+        gyro = _gyro(r)
+        gyro.configure(rate_hz=1000)
+        r.station.faults.inject("frame", "gyro", corrupt=0.01, loss=0.01)
+        gyro.start()
+        frames = gyro.read_frames(3000, wait=r.wait)
+        gyro.stop()
+        gyro.close()
+        return frames.index.tobytes() + frames.counts.tobytes(), frames.dropped, frames.corrupt
+    finally:
+        r.close()
+
+
+def test_same_seed_and_fault_schedule_give_the_same_frames():
+    a, b, c = _corrupted_record(5), _corrupted_record(5), _corrupted_record(6)
+    assert a == b and a[1] > 0 and a[2] > 0
+    assert a[0] != c[0]
