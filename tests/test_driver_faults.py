@@ -18,6 +18,7 @@ from instruments.base import (InstrumentConnectionError, InstrumentError, Instru
 from instruments.fog import GyroLineError, GyroTimeout, SerialGyro
 from instruments.multimeter import Keysight34465A
 from instruments.power_supply import KeysightE36312A
+from instruments.shaker import VibrationTable
 from instruments.turntable import AxisFaultError, DualAxisTurntable
 from sim.faults import _garble
 from sim.station import SimStationConfig, SimulatedStation
@@ -40,6 +41,7 @@ class Rig:
         self.dmm = Keysight34465A(opened("dmm"), name="dmm")
         self.supply = KeysightE36312A(opened("supply"), name="supply")
         self.table = DualAxisTurntable(opened("turntable"), name="turntable")
+        self.shaker = VibrationTable(opened("shaker"), name="shaker")
         self.gyro_address = res["gyro"]
 
     def fault(self, command: str) -> None:
@@ -138,6 +140,21 @@ def test_a_motion_command_lost_with_the_connection_is_not_re_sent(rig):
         rig.table.axis[1].move_to(30.0)
     assert rig.station.table.axes[0].position_demand_deg == 0.0
     rig.table.axis[1].stop()  # the next command goes over a reopened connection
+
+
+def test_a_shaker_stop_lost_with_the_connection_is_sent_again_and_a_start_never(rig):
+    rig.shaker.set_random_profile(grms=1.0)
+    rig.fault('SIM:FAUL:DROP "shaker"')
+    with pytest.raises((InstrumentTimeout, InstrumentConnectionError), match="shaker.*STAR"):
+        rig.shaker.start()
+    assert not rig.station.shaker.driving  # never re-sent
+    rig.shaker.start()
+    rig.shaker.wait_running(rig.wait, timeout_s=30)
+    rig.fault('SIM:FAUL:DROP "shaker"')
+    rig.shaker.stop()  # lost, then sent again over a reopened connection
+    rig.shaker.wait_idle(rig.wait, timeout_s=30)
+    rig.fault('SIM:FAUL:POW "shaker"')
+    assert rig.station.shaker.envelope_grms(np.array([rig.station.world.now]))[0] == 0.0
 
 
 def test_power_loss_drops_the_supply_outputs_and_the_instrument_comes_back_reset(rig):
