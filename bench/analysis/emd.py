@@ -162,9 +162,11 @@ def _sift_one(r: np.ndarray, imax: np.ndarray, imin: np.ndarray, ws: Workspace,
     while True:
         px, vx, pn, vn = envelope_knots(h, imax, imin, nbsym)
         out = buffers[0] if h is not buffers[0] else buffers[1]
-        upper, lower = Spline.through(px, vx), Spline.through(pn, vn)
-        if not rilling and 4 * (px.size + pn.size) < h.size:
-            # long knot intervals: one merged mean spline halves the per-sample work
+        upper = Spline.through(px, vx, ws.scratch(0, px.size))
+        lower = Spline.through(pn, vn, ws.scratch(1, pn.size))
+        if not rilling and 10 * (px.size + pn.size) < h.size:
+            # long knot intervals (over ~20 samples): one merged mean spline halves the
+            # per-sample work; below that, merging costs more than it saves (measured)
             upper, lower = Spline.average(upper, lower), None
         st = sift(h, out, upper, lower, ws, thetas[:2] if rilling else None)
         if rilling:

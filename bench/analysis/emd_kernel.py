@@ -10,10 +10,10 @@ fixed by the stop criterion, so only the cost of one sifting can be cut):
   every step memory-bound.
 * The extrema of the sifted result are found in the same pass, so each sifting finds
   extrema once (PyEMD does it three times).
-* Spline coefficients come from one symmetric tridiagonal solve per envelope (LAPACK
-  ``ptsv``); a sample's interval is known from the block's knot range (a running count
-  of knots, or ``np.repeat`` of the per-interval sample counts), so no per-sample
-  search happens.
+* Splines, their evaluation and the scratch arrays: :mod:`.emd_spline`.
+* The two envelopes are merged into one mean spline only when knot intervals average
+  over ~20 samples; below that the merge (a Taylor shift per merged interval) costs
+  more than the second evaluation it saves.
 * Sums use ``einsum``, not BLAS ``dot``: on a busy machine a BLAS call may wake its
   thread pool and cost milliseconds.
 """
@@ -23,10 +23,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.linalg import lapack
 
-BLOCK = 16384  # samples per block: a handful of float arrays of this size stay in L2
+from bench.analysis.emd_spline import BLOCK, Spline, Workspace, interval_indices, not_a_knot_slopes
+
+__all__ = ["BLOCK", "SiftStats", "Spline", "Workspace", "count_zero_crossings", "envelope_knots", "find_extrema",
+           "not_a_knot_slopes", "sift"]
 
 
 # --------------------------------------------------------------------------- extrema
@@ -107,166 +108,30 @@ def envelope_knots(h: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: int
     n = h.size
     vmax, vmin = h[imax], h[imin]
     lpx, lvx, lpn, lvn = _mirror_start(h[0], imax, vmax, imin, vmin, nbsym)
-    # the end is the start of the reversed record: reflect there and map back
-    rpx, rvx, rpn, rvn = _mirror_start(h[-1], (n - 1 - imax)[::-1], vmax[::-1],
-                                       (n - 1 - imin)[::-1], vmin[::-1], nbsym)
+    # the end is the start of the reversed record: reflect there and map back (only the
+    # last nbsym + 1 extrema of each kind can be reflected)
+    e = -(nbsym + 1)
+    rpx, rvx, rpn, rvn = _mirror_start(h[-1], (n - 1 - imax[e:])[::-1], vmax[e:][::-1],
+                                       (n - 1 - imin[e:])[::-1], vmin[e:][::-1], nbsym)
     px = np.concatenate([lpx, imax, (n - 1 - rpx)[::-1]])
     vx = np.concatenate([lvx, vmax, rvx[::-1]])
     pn = np.concatenate([lpn, imin, (n - 1 - rpn)[::-1]])
     vn = np.concatenate([lvn, vmin, rvn[::-1]])
-    return (*_strict(px, vx), *_strict(pn, vn))
+    return (*_strict(px, vx, lpx.size, rpx.size), *_strict(pn, vn, lpn.size, rpn.size))
 
 
-def _strict(pos: np.ndarray, val: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Drop repeated knot positions (a reflection can land on an existing knot)."""
+def _strict(pos: np.ndarray, val: np.ndarray, head: int, tail: int) -> tuple[np.ndarray, np.ndarray]:
+    """Drop repeated knot positions (a reflection can land on an existing knot).
+
+    The extrema in between are strictly increasing, so only the ``head`` reflected knots
+    before them and the ``tail`` after them (and their junctions) are checked."""
+    if (np.diff(pos[: head + 2]) > 0).all() and (np.diff(pos[-(tail + 2) :]) > 0).all():
+        return pos, val
     keep = np.r_[True, np.diff(pos) > 0]
-    return (pos, val) if keep.all() else (pos[keep], val[keep])
-
-
-# --------------------------------------------------------------------------- splines
-
-
-def not_a_knot_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """First derivatives at the knots of the not-a-knot cubic spline through ``(x, y)``, ≥ 4 knots.
-
-    The slope equations ``h_i s_{i-1} + 2(h_{i-1} + h_i) s_i + h_{i-1} s_{i+1} = 3(h_i δ_{i-1} +
-    h_{i-1} δ_i)`` (``h`` knot spacings, ``δ`` secant slopes) divided by ``h_{i-1} h_i`` are
-    symmetric; eliminating the end slopes with the not-a-knot conditions (scipy's end
-    rows) keeps them symmetric and strictly diagonally dominant, so LAPACK's ``ptsv``
-    (LDLᵀ, no pivoting) solves them — the same slopes as ``CubicSpline`` to rounding.
-    """
-    dx = np.diff(x)
-    inv = 1.0 / dx
-    delta = np.diff(y) * inv
-    rhs = delta * inv
-    rhs = rhs[:-1] + rhs[1:]
-    rhs *= 3.0
-    diag = inv[:-1] + inv[1:]
-    diag[1:-1] *= 2.0  # the end rows lose half their diagonal to the eliminated end slopes
-    h0, h1, hb, ha = dx[0], dx[1], dx[-2], dx[-1]
-    d0, d1 = h0 + h1, hb + ha
-    r0 = ((h0 + 2 * d0) * h1 * delta[0] + h0**2 * delta[1]) / d0  # s0 = (r0 - d0 s1) / h1
-    r1 = (ha**2 * delta[-2] + (2 * d1 + ha) * hb * delta[-1]) / d1  # s_end = (r1 - d1 s_{end-1}) / hb
-    rhs[0] -= r0 * inv[0] * inv[1]
-    rhs[-1] -= r1 * inv[-2] * inv[-1]
-    *_, s, info = lapack.dptsv(diag, inv[1:-1].copy(), rhs, overwrite_d=1, overwrite_e=1, overwrite_b=1)
-    if info != 0:
-        raise ValueError(f"envelope spline system is singular (LAPACK ptsv info = {info})")
-    out = np.empty(x.size)
-    out[1:-1] = s
-    out[0] = (r0 - d0 * s[0]) / h1
-    out[-1] = (r1 - d1 * s[-1]) / hb
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class Spline:
-    """A not-a-knot cubic spline through integer knots, as per-interval polynomials
-    ``c0 + c1·t + c2·t² + c3·t³`` in ``t = sample − pos[i]``."""
-
-    pos: np.ndarray  # knot positions (int)
-    start: np.ndarray  # pos[:-1] as float
-    c0: np.ndarray
-    c1: np.ndarray
-    c2: np.ndarray
-    c3: np.ndarray
-
-    @classmethod
-    def through(cls, pos: np.ndarray, val: np.ndarray) -> Spline:
-        x = pos.astype(float)
-        if x.size >= 4:
-            s = not_a_knot_slopes(x, val)
-            dx = np.diff(x)
-            delta = np.diff(val) / dx
-            c2 = (3.0 * delta - 2.0 * s[:-1] - s[1:]) / dx
-            c3 = (s[:-1] + s[1:] - 2.0 * delta) / (dx * dx)
-            return cls(pos, x[:-1], val[:-1], s[:-1], c2, c3)
-        c3, c2, c1, c0 = CubicSpline(x, val).c  # 2-3 knots: scipy's line / parabola
-        return cls(pos, x[:-1], c0, c1, c2, c3)
-
-    @classmethod
-    def average(cls, a: Spline, b: Spline) -> Spline:
-        """``(a + b) / 2`` as one piecewise cubic on the union of both knot sets, where both
-        are defined: each polynomial re-expanded (Taylor shift) at the merged interval starts."""
-        lo, hi = max(a.pos[0], b.pos[0]), min(a.pos[-1], b.pos[-1])
-        pos = np.concatenate([a.pos, b.pos])
-        pos.sort(kind="stable")  # two sorted runs: a linear merge
-        pos = pos[np.r_[True, pos[1:] != pos[:-1]]]
-        pos = pos[(pos >= lo) & (pos <= hi)]
-        starts = pos[:-1]
-        parts = []
-        for s in (a, b):
-            i = np.clip(np.searchsorted(s.pos, starts, side="right") - 1, 0, s.pos.size - 2)
-            d = (starts - s.pos[i]).astype(float)
-            c1, c2, c3 = s.c1[i], s.c2[i], s.c3[i]
-            parts.append((s.c0[i] + d * (c1 + d * (c2 + d * c3)), c1 + d * (2.0 * c2 + 3.0 * c3 * d),
-                          c2 + 3.0 * c3 * d, c3))
-        return cls(pos, starts.astype(float), *(0.5 * (p + q) for p, q in zip(*parts)))
-
-    def block_ranges(self, starts: np.ndarray, stops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """First and last interval touching each block ``[start, stop)``."""
-        last = self.pos.size - 2
-        lo = np.searchsorted(self.pos, starts, side="right") - 1
-        hi = np.minimum(np.searchsorted(self.pos, stops - 1, side="right") - 1, last)
-        return lo, hi
-
-    def evaluate_block(self, a: int, b: int, lo: int, hi: int, ws: Workspace, out: np.ndarray) -> None:
-        """Write the spline at samples ``a..b-1`` into ``out`` (intervals ``lo..hi``; scratch from ``ws``)."""
-        m = b - a
-        grid, t, tmp = ws.grid, ws.t[:m], ws.tmp[:m]
-        inner = self.pos[lo + 1 : hi + 1]  # knots inside the block, all in (a, b)
-        if 16 * inner.size < m:
-            # long intervals: expanding the coefficients run by run is a few memcpy's
-            cnt = np.diff(np.concatenate(([a], inner, [b])))
-            sl = slice(lo, hi + 1)
-            np.subtract(grid[a:b], np.repeat(self.start[sl], cnt), out=t)
-            np.multiply(np.repeat(self.c3[sl], cnt), t, out=out)
-            for c in (self.c2, self.c1):  # Horner
-                out += np.repeat(c[sl], cnt)
-                out *= t
-            out += np.repeat(self.c0[sl], cnt)
-            return
-        # short intervals: the interval index of every sample by a running count of knots,
-        # then one gather per coefficient
-        idx = ws.idx[:m]
-        idx[:] = 0
-        idx[inner - a] = 1
-        idx[0] = lo
-        np.cumsum(idx, out=idx)
-        np.take(self.start, idx, out=t)
-        np.subtract(grid[a:b], t, out=t)
-        np.take(self.c3, idx, out=out)
-        for c in (self.c2, self.c1, self.c0):  # Horner
-            out *= t
-            np.take(c, idx, out=tmp)
-            out += tmp
-
-    def __call__(self, n: int) -> np.ndarray:
-        """The spline at samples ``0..n-1`` (blocked like a sifting)."""
-        ws = Workspace(n)
-        out = np.empty(n)
-        lo, hi = self.block_ranges(ws.starts, ws.stops)
-        for k, (a, b) in enumerate(zip(ws.starts.tolist(), ws.stops.tolist())):
-            self.evaluate_block(a, b, int(lo[k]), int(hi[k]), ws, out[a:b])
-        return out
+    return pos[keep], val[keep]
 
 
 # --------------------------------------------------------------------------- one sifting
-
-
-class Workspace:
-    """Scratch arrays reused by every sifting of one record."""
-
-    def __init__(self, n: int, block: int | None = None):
-        self.n = n
-        self.grid = np.arange(n, dtype=float)
-        b = min(BLOCK if block is None else block, n)
-        self.starts = np.arange(0, n, b)
-        self.stops = np.minimum(self.starts + b, n)
-        self.t, self.u, self.lo, self.tmp = (np.empty(b) for _ in range(4))
-        self.idx = np.empty(b, dtype=np.intp)
-        self.d = np.empty(b + 1)  # differences of a block and the two samples before it
-        self.flag = np.empty(b + 1, dtype=bool)
 
 
 @dataclass(frozen=True)
@@ -300,9 +165,16 @@ def sift(h: np.ndarray, out: np.ndarray, upper: Spline, lower: Spline | None, ws
     for k, (a, b) in enumerate(zip(ws.starts.tolist(), ws.stops.tolist())):
         m = b - a
         u, lo, t, tmp, flag = ws.u[:m], ws.lo[:m], ws.t[:m], ws.tmp[:m], ws.flag
-        upper.evaluate_block(a, b, int(ulo[k]), int(uhi[k]), ws, u)
+        uk, lk = (int(ulo[k]), int(uhi[k])), (int(llo[k]), int(lhi[k])) if lower is not None else None
+        if lower is not None and upper.short_intervals(a, b, *uk) and lower.short_intervals(a, b, *lk):
+            iu, il = interval_indices(a, m, upper.pos, uk, lower.pos, lk, ws)
+            upper.evaluate_block(a, b, *uk, ws, u, iu)
+            lower.evaluate_block(a, b, *lk, ws, lo, il)
+        else:
+            upper.evaluate_block(a, b, *uk, ws, u)
+            if lower is not None:
+                lower.evaluate_block(a, b, *lk, ws, lo)
         if lower is not None:
-            lower.evaluate_block(a, b, int(llo[k]), int(lhi[k]), ws, lo)
             u += lo
             u *= 0.5  # u is now the envelope mean
         if thetas is not None:
