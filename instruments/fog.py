@@ -131,15 +131,15 @@ class SerialGyro:
         self._decoder.reset()  # a frame cut by the break is not continued by the new line
         log.warning("%s: line reopened", self.name)
 
-    def identify(self) -> Identity:
+    def identify(self, *, retry: bool = True) -> Identity:
         """``$ID?`` → manufacturer, model, serial, firmware (read once, cached)."""
         if self._identity is None:
-            self._identity = Identity.parse(self._command("$ID?", "$ID,", retry=True))
+            self._identity = Identity.parse(self._command("$ID?", "$ID,", retry=retry))
         return self._identity
 
-    def read_config(self) -> GyroConfig:
+    def read_config(self, *, retry: bool = True) -> GyroConfig:
         """``$CFG?``, parsed; also refreshes the cached configuration."""
-        fields = dict(item.split("=", 1) for item in self._command("$CFG?", "$CFG,", retry=True).split(",")
+        fields = dict(item.split("=", 1) for item in self._command("$CFG?", "$CFG,", retry=retry).split(",")
                       if "=" in item)
         try:
             cfg = GyroConfig(int(fields["RATE"]), int(fields["BAUD"]), int(fields["FRAME"]),
@@ -353,9 +353,9 @@ class SerialGyro:
         saved = self.reply_timeout_s
         self.reply_timeout_s = min(saved, SNAPSHOT_TIMEOUT_S)  # an unpowered unit is silent
         try:
-            if not self.streaming:
-                self.identify()
-                self.read_config()
+            if not self.streaming:  # once, no retries: an unpowered unit is silent, not faulty
+                self.identify(retry=False)
+                self.read_config(retry=False)
             record["idn"] = dataclasses.asdict(self._identity) if self._identity else None
             record["settings"] = dataclasses.asdict(self._config) if self._config else None
         except Exception as exc:  # a snapshot must never stop a run from being recorded
