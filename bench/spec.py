@@ -207,9 +207,9 @@ def parse_spec(data: dict, catalogue: Mapping[str, CatalogueEntry], source: str 
             if name not in can:
                 raise SpecError(f"{where}: {proc} with these parameters cannot produce it "
                                 f"(it can: {sorted(can)}) — e.g. more positions or planes")
-        if (proc, name) in seen:
-            raise SpecError(f"{where}: listed twice for {proc}")
-        seen.add((proc, name))
+        if name in seen:  # one record per name: two procedures cannot both judge "bias"
+            raise SpecError(f"{where}: listed twice (measurement names are unique in a spec)")
+        seen.add(name)
         unit_name = _text(entry, "unit", where)
         allowed = same_dimension(produced[name][0])
         if unit_name not in allowed:

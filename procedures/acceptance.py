@@ -21,6 +21,7 @@ from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.ratetable import RateTableCalibration
 from procedures.tumble import TumbleCalibration
 from procedures.turn_on import TurnOnTest
+from procedures.vibration import VibrationTest
 
 #: step name → step class (constructed with the spec's parameter table as keywords)
 STEPS: dict[str, type] = {
@@ -29,6 +30,7 @@ STEPS: dict[str, type] = {
     "ratetable": RateTableCalibration,
     "accelerometer_noise": AccelerometerNoise,
     "gyro_noise": GyroNoise,
+    "vibration": VibrationTest,
 }
 
 

@@ -110,7 +110,7 @@ class RateTableCalibration(ParameterizedStep):
         total = self.duration_s()
         ctx.progress(0, total, "gyro warming up")
         ctx.clock.sleep(max(p.warmup_s - p.boot_wait_s, 0.0))
-        ctx.run.add_stream("gyro_frames", {"t_s": "s", "table_rate_dps": "deg/s", "counts": "pulses",
+        ctx.run.add_stream("ratetable_frames", {"t_s": "s", "table_rate_dps": "deg/s", "counts": "pulses",
                                            "rate_dps": "deg/s", "temperature_c": "degC",
                                            "status": "1"}, "every gyro frame recorded at rate")
         ctx.run.add_stream("ratetable", {
@@ -129,7 +129,7 @@ class RateTableCalibration(ParameterizedStep):
             t_start = ctx.clock.now()
 
             def store(frames, rate=float(rate), t_start=t_start) -> None:
-                ctx.run.append("gyro_frames", t_s=t_start + frames.t_s,
+                ctx.run.append("ratetable_frames", t_s=t_start + frames.t_s,
                                table_rate_dps=np.full(len(frames), rate), counts=frames.counts,
                                rate_dps=frames.rate_dps, temperature_c=frames.temperature_c,
                                status=frames.status)

@@ -70,7 +70,7 @@ def test_rate_table_recovers_the_unit_and_judges_it(tmp_path_factory, eps, asym,
     assert safe[0] == [False, False, False]  # supply off
     assert max(abs(r) for r in safe[1]) < 0.05  # table at rest (servo settling left)
     assert safe[2] == 30.0  # the user rate limit the calibration raised is put back
-    frames = store.load(outcome.run_id, "gyro_frames")
+    frames = store.load(outcome.run_id, "ratetable_frames")
     assert frames["t_s"].size == int(rows["frames"].sum())  # every frame kept
 
 

@@ -177,8 +177,8 @@ def test_tumble_aborts_on_a_meter_overload_with_the_readings_stored(tmp_path):
 def test_ratetable_aborts_on_a_gyro_line_fault_with_the_frames_kept(tmp_path, fault, schedule, words):
     store, outcome, safe = run(tmp_path, ratetable(), at_progress=2, fault=fault,
                                schedule=schedule, unit_kind="gyro")
-    assert_aborted(store, outcome, *words, stream="gyro_frames")
-    frames = store.load(outcome.run_id, "gyro_frames")
+    assert_aborted(store, outcome, *words, stream="ratetable_frames")
+    frames = store.load(outcome.run_id, "ratetable_frames")
     per_rate = [int(np.sum(frames["table_rate_dps"] == r)) for r in np.unique(frames["table_rate_dps"])]
     assert per_rate[0] > 0 and max(per_rate) >= 10_000  # a whole record (10 s at 1 kHz) kept
     assert all(0 < n <= 10_054 for n in per_rate)  # and what arrived of the cut one
