@@ -22,6 +22,10 @@ Setting a value validates it *before* anything goes on the wire, writes one comm
 then drains ``SYST:ERR?`` until ``+0,"No error"`` and raises :class:`InstrumentError`
 for anything the instrument reported.  Inside ``with inst.configuring():`` the error
 check is deferred to the end of the group, so a group of settings costs one check.
+
+The wire helpers and validators live in :mod:`instruments.validate`, the :class:`Setting`
+descriptors in :mod:`instruments.properties` and the fault classes in
+:mod:`instruments.wire`; this module re-exports them all, so drivers import from here.
 """
 
 from __future__ import annotations
@@ -29,15 +33,24 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
-import math
-import numbers
-import re
-from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
-from .wire import (QUERY_RETRIES, InstrumentConnectionError, InstrumentReplyError,  # noqa: F401
+from .properties import Setting, Validator, control, measurement, read_settings
+from .validate import (boolean, channel_list, format_number, in_range, in_set, int_in_range, parse_bool,
+                       parse_error_reply, parse_float, parse_int, quote_string, unquote_string)
+from .wire import (QUERY_RETRIES, InstrumentConnectionError, InstrumentReplyError,
                    InstrumentTimeout, WireFaults, safe_to_resend)
+
+__all__ = [
+    "BINARY_CHUNK_SIZE", "DEFAULT_TIMEOUT_MS", "MAX_ERROR_READS", "QUERY_RETRIES", "Identity",
+    "InstrumentChannel", "InstrumentConnectionError", "InstrumentError", "InstrumentReplyError",
+    "InstrumentTimeout", "SCPIInstrument", "Setting", "UnsupportedInstrumentError", "Validator", "boolean",
+    "channel_list", "control", "format_number", "in_range", "in_set", "int_in_range", "measurement",
+    "open_resource", "parse_bool", "parse_error_reply", "parse_float", "parse_int", "quote_string",
+    "read_settings", "safe_to_resend", "unquote_string",
+]
 
 log = logging.getLogger(__name__)
 
@@ -47,8 +60,6 @@ BINARY_CHUNK_SIZE = 1 << 20
 #: Upper bound on SYST:ERR? reads per check (Truevolt's queue holds 20 entries); protects
 #: against an instrument whose queue never reports "No error".
 MAX_ERROR_READS = 64
-
-_ERROR_REPLY = re.compile(r'^\s*([+-]?\d+)\s*,\s*"(.*)"\s*$', re.DOTALL)
 
 
 class InstrumentError(RuntimeError):
@@ -97,197 +108,6 @@ class Identity:
         if len(fields) != 4:
             raise InstrumentReplyError(f"*IDN? reply {reply!r} does not have four fields")
         return cls(*fields)
-
-
-# --- wire formatting and reply parsing -----------------------------------------------
-
-
-def format_number(value: float | int) -> str:
-    """SCPI <NRf> text: integers as such, floats with 12 significant digits ("10", "2e-05")."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{value!r} is not a real number")
-    if isinstance(value, numbers.Integral):
-        return str(int(value))
-    return f"{float(value):.12g}"
-
-
-def quote_string(text: str) -> str:
-    """SCPI <string> data: double-quoted, embedded quotes doubled."""
-    return '"' + text.replace('"', '""') + '"'
-
-
-def unquote_string(reply: str) -> str:
-    """Inverse of :func:`quote_string`; an unquoted reply is returned stripped."""
-    reply = reply.strip()
-    if len(reply) >= 2 and reply[0] == reply[-1] and reply[0] in "\"'":
-        return reply[1:-1].replace(reply[0] * 2, reply[0])
-    return reply
-
-
-def parse_bool(reply: str) -> bool:
-    """Boolean reply: ``1``/``0`` (what SCPI returns) or ``ON``/``OFF``."""
-    token = reply.strip().upper()
-    if token in ("1", "ON", "+1"):
-        return True
-    if token in ("0", "OFF", "+0"):
-        return False
-    raise InstrumentReplyError(f"{reply!r} is not a boolean reply (1/0/ON/OFF)")
-
-
-def parse_float(reply: str) -> float:
-    try:
-        return float(reply.strip())
-    except ValueError:
-        raise InstrumentReplyError(f"{reply!r} is not a number") from None
-
-
-def parse_int(reply: str) -> int:
-    """Integer reply, also in NR3 form ("+1.00000000E+03")."""
-    value = parse_float(reply)
-    if not value.is_integer():
-        raise InstrumentReplyError(f"{reply!r} is not an integer")
-    return int(value)
-
-
-def parse_error_reply(reply: str) -> tuple[int, str]:
-    """``SYST:ERR?`` reply ``-222,"Data out of range"`` -> ``(-222, "Data out of range")``."""
-    match = _ERROR_REPLY.match(reply)
-    if match is None:
-        raise InstrumentReplyError(f"SYST:ERR? reply {reply!r} is not <code>,\"<message>\"")
-    return int(match.group(1)), match.group(2)
-
-
-def channel_list(channels: Iterable[int]) -> str:
-    """SCPI channel list ``(@1,2,3)`` of distinct positive channel numbers, in the given order."""
-    numbers_ = list(channels)
-    if not numbers_:
-        raise ValueError("channel list is empty; give at least one channel number")
-    for n in numbers_:
-        if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1:
-            raise ValueError(f"channel {n!r} is not a positive integer channel number")
-    if len(set(numbers_)) != len(numbers_):
-        raise ValueError(f"channel list {numbers_!r} repeats a channel")
-    return "(@" + ",".join(str(int(n)) for n in numbers_) + ")"
-
-
-# --- validators: (name, value, allowed) -> canonical value, ValueError otherwise ------
-
-
-def _real(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name}={value!r} is not a real number")
-    return float(value)
-
-
-def in_range(name: str, value: Any, bounds: tuple[float, float]) -> float:
-    """A finite real number in the closed interval ``bounds``."""
-    lo, hi = bounds
-    x = _real(name, value)
-    if not (lo <= x <= hi):  # also rejects NaN
-        raise ValueError(f"{name}={value!r} is outside the allowed range [{lo:g}, {hi:g}]")
-    return x
-
-
-def int_in_range(name: str, value: Any, bounds: tuple[int, int]) -> int:
-    """An integer (an integral float is accepted) in the closed interval ``bounds``."""
-    lo, hi = bounds
-    x = _real(name, value)
-    if not x.is_integer() or not (lo <= x <= hi):
-        raise ValueError(f"{name}={value!r} is not an integer in the allowed range [{lo}, {hi}]")
-    return int(x)
-
-
-def in_set(name: str, value: Any, allowed: Iterable[Any]) -> Any:
-    """One of ``allowed``: strings match case-insensitively, numbers to 1e-9 relative."""
-    allowed = tuple(allowed)
-    for candidate in allowed:
-        if isinstance(candidate, str):
-            if isinstance(value, str) and value.strip().upper() == candidate.upper():
-                return candidate
-        elif (
-            isinstance(value, numbers.Real)
-            and not isinstance(value, bool)
-            and math.isclose(float(value), candidate, rel_tol=1e-9, abs_tol=0.0)
-        ):
-            return candidate
-    shown = ", ".join(c if isinstance(c, str) else format_number(c) for c in allowed)
-    raise ValueError(f"{name}={value!r} is not one of the allowed values ({shown})")
-
-
-def boolean(name: str, value: Any, _allowed: Any = None) -> bool:
-    """Exactly ``True`` or ``False`` (0/1 integers are refused, to catch mix-ups)."""
-    if not isinstance(value, bool):
-        raise ValueError(f"{name}={value!r} is not a bool (True or False)")
-    return value
-
-
-# --- declarative settings -------------------------------------------------------------
-
-Validator = Callable[[str, Any, Any], Any]
-
-
-class Setting:
-    """A data descriptor for one SCPI setting or reading, declared once.
-
-    ``get_cmd``/``set_cmd`` are format strings; ``{value}`` is the formatted value and the
-    owner's ``command_fields()`` (e.g. ``{ch}``, ``{axis}``) fill the rest.  ``values`` is a
-    constant or a callable ``owner -> values`` for allowed values that depend on the
-    instrument (a channel's range, an installed option).
-    """
-
-    def __init__(
-        self,
-        get_cmd: str | None,
-        set_cmd: str | None,
-        doc: str,
-        *,
-        validator: Validator | None = None,
-        values: Any = None,
-        set_map: Mapping[Any, str] | None = None,
-        fmt: Callable[[Any], str] = format_number,
-        parse: Callable[[str], Any] = parse_float,
-    ) -> None:
-        if set_cmd is not None and validator is None:
-            raise TypeError("a settable Setting needs a validator")
-        self.get_cmd, self.set_cmd = get_cmd, set_cmd
-        self.validator, self.values, self.set_map = validator, values, set_map
-        self.fmt, self.parse = fmt, parse
-        self.__doc__ = doc
-        self.name = "?"
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self.name = name
-
-    def allowed(self, owner: Any) -> Any:
-        """The allowed values for this setting on ``owner``."""
-        return self.values(owner) if callable(self.values) else self.values
-
-    def __get__(self, owner: Any, owner_type: type | None = None) -> Any:
-        if owner is None:
-            return self
-        if self.get_cmd is None:
-            raise AttributeError(f"{self.name} is write-only")
-        command = self.get_cmd.format(**owner.command_fields())
-        # a setting's readback has no side effect: safe to ask again after a failure
-        return owner.query_value(command, self.parse, retry=True)
-
-    def __set__(self, owner: Any, value: Any) -> None:
-        if self.set_cmd is None:
-            raise AttributeError(f"{self.name} is read-only")
-        assert self.validator is not None
-        canonical = self.validator(owner.label(self.name), value, self.allowed(owner))
-        wire = self.set_map[canonical] if self.set_map is not None else self.fmt(canonical)
-        owner.configure_command(self.set_cmd.format(value=wire, **owner.command_fields()))
-
-
-def control(get_cmd: str | None, set_cmd: str, doc: str, **kwargs: Any) -> Setting:
-    """A readable and settable setting (see :class:`Setting`)."""
-    return Setting(get_cmd, set_cmd, doc, **kwargs)
-
-
-def measurement(get_cmd: str, doc: str, parse: Callable[[str], Any] = parse_float) -> Setting:
-    """A read-only value (see :class:`Setting`)."""
-    return Setting(get_cmd, None, doc, parse=parse)
 
 
 # --- instruments and channels ---------------------------------------------------------
@@ -490,17 +310,6 @@ class SCPIInstrument(WireFaults):
 
     def close(self) -> None:
         self.resource.close()
-
-
-def read_settings(owner: Any, names: Iterable[str]) -> dict[str, Any]:
-    """``{name: getattr(owner, name)}``, with a failed read recorded as ``"error: ..."``."""
-    values: dict[str, Any] = {}
-    for name in names:
-        try:
-            values[name] = getattr(owner, name)
-        except Exception as exc:  # one unreadable setting must not lose the others
-            values[name] = f"error: {exc}"
-    return values
 
 
 class InstrumentChannel:

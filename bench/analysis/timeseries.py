@@ -1,5 +1,13 @@
 """Stationary time-series tools for the start-up model (Document A, steps 6–7).
 
+This module holds the fitted-model layer: :class:`ArmaFit`, the AR fit with
+standard errors and conditional likelihood (:func:`fit_ar`), exact ML (:func:`fit_arma_ml`)
+and conditional-least-squares ARMA fitting (:func:`fit_arma_css`, Hannan–Rissanen start
+values), and order selection by AIC/BIC (:func:`select_order`, :func:`burg_bic`).  It is
+the module callers import from: it re-exports the correlation and identification tools
+of :mod:`.timeseries_acf`, the AR estimators of :mod:`.timeseries_ar` and the Ljung–Box
+test of :mod:`.timeseries_diag`.
+
 Conventions used throughout:
 
 * The ARMA(p, q) model of a zero-mean series ``x`` is
@@ -24,265 +32,20 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy import fft as sp_fft
-from scipy import stats
 from scipy.signal import lfilter
 
-ArMethod = Literal["ulrych-clayton", "burg", "yule-walker"]
-AR_METHODS: tuple[str, ...] = ("ulrych-clayton", "burg", "yule-walker")
+from bench.analysis.timeseries_acf import (Correlogram, Identification, _check_order, _series, correlogram,
+                                           cutoff_lag, identify, levinson_durbin, sample_acf, sample_pacf)
+from bench.analysis.timeseries_ar import (AR_METHODS, ArMethod, _ar_path, _burg_path, _lag_sums,
+                                          ar_interpolate, burg, ulrych_clayton, yule_walker)
+from bench.analysis.timeseries_diag import LjungBox, default_lb_lags, ljung_box
 
-
-def _series(x: np.ndarray, min_len: int, name: str = "x") -> np.ndarray:
-    """Return ``x`` as a demeaned 1-D float array, after checking length and finiteness."""
-    arr = np.asarray(x, dtype=float)
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be one-dimensional, got shape {arr.shape}")
-    if arr.size < min_len:
-        raise ValueError(f"{name} has {arr.size} samples; at least {min_len} are required")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains {int(np.sum(~np.isfinite(arr)))} non-finite values; all must be finite")
-    out = arr - arr.mean()
-    if not np.any(out):
-        raise ValueError(f"{name} is constant; there is nothing to model")
-    return out
-
-
-def _check_order(order: int, n: int, name: str = "p") -> int:
-    if int(order) != order or order < 0:
-        raise ValueError(f"{name} = {order!r} must be a non-negative integer")
-    if order > max(0, n // 10):
-        raise ValueError(f"{name} = {order} needs at least {10 * order} samples, got {n} (allowed {name} ≤ {n // 10})")
-    return int(order)
-
-
-# --------------------------------------------------------------------------- correlation
-
-
-def sample_acf(x: np.ndarray, nlags: int) -> np.ndarray:
-    """Biased sample autocorrelation ``r_0..r_nlags`` (``r_0 = 1``), computed by FFT."""
-    xd = _series(x, 2)
-    n = xd.size
-    if not 0 <= nlags < n:
-        raise ValueError(f"nlags = {nlags} must be in [0, {n - 1}]")
-    nfft = sp_fft.next_fast_len(2 * n - 1, real=True)  # ≥ 2n - 1: no circular wrap-around
-    spec = sp_fft.rfft(xd, nfft)
-    acov = sp_fft.irfft(spec.real**2 + spec.imag**2, nfft)[: nlags + 1] / n
-    if acov[0] <= 0:
-        raise ValueError("x is constant; its autocorrelation is undefined")
-    return acov / acov[0]
-
-
-def levinson_durbin(r: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Solve the Yule–Walker equations for autocovariances ``r[0..order]``.
-
-    Returns ``(phi, pacf, sigma2)``: AR coefficients of order ``order``, the partial
-    autocorrelations ``pacf[0..order]`` (``pacf[0] = 1``) and the innovation variance of
-    every intermediate order ``sigma2[0..order]``.
-    """
-    r = np.asarray(r, dtype=float)
-    phi = np.zeros(0)
-    pacf = np.ones(order + 1)
-    sigma2 = np.empty(order + 1)
-    sigma2[0] = r[0]
-    for k in range(1, order + 1):
-        kappa = (r[k] - phi @ r[k - 1 : 0 : -1]) / sigma2[k - 1]
-        phi = np.concatenate([phi - kappa * phi[::-1], [kappa]])
-        pacf[k] = kappa
-        sigma2[k] = sigma2[k - 1] * (1.0 - kappa**2)
-    return phi, pacf, sigma2
-
-
-def sample_pacf(x: np.ndarray, nlags: int) -> np.ndarray:
-    """Partial autocorrelation ``pacf[0..nlags]`` by Levinson–Durbin on the biased ACF."""
-    return levinson_durbin(sample_acf(x, nlags), nlags)[1]
-
-
-@dataclass(frozen=True, eq=False)
-class Correlogram:
-    """Sample ACF/PACF with the half-widths of their ``1 - alpha`` confidence bands.
-
-    ``acf_band[k]`` follows Bartlett's formula (an MA(k-1) null hypothesis, the right
-    test for "the ACF cuts off after lag k-1"); ``pacf_band`` is ``z / sqrt(n)`` (the
-    PACF of an AR(p) is asymptotically N(0, 1/n) beyond lag p).  Index = lag.
-    """
-
-    acf: np.ndarray
-    acf_band: np.ndarray
-    pacf: np.ndarray
-    pacf_band: float
-    alpha: float
-    n: int
-
-    @property
-    def nlags(self) -> int:
-        return self.acf.size - 1
-
-
-def correlogram(x: np.ndarray, nlags: int | None = None, alpha: float = 0.05) -> Correlogram:
-    """ACF and PACF of ``x`` up to ``nlags`` (default ``min(max(20, 10 log10 n), n // 4)``)."""
-    n = np.asarray(x).size
-    if n < 8:
-        raise ValueError(f"x has {n} samples; at least 8 are required for a correlogram")
-    if not 0 < alpha < 1:
-        raise ValueError(f"alpha = {alpha} must be in (0, 1)")
-    if nlags is None:
-        nlags = min(max(20, int(10 * np.log10(n))), n // 4)
-    if not 1 <= nlags <= n // 2:
-        raise ValueError(f"nlags = {nlags} must be in [1, {n // 2}]")
-    acf = sample_acf(x, nlags)
-    z = stats.norm.ppf(1 - alpha / 2)
-    var = np.full(nlags + 1, 1.0 / n)
-    var[0] = 0.0
-    var[2:] *= 1 + 2 * np.cumsum(acf[1:-1] ** 2)
-    pacf = levinson_durbin(acf, nlags)[1]
-    return Correlogram(acf, z * np.sqrt(var), pacf, float(z / np.sqrt(n)), alpha, n)
-
-
-# --------------------------------------------------------------------------- identification
-
-
-@dataclass(frozen=True)
-class Identification:
-    """Model class and initial orders proposed by Document A's ACF/PACF table."""
-
-    kind: Literal["AR", "MA", "ARMA"]
-    p: int
-    q: int
-    acf_cutoff: int | None  # last significant ACF lag if the ACF cuts off, else None
-    pacf_cutoff: int | None
-    reason: str
-
-
-def cutoff_lag(values: np.ndarray, band: np.ndarray | float, max_order: int, alpha: float = 0.05) -> int | None:
-    """Lag ``k ≤ max_order`` after which a correlation sequence "cuts off", else None.
-
-    ``values[0]`` is lag 0 and is ignored.  It cuts off after ``k`` when the drop is
-    abrupt — lag ``k`` at least twice its band (k ≥ 1), lag ``k + 1`` inside — and no
-    more later lags stick out than white noise would by chance (the 99 % point of
-    Binomial(m, alpha): about ``alpha`` of white lags fall outside a ``1 - alpha`` band).
-    A geometric decay crosses the band gradually, so it fails the first test and counts
-    as tailing off.
-    """
-    vals = np.abs(np.asarray(values, dtype=float))
-    bands = np.broadcast_to(band, vals.shape)
-    outside = vals[1:] > bands[1:]
-    for k in range(0, min(max_order, outside.size - 1) + 1):
-        later = outside[k:]
-        abrupt = k == 0 or vals[k] >= 2 * bands[k]
-        if abrupt and not later[0] and later.sum() <= stats.binom.ppf(0.99, later.size, alpha):
-            return k
-    return None
-
-
-def identify(corr: Correlogram, max_order: int = 8) -> Identification:
-    """Apply the cut-off/tail-off rules: AR if only the PACF cuts off, MA if only the ACF,
-    the shorter of the two if both do (parsimony), ARMA(1, 1) to start with if neither."""
-    a = cutoff_lag(corr.acf, corr.acf_band, max_order, corr.alpha)
-    p = cutoff_lag(corr.pacf, corr.pacf_band, max_order, corr.alpha)
-    if a is None and p is None:
-        return Identification("ARMA", 1, 1, a, p, "ACF and PACF both tail off")
-    if a is None or (p is not None and p <= a):
-        why = "ACF tails off" if a is None else f"ACF cuts off only after lag {a}"
-        return Identification("AR", p, 0, a, p, f"PACF cuts off after lag {p}; {why}")
-    why = "PACF tails off" if p is None else f"PACF cuts off only after lag {p}"
-    return Identification("MA", 0, a, a, p, f"ACF cuts off after lag {a}; {why}")
-
-
-# --------------------------------------------------------------------------- AR estimators
-
-
-def _full_lag_sums(x: np.ndarray, size: int) -> np.ndarray:
-    """``full[d] = sum_{s=d}^{n-1} x[s] x[s-d]`` for ``d = 0..size-1``."""
-    return np.array([x[d:] @ x[: x.size - d] for d in range(size)])
-
-
-def _lag_sums(x: np.ndarray, start: int, size: int, full: np.ndarray | None = None) -> np.ndarray:
-    """``F[i, j] = sum_{t=start}^{n-1} x[t-i] x[t-j]`` for ``0 ≤ i, j < size ≤ start + 1``.
-
-    One full-length dot product per lag difference (``full``, reusable across calls),
-    then exact corrections at the ends: O(n·size) instead of the O(n·size²) of forming
-    the lagged data matrix.
-    """
-    n = x.size
-    full = _full_lag_sums(x, size) if full is None else full
-    out = np.empty((size, size))
-    for i in range(size):
-        for j in range(i, size):
-            d = j - i  # s = t - i runs over [start - i, n - 1 - i]; full[d] over [d, n - 1]
-            head = x[d : start - i] @ x[: start - i - d]
-            tail = x[n - i :] @ x[n - i - d : n - d]
-            out[i, j] = out[j, i] = full[d] - head - tail
-    return out
-
-
-def ulrych_clayton(x: np.ndarray, p: int, _full: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """AR(p) by the Ulrych–Clayton (forward–backward least squares, modified covariance) method.
-
-    Minimises ``sum_{t=p}^{n-1} [(x_t - Σ φ_k x_{t-k})² + (x_{t-p} - Σ φ_k x_{t-p+k})²]``
-    over ``φ``: the forward and the time-reversed (backward) prediction errors share one
-    coefficient vector.  Returns ``(phi, sigma2)`` with ``sigma2`` the mean of the ``2(n-p)``
-    squared errors.  Stationarity is not guaranteed (unlike Burg/Yule–Walker).
-    """
-    xd = _series(x, 2)
-    p = _check_order(p, xd.size)
-    if p == 0:
-        return np.zeros(0), float(xd @ xd / xd.size)
-    f = _lag_sums(xd, p, p + 1, _full)
-    c = f + f[::-1, ::-1]  # backward errors: indices mirrored, w_i x_{t-p+i}
-    phi = np.linalg.solve(c[1:, 1:], c[1:, 0])
-    w = np.concatenate([[1.0], -phi])
-    return phi, float(w @ c @ w / (2 * (xd.size - p)))
-
-
-def burg(x: np.ndarray, p: int) -> tuple[np.ndarray, float]:
-    """AR(p) by Burg's method; ``sigma2`` is the mean squared forward–backward error."""
-    phi, sigma2 = _burg_path(_series(x, 2), _check_order(p, np.asarray(x).size))
-    return phi[-1], float(sigma2[-1])
-
-
-def _burg_path(xd: np.ndarray, pmax: int) -> tuple[list[np.ndarray], np.ndarray]:
-    """Burg recursion returning the AR coefficients and ``sigma2`` of every order 0..pmax."""
-    f, b, old_f, step = xd.copy(), xd.copy(), np.empty_like(xd), np.empty_like(xd)
-    phis, sig = [np.zeros(0)], [xd @ xd / xd.size]
-    for k in range(1, pmax + 1):
-        # f_{k-1}(t) and b_{k-1}(t-1), t = k..n-1, updated in place (views of shrinking
-        # length): the same arithmetic as fresh arrays, without 10⁶-sample allocations
-        f, b = f[1:], b[:-1]
-        m = f.size
-        kappa = 2 * (f @ b) / (f @ f + b @ b)
-        np.copyto(old_f[:m], f)
-        f -= np.multiply(b, kappa, out=step[:m])
-        b -= np.multiply(old_f[:m], kappa, out=step[:m])
-        phis.append(np.concatenate([phis[-1] - kappa * phis[-1][::-1], [kappa]]))
-        sig.append((f @ f + b @ b) / (2 * (xd.size - k)))
-    return phis, np.array(sig)
-
-
-def yule_walker(x: np.ndarray, p: int) -> tuple[np.ndarray, float]:
-    """AR(p) by Yule–Walker (method of moments) on the biased autocovariances."""
-    xd = _series(x, 2)
-    p = _check_order(p, xd.size)
-    r = np.array([xd[k:] @ xd[: xd.size - k] for k in range(p + 1)]) / xd.size
-    phi, _, sigma2 = levinson_durbin(r, p)
-    return phi, float(sigma2[-1])
-
-
-def _ar_path(xd: np.ndarray, pmax: int, method: str) -> list[tuple[np.ndarray, float]]:
-    """Coefficients and ``sigma2`` for every order 0..pmax with one estimator."""
-    if method == "burg":
-        phis, sig = _burg_path(xd, pmax)
-        return list(zip(phis, sig.tolist()))
-    if method == "yule-walker":
-        r = np.array([xd[k:] @ xd[: xd.size - k] for k in range(pmax + 1)]) / xd.size
-        fits = [levinson_durbin(r, k) for k in range(pmax + 1)]
-        return [(phi, float(sig[-1])) for phi, _, sig in fits]
-    if method == "ulrych-clayton":
-        full = _full_lag_sums(xd, pmax + 1)
-        return [ulrych_clayton(xd, k, full) for k in range(pmax + 1)]
-    raise ValueError(f"AR method {method!r} is not one of {AR_METHODS}")
-
-
-# --------------------------------------------------------------------------- fitted models
+__all__ = [
+    "AR_METHODS", "ArMethod", "ArmaFit", "CSS_SEGMENT", "Correlogram", "Identification", "LjungBox",
+    "OrderCandidate", "OrderSelection", "ar_interpolate", "burg", "burg_bic", "correlogram", "cutoff_lag",
+    "default_lb_lags", "fit_ar", "fit_arma_css", "fit_arma_ml", "identify", "levinson_durbin", "ljung_box",
+    "sample_acf", "sample_pacf", "select_order", "ulrych_clayton", "yule_walker",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -565,32 +328,6 @@ def select_order(
     return OrderSelection(tuple(cells), (best["aic"].p, best["aic"].q), (best["bic"].p, best["bic"].q), method)
 
 
-def ar_interpolate(x: np.ndarray, missing: np.ndarray, phi: np.ndarray, sweeps: int = 10) -> np.ndarray:
-    """Replace ``x[missing]`` by their conditional expectation given the other samples under AR(phi).
-
-    For a zero-mean AR(p) with ``a = [1, -φ1, …, -φp]`` the two-sided interpolator is
-    ``x̂_t = -Σ_{k=1..p} ρi_k (x_{t-k} + x_{t+k})`` with the inverse autocorrelations
-    ``ρi_k = Σ_j a_j a_{j+k} / Σ_j a_j²`` (exact for isolated gaps away from the ends).
-    Adjacent gaps are solved by repeating the update (``sweeps`` Jacobi passes).  The
-    values in ``x[missing]`` on entry are the starting guess (e.g. linear interpolation).
-    """
-    out = np.array(x, dtype=float)
-    idx = np.flatnonzero(missing)
-    phi = np.asarray(phi, dtype=float)
-    if idx.size == 0 or phi.size == 0:
-        if idx.size:
-            out[idx] = 0.0  # white noise: the best guess of a missing sample is the mean
-        return out
-    a = np.r_[1.0, -phi]
-    p = phi.size
-    rho_inv = np.array([a[: a.size - k] @ a[k:] for k in range(1, p + 1)]) / (a @ a)
-    pad = np.r_[np.zeros(p), out, np.zeros(p)]  # samples beyond the ends count as the mean
-    for _ in range(sweeps):
-        guess = -sum(rho_inv[k - 1] * (pad[idx + p - k] + pad[idx + p + k]) for k in range(1, p + 1))
-        pad[idx + p] = guess
-    return pad[p:-p]
-
-
 def burg_bic(x: np.ndarray, max_p: int) -> tuple[np.ndarray, float]:
     """Burg AR model with the BIC order (p ≤ max_p), from one Burg recursion: a quick,
     always-stationary noise model for standard errors and interpolation."""
@@ -601,40 +338,3 @@ def burg_bic(x: np.ndarray, max_p: int) -> tuple[np.ndarray, float]:
     bics = [_conditional_ic(xd, phi, max_p, f)[2] for phi in phis]
     best = int(np.argmin(bics))
     return phis[best], float(sig[best])
-
-
-# --------------------------------------------------------------------------- diagnostics
-
-
-@dataclass(frozen=True)
-class LjungBox:
-    """Ljung–Box portmanteau test of residual whiteness; ``dof = lags - model_df``."""
-
-    statistic: float
-    p_value: float
-    lags: int
-    dof: int
-
-
-def ljung_box(residuals: np.ndarray, lags: int, model_df: int = 0, _acf: np.ndarray | None = None) -> LjungBox:
-    """``Q = n(n+2) Σ_{k=1}^{lags} r_k² / (n-k)`` against χ² with ``lags - model_df`` dof.
-
-    ``_acf``: the residuals' sample ACF from lag 0 to at least ``lags``, if already computed.
-    """
-    n = np.asarray(residuals).size
-    if not model_df < lags < n:
-        raise ValueError(f"lags = {lags} must be in ({model_df}, {n}) (model_df = {model_df}, n = {n})")
-    if _acf is not None and np.size(_acf) > lags:
-        r = np.asarray(_acf, dtype=float)[1 : lags + 1]
-    else:
-        r = sample_acf(residuals, lags)[1:]
-    q = float(n * (n + 2) * np.sum(r**2 / (n - np.arange(1, lags + 1))))
-    return LjungBox(q, float(stats.chi2.sf(q, lags - model_df)), lags, lags - model_df)
-
-
-def default_lb_lags(n: int, model_df: int) -> int:
-    """Lags for the whiteness test: 20 or ``model_df + 10`` if larger, at most ``n // 5``."""
-    lags = min(max(20, model_df + 10), n // 5)
-    if lags <= model_df:
-        raise ValueError(f"{n} residuals are too few to test a model with {model_df} parameters")
-    return lags
