@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from bench.commands.common import open_store, progress_bar
+from bench.commands.common import open_store, progress_bar, seed_of
 
 
 def register(sub) -> None:
@@ -53,8 +53,6 @@ def run_acceptance(args) -> int:
     from procedures.acceptance import AcceptanceTest
 
     started = time.perf_counter()
-    if args.seed is not None and not 0 <= args.seed < 2**63:
-        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
     spec = choose_spec(args.spec, args.unit)
     procedure = AcceptanceTest(spec)  # every step's parameters validated before the station opens
     config = resolve_station(args.station)
@@ -71,9 +69,7 @@ def run_acceptance(args) -> int:
         report_root.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"--report {args.report!r} cannot be created: {exc.strerror}") from None
-    sim = config.simulation or {}
-    seed = args.seed if args.seed is not None else (
-        sim.get("seed", 0) if config.simulation is not None else None)
+    seed = seed_of(args, config)
     store = open_store(args)
     with Station(config, seed=seed, unit_serial=unit, unit_kind=spec.kind) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:

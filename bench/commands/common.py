@@ -35,6 +35,28 @@ def resolve_run_id(store: RunStore, run_id: str) -> str:
     return run_id
 
 
+#: the simulated unit a procedure gets when neither --unit nor the station file names one
+SIM_DEFAULT_UNIT = {"accelerometer": ("unit_serial", "QA-SIM-0001"),
+                    "gyro": ("gyro_serial", "FOG-SIM-0001")}
+
+
+def seed_of(args, config) -> int | None:
+    """``--seed``, else the station file's ``[simulation] seed`` (0 if it has none); None for
+    a real station."""
+    if args.seed is not None and not 0 <= args.seed < 2**63:
+        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
+    if args.seed is not None:
+        return args.seed
+    return (config.simulation or {}).get("seed", 0) if config.simulation is not None else None
+
+
+def unit_of(args, config, kind: str) -> str | None:
+    """``--unit``, else the station file's simulated unit of that kind, else the simulated
+    default serial (None on a real station: the caller decides whether that is allowed)."""
+    key, default = SIM_DEFAULT_UNIT[kind]
+    return args.unit or (config.simulation or {}).get(key) or (default if config.simulated else None)
+
+
 @contextlib.contextmanager
 def progress_bar(enabled: bool):
     """A rich progress bar on stderr; yields a ``progress(done, total, message)`` callable."""

@@ -7,7 +7,7 @@ import json
 import pkgutil
 import sys
 
-from bench.commands.common import open_store, progress_bar, print_outcome
+from bench.commands.common import open_store, print_outcome, progress_bar, seed_of, unit_of
 from bench.procedure import execute
 from bench.station import Station, resolve_station
 
@@ -55,17 +55,12 @@ def run_startup(args) -> int:
 
     if args.report is not None and not args.analyze:
         raise ValueError("--report DIR needs --analyze (the report is the start-up model's)")
-    if args.seed is not None and not 0 <= args.seed < 2**63:
-        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
     params = StartupParameters(duration_s=args.duration_s, rate_hz=args.rate_hz,
                                off_wait_s=args.off_wait_s)
     procedure = StartupAcquisition(params)  # validates before any instrument is touched
     config = resolve_station(args.station)
     store = open_store(args)
-    sim = config.simulation or {}
-    unit = args.unit or sim.get("unit_serial") or ("QA-SIM-0001" if config.simulated else None)
-    seed = args.seed if args.seed is not None else (
-        sim.get("seed", 0) if config.simulation is not None else None)
+    unit, seed = unit_of(args, config, "accelerometer"), seed_of(args, config)
     with Station(config, seed=seed, unit_serial=unit) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
         outcome = execute(procedure, station, store, unit_serial=unit, seed=seed,

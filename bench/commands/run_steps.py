@@ -12,7 +12,7 @@ import dataclasses
 import json
 import sys
 
-from bench.commands.common import open_store, print_outcome, progress_bar
+from bench.commands.common import open_store, print_outcome, progress_bar, seed_of, unit_of
 
 #: step name → (module, class, help)
 STEP_COMMANDS = {
@@ -54,15 +54,9 @@ def run_step(args) -> int:
     cls, params_cls = _load(args.step_name)
     values = {f.name: getattr(args, f"param_{f.name}") for f in dataclasses.fields(params_cls)}
     step = cls(params_cls(**values))  # validated before the station opens
-    if args.seed is not None and not 0 <= args.seed < 2**63:
-        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
     config = resolve_station(args.station)
     kind = step.kinds[0]
-    sim = config.simulation or {}
-    default_unit = "FOG-SIM-0001" if kind == "gyro" else "QA-SIM-0001"
-    unit = args.unit or (default_unit if config.simulated else None)
-    seed = args.seed if args.seed is not None else (
-        sim.get("seed", 0) if config.simulation is not None else None)
+    unit, seed = unit_of(args, config, kind), seed_of(args, config)
     store = open_store(args)
     with Station(config, seed=seed, unit_serial=unit, unit_kind=kind) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:

@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from bench.commands.common import open_store, print_outcome, progress_bar
+from bench.commands.common import open_store, print_outcome, progress_bar, seed_of, unit_of
 
 ANALYSIS_PREFIX = "analysis/vibration/"
 
@@ -81,17 +81,12 @@ def run_vibration(args) -> int:
 
     if args.report is not None and not args.analyze:
         raise ValueError("--report DIR needs --analyze (the report is the vibration model's)")
-    if args.seed is not None and not 0 <= args.seed < 2**63:
-        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
     step = VibrationTest(VibrationParameters(  # validated before the station opens
         static_s=args.static_s, duration_s=args.duration_s, level_grms=args.level_grms,
         f_lo_hz=args.f_lo_hz, f_hi_hz=args.f_hi_hz, ramp_s=args.ramp_s, warmup_s=args.warmup_s,
         frame_rate_hz=args.rate_hz))
     config = resolve_station(args.station)
-    sim = config.simulation or {}
-    unit = args.unit or sim.get("gyro_serial") or ("FOG-SIM-0001" if config.simulated else None)
-    seed = args.seed if args.seed is not None else (
-        sim.get("seed", 0) if config.simulation is not None else None)
+    unit, seed = unit_of(args, config, "gyro"), seed_of(args, config)
     store = open_store(args)
     with Station(config, seed=seed, unit_serial=unit, unit_kind="gyro") as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
