@@ -21,6 +21,10 @@ A station is a TOML file::
     positive_rail_channel = 2
     negative_rail_channel = 3
 
+    [site]                               # latitude, height, optional measured local_g_mps2
+    latitude_deg = 32.06
+    height_m = 10.0
+
 The built-in station ``sim`` starts the simulated world in-process on free loopback ports
 and fills in the addresses; a ``[simulation]`` table in a station file does the same with
 its own settings (seed, latitude, resistor, accelerometer overrides).  The same procedure

@@ -47,3 +47,16 @@ def test_a_simulated_station_file_sets_the_world(tmp_path):
     level = {m.name: m.value for m in outcome.measurements}["level_check_g"]
     # nominal 1.33 mA/g assumed by the procedure; this unit has 1.29 mA/g
     assert level == pytest.approx(k1 / 1.33 * station.sim.g_mps2 / 9.80665, rel=1e-3)
+
+
+def test_site_table_is_validated_and_defaults_to_the_simulated_world(tmp_path):
+    from bench.station import StationError, parse_station
+
+    assert parse_station({"site": {"latitude_deg": 45.0, "local_g_mps2": 9.8}}).site == {
+        "latitude_deg": 45.0, "height_m": 10.0, "local_g_mps2": 9.8}
+    assert parse_station({"simulation": {"latitude_deg": 39.9, "height_m": 44.0}}).site == {
+        "latitude_deg": 39.9, "height_m": 44.0}
+    with pytest.raises(StationError, match="latitude_deg = 95 must be a number in -90..90"):
+        parse_station({"site": {"latitude_deg": 95}})
+    with pytest.raises(StationError, match="'altitude' not in"):
+        parse_station({"site": {"altitude": 3.0}})
