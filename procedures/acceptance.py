@@ -20,12 +20,13 @@ from procedures.steps import Step, scaled_progress
 from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.ratetable import RateTableCalibration
 from procedures.tumble import TumbleCalibration
-from procedures.turn_on import TurnOnTest
+from procedures.turn_on import GyroTurnOnTest, TurnOnTest
 from procedures.vibration import VibrationTest
 
 #: step name → step class (constructed with the spec's parameter table as keywords)
 STEPS: dict[str, type] = {
     "startup": TurnOnTest,
+    "gyro_startup": GyroTurnOnTest,
     "tumble": TumbleCalibration,
     "ratetable": RateTableCalibration,
     "accelerometer_noise": AccelerometerNoise,

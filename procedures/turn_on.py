@@ -1,5 +1,5 @@
-"""Start-up test of an accelerometer for acceptance: cold start, record, turn-on time and
-warm-up drift.
+"""Start-up tests for acceptance: cold start, record, turn-on time and warm-up drift — of an
+accelerometer (``startup``, through the DMM) and of a gyro (``gyro_startup``, its frames).
 
 The acquisition is the start-up procedure's (level check, cool-down, armed traces, power-on
 at t = 0, streaming); the record is then read back from the run and reduced by
@@ -15,7 +15,7 @@ import numpy as np
 from bench.analysis.turn_on import turn_on_metrics
 from bench.procedure import Context
 from procedures.steps import ParameterizedStep
-from procedures.common import Estimate, check_ranges
+from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 from procedures.startup import StartupAcquisition, StartupParameters
 
 TURN_ON_PRODUCES = {
@@ -70,5 +70,94 @@ class TurnOnTest(ParameterizedStep):
         r = turn_on_metrics(t[keep], g[keep], band=self.p.band_g, smooth_s=self.p.smooth_s,
                             settled_window_s=self.p.settled_window_s)
         ctx.run.set_result("startup.turn_on", r.to_dict())
+        return {"turn_on_time": Estimate(r.turn_on_time_s, None),
+                "warmup_drift": Estimate(r.warmup_drift, r.warmup_drift_std)}
+
+
+GYRO_TURN_ON_PRODUCES = {
+    "turn_on_time": ("s", "time from power-on to within the band of the settled rate (boot included)"),
+    "warmup_drift": ("deg/h", "change of the start-up trend from the first valid output to the end"),
+}
+STATUS_READY = 0x01  # docs/FOG_SERIAL.md: powered and booted, the output is valid
+
+
+@dataclass
+class GyroTurnOnParameters:
+    duration_s: float = 1800.0
+    frame_rate_hz: int = 100
+    off_wait_s: float = 600.0
+    boot_wait_s: float = 5.0       # powered, before the unit is asked to stream
+    band_dph: float = 2.0          # the "within" band around the settled rate
+    smooth_s: float = 120.0        # averaging before comparing (ARW: 0.07 °/√h → 0.4 °/h at 120 s)
+    settled_window_s: float = 600.0
+    chunk_s: float = 300.0
+
+    def validate(self) -> None:
+        check_ranges(asdict(self), {"duration_s": (120, 86400), "frame_rate_hz": (1, 4608),
+                                    "off_wait_s": (0, 86400), "boot_wait_s": (0, 600),
+                                    "band_dph": (1e-4, 1e4), "smooth_s": (0.1, 3600),
+                                    "settled_window_s": (1, 43200), "chunk_s": (1, 3600)},
+                     integers=("frame_rate_hz",))
+        if not self.smooth_s * 4 <= self.duration_s or not self.settled_window_s * 2 <= self.duration_s:
+            raise ValueError(f"duration_s = {self.duration_s} must cover 4 × smooth_s and "
+                             "2 × settled_window_s")
+
+
+class GyroTurnOnTest(ParameterizedStep):
+    """Cold start of a gyro: supply off and cool-down, power on (t = 0), stream frames from
+    boot; turn-on time and warm-up drift of the valid (READY) output, in °/h."""
+
+    name = "gyro_startup"
+    requires = ("gyro", "supply", "turntable")
+    kinds = ("gyro",)
+    produces = GYRO_TURN_ON_PRODUCES
+
+    Parameters = GyroTurnOnParameters
+
+    def duration_s(self) -> float:
+        return self.p.off_wait_s + self.p.duration_s
+
+    def run(self, ctx: Context) -> dict[str, Estimate]:
+        p = self.p
+        gyro = ctx.instruments["gyro"]
+        level_table(ctx)  # at rest, input axis up
+        power_gyro(ctx, on=False)
+        ctx.progress(0, self.duration_s(), "cool-down before the cold start")
+        ctx.clock.sleep(p.off_wait_s)
+        power_gyro(ctx, on=True)
+        t_on = ctx.clock.now()
+        ctx.run.event(t_on, "t0", "gyro power-on: t = 0 of the start-up test")
+        ctx.clock.sleep(p.boot_wait_s)
+        gyro.configure(rate_hz=p.frame_rate_hz)
+        ctx.run.add_stream("gyro_startup", {"t_s": "s", "rate_dps": "deg/s", "temperature_c": "degC",
+                                            "status": "1"}, "gyro frames from power-on (t = 0)")
+        t_start = ctx.clock.now() - t_on
+        parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+        def store(frames) -> None:
+            t = t_start + (frames.index + 1) / p.frame_rate_hz
+            ctx.run.append("gyro_startup", t_s=t, rate_dps=frames.rate_dps,
+                           temperature_c=frames.temperature_c, status=frames.status)
+            parts.append((t, frames.rate_dps, frames.status))
+
+        n_total = int(round((p.duration_s - t_start) * p.frame_rate_hz))
+        chunk = max(1, int(p.chunk_s * p.frame_rate_hz))
+        gyro.start()
+        got = 0
+        while got < n_total:
+            got += len(read_gyro_frames(ctx, min(chunk, n_total - got), store))
+            ctx.progress(p.off_wait_s + t_start + got / p.frame_rate_hz, self.duration_s(),
+                         "start-up record")
+        gyro.stop()
+        t = np.concatenate([x[0] for x in parts])
+        rate_dph = np.concatenate([x[1] for x in parts]) * 3600.0
+        ready = (np.concatenate([x[2] for x in parts]).astype(np.int64) & STATUS_READY) != 0
+        if ready.sum() < 64:
+            raise RuntimeError(f"gyro gave {int(ready.sum())} valid frames in {p.duration_s:g} s "
+                               "after power-on (never booted?)")
+        r = turn_on_metrics(t[ready], rate_dph[ready], band=p.band_dph, smooth_s=p.smooth_s,
+                            settled_window_s=p.settled_window_s)
+        ctx.run.set_result("gyro_startup.turn_on", {**r.to_dict(),
+                           "first_valid_s": float(t[ready][0])})
         return {"turn_on_time": Estimate(r.turn_on_time_s, None),
                 "warmup_drift": Estimate(r.warmup_drift, r.warmup_drift_std)}

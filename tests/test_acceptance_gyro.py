@@ -95,3 +95,32 @@ def test_a_gyro_spec_refuses_accelerometer_steps():
     bad = dict(SPEC, procedures={"tumble": {}})
     with pytest.raises(ValueError, match="applies to \\['accelerometer'\\], not to a gyro"):
         parse_spec(bad, CATALOGUE)
+
+
+def test_gyro_start_up_turn_on_time_and_warm_up_drift(tmp_path):
+    """A unit with a clear warm-up: turn-on time = boot + the exponential's time into the band
+    (+ about half the averaging window); the drift is the warm-up's change over the record."""
+    import math
+
+    from procedures.steps import StepProcedure
+    from procedures.turn_on import GyroTurnOnTest
+
+    amp, tau, band, smooth = 20.0, 200.0, 3.0, 120.0  # band ≫ the 120-s noise (ARW, flicker)
+    config = builtin_sim_config()
+    # slow terms quiet (flicker, RRW, thermal bias), so the warm-up is what the test sees
+    config.simulation = {"gyro": {"warmup_amplitude_dph": amp, "warmup_tau_s": tau,
+                                  "bias_instability_dph": 0.02, "rrw_dph_per_rh": 0.002,
+                                  "bias_tc_dph_per_c": 0.0}}
+    store = RunStore(tmp_path / "b.sqlite")
+    step = GyroTurnOnTest(duration_s=2400.0, off_wait_s=60.0, band_dph=band, smooth_s=smooth,
+                          settled_window_s=600.0)
+    with Station(config, seed=4, unit_serial="FOG-SIM-0003", unit_kind="gyro") as station:
+        outcome = execute(StepProcedure(step), station, store, unit_serial="FOG-SIM-0003", seed=4)
+        truth = station.sim.gyro_truth()
+    assert outcome.status == "passed", outcome.reason
+    m = {x.name: x for x in outcome.measurements}
+    expected = truth["boot_time_s"] + tau * math.log(amp / band)
+    assert expected - 10 < m["turn_on_time"].value < expected + smooth, (m["turn_on_time"].value, expected)
+    first = store.results(outcome.run_id)["gyro_startup.turn_on"]["first_valid_s"]
+    drift = amp * (math.exp(-2400.0 / tau) - math.exp(-max(first, smooth) / tau))
+    assert abs(m["warmup_drift"].value - drift) < 0.15 * abs(drift) + 4 * m["warmup_drift"].uncertainty

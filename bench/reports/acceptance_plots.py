@@ -49,6 +49,32 @@ def tumble_section(store, run_id: str, results: dict[str, Any], out: Path) -> Se
     return "Tumble calibration", name, caption
 
 
+def _turn_on_figure(t, y, r: dict[str, Any], scale: float, unit: str, png: Path) -> str:
+    """Output relative to its settled value, its causal average, the band, the turn-on time."""
+    n = max(1, int(round(r["smooth_s"] / float(np.median(np.diff(t))))))
+    smooth = np.convolve(y, np.ones(n) / n, mode="valid")
+    ts = t[n - 1:]
+    step = max(1, t.size // 20000)
+    settled, band = r["settled_value"], r["band"]
+    k = max(1, n // 20)  # short means for the grey trace: a fast gyro's raw rate hides everything
+    m = t.size // k
+    tk, yk = t[: m * k].reshape(m, k).mean(axis=1), y[: m * k].reshape(m, k).mean(axis=1)
+    fig = Figure(figsize=(9, 3.8))
+    ax = fig.add_subplot()
+    ax.plot(tk, (yk - settled) * scale, lw=0.4, color="0.7",
+            label=f"output, {k * float(np.median(np.diff(t))):.3g} s means")
+    ax.plot(ts[::step], (smooth[::step] - settled) * scale, lw=1.0, color="C0",
+            label=f"{r['smooth_s']:g} s average")
+    ax.axhspan(-band * scale, band * scale, color="C2", alpha=0.15, label=f"±{band * scale:g} {unit} band")
+    ax.axvline(r["turn_on_time_s"], color="C3", lw=1.0,
+               label=f"turn-on time {r['turn_on_time_s']:.0f} s")
+    lim = max(5 * band, 1.2 * float(np.max(np.abs(smooth - settled)))) * scale
+    ax.set(xlabel="time since power-on (s)", ylabel=f"output − settled ({unit})", ylim=(-lim, lim),
+           title="Start-up: output relative to its settled value")
+    ax.legend(fontsize=8, loc="upper right")
+    return _save(fig, png)
+
+
 def startup_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
     r = results.get("startup.turn_on")
     if not r or "output" not in store.streams(run_id):
@@ -56,27 +82,23 @@ def startup_section(store, run_id: str, results: dict[str, Any], out: Path) -> S
     data = store.load(run_id, "output")
     t, g = np.asarray(data["t_s"]), np.asarray(data["acceleration_g"])
     keep = t >= 0
-    t, g = t[keep], g[keep]
-    n = max(1, int(round(r["smooth_s"] / float(np.median(np.diff(t))))))
-    smooth = np.convolve(g, np.ones(n) / n, mode="valid")
-    ts = t[n - 1:]
-    step = max(1, t.size // 20000)
-    settled, band = r["settled_value"], r["band"]
-    fig = Figure(figsize=(9, 3.8))
-    ax = fig.add_subplot()
-    ax.plot(t[::step], (g[::step] - settled) * 1e6, lw=0.4, color="0.75", label="output")
-    ax.plot(ts[::step], (smooth[::step] - settled) * 1e6, lw=1.0, color="C0",
-            label=f"{r['smooth_s']:g} s average")
-    ax.axhspan(-band * 1e6, band * 1e6, color="C2", alpha=0.15, label=f"±{band * 1e6:g} µg band")
-    ax.axvline(r["turn_on_time_s"], color="C3", lw=1.0,
-               label=f"turn-on time {r['turn_on_time_s']:.0f} s")
-    lim = max(5 * band, 1.2 * float(np.max(np.abs(smooth - settled)))) * 1e6
-    ax.set(xlabel="time since power-on (s)", ylabel="output − settled (µg)", ylim=(-lim, lim),
-           title="Start-up: output relative to its settled value")
-    ax.legend(fontsize=8, loc="upper right")
-    name = _save(fig, out / "acceptance_startup.png")
-    caption = (f"Settled value {settled:.7g} g (mean of the last part of the record); warm-up "
-               f"drift of the fitted trend {r['warmup_drift'] * 1e6:.3g} µg ({r['trend']['kind']}).")
+    name = _turn_on_figure(t[keep], g[keep], r, 1e6, "µg", out / "acceptance_startup.png")
+    caption = (f"Settled value {r['settled_value']:.7g} g (mean of the last part of the record); "
+               f"warm-up drift of the fitted trend {r['warmup_drift'] * 1e6:.3g} µg ({r['trend']['kind']}).")
+    return "Start-up", name, caption
+
+
+def gyro_startup_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
+    r = results.get("gyro_startup.turn_on")
+    if not r or "gyro_startup" not in store.streams(run_id):
+        return None
+    data = store.load(run_id, "gyro_startup")
+    valid = (np.asarray(data["status"]).astype(np.int64) & 1) != 0  # READY
+    t, rate = np.asarray(data["t_s"])[valid], np.asarray(data["rate_dps"])[valid] * 3600.0
+    name = _turn_on_figure(t, rate, r, 1.0, "°/h", out / "acceptance_gyro_startup.png")
+    caption = (f"First valid output {r['first_valid_s']:.2f} s after power-on; settled rate "
+               f"{r['settled_value']:.4g} °/h (Earth rate included); warm-up drift of the fitted "
+               f"trend {r['warmup_drift']:.3g} °/h ({r['trend']['kind']}).")
     return "Start-up", name, caption
 
 
@@ -182,6 +204,7 @@ def vibration_section(store, run_id: str, results: dict[str, Any], out: Path) ->
 #: step name → section builder
 SECTIONS: dict[str, Callable[..., Section | None]] = {
     "startup": startup_section,
+    "gyro_startup": gyro_startup_section,
     "tumble": tumble_section,
     "ratetable": ratetable_section,
     "accelerometer_noise": accelerometer_noise_section,
