@@ -1,4 +1,4 @@
-"""``bench run tumble | ratetable | accelerometer_noise | gyro_noise``: one calibration or test
+"""``bench run tumble | ratetable | accelerometer_noise | gyro_noise | gyro_startup``: one calibration or test
 step as its own run — every produced measurement recorded with its uncertainty, no limits
 (``bench acceptance`` judges them against a unit spec).
 
@@ -24,6 +24,8 @@ STEP_COMMANDS = {
                             "accelerometer static record → Allan deviation: noise density, bias instability"),
     "gyro_noise": ("procedures.noise", "GyroNoise",
                    "gyro static record → Allan deviation: ARW, bias instability"),
+    "gyro_startup": ("procedures.turn_on", "GyroTurnOnTest",
+                     "gyro cold start from its frames: turn-on time, warm-up drift"),
 }
 def _load(name: str):
     import importlib
