@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.trend import Estimate  # noqa: F401 - the steps' value ± standard uncertainty
+from bench.analysis.trend import Estimate  # the steps' value ± standard uncertainty
 from bench.procedure import Context, each_safely
 
 #: fastest integration that fits a reading interval, per mains frequency (NPLC values)
@@ -141,8 +141,8 @@ def make_safe(ctx: Context) -> None:
     """Teardown for every procedure: supply off, meters idle, tables and shaker stopped.
 
     The supply going off is what stops a gyro's frame stream (an unpowered gyro cannot be
-    asked to stop). Tries every instrument the station has even when one fails, then raises one error
-    naming all failures.
+    asked to stop). Tries every instrument the station has even when one fails, then raises
+    one error naming all failures.
     """
     inst = ctx.instruments
     actions = []
@@ -160,3 +160,8 @@ def make_safe(ctx: Context) -> None:
     if "shaker" in inst:
         actions.append(("shaker stop", inst["shaker"].stop))
     each_safely(actions)
+
+
+__all__ = ["Estimate", "check_ranges", "choose_nplc", "accelerometer_rails", "power_accelerometer",
+           "power_gyro", "move_table", "level_table", "averaged_voltage", "read_gyro_frames",
+           "make_safe", "FRAME_TIMEOUT_MARGIN_S", "MOVE_TIMEOUT_S", "NPLC_CHOICES"]
