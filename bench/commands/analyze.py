@@ -75,8 +75,11 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="outlier threshold in standard deviations [3, Document A]")
 
 
-def read_csv_columns(path: str | Path, time_col: str, value_col: str) -> tuple[np.ndarray, np.ndarray]:
-    """Two numeric columns of a CSV with a header row; ``ValueError`` naming file, row and column."""
+def read_csv_table(path: str | Path, required: tuple, optional: tuple = (), *,
+                   finite: bool = True) -> dict:
+    """Numeric columns of a CSV with a header row: every ``required`` one and each ``optional``
+    one present.  ``ValueError`` naming the file, line and column of the first fault (with
+    ``finite``, a NaN or infinite value is one)."""
     path = Path(path)
     try:
         with path.open(newline="", encoding="utf-8-sig") as fh:
@@ -85,24 +88,36 @@ def read_csv_columns(path: str | Path, time_col: str, value_col: str) -> tuple[n
             if not header:
                 raise ValueError(f"{path}: empty file, expected a header row")
             header = [h.strip() for h in header]
-            cols = []
-            for name in (time_col, value_col):
+            for name in required:
                 if name not in header:
                     raise ValueError(f"{path}: no column {name!r}; columns are {', '.join(header)}")
-                cols.append(header.index(name))
-            t, y = [], []
+            names = list(required) + [n for n in optional if n in header]
+            cols = {n: header.index(n) for n in names}
+            out = {n: [] for n in names}
             for row_no, row in enumerate(reader, start=2):
                 if not row or all(not c.strip() for c in row):
                     continue  # blank line
-                for name, idx, out in ((time_col, cols[0], t), (value_col, cols[1], y)):
+                for name, idx in cols.items():
                     try:
-                        out.append(float(row[idx]))
+                        out[name].append(float(row[idx]))
                     except (IndexError, ValueError):
                         cell = row[idx] if idx < len(row) else "<missing>"
                         raise ValueError(f"{path} line {row_no}, column {name!r}: {cell!r} is not a number") from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ValueError(f"cannot read {path}: {exc}") from None
-    return np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    result = {n: np.asarray(v, dtype=float) for n, v in out.items()}
+    for name, v in result.items() if finite else ():
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise ValueError(f"{path} line {bad[0] + 2}, column {name!r}: {v[bad[0]]!r} is not finite")
+    return result
+
+
+def read_csv_columns(path: str | Path, time_col: str, value_col: str) -> tuple[np.ndarray, np.ndarray]:
+    """Two numeric columns of a CSV with a header row; ``ValueError`` naming file, row and column.
+    Non-finite values pass: each analysis names them in its own terms."""
+    table = read_csv_table(path, (time_col, value_col), finite=False)
+    return table[time_col], table[value_col]
 
 
 def _options(args) -> dict:

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.commands.analyze import read_csv_table
+
 SAMPLING_TOLERANCE = 0.01
 
 
@@ -31,42 +33,6 @@ def register_analysis(kinds) -> None:
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     p.add_argument("--output", metavar="FUSED.csv", default=None, help="write t,fused here")
     p.set_defaults(func=analyze_fusion_csv)
-
-
-def read_csv_table(path: str | Path, required: tuple, optional: tuple = ()) -> dict:
-    """Numeric columns of a CSV with a header row: every ``required`` one and each ``optional``
-    one present.  ``ValueError`` naming the file, line and column of the first fault."""
-    path = Path(path)
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if not header:
-                raise ValueError(f"{path}: empty file, expected a header row")
-            header = [h.strip() for h in header]
-            for name in required:
-                if name not in header:
-                    raise ValueError(f"{path}: no column {name!r}; columns are {', '.join(header)}")
-            names = list(required) + [n for n in optional if n in header]
-            cols = {n: header.index(n) for n in names}
-            out = {n: [] for n in names}
-            for row_no, row in enumerate(reader, start=2):
-                if not row or all(not c.strip() for c in row):
-                    continue  # blank line
-                for name, idx in cols.items():
-                    try:
-                        out[name].append(float(row[idx]))
-                    except (IndexError, ValueError):
-                        cell = row[idx] if idx < len(row) else "<missing>"
-                        raise ValueError(f"{path} line {row_no}, column {name!r}: {cell!r} is not a number") from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise ValueError(f"cannot read {path}: {exc}") from None
-    result = {n: np.asarray(v, dtype=float) for n, v in out.items()}
-    for name, v in result.items():
-        bad = np.flatnonzero(~np.isfinite(v))
-        if bad.size:
-            raise ValueError(f"{path} line {bad[0] + 2}, column {name!r}: {v[bad[0]]!r} is not finite")
-    return result
 
 
 def _check_time(t: np.ndarray, rate_hz: float) -> None:
