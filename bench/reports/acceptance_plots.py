@@ -13,13 +13,9 @@ from typing import Any, Callable
 import numpy as np
 from matplotlib.figure import Figure
 
+from bench.reports.common import save_figure as _save
+
 Section = tuple[str, str, str]
-
-
-def _save(fig: Figure, path: Path) -> str:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path.name
 
 
 def tumble_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:

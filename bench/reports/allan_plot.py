@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 
 from bench.analysis.allan import AllanResult
 from bench.analysis.allan_noise import B_FACTOR, term_adev
+from bench.reports.common import html_table as _table
 
 _COLOURS = {"Q": "C4", "N": "C2", "B": "C1", "K": "C5", "R": "C6"}
 _SLOPE_TEXT = {"Q": "−1", "N": "−1/2", "B": "0", "K": "+1/2", "R": "+1"}
@@ -80,12 +81,6 @@ def plot_allan(ax: Axes, result: AllanResult, title: str | None = None) -> Axes:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="best", fontsize=7)
     return ax
-
-
-def _table(header: list[str], rows: list[list[object]]) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in row) + "</tr>" for row in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
 
 
 def write_allan_report(result: AllanResult, directory: str | Path, context: dict | None = None,

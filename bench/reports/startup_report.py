@@ -22,20 +22,11 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.startup import StartupAnalysis
+from bench.reports.common import html_table as _table
+from bench.reports.common import save_figure as _save
+from bench.reports.common import thin as _thin
 
-_MAX_POINTS = 20_000
 _SIM_SEED = 0
-
-
-def _thin(*arrays: np.ndarray) -> list[np.ndarray]:
-    step = max(1, arrays[0].size // _MAX_POINTS)
-    return [a[::step] for a in arrays]
-
-
-def _save(fig: Figure, path: Path) -> str:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path.name
 
 
 def _signal_figure(a: StartupAnalysis, path: Path) -> str:
@@ -106,15 +97,6 @@ def _simulation_figure(a: StartupAnalysis, path: Path) -> str:
     ax.set(xlabel="time (s)", ylabel="output", title="A new start-up trace from the model")
     ax.legend(loc="best", fontsize=8)
     return _save(fig, path)
-
-
-def _table(header: list[str], rows: list[list[object]], bold_rows: set[int] = frozenset()) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = []
-    for i, row in enumerate(rows):
-        cells = "".join(f"<td>{html.escape(str(v))}</td>" for v in row)
-        body.append(f"<tr class='best'>{cells}</tr>" if i in bold_rows else f"<tr>{cells}</tr>")
-    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
 
 
 def _g(x: float) -> str:

@@ -21,6 +21,7 @@ are thinned to ≤ 20 000 plotted points.
 
 from __future__ import annotations
 
+import functools
 import html
 import json
 from pathlib import Path
@@ -29,22 +30,14 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.vibration import VibrationAnalysis
+from bench.reports.common import html_table as _table
+from bench.reports.common import MAX_POINTS, save_figure
+from bench.reports.common import thin as _thin
 
-_MAX_POINTS = 20_000
 _ZOOM_SAMPLES = 400
 _KIND_COLOUR = {"random": "C0", "periodic": "C3", "trend": "C2"}
+_save = functools.partial(save_figure, dpi=100)
 DOCUMENT_C = (("AR model fit", 7.3677e-6, 0.0041), ("AR + Kalman fit", 3.9332e-6, 0.0018))  # °/s
-
-
-def _thin(*arrays: np.ndarray) -> list[np.ndarray]:
-    step = max(1, arrays[0].size // _MAX_POINTS)
-    return [a[::step] for a in arrays]
-
-
-def _save(fig: Figure, path: Path) -> str:
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    return path.name
 
 
 def _imf_figure(a: VibrationAnalysis, path: Path) -> str:
@@ -96,7 +89,7 @@ def _fit_figure(a: VibrationAnalysis, path: Path) -> str:
     ax1, ax2 = fig.subplots(2, 1)
     t, y, far, fk = _thin(a.time_s, a.y, a.fit_ar, a.fit_ar_kalman)
     ax1.plot(t, y, lw=0.5, color="0.6", label="record")
-    ax1.plot(t, a.terms.signal[:: max(1, a.y.size // _MAX_POINTS)], lw=1.0, color="C2", label="non-random terms")
+    ax1.plot(t, a.terms.signal[:: max(1, a.y.size // MAX_POINTS)], lw=1.0, color="C2", label="non-random terms")
     ax1.set(xlabel="time (s)", ylabel="y", title="Record and its non-random terms (trend + periodic)")
     ax1.legend(fontsize=7, loc="upper right")
     s = slice(a.compared_from, min(a.y.size, a.compared_from + _ZOOM_SAMPLES))
@@ -120,12 +113,6 @@ def _error_figure(a: VibrationAnalysis, path: Path) -> str:
     ax.set(xlabel="fit error y − fit", ylabel="samples", title="Fit error distribution")
     ax.legend(fontsize=8)
     return _save(fig, path)
-
-
-def _table(header: list[str], rows: list[list[object]]) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in row) + "</tr>" for row in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
 
 
 def _g(x: float, digits: int = 4) -> str:

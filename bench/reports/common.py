@@ -1,0 +1,34 @@
+"""What every report shares: thinning long traces for plotting, saving a figure, an HTML table."""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+MAX_POINTS = 20_000
+
+
+def thin(*arrays: np.ndarray, max_points: int = MAX_POINTS) -> list[np.ndarray]:
+    """Every k-th sample of each array, k chosen so the first keeps ≤ ``max_points``."""
+    step = max(1, arrays[0].size // max_points)
+    return [a[::step] for a in arrays]
+
+
+def save_figure(fig: Figure, path: Path, dpi: int = 110) -> str:
+    """Lay out and write ``fig``; return the file name (reports link it relatively)."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    return path.name
+
+
+def html_table(header: list[str], rows: list[list[object]], bold_rows=frozenset()) -> str:
+    """An escaped HTML table; rows whose index is in ``bold_rows`` get class ``best``."""
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = []
+    for i, row in enumerate(rows):
+        cells = "".join(f"<td>{html.escape(str(v))}</td>" for v in row)
+        body.append(f"<tr class='best'>{cells}</tr>" if i in bold_rows else f"<tr>{cells}</tr>")
+    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
