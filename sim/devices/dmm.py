@@ -88,11 +88,16 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
 
     def __init__(self, world: World, name: str, input_signal: InputSignal,
                  serial: str = "MY59001234", options: tuple[str, ...] = ("DIG", "MEM"),
-                 line_pickup: LinePickup | None = None, ideal: bool = False) -> None:
+                 line_pickup: LinePickup | None = None, ideal: bool = False,
+                 timebase_ppm: float = 0.0) -> None:
         super().__init__(("Keysight Technologies", "34465A", serial,
                           "A.03.01-02.40-03.01-00.52-01-02"),
                          options=",".join(options) if options else "0")
         self.world, self.name, self.input_signal = world, name, input_signal
+        if not (isinstance(timebase_ppm, (int, float)) and abs(timebase_ppm) <= 1000):
+            raise ValueError(f"timebase_ppm {timebase_ppm!r} not in -1000..1000 ppm")
+        #: the meter's timebase runs slow by this much: a SAMP:TIM interval lasts (1 + ppm·1e-6)× longer
+        self.timebase_ppm = float(timebase_ppm)
         self.has_dig = "DIG" in options
         self.memory = _Memory(2_000_000 if "MEM" in options else 50_000)
         self.pickup = line_pickup or LinePickup()
@@ -133,7 +138,7 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
     def interval_s(self) -> float:
         """Spacing of readings within a trigger; a timer shorter than a reading is stretched."""
         if self.samp_source == "TIMER":
-            return max(self.samp_timer_s, self.fe.reading_time_s)
+            return max(self.samp_timer_s * (1.0 + 1e-6 * self.timebase_ppm), self.fe.reading_time_s)
         return self.fe.reading_time_s
 
     @property

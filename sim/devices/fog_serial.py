@@ -73,7 +73,8 @@ class FogSerialDevice:
     def __init__(self, world: World, gyro: Any, inputs: InputsFn, *, serial: str,
                  scale_factor_pulses_per_arcsec: float, full_scale_dps: float,
                  model: str = "SFOG-2K",
-                 firmware: str = "1.0.0", send_buffer_bytes: int = 1 << 20) -> None:
+                 firmware: str = "1.0.0", send_buffer_bytes: int = 1 << 20,
+                 clock_ppm: float = 0.0) -> None:
         for field in (serial, model, firmware):
             if not field or any(c in field for c in ",\r\n$") or not field.isascii():
                 raise ValueError(f"identity field {field!r} must be ASCII without , $ or line breaks")
@@ -84,6 +85,10 @@ class FogSerialDevice:
         self.scale_factor = float(scale_factor_pulses_per_arcsec)
         self.full_scale_dps = float(full_scale_dps)
         self.send_buffer_bytes = send_buffer_bytes
+        if not (isinstance(clock_ppm, (int, float)) and math.isfinite(clock_ppm) and abs(clock_ppm) <= 1000):
+            raise ValueError(f"clock_ppm {clock_ppm!r} not in -1000..1000 ppm")
+        #: the unit's frame clock runs fast by this much: frames come every 1/(rate·(1 + ppm·1e-6)) s
+        self.clock_ppm = float(clock_ppm)
         self.rate_hz = DEFAULT_RATE_HZ
         self.baud = DEFAULT_BAUD
         self.state = "STOPPED" if gyro.powered(world.now) else "OFF"
@@ -241,11 +246,11 @@ class FogSerialDevice:
 
     def _edge(self, k: np.ndarray | int) -> np.ndarray | float:
         """End instant of frame k-1 = start of frame k (the one formula for frame times)."""
-        return self._t0 + k / self.rate_hz
+        return self._t0 + k / (self.rate_hz * (1.0 + 1e-6 * self.clock_ppm))
 
     def _frames_due(self, t_s: float) -> int:
         """Frames since $START whose end instant is ≤ t_s."""
-        m = max(0, math.floor((t_s - self._t0) * self.rate_hz))
+        m = max(0, math.floor((t_s - self._t0) * self.rate_hz * (1.0 + 1e-6 * self.clock_ppm)))
         while self._edge(m + 1) <= t_s:
             m += 1
         while m > 0 and self._edge(m) > t_s:
