@@ -204,6 +204,7 @@ def test_new_demand_ramps_old_down_then_new_up_and_abort_cuts_within_10_ms():
     assert m.rate_rad_s(np.array([6.0]))[0] == pytest.approx(0.0, abs=1e-12)
     m.abort(10.0)
     assert m.state(10.0) == "ABORT" and m.aborted
+    m.stop(10.002)  # a stop after an abort does not slow the cut down
     assert np.all(m.rate_rad_s(np.linspace(10.0 + ABORT_DECAY_S, 11.0, 100)) == 0.0)
     with pytest.raises(RuntimeError, match="reset the interlock"):
         m.start_tones(10.005, [Tone(0.1, 1.0)])

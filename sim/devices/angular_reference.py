@@ -29,6 +29,8 @@ ENCODER_COUNTS = 1 << 24
 RATE_NOISE_DPS = 2e-4
 RATE_RANGE_HZ = (1.0, 50_000.0)
 COUNT_RANGE = (1, 1_000_000_000)
+DEFAULT_REF_RATE_HZ = 1000.0
+DEFAULT_REF_COUNT = 1000
 _NOISE_BLOCK = 1 << 16
 _CHUNK = 1 << 16
 
@@ -40,8 +42,8 @@ class ReferenceCapture:
         self.motion = motion
         self.memory = int(memory)
         self._key = [int(x) for x in rng.integers(0, 2**63, size=2)]
-        self.rate_hz = 1000.0
-        self.count = 1000
+        self.rate_hz = DEFAULT_REF_RATE_HZ
+        self.count = DEFAULT_REF_COUNT
         self._t0: float | None = None
         self._next_k = 0      # next sample to compute
         self._end_k = 0       # samples this capture takes
@@ -169,5 +171,5 @@ class ReferenceCapture:
         return self._block[1]
 
 
-__all__ = ["COUNT_RANGE", "ENCODER_COUNTS", "MEMORY_SAMPLES", "RATE_NOISE_DPS", "RATE_RANGE_HZ",
+__all__ = ["COUNT_RANGE", "DEFAULT_REF_COUNT", "DEFAULT_REF_RATE_HZ", "ENCODER_COUNTS", "MEMORY_SAMPLES", "RATE_NOISE_DPS", "RATE_RANGE_HZ",
            "ReferenceCapture"]

@@ -15,7 +15,8 @@ oscillator, no oscillator enabled) is -221.
 
 The interlock is the shaker's (``interlock_closed``; ``:INT:OPEN`` cuts the motion and
 latches ABORT, ``:INT:RES`` clears it once at rest), so fault injection can treat both
-alike; a power loss calls :meth:`AngularTableController.cut_drive`.
+alike: a power loss calls :meth:`AngularTableController.cut_drive`, an interlock fault
+:meth:`AngularTableController.open_interlock`.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
-from sim.devices.angular_reference import COUNT_RANGE, ENCODER_COUNTS, RATE_NOISE_DPS, RATE_RANGE_HZ, ReferenceCapture
+from sim.devices.angular_reference import (COUNT_RANGE, DEFAULT_REF_COUNT, DEFAULT_REF_RATE_HZ, ENCODER_COUNTS,
+                                           RATE_NOISE_DPS, RATE_RANGE_HZ, ReferenceCapture)
 from sim.physics.angular_demand import SWEEP_TIME_RANGE_S, Sweep, Tone, describe
 from sim.physics.angular_table import DEFAULT_RAMP_S, RAMP_RANGE_S, AngularMotion
 from sim.scpi import Args, ScpiDevice, ScpiError, format_block, format_int, format_number
@@ -77,11 +79,20 @@ class AngularTableController(ScpiDevice):
         self.motion.stop(self.world.now)
         self.motion.set_ramp(DEFAULT_RAMP_S)
         self._clear_demands()
-        self.reference = ReferenceCapture(self.motion, self.world.rng(f"angular_table:{self.idn[2]}:reference"))
+        self.reference.clear()
+        self.reference.set_rate(DEFAULT_REF_RATE_HZ)
+        self.reference.set_count(DEFAULT_REF_COUNT)
 
     def cut_drive(self) -> None:
         """Power lost or emergency stop: the motion cut now, ABORT latched."""
         self.motion.abort(self.world.now)
+
+    def open_interlock(self) -> None:
+        """The interlock opens (``:INT:OPEN``, or a fault): a moving table is cut, ABORT latches."""
+        self.interlock_closed = False
+        if not self.motion.at_rest(self.world.now):
+            self.motion.abort(self.world.now)
+            self.world.note("angular table interlock open: drive cut")
 
     # -- demands -------------------------------------------------------------------------
     def staged_tones(self) -> list[Tone]:
@@ -192,11 +203,6 @@ class AngularTableController(ScpiDevice):
         c(":ABORt", set=abort)
         c(":STATe", query=lambda a: self.motion.state(now()))
 
-        def il_open(a: Args) -> None:
-            self.interlock_closed = False
-            if not self.motion.at_rest(now()) or self.motion.driving:
-                self.motion.abort(now())  # an opened interlock cuts the drive
-                self.world.note("angular table interlock open: drive cut")
 
         def il_reset(a: Args) -> None:
             if not self.motion.aborted:
@@ -206,7 +212,7 @@ class AngularTableController(ScpiDevice):
             except RuntimeError as exc:
                 raise ScpiError(-221, str(exc)) from None
 
-        c(":INTerlock:OPEN", set=il_open)
+        c(":INTerlock:OPEN", set=lambda a: self.open_interlock())
         c(":INTerlock:CLOSe", set=lambda a: setattr(self, "interlock_closed", True))
         c(":INTerlock:RESet", set=il_reset)
         c(":INTerlock", query=lambda a: "1" if self.interlock_closed and not self.motion.aborted else "0")
@@ -229,12 +235,12 @@ class AngularTableController(ScpiDevice):
         def rate(a: Args) -> None:
             a.require_count(1, 1)
             self._ref_idle("rate")
-            self.reference.set_rate(a.number(0, min=RATE_RANGE_HZ[0], max=RATE_RANGE_HZ[1], default=1000.0))
+            self.reference.set_rate(a.number(0, min=RATE_RANGE_HZ[0], max=RATE_RANGE_HZ[1], default=DEFAULT_REF_RATE_HZ))
 
         def count(a: Args) -> None:
             a.require_count(1, 1)
             self._ref_idle("count")
-            self.reference.set_count(a.integer(0, min=COUNT_RANGE[0], max=COUNT_RANGE[1], default=1000))
+            self.reference.set_count(a.integer(0, min=COUNT_RANGE[0], max=COUNT_RANGE[1], default=DEFAULT_REF_COUNT))
 
         def remove(a: Args) -> bytes:
             a.require_count(1, 1)
