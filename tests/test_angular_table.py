@@ -117,10 +117,14 @@ def test_consecutive_pieces_are_continuous_in_rate_and_angle():
         end = np.array([p.t_end_s])
         assert p.rate_rad_s(end)[0] == pytest.approx(q.rate_rad_s(end)[0], abs=1e-10)
         assert p.angle_rad(end)[0] == pytest.approx(q.angle0_rad, abs=1e-12)
-    # the vectorised evaluation is the pieces' own
-    t = np.linspace(-1.0, 20.0, 5001)
-    direct = np.array([next(p for p in ps if p.t_start_s <= x < p.t_end_s).angle_rad(np.array([x]))[0] for x in t])
-    assert np.allclose(m.angle_rad(t), direct, rtol=0, atol=1e-12)
+    # the compiled evaluation is the pieces' own (MotionPiece's numpy methods: the reference)
+    t = np.random.default_rng(3).uniform(-1.0, 20.0, 3000)  # any order
+    own = [next(p for p in ps if p.t_start_s <= x < p.t_end_s) for x in t]
+    rate, angle, accel = m.motion(t)
+    for got, method in ((rate, "rate_rad_s"), (angle, "angle_rad"), (accel, "accel_rad_s2")):
+        ref = np.array([getattr(p, method)(np.array([x]))[0] for p, x in zip(own, t)])
+        assert np.allclose(got, ref, rtol=0, atol=1e-12 * max(1.0, np.abs(ref).max())), method
+    assert m.motion(t.reshape(50, 60))[1].shape == (50, 60)
 
 
 def test_pieces_window_and_times_before_zero_are_rest():

@@ -150,9 +150,10 @@ class ReferenceCapture:
     def _samples(self, k: np.ndarray) -> np.ndarray:
         t_rel = k / self.rate_hz
         t = self._t0 + t_rel
-        counts = np.floor(self.motion.angle_rad(t) / (2 * math.pi) * ENCODER_COUNTS)
+        rate, angle, _ = self.motion.motion(t)
+        counts = np.floor(angle / (2 * math.pi) * ENCODER_COUNTS)
         angle_deg = counts * (360.0 / ENCODER_COUNTS)
-        rate_dps = np.degrees(self.motion.rate_rad_s(t)) + RATE_NOISE_DPS * self._noise(k)
+        rate_dps = np.degrees(rate) + RATE_NOISE_DPS * self._noise(k)
         return np.column_stack([t_rel, angle_deg, rate_dps])
 
     def _noise(self, k: np.ndarray) -> np.ndarray:

@@ -44,6 +44,7 @@ from dataclasses import replace
 import numpy as np
 
 from sim.physics.angular_demand import AngularTableLimits, Sweep, Tone
+from sim.physics.angular_kernel import angle_base, evaluate
 from sim.physics.angular_piece import MotionPiece, at_rest
 
 #: time for the motion to die away after an abort or an opened interlock (s)
@@ -58,8 +59,6 @@ DEFAULT_DISTORTION = (0.003, 0.001)
 REST_SINCE_S = -1.0e9
 #: harmonic phase offsets (rad) when no rng is given
 FIXED_HARMONIC_PHASES_RAD = (0.7, 2.1)
-#: samples evaluated per block (bounds the (samples × components) work arrays)
-_BLOCK = 1 << 14
 
 IDLE, RAMP, RUN, ABORT = "IDLE", "RAMP", "RUN", "ABORT"
 SINE, MULTI, SWEEP = "SINE", "MULTI", "SWEEP"
@@ -226,13 +225,13 @@ class AngularMotion:
         return self._pieces[i0:max(i1, i0 + 1)]
 
     def rate_rad_s(self, t_s) -> np.ndarray:
-        return self._evaluate(t_s, "rate")
+        return self.motion(t_s)[0]
 
     def angle_rad(self, t_s) -> np.ndarray:
-        return self._evaluate(t_s, "angle")
+        return self.motion(t_s)[1]
 
     def accel_rad_s2(self, t_s) -> np.ndarray:
-        return self._evaluate(t_s, "accel")
+        return self.motion(t_s)[2]
 
     # ---- planning ----------------------------------------------------------------------
     def _command_time(self, t_s: float, start: bool = False) -> float:
@@ -318,40 +317,25 @@ class AngularMotion:
         return cur, amp, phase, angle
 
     # ---- evaluation --------------------------------------------------------------------
-    def _padded(self):
-        """Per-piece parameters padded to the widest piece (padding: zero amplitude)."""
+    def motion(self, t_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rate rad/s, angle rad, acceleration rad/s²) at times ``t_s`` (any shape), in one pass."""
+        t = np.asarray(t_s, dtype=float)
+        flat = np.ascontiguousarray(t.reshape(-1))
+        r, a, c = evaluate(flat, *self._tables())
+        return r.reshape(t.shape), a.reshape(t.shape), c.reshape(t.shape)
+
+    def _tables(self):
+        """Per-piece parameters padded to the widest piece, for the compiled kernel."""
         if self._cache is None:
-            m = max(1, max(p.n for p in self._pieces))
-            n = len(self._pieces)
+            n, m = len(self._pieces), max(1, max(p.n for p in self._pieces))
             f = np.ones((n, m))
             a, b, ph = np.zeros((n, m)), np.zeros((n, m)), np.zeros((n, m))
             for i, p in enumerate(self._pieces):
                 f[i, :p.n], a[i, :p.n], b[i, :p.n], ph[i, :p.n] = p.freq_hz, p.alpha_rad_s, p.beta_rad_s2, p.phase_rad
-            self._cache = (np.array(self._starts), f, a, b, ph, np.array([p.angle0_rad for p in self._pieces]))
+            base = angle_base(np.array([p.angle0_rad for p in self._pieces]), f, a, b, ph)
+            self._cache = (np.array(self._starts), np.array([p.n for p in self._pieces], dtype=np.int64),
+                           f, a, b, ph, base)
         return self._cache
-
-    def _evaluate(self, t_s, what: str) -> np.ndarray:
-        t = np.asarray(t_s, dtype=float)
-        flat = t.reshape(-1)
-        out = np.empty(flat.size)
-        starts, f, a, b, ph, ang0 = self._padded()
-        for k in range(0, flat.size, _BLOCK):
-            tt = flat[k:k + _BLOCK]
-            i = np.maximum(np.searchsorted(starts, tt, side="right") - 1, 0)
-            tau = (tt - starts[i])[:, None]
-            w = 2 * np.pi * f[i]
-            arg = w * tau + ph[i]
-            env = a[i] + b[i] * tau
-            if what == "rate":
-                v = np.sum(env * np.sin(arg), axis=1)
-            elif what == "accel":
-                v = np.sum(b[i] * np.sin(arg) + env * w * np.cos(arg), axis=1)
-            else:  # ∫(α+βτ)sin(wτ+φ) = −(α+βτ)cos/w + β sin/w², from 0 to τ
-                anti = -env * np.cos(arg) / w + b[i] * np.sin(arg) / w ** 2
-                anti0 = -a[i] * np.cos(ph[i]) / w + b[i] * np.sin(ph[i]) / w ** 2
-                v = ang0[i] + np.sum(anti - anti0, axis=1)
-            out[k:k + _BLOCK] = v
-        return out.reshape(t.shape)
 
 
 __all__ = ["ABORT", "ABORT_DECAY_S", "AngularMotion", "AngularTableLimits", "DEFAULT_DISTORTION",
