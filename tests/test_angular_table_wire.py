@@ -73,8 +73,8 @@ def rig():
     r.close()
 
 
-tones_drawn = st.lists(st.tuples(st.floats(0.01, 80.0), st.floats(0.1, 1000.0), st.floats(-360.0, 360.0)),
-                       min_size=1, max_size=5)
+tones_drawn = st.lists(st.tuples(st.floats(0.01, 80.0), st.floats(math.log(0.1), math.log(1000.0)).map(math.exp),
+                                 st.floats(-360.0, 360.0)), min_size=1, max_size=5)  # about 2/3 inside the limits
 
 
 @settings(max_examples=12, deadline=None)
