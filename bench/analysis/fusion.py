@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import bilinear, lfilter, lfilter_zi
 
+from bench.analysis import fusion_kernel
 from bench.analysis.fusion_models import FusionModel, SensorModel, TransferFit
 
 UPPER_FACTOR = 10.0  # r_upper = 10 σ²: a sensor's weight can fall by at most 10×
@@ -162,42 +163,33 @@ def sequential_kalman(measurements, h_rows, noises, phi, q, x0, p0) -> FilterRun
     ``measurements`` (m, n) readings; ``h_rows`` m rows of ``H``; ``noises`` m
     :class:`AdaptiveNoise`; ``phi``/``q`` the discrete model; ``x0``/``p0`` the start.  The
     covariance update ``(I − K H) P`` is computed as ``P − K (H P)`` (the same product
-    expanded, one outer product instead of an n×n matrix product)."""
-    ys = [np.asarray(y, dtype=float).tolist() for y in measurements]
+    expanded, one outer product instead of an n×n matrix product).  The loop runs compiled in
+    :func:`~bench.analysis.fusion_kernel.sequential_kernel`."""
+    ys = [np.asarray(y, dtype=float).ravel() for y in measurements]
+    n_states = np.asarray(x0).size
     hs = [np.asarray(h, dtype=float).ravel() for h in h_rows]
-    m, n_samples = len(ys), len(ys[0])
-    phi, q = np.asarray(phi, dtype=float), np.asarray(q, dtype=float)
-    phi_t = phi.T.copy()
-    x, p = np.array(x0, dtype=float), np.array(p0, dtype=float)
-    out = [0.0] * n_samples
-    nis = [[0.0] * m for _ in range(n_samples)]
-    r_used = [[0.0] * m for _ in range(n_samples)]
-    interval = [[0] * m for _ in range(n_samples)]
-    bounds = [(nz.r_lower, nz.r_upper, nz.a, nz.b) for nz in noises]
-    dot, outer = np.dot, np.outer
-    for k in range(n_samples):
-        x = dot(phi, x)
-        p = dot(dot(phi, p), phi_t) + q
-        for j in range(m):
-            h = hs[j]
-            r_lo, r_hi, a, b = bounds[j]
-            hx = float(dot(h, x))
-            ph = dot(p, h)
-            hph = float(dot(h, ph))
-            nu = ys[j][k] - hx
-            idx = nu * nu - hph  # segmentation index: this reading's noise-variance sample
-            i = 0 if idx < r_lo else (1 if idx <= r_hi else 2)
-            r = a[i] + b[i] * hx * hx
-            r = r_lo if r < r_lo else (r_hi if r > r_hi else r)
-            s = hph + r
-            gain = ph / s
-            x = x + gain * nu
-            p = p - outer(gain, dot(h, p))
-            nis[k][j] = nu * nu / s
-            r_used[k][j] = r
-            interval[k][j] = i
-        out[k] = float(x[0])
-    return FilterRun(np.array(out), np.array(nis), 1, np.array(r_used), np.array(interval, dtype=np.int8), p)
+    if not ys or len(hs) != len(ys) or len(noises) != len(ys):
+        raise ValueError(f"{len(ys)} measurement series, {len(hs)} rows of H and {len(noises)} noises; "
+                         "they must be as many, and at least one")
+    if any(y.size != ys[0].size for y in ys) or any(h.size != n_states for h in hs):
+        raise ValueError(f"series of {[y.size for y in ys]} samples and H rows of {[h.size for h in hs]} values; "
+                         f"the series must match and each row must have {n_states} values (the states)")
+    rate, nis, r_used, interval, p = fusion_kernel.sequential_kernel(
+        n_states, np.array(ys), np.array(hs), np.array([nz.r_lower for nz in noises], dtype=float),
+        np.array([nz.r_upper for nz in noises], dtype=float), np.array([nz.a for nz in noises], dtype=float),
+        np.array([nz.b for nz in noises], dtype=float), *_model_arrays(phi, q, x0, p0))
+    return FilterRun(rate, nis, 1, r_used, interval, p)
+
+
+def _model_arrays(phi, q, x0, p0) -> tuple[np.ndarray, ...]:
+    """C-contiguous float copies for the kernels; ``Q`` and ``P0`` symmetrised (an exact no-op
+    for symmetric input), since the kernels only read and write their upper triangles."""
+    phi, q, p0 = (np.array(v, dtype=float) for v in (phi, q, p0))
+    x0 = np.array(x0, dtype=float).ravel()
+    n = x0.size
+    if phi.shape != (n, n) or q.shape != (n, n) or p0.shape != (n, n):
+        raise ValueError(f"phi {phi.shape}, q {q.shape} and p0 {p0.shape} must all be ({n}, {n}) for {n} states")
+    return phi, 0.5 * (q + q.T), x0, 0.5 * (p0 + p0.T)
 
 
 def sequential_fusion(hf, lf, ts_s: float, model: FusionModel, params: FusionParams) -> FilterRun:
@@ -211,36 +203,16 @@ def sequential_fusion(hf, lf, ts_s: float, model: FusionModel, params: FusionPar
 
 def fixed_r_kalman(hf, lf, ts_s: float, model: FusionModel, params: FusionParams) -> FilterRun:
     """Conventional Kalman fusion: one stacked update ``y = [hf, lf]`` per sample with fixed
-    ``R = diag(σ1², σ2²)`` (the sensors' nominal variances), same model and discretisation."""
+    ``R = diag(σ1², σ2²)`` (the sensors' nominal variances), same model and discretisation
+    (compiled: :func:`~bench.analysis.fusion_kernel.stacked_kernel`)."""
     hf, lf = _check_series(hf, lf)
     phi, q = model.discretize(ts_s, params.discretization)
     _, _, h1, h2 = model.continuous()
-    h = np.vstack([h1, h2])
-    r = np.diag([params.hf_noise.nominal, params.lf_noise.nominal])
-    x, p = initial_state(model, hf, lf)
-    ys = np.column_stack([hf, lf]).tolist()
-    out, nis = [0.0] * hf.size, np.empty((hf.size, 1))
-    r1, r2 = float(r[0, 0]), float(r[1, 1])
-    h_t = h.T.copy()
-    phi_t = phi.T.copy()
-    dot = np.dot
-    for k in range(hf.size):
-        x = dot(phi, x)
-        p = dot(dot(phi, p), phi_t) + q
-        nu0, nu1 = ys[k][0] - float(dot(h[0], x)), ys[k][1] - float(dot(h[1], x))
-        pht = dot(p, h_t)
-        (s00, s01), (s10, s11) = dot(h, pht).tolist()
-        s00, s11 = s00 + r1, s11 + r2
-        det = s00 * s11 - s01 * s10
-        i00, i01, i10, i11 = s11 / det, -s01 / det, -s10 / det, s00 / det  # S⁻¹ of the 2×2 innovation covariance
-        w0, w1 = i00 * nu0 + i01 * nu1, i10 * nu0 + i11 * nu1  # S⁻¹ν
-        x = x + pht[:, 0] * w0 + pht[:, 1] * w1
-        gain = dot(pht, np.array([[i00, i01], [i10, i11]]))
-        p = p - dot(gain, dot(h, p))
-        nis[k, 0] = nu0 * w0 + nu1 * w1
-        out[k] = float(x[0])
-    out = np.array(out)
-    return FilterRun(out, nis, 2, final_p=p)
+    x0, p0 = initial_state(model, hf, lf)
+    r1, r2 = float(params.hf_noise.nominal), float(params.lf_noise.nominal)
+    rate, nis, p = fusion_kernel.stacked_kernel(model.n_states, np.vstack([hf, lf]), np.vstack([h1, h2]), r1,
+                                                r2, *_model_arrays(phi, q, x0, p0))
+    return FilterRun(rate, nis, 2, final_p=p)
 
 
 def complementary_filter(hf, lf, rate_hz: float, model: FusionModel, crossover_hz: float) -> np.ndarray:
