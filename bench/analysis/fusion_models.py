@@ -96,12 +96,17 @@ def _response(f, kind, order, corner_hz, gain, zeta):
 @dataclass(frozen=True)
 class TransferFit:
     """Result of :func:`fit_transfer_function`: the chosen model, its relative RMS misfit
-    ``residual`` (``rms(|Ĝ−G|/|G|)``), the misfit of every order tried, and the rule used."""
+    ``residual`` (``rms(|Ĝ−G|/|G|)``, delay included), the misfit of every order tried, the
+    rule used, the fitted pure delay ``delay_s`` (s; 0.0 when not fitted) and, when weights
+    were given, ``chi2_reduced`` = ``Σ|w(Ĝ−G)|² / (2N − p)`` (≈ 1 when the model explains the
+    FRF within its stated uncertainty)."""
 
     model: SensorModel
     residual: float
     residual_by_order: dict
     rule: str
+    delay_s: float = 0.0
+    chi2_reduced: float | None = None
 
     @property
     def corner_hz(self) -> float:
@@ -115,18 +120,43 @@ class TransferFit:
     def order(self) -> int:
         return self.model.order
 
+    def response(self, freq_hz) -> np.ndarray:
+        """Complex response of the fitted model including the delay: ``G(jω)·e^{−jωτ}``."""
+        f = np.asarray(freq_hz, dtype=float)
+        return self.model.response(f) * np.exp(-2j * np.pi * f * self.delay_s)
+
     def to_dict(self) -> dict:
         return {"model": self.model.to_dict(), "residual": float(self.residual),
-                "residual_by_order": {str(k): float(v) for k, v in self.residual_by_order.items()}, "rule": self.rule}
+                "residual_by_order": {str(k): float(v) for k, v in self.residual_by_order.items()}, "rule": self.rule,
+                "delay_s": float(self.delay_s),
+                "chi2_reduced": None if self.chi2_reduced is None else float(self.chi2_reduced)}
 
 
-def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max_order: int = 2) -> TransferFit:
-    """Fit a high- or low-pass of order 1…``max_order`` to a measured FRF.
+def _phase_slope_delay(f: np.ndarray, g: np.ndarray) -> float:
+    """Start value of the delay (s): minus the slope of the unwrapped phase against ω over the
+    top third of the band, where a rational high/low-pass's own phase is nearly flat."""
+    top = slice(max(0, f.size - max(3, f.size // 3)), None)
+    w = 2 * np.pi * f[top]
+    phase = np.unwrap(np.angle(g[top]))
+    return float(-np.polyfit(w, phase, 1)[0])
+
+
+def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max_order: int = 2,
+                          fit_delay: bool = False, weights=None) -> TransferFit:
+    """Fit a high- or low-pass of order 1…``max_order`` (optionally times a pure delay) to a measured FRF.
 
     Each order is fitted by nonlinear least squares on the *relative* complex misfit
-    ``(Ĝ(f) − G(f))/|G(f)|`` (every frequency weighs the same whatever its magnitude),
-    over log-gain, log-corner and (order 2) log-damping, started from the passband gain and
-    the −3 dB crossing.  **Order rule**: start at order 1; order ``n+1`` replaces ``n`` only if
+    ``(Ĝ(f) − G(f))/|G(f)|`` (every frequency weighs the same whatever its magnitude), or,
+    with ``weights`` (``1/σ`` of each FRF point, σ the standard uncertainty of its real and
+    imaginary parts, same unit as the response), on ``w·(Ĝ(f) − G(f))``; over log-gain,
+    log-corner and (order 2) log-damping, started from the passband gain and the −3 dB crossing.
+
+    ``fit_delay``: the model becomes ``G(jω)·e^{−jωτ}`` with a **signed** delay ``τ`` (s;
+    positive = the sensor lags the reference: latency, an unmodelled far pole ≈ ``1/(2πf_p)``,
+    or a timestamp offset, which may have either sign), started from the phase slope at the
+    top of the band (:func:`_phase_slope_delay`) and from 0, keeping the better.
+
+    **Order rule**: start at order 1; order ``n+1`` replaces ``n`` only if
     its relative RMS misfit is below ``1/ORDER_GAIN_FACTOR`` (half) of order ``n``'s — one
     more parameter must explain at least half of the remaining misfit, not just noise.
     """
@@ -138,40 +168,70 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
         raise ValueError(f"max_order {max_order} must be 1 or 2")
     if f.size != g.size:
         raise ValueError(f"freq_hz has {f.size} values and response_complex {g.size}; they must match")
-    if f.size < 2 * max_order + 1:
-        raise ValueError(f"{f.size} FRF points; at least {2 * max_order + 1} are needed for order {max_order}")
+    n_min = 2 * max_order + 1 + int(bool(fit_delay))
+    if f.size < n_min:
+        raise ValueError(f"{f.size} FRF points; at least {n_min} are needed for order {max_order}"
+                         + (" with a delay" if fit_delay else ""))
     if not (np.all(np.isfinite(f)) and np.all(f > 0) and np.all(np.isfinite(g)) and np.all(np.abs(g) > 0)):
         raise ValueError("freq_hz must be finite and > 0 and response_complex finite and non-zero")
+    w = None
+    if weights is not None:
+        w = np.asarray(weights, dtype=float).ravel()
+        if w.size != f.size or not (np.all(np.isfinite(w)) and np.all(w > 0)):
+            raise ValueError(f"weights must be {f.size} finite values > 0 (1/σ of each FRF point)")
     order_idx = np.argsort(f)
     f, g = f[order_idx], g[order_idx]
+    w = None if w is None else w[order_idx]
     mag = np.abs(g)
+    scale = mag if w is None else 1.0 / w  # residual divisor: relative, or the stated σ
     # start: passband gain (sign from phase there) and the frequency where |G| crosses gain/√2
     pass_i = -1 if kind == "highpass" else 0
-    k0 = float(np.real(g[pass_i]) / abs(np.real(g[pass_i])) * mag[pass_i]) if np.real(g[pass_i]) != 0 else mag[pass_i]
+    delay_scale = 1.0 / (2 * np.pi * f[-1])  # τ is fitted in units of one radian at the top frequency
+    taus0 = [0.0]
+    if fit_delay:
+        taus0 = [_phase_slope_delay(f, g), 0.0]
+        g_pass = g[pass_i] * np.exp(2j * np.pi * f[pass_i] * taus0[0])  # passband sign with the delay undone
+    else:
+        g_pass = g[pass_i]
+    k0 = float(np.real(g_pass) / abs(np.real(g_pass)) * mag[pass_i]) if np.real(g_pass) != 0 else mag[pass_i]
     level = np.abs(k0) / math.sqrt(2)
     below = mag < level
     cross = np.flatnonzero(below[:-1] != below[1:])
     fc0 = float(f[cross[0]]) if cross.size else float(np.sqrt(f[0] * f[-1]))
 
-    fits, residuals = {}, {}
+    fits, residuals, delays, costs = {}, {}, {}, {}
     for order in range(1, max_order + 1):
         def misfit(p, order=order):
             zeta = math.exp(p[2]) if order == 2 else 1.0
             model = _response(f, kind, order, math.exp(p[1]), math.copysign(math.exp(p[0]), k0), zeta)
-            r = (model - g) / mag
+            if fit_delay:
+                model = model * np.exp(-2j * np.pi * f * p[-1] * delay_scale)
+            r = (model - g) / scale
             return np.concatenate([r.real, r.imag])
 
-        x0 = [math.log(abs(k0)), math.log(fc0)] + ([math.log(math.sqrt(0.5))] if order == 2 else [])
-        sol = least_squares(misfit, x0, method="lm")
-        zeta = math.exp(sol.x[2]) if order == 2 else math.sqrt(0.5)
-        fits[order] = SensorModel(kind, order, math.exp(sol.x[1]), math.copysign(math.exp(sol.x[0]), k0), zeta)
-        residuals[order] = float(np.sqrt(np.mean(np.abs(fits[order].response(f) - g) ** 2 / mag ** 2)))
+        best = None
+        for tau0 in taus0:
+            x0 = [math.log(abs(k0)), math.log(fc0)] + ([math.log(math.sqrt(0.5))] if order == 2 else [])
+            x0 += [tau0 / delay_scale] if fit_delay else []
+            sol = least_squares(misfit, x0, method="lm")
+            if best is None or sol.cost < best.cost:
+                best = sol
+        zeta = math.exp(best.x[2]) if order == 2 else math.sqrt(0.5)
+        fits[order] = SensorModel(kind, order, math.exp(best.x[1]), math.copysign(math.exp(best.x[0]), k0), zeta)
+        delays[order] = float(best.x[-1] * delay_scale) if fit_delay else 0.0
+        costs[order] = (2 * best.cost, best.x.size)
+        model_g = fits[order].response(f) * np.exp(-2j * np.pi * f * delays[order])
+        residuals[order] = float(np.sqrt(np.mean(np.abs(model_g - g) ** 2 / mag ** 2)))
     chosen = 1
     for order in range(2, max_order + 1):
         if residuals[order] < residuals[chosen] / ORDER_GAIN_FACTOR:
             chosen = order
     rule = f"lowest order unless the next divides the relative RMS misfit by ≥ {ORDER_GAIN_FACTOR:g}"
-    return TransferFit(fits[chosen], residuals[chosen], residuals, rule)
+    chi2 = None
+    if w is not None:
+        ss, n_par = costs[chosen]
+        chi2 = float(ss / max(1, 2 * f.size - n_par))
+    return TransferFit(fits[chosen], residuals[chosen], residuals, rule, delays[chosen], chi2)
 
 
 @dataclass(frozen=True)
