@@ -190,6 +190,8 @@ def test_frf_point_uses_the_common_span_and_rejects_disjoint_records():
         frf_point(t_ref, ref, t_y + 10.0, y, f)
     with pytest.raises(ValueError, match="skip_s -1"):
         frf_point(t_ref, ref, t_y, y, f, skip_s=-1.0)
+    with pytest.raises(ValueError, match="reference amplitude .* must exceed 3× its standard error"):
+        frf_point(t_ref, 0.01 * rng.normal(size=t_ref.size), t_y, y, f)
 
 
 def test_frf_over_dwells_is_json_safe_and_gives_positive_weights():

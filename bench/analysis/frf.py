@@ -266,6 +266,9 @@ def frf_point(t_ref, ref, t_y, y, freq_hz: float, *, harmonics: int = 3, trend: 
     kw = dict(harmonics=harmonics, trend=trend, span_s=(start, stop), min_periods=min_periods, t0_s=start)
     fr = sine_fit(t_r, v_r, freq_hz, **kw)
     fy = sine_fit(t_s, v_s, freq_hz, **kw)
+    if not fr.mag > 3 * fr.amplitude_std:
+        raise ValueError(f"reference amplitude {fr.mag:g} at {freq_hz:g} Hz must exceed 3× its standard error "
+                         f"{fr.amplitude_std:g}: the table's tone is not above its noise")
     h = fy.amplitude / fr.amplitude
     rel_mag_var = (fy.mag_std / fy.mag) ** 2 + (fr.mag_std / fr.mag) ** 2
     phase_std = math.hypot(fy.phase_std_deg, fr.phase_std_deg)
