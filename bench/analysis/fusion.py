@@ -175,21 +175,22 @@ def sequential_kalman(measurements, h_rows, noises, phi, q, x0, p0) -> FilterRun
         raise ValueError(f"series of {[y.size for y in ys]} samples and H rows of {[h.size for h in hs]} values; "
                          f"the series must match and each row must have {n_states} values (the states)")
     rate, nis, r_used, interval, p = fusion_kernel.sequential_kernel(
-        n_states, np.array(ys), np.array(hs), np.array([nz.r_lower for nz in noises], dtype=float),
+        np.array(ys), np.array(hs), np.array([nz.r_lower for nz in noises], dtype=float),
         np.array([nz.r_upper for nz in noises], dtype=float), np.array([nz.a for nz in noises], dtype=float),
         np.array([nz.b for nz in noises], dtype=float), *_model_arrays(phi, q, x0, p0))
     return FilterRun(rate, nis, 1, r_used, interval, p)
 
 
-def _model_arrays(phi, q, x0, p0) -> tuple[np.ndarray, ...]:
-    """C-contiguous float copies for the kernels; ``Q`` and ``P0`` symmetrised (an exact no-op
-    for symmetric input), since the kernels only read and write their upper triangles."""
+def _model_arrays(phi, q, x0, p0) -> tuple:
+    """C-contiguous float copies for the kernels, ``x0`` as a tuple (its length compiles in);
+    ``Q`` and ``P0`` symmetrised (an exact no-op for symmetric input), since the kernels only
+    read and write their upper triangles."""
     phi, q, p0 = (np.array(v, dtype=float) for v in (phi, q, p0))
     x0 = np.array(x0, dtype=float).ravel()
     n = x0.size
     if phi.shape != (n, n) or q.shape != (n, n) or p0.shape != (n, n):
         raise ValueError(f"phi {phi.shape}, q {q.shape} and p0 {p0.shape} must all be ({n}, {n}) for {n} states")
-    return phi, 0.5 * (q + q.T), x0, 0.5 * (p0 + p0.T)
+    return phi, 0.5 * (q + q.T), tuple(x0.tolist()), 0.5 * (p0 + p0.T)
 
 
 def sequential_fusion(hf, lf, ts_s: float, model: FusionModel, params: FusionParams) -> FilterRun:
@@ -210,7 +211,7 @@ def fixed_r_kalman(hf, lf, ts_s: float, model: FusionModel, params: FusionParams
     _, _, h1, h2 = model.continuous()
     x0, p0 = initial_state(model, hf, lf)
     r1, r2 = float(params.hf_noise.nominal), float(params.lf_noise.nominal)
-    rate, nis, p = fusion_kernel.stacked_kernel(model.n_states, np.vstack([hf, lf]), np.vstack([h1, h2]), r1,
+    rate, nis, p = fusion_kernel.stacked_kernel(np.vstack([hf, lf]), np.vstack([h1, h2]), r1,
                                                 r2, *_model_arrays(phi, q, x0, p0))
     return FilterRun(rate, nis, 2, final_p=p)
 

@@ -6,12 +6,13 @@ cannot vectorise it over samples, and per-sample numpy calls cost ~45 µs for a 
 These kernels run the same arithmetic as scalar loops compiled by numba (``cache=True``: the
 machine code is kept in ``__pycache__`` and reused by later processes).
 
-Conventions (both kernels): ``n`` the number of states, compiled as a constant
-(``numba.literally``: one specialisation per model size, 3–5 states here, each compiled once
-and cached) so that the loops over states unroll — the prediction runs 3× faster than with
-a run-time ``n``; ``ys`` (m, N) readings, one row per sensor; ``hs`` (m, n) rows of ``H``;
-``phi``/``q`` (n, n) the discrete model; ``x0`` (n,), ``p0`` (n, n) the start.  All arrays
-float64 and C-contiguous (the callers in ``fusion`` make them so).
+Conventions (both kernels): ``ys`` (m, N) readings, one row per sensor; ``hs`` (m, n) rows
+of ``H``; ``phi``/``q`` (n, n) the discrete model; ``p0`` (n, n) the start covariance; all
+float64 and C-contiguous (the callers in ``fusion`` make them so).  The start state ``x0`` is
+a *tuple* of n floats: a tuple's length is part of its numba type, so ``n`` is a compile-time
+constant and the loops over states unroll (one specialisation per model size, compiled once
+and cached) — 3× faster than a run-time ``n``, without ``numba.literally``'s re-typing on
+every call (~0.1 s each).
 
 **Symmetry of P.**  ``P`` is symmetric in exact arithmetic; the kernels keep it *exactly*
 symmetric by computing only its upper triangle and mirroring it, in the prediction
@@ -58,7 +59,7 @@ def _predict(n, x, p, phi, q, xw, tw):
 
 
 @numba.njit(cache=True)
-def sequential_kernel(n, ys, hs, r_lower, r_upper, a, b, phi, q, x0, p0):
+def sequential_kernel(ys, hs, r_lower, r_upper, a, b, phi, q, x0, p0):
     """Document B's recursion: predict, then one scalar update per sensor ``j`` in order.
 
     ``r_lower``/``r_upper`` (m,) the noise thresholds, ``a``/``b`` (m, 3) the interval noise
@@ -66,9 +67,11 @@ def sequential_kernel(n, ys, hs, r_lower, r_upper, a, b, phi, q, x0, p0):
     segmentation index ``s = ν² − H P Hᵀ`` (0: ``s < r_lower``, 1: ``s ≤ r_upper``, 2: above).
     Returns ``(rate (N,), nis (N, m), r (N, m), interval (N, m) int8, P_final (n, n))``,
     ``rate`` the first state after the last update of each sample."""
-    numba.literally(n)
     m, n_samples = ys.shape
-    x = x0.copy()
+    n = len(x0)
+    x = np.empty(n)
+    for i in range(n):
+        x[i] = x0[i]
     p = p0.copy()
     xw = np.empty(n)
     tw = np.empty((n, n))
@@ -113,13 +116,15 @@ def sequential_kernel(n, ys, hs, r_lower, r_upper, a, b, phi, q, x0, p0):
 
 
 @numba.njit(cache=True)
-def stacked_kernel(n, ys, hs, r1, r2, phi, q, x0, p0):
+def stacked_kernel(ys, hs, r1, r2, phi, q, x0, p0):
     """Conventional fixed-R filter: predict, then one stacked update with both readings
     (``ys`` (2, N), ``hs`` (2, n), ``R = diag(r1, r2)``; the 2×2 innovation covariance
     inverted in closed form).  Returns ``(rate (N,), nis (N, 1), P_final (n, n))``."""
-    numba.literally(n)
     n_samples = ys.shape[1]
-    x = x0.copy()
+    n = len(x0)
+    x = np.empty(n)
+    for i in range(n):
+        x[i] = x0[i]
     p = p0.copy()
     xw = np.empty(n)
     tw = np.empty((n, n))
