@@ -329,3 +329,18 @@ def test_requests_going_back_in_time_are_refused():
 def test_bad_parameters_raise_naming_the_range(make, match):
     with pytest.raises(ValueError, match=match):
         make()
+
+
+def test_sensors_on_the_angular_table_follow_their_frequency_response():
+    from sim.physics.angular_demand import Tone
+    from sim.physics.angular_table import AngularMotion
+
+    table = AngularMotion(distortion=(0.0, 0.0))
+    table.start_tones(0.0, [Tone(0.5, 80.0)])  # rate 0.5 sin(2π·80 t) once the 1-s ramp is over
+    mhd = mhd_sensor(table.pieces, None, noise=False, t_origin_s=-0.5)
+    lf = lf_sensor(table.pieces, None, noise=False, t_origin_s=-0.5)
+    starts = 3.0 + np.arange(200) * 1e-4
+    for sensor, offset in ((mhd, MHD_PRESET.offset_v), (lf, LF_PRESET.bias_dph / 3600)):
+        expected = 0.5 * window_mean_of_sine(sensor.response(80.0), 80.0, 0.0, starts, 1e-4) + offset
+        np.testing.assert_allclose(sensor.mean_output(starts, 1e-4), expected, rtol=0,
+                                   atol=1e-9 * abs(sensor.response(80.0)))

@@ -206,6 +206,7 @@ class LinearRateSensor:
         # motion time of the carried state (the sensor at t sees the motion at t − latency)
         self._t = None if t_origin_s is None else float(t_origin_s) - self.latency_s
         self._x = None  # carried state; None = settled on the covering piece's forced response
+        self._comp_cache = None
 
     # ---- the continuous model -------------------------------------------------------------
     def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -235,7 +236,11 @@ class LinearRateSensor:
         return expm(self.a[None] * tau[:, None, None])
 
     def _components(self, pcs: Sequence[MotionPiece]):
-        """Padded per-piece component arrays (m, K) and the vectors M B, M² B (m, K, n)."""
+        """Padded per-piece component arrays (m, K) and the vectors M B, M² B (m, K, n);
+        the last result is reused when the same pieces come again (a dwell's calls)."""
+        if self._comp_cache is not None and len(self._comp_cache[0]) == len(pcs) \
+                and all(a is b for a, b in zip(self._comp_cache[0], pcs)):
+            return self._comp_cache[1]
         m, k = len(pcs), max(1, max(p.n for p in pcs))
         ncomp = np.array([p.n for p in pcs], dtype=np.int64)
         w, alpha, beta, phase = np.ones((m, k)), np.zeros((m, k)), np.zeros((m, k)), np.zeros((m, k))
@@ -245,7 +250,9 @@ class LinearRateSensor:
         jw_a = 1j * w[..., None, None] * np.eye(self.n) - self.a  # (m, K, n, n)
         v1 = np.linalg.solve(jw_a, np.broadcast_to(self.b.astype(complex), (m, k, self.n))[..., None])
         v2 = np.linalg.solve(jw_a, v1)
-        return ncomp, w, alpha, beta, phase, v1[..., 0], v2[..., 0]
+        comp = ncomp, w, alpha, beta, phase, v1[..., 0], v2[..., 0]
+        self._comp_cache = (list(pcs), comp)
+        return comp
 
     @staticmethod
     def _forced(comp, seg: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
