@@ -50,6 +50,7 @@ DRIVERS = {
     "acutrol_turntable": "instruments.turntable:DualAxisTurntable",
     "fog_serial": "instruments.fog:SerialGyro",
     "vibration_controller": "instruments.shaker:VibrationTable",
+    "angular_vibration_table": "instruments.angular_table:AngularVibrationTable",
 }
 #: serial-line driver kinds (opened with pyserial, not VISA):
 #: option -> ("set" of allowed values | "range" lo..hi, allowed, default)
@@ -273,13 +274,17 @@ def _driver_class(kind: str):
     return getattr(importlib.import_module(module), cls)
 
 
+#: sensor kind → the simulated station's option naming that unit's serial
+UNIT_KEYS = {"accelerometer": "unit_serial", "gyro": "gyro_serial", "angular": "mhd_serial"}
+
+
 class Station:
     """Open drivers and clock of a station; closes everything (and the embedded sim) on exit."""
 
     def __init__(self, config: StationConfig, *, seed: int | None = None,
                  unit_serial: str | None = None, unit_kind: str = "accelerometer") -> None:
-        if unit_kind not in ("accelerometer", "gyro"):
-            raise ValueError(f"unit_kind {unit_kind!r} not in accelerometer|gyro")
+        if unit_kind not in UNIT_KEYS:
+            raise ValueError(f"unit_kind {unit_kind!r} not in {'|'.join(UNIT_KEYS)}")
         self.config = config
         self.seed = seed
         self.unit_serial = unit_serial
@@ -351,8 +356,7 @@ class Station:
         if self.seed is not None:
             sim_opts["seed"] = self.seed
         if self.unit_serial is not None:
-            key = "gyro_serial" if self.unit_kind == "gyro" else "unit_serial"
-            sim_opts[key] = self.unit_serial
+            sim_opts[UNIT_KEYS[self.unit_kind]] = self.unit_serial
         for key in ("sampling_resistor_ohm", "temp_resistor_ohm",
                     "positive_rail_channel", "negative_rail_channel", "gyro_supply_channel"):
             sim_opts.setdefault(key, cfg.wiring[key])
@@ -366,7 +370,9 @@ class Station:
         res = self.sim.resources()
         drivers = {"dmm": "keysight_34465a", "dmm_temp": "keysight_34465a",
                    "supply": "keysight_e36312a", "turntable": "acutrol_turntable",
-                   "gyro": "fog_serial", "shaker": "vibration_controller"}
+                   "gyro": "fog_serial", "shaker": "vibration_controller",
+                   "angular_table": "angular_vibration_table", "dmm_mhd": "keysight_34465a",
+                   "lf_gyro": "fog_serial"}
         instruments = {n: InstrumentConfig(n, d, res[n]) for n, d in drivers.items()}
         return StationConfig("sim", instruments, res["sim"], "@py", cfg.wiring, cfg.simulation,
                              cfg.site)

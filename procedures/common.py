@@ -148,9 +148,11 @@ def make_safe(ctx: Context) -> None:
     actions = []
     if "supply" in inst:
         actions.append(("supply off", inst["supply"].outputs_off))
-    for name in ("dmm", "dmm_temp"):
+    for name in ("dmm", "dmm_temp", "dmm_mhd"):
         if name in inst:
             actions.append((f"{name} abort", inst[name].abort))
+    if "lf_gyro" in inst and inst["lf_gyro"].streaming:  # its own supply: stop the stream by command
+        actions.append(("lf_gyro stop", inst["lf_gyro"].stop))
     if "turntable" in inst:
         def stop_table() -> None:
             failures = inst["turntable"].stop_all()
@@ -159,6 +161,8 @@ def make_safe(ctx: Context) -> None:
         actions.append(("turntable stop", stop_table))
     if "shaker" in inst:
         actions.append(("shaker stop", inst["shaker"].stop))
+    if "angular_table" in inst:
+        actions.append(("angular table stop", inst["angular_table"].stop))
     each_safely(actions)
 
 

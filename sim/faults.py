@@ -31,9 +31,9 @@ power      all                             the instrument loses power: silent, o
                                            lost, table drives off, shaker drive cut,
                                            gyro unpowered); clearing powers it back up
                                            in its power-on state
-interlock  turntable                       the interlock trips: drives off, status bits
+interlock  turntable, angular_table        the interlock trips: drives off, status bits
                                            16 and 32, latched until ``:INT:RES``
-overload   dmm, dmm_temp                   the input is forced to ``volts`` (default
+overload   dmm, dmm_temp, dmm_mhd          the input is forced to ``volts`` (default
                                            1e4 V, beyond every range): readings ±9.9E37
 ========== =============================== ============================================
 """
@@ -46,6 +46,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from sim.devices.angular_table import AngularTableController
 from sim.devices.dmm import Multimeter
 from sim.devices.fog_serial import FogSerialDevice
 from sim.devices.shaker import ShakerController
@@ -177,8 +178,10 @@ def _garble(reply: bytes, rng: np.random.Generator) -> bytes:
     buf = bytearray(body)
     if buf and rng.random() < 0.5:
         pos = int(rng.integers(len(buf)))
-        flipped = buf[pos] ^ (1 << int(rng.integers(8)))
-        buf[pos] = flipped if flipped != 0x0A else flipped ^ 0x80
+        bit = int(rng.integers(8))
+        flipped = buf[pos] ^ (1 << bit)
+        # a flip that would make a terminator flips the next bit instead (still one change)
+        buf[pos] = flipped if flipped != 0x0A else buf[pos] ^ (1 << ((bit + 1) % 8))
     else:
         byte = int(rng.integers(0, 255))
         buf.insert(int(rng.integers(len(buf) + 1)), byte if byte != 0x0A else 0xFF)
@@ -189,13 +192,14 @@ class FaultInjector:
     """Per-instrument faults of one simulated station (``station.faults``).
 
     ``devices`` maps instrument names to their simulated devices; ``call`` runs a function
-    on the server thread (the world is only touched there); ``gyro_volts`` gives the gyro's
-    supply voltage now (to power it back up after a power fault).
+    on the server thread (the world is only touched there); ``gyro_volts`` gives a serial
+    unit's supply voltage now (to power it back up after a power fault): one callable for
+    every serial line, or a dict of them by instrument name.
     """
 
     def __init__(self, world: World, devices: dict[str, Any],
                  call: Callable[..., Any] | None = None,
-                 gyro_volts: Callable[[], float] | None = None) -> None:
+                 gyro_volts: Callable[[], float] | dict[str, Callable[[], float]] | None = None) -> None:
         self.world, self.devices = world, dict(devices)
         self.call = call or (lambda fn, *a: fn(*a))
         self.gyro_volts = gyro_volts
@@ -212,7 +216,7 @@ class FaultInjector:
     def kinds(self, instrument: str) -> tuple[str, ...]:
         dev = self._device(instrument)
         kinds = SERIAL_KINDS if isinstance(dev, FogSerialDevice) else SCPI_KINDS
-        if isinstance(dev, TurntableController):
+        if isinstance(dev, (TurntableController, AngularTableController)):
             kinds += ("interlock",)
         if isinstance(dev, Multimeter):
             kinds += ("overload",)
@@ -343,6 +347,8 @@ class FaultInjector:
                 axis.command_off(now)
         elif isinstance(dev, ShakerController):
             dev.shaker.abort(now)
+        elif isinstance(dev, AngularTableController):
+            dev.cut_drive()
         elif isinstance(dev, FogSerialDevice):
             dev.gyro.set_supply(now, 0.0)
             dev.power_changed(now)
@@ -353,7 +359,8 @@ class FaultInjector:
             return
         gate.state.powered = True
         if isinstance(dev, FogSerialDevice):
-            volts = self.gyro_volts() if self.gyro_volts is not None else 0.0
+            source = self.gyro_volts.get(name) if isinstance(self.gyro_volts, dict) else self.gyro_volts
+            volts = source() if source is not None else 0.0
             dev.gyro.set_supply(self.world.now, volts)
             dev.power_changed(self.world.now)
             return
@@ -361,7 +368,10 @@ class FaultInjector:
         dev._errors.clear()
         dev.esr = 0x80
 
-    def _trip(self, dev: TurntableController) -> None:
+    def _trip(self, dev: TurntableController | AngularTableController) -> None:
+        if isinstance(dev, AngularTableController):
+            dev.open_interlock()  # drive cut, ABORT latched until the interlock is reset
+            return
         dev.tripped = True
         for axis in dev.table.axes:  # drives disabled: the axes coast to rest
             axis.command_off(self.world.now)

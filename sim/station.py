@@ -38,6 +38,7 @@ from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
 from sim.physics.motion import DualAxisTable
 from sim.physics.shaker import Shaker
 from sim.server import Endpoint, InstrumentServer
+from sim.station_angular import AngularRig, draw_rig
 from sim.station_gyro import StationGyro, check_gyro_serial, station_gyro_params
 from sim.world import World
 
@@ -69,6 +70,11 @@ class SimStationConfig:
     gyro_supply_channel: int = 1
     #: shaker motion axis as a unit vector in the platform frame
     shaker_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    #: the angular rig's sensor pair (``sim.station_angular``): serial, overrides of the drawn units
+    mhd_serial: str = "MHD-SIM-0001"
+    mhd: dict = field(default_factory=dict)        # MhdParams overrides
+    lf_sensor: dict = field(default_factory=dict)  # LfRateParams overrides
+    dmm_timebase_ppm: float = 0.0                  # the MHD DMM's sample timer, slow by this much
     host: str = "127.0.0.1"
 
     def validate(self) -> None:
@@ -106,6 +112,10 @@ class SimStationConfig:
                              "in the platform frame")
         check_gyro_serial(self.gyro_serial)
         station_gyro_params(self.gyro_serial, self.gyro_grade, self.gyro)
+        draw_rig(self.mhd_serial, self.mhd, self.lf_sensor)
+        ppm = self.dmm_timebase_ppm
+        if isinstance(ppm, bool) or not isinstance(ppm, (int, float)) or not abs(ppm) <= 1000:
+            raise ValueError(f"dmm_timebase_ppm = {ppm!r} not in -1000..1000 ppm")
 
 
 class SimulatedStation:
@@ -139,14 +149,20 @@ class SimulatedStation:
                                  latitude_deg=cfg.latitude_deg, g_mps2=self.g_mps2,
                                  shaker=self.shaker)
         self.gyro, self.gyro_line = self._gyro.model, self._gyro.line
-        names = ["dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker"]
+        self.angular = AngularRig(self.world, serial=cfg.mhd_serial, mhd=cfg.mhd, lf=cfg.lf_sensor,
+                                  line_pickup_v=cfg.line_pickup_v, line_hz=cfg.line_hz,
+                                  ideal_meters=cfg.ideal_meters, dmm_timebase_ppm=cfg.dmm_timebase_ppm)
+        names = ["dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "angular_table", "dmm_mhd",
+                 "lf_gyro"]
         self.server = InstrumentServer(cfg.host)
         gyro_ch = cfg.gyro_supply_channel
         #: fault injection (``sim.faults``): ``station.faults.inject("stall", "dmm", at_s=...)``
         self.faults = FaultInjector(
             self.world, dict(zip(names, (self.dmm, self.dmm_temp, self.supply, self.turntable,
-                                         self.gyro_line, self.shaker_controller))),
-            call=self.server.call, gyro_volts=lambda: self.supply.read(gyro_ch).voltage_v)
+                                         self.gyro_line, self.shaker_controller, self.angular.controller,
+                                         self.angular.dmm, self.angular.lf_line))),
+            call=self.server.call, gyro_volts={"gyro": lambda: self.supply.read(gyro_ch).voltage_v,
+                                               "lf_gyro": self.angular.supply_volts})
         self.server.faults = self.faults
         self.sim_control = SimControl(self.world, names, self.faults)
         self._wire_power()
@@ -156,6 +172,9 @@ class SimulatedStation:
                                 ("turntable", "turntable", self.turntable),
                                 ("gyro", "gyro", self.gyro_line),
                                 ("shaker", "shaker", self.shaker_controller),
+                                ("angular_table", "angular_table", self.angular.controller),
+                                ("dmm_mhd", "multimeter", self.angular.dmm),
+                                ("lf_gyro", "gyro", self.angular.lf_line),
                                 ("sim", "sim_control", self.sim_control)):
             self.server.add(name, kind, dev)
         self.endpoints: list[Endpoint] = []
@@ -227,6 +246,10 @@ class SimulatedStation:
         return {"g_mps2": self.g_mps2, "g_local_over_g0": self.g_mps2 / STANDARD_GRAVITY_MPS2,
                 "sampling_resistor_ohm": self.config.sampling_resistor_ohm,
                 **self.accel.truth()}
+
+    def angular_truth(self) -> dict:
+        """The angular rig's drawn sensors (for recovery tests, never for procedures)."""
+        return self.angular.truth()
 
     def gyro_truth(self) -> dict:
         """The simulated gyro's true parameters (for recovery tests, never for procedures)."""

@@ -42,7 +42,8 @@ def _station_file(tmp_path, sim, *, dmm_address=None, dmm_options=None) -> str:
 def test_builtin_sim_station_is_healthy(capsys):
     assert main(["doctor"]) == 0
     out = capsys.readouterr().out
-    for name in ("dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "clock"):
+    for name in ("dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "angular_table", "dmm_mhd",
+                 "lf_gyro", "clock"):
         assert f"\n{name} " in out
     assert "all healthy" in out and "FAIL" not in out
 
@@ -52,7 +53,8 @@ def test_json_shape(capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["station"] == "sim" and doc["healthy"] is True
     rows = {r["name"]: r for r in doc["instruments"]}
-    assert set(rows) == {"dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "clock"}
+    assert set(rows) == {"dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "angular_table", "dmm_mhd",
+                         "lf_gyro", "clock"}
     for row in rows.values():
         assert set(row) >= {"driver", "address", "identity", "errors", "status", "reason",
                             "round_trip_ms", "options", "expected_options"}

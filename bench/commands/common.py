@@ -37,7 +37,8 @@ def resolve_run_id(store: RunStore, run_id: str) -> str:
 
 #: the simulated unit a procedure gets when neither --unit nor the station file names one
 SIM_DEFAULT_UNIT = {"accelerometer": ("unit_serial", "QA-SIM-0001"),
-                    "gyro": ("gyro_serial", "FOG-SIM-0001")}
+                    "gyro": ("gyro_serial", "FOG-SIM-0001"),
+                    "angular": ("mhd_serial", "MHD-SIM-0001")}
 
 
 def seed_of(args, config) -> int | None:

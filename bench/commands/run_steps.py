@@ -35,38 +35,54 @@ def _load(name: str):
     return step, step.Parameters
 
 
+def add_parameter_options(p, params) -> None:
+    """One ``--option`` per field of a step's parameter dataclass, defaults from it."""
+    for f in dataclasses.fields(params):
+        kind = int if f.type in (int, "int") else float
+        default = "the station's" if f.default is None else f.default
+        p.add_argument(f"--{f.name.replace('_', '-')}", dest=f"param_{f.name}", type=kind,
+                       default=f.default, metavar=kind.__name__.upper(), help=f"[{default}]")
+
+
+def step_from_args(args, cls, params_cls):
+    """The step built (and validated) from its ``--options``, before any station opens."""
+    values = {f.name: getattr(args, f"param_{f.name}") for f in dataclasses.fields(params_cls)}
+    return cls(params_cls(**values))
+
+
 def register_procedure(procs, common) -> None:
     for name, (_, _, help_text) in STEP_COMMANDS.items():
         p = procs.add_parser(name, help=help_text)
         common(p)
-        _, params = _load(name)
-        for f in dataclasses.fields(params):
-            kind = int if f.type in (int, "int") else float
-            default = "the station's" if f.default is None else f.default
-            p.add_argument(f"--{f.name.replace('_', '-')}", dest=f"param_{f.name}", type=kind,
-                           default=f.default, metavar=kind.__name__.upper(), help=f"[{default}]")
+        add_parameter_options(p, _load(name)[1])
         p.set_defaults(func=run_step, step_name=name)
 
 
-def run_step(args) -> int:
+def execute_step(args, step):
+    """Run one step as its own procedure on the station ``--station``; returns the outcome."""
     from bench.procedure import execute
     from bench.station import Station, resolve_station
     from procedures.steps import StepProcedure
 
-    cls, params_cls = _load(args.step_name)
-    values = {f.name: getattr(args, f"param_{f.name}") for f in dataclasses.fields(params_cls)}
-    step = cls(params_cls(**values))  # validated before the station opens
     config = resolve_station(args.station)
     kind = step.kinds[0]
     unit, seed = unit_of(args, config, kind), seed_of(args, config)
     store = open_store(args)
     with Station(config, seed=seed, unit_serial=unit, unit_kind=kind) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
-        outcome = execute(StepProcedure(step), station, store, unit_serial=unit, seed=seed,
-                          progress=progress)
+        return execute(StepProcedure(step), station, store, unit_serial=unit, seed=seed,
+                       progress=progress)
+
+
+def exit_code(outcome) -> int:
+    return {"passed": 0, "failed": 1}.get(outcome.status, 2)
+
+
+def run_step(args) -> int:
+    outcome = execute_step(args, step_from_args(args, *_load(args.step_name)))
     if args.json:
         json.dump(outcome.to_dict(), sys.stdout, indent=2, allow_nan=False)  # NaN → null in to_dict
         print()
     else:
         print_outcome(outcome)
-    return {"passed": 0, "failed": 1}.get(outcome.status, 2)
+    return exit_code(outcome)

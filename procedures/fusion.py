@@ -1,0 +1,212 @@
+"""Document B on the angular rig: record both sensors and the reference over a profile and
+fuse them — the sequential adaptive-R Kalman filter beside each sensor alone, a fixed-R
+Kalman fusion and a complementary filter, all against the table's reference.
+
+1. Sensor models: a stepped-sine FRF (``procedures.frf``, ``frf_points_per_decade``) and
+   each sensor's fitted transfer function with its delay.
+2. Static segment (``static_s``, table at rest): the MHD output offset (V) and the LF bias
+   (°/s), subtracted from the profile's readings (the models have no DC terms).
+3. The profile: a multi-tone demand (``tones_per_decade`` log-spaced tones from
+   ``f_min_hz`` to ``f_max_hz``, each ``amplitude_dps``, phases spread so the peaks do not
+   add up), ramped up, ``settle_s``, then ``duration_s`` recorded at ``rate_hz``.
+4. Alignment: the LF frame clock's rate error is estimated against the reference from the
+   phase drift of the strongest tone the LF sensor passes (``bench.analysis.frf``) and
+   removed; each sensor's time axis is moved back by its fitted delay; the LF frames and
+   the reference are resampled onto the MHD readings' instants.
+5. ``bench.analysis.fusion_metrics.analyze_fusion`` with the fitted models: fused rate and
+   the baselines, amplitude and phase error per tone, RMS error, NIS.
+
+Streams: ``frf_*`` and ``fusion_ref|hf|lf`` (raw, as acquired; block 0 static, 1 profile)
+and ``fusion_aligned`` (the aligned series and every method's estimate).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from bench.analysis.frf_timebase import apply_time_base, estimate_time_base, resample
+from bench.analysis.fusion_metrics import analyze_fusion
+from bench.procedure import Context
+from procedures.angular_record import MAX_RATE_HZ, add_streams, record
+from procedures.common import Estimate, check_ranges
+from procedures.frf import FrfParameters, LIMIT_USE, RUN_TIMEOUT_MARGIN_S, measure_frf
+from procedures.steps import ParameterizedStep
+
+CLOCK_BLOCK_S = 5.0       # block length of the LF clock estimate
+METHODS = ("fused", "fixed_r_kf", "complementary", "hf", "lf")
+
+
+def estimate_column(method: str) -> str:
+    """Column of ``fusion_aligned`` holding a method's rate estimate (deg/s)."""
+    return {"hf": "hf_alone_dps", "lf": "lf_alone_dps"}.get(method, f"{method}_dps")
+
+FUSION_PRODUCES = {
+    "rms_error_fused": ("deg/s", "RMS error of Document B's sequential adaptive-R fusion vs the reference"),
+    "rms_error_fixed_r_kf": ("deg/s", "RMS error of the conventional fixed-R Kalman fusion"),
+    "rms_error_complementary": ("deg/s", "RMS error of the complementary filter"),
+    "rms_error_hf": ("deg/s", "RMS error of the MHD sensor alone (÷ its passband gain)"),
+    "rms_error_lf": ("deg/s", "RMS error of the LF sensor alone (÷ its passband gain)"),
+    "max_amplitude_error_fused": ("%", "largest |amplitude error| of the fused rate over the tones"),
+    "max_phase_error_fused": ("deg", "largest |phase error| of the fused rate over the tones"),
+    "fused_minus_best_sensor": ("%", "max over tones of |fused amplitude error| − the better single "
+                                     "sensor's (≤ 0: never worse than the better sensor)"),
+    "lf_clock_error": ("ppm", "LF frame clock rate error (positive: fast) estimated against the reference"),
+}
+
+
+@dataclass
+class FusionParameters:
+    f_min_hz: float = 0.1
+    f_max_hz: float = 1000.0
+    tones_per_decade: int = 2
+    amplitude_dps: float = 2.0
+    duration_s: float = 60.0
+    static_s: float = 5.0
+    settle_s: float = 2.0
+    ramp_s: float = 1.0
+    rate_hz: float = 10000.0
+    frame_rate_hz: int = 4000
+    frf_points_per_decade: int = 2
+    frf_amplitude_dps: float = 5.0
+
+    def validate(self) -> None:
+        check_ranges(asdict(self), {
+            "f_min_hz": (0.1, 1000), "f_max_hz": (0.1, 1000), "tones_per_decade": (1, 3),
+            "amplitude_dps": (0.01, 500), "duration_s": (1, 3600), "static_s": (0.5, 600),
+            "settle_s": (0, 600), "ramp_s": (0.01, 60), "rate_hz": (1000, MAX_RATE_HZ),
+            "frame_rate_hz": (100, 4608), "frf_points_per_decade": (1, 20),
+            "frf_amplitude_dps": (0.01, 500)},
+            integers=("tones_per_decade", "frame_rate_hz", "frf_points_per_decade"))
+        if not self.f_min_hz < self.f_max_hz:
+            raise ValueError(f"f_min_hz = {self.f_min_hz} must be < f_max_hz = {self.f_max_hz}")
+        if self.f_max_hz >= self.rate_hz / 4:
+            raise ValueError(f"f_max_hz = {self.f_max_hz} must be below rate_hz/4 = {self.rate_hz / 4:g} Hz")
+        if self.duration_s < 3 / self.f_min_hz:
+            raise ValueError(f"duration_s = {self.duration_s} must cover 3 periods of f_min_hz "
+                             f"(≥ {3 / self.f_min_hz:g} s)")
+        if len(self.tones_hz()) > 16:
+            raise ValueError(f"{len(self.tones_hz())} tones; the table synthesises at most 16")
+
+    def tones_hz(self) -> np.ndarray:
+        decades = math.log10(self.f_max_hz / self.f_min_hz)
+        n = max(2, int(round(decades * self.tones_per_decade)) + 1)
+        return self.f_min_hz * (self.f_max_hz / self.f_min_hz) ** (np.arange(n) / (n - 1))
+
+    def frf(self) -> FrfParameters:
+        return FrfParameters(f_min_hz=self.f_min_hz, f_max_hz=self.f_max_hz,
+                             points_per_decade=self.frf_points_per_decade,
+                             amplitude_dps=self.frf_amplitude_dps, frame_rate_hz=self.frame_rate_hz)
+
+
+def tone_demand(limits, tones_hz: np.ndarray, amplitude_dps: float) -> list[tuple[float, float, float]]:
+    """Equal-amplitude tones, scaled down together if the sums of their angle, rate or
+    acceleration amplitudes would pass ``LIMIT_USE`` of the table's limits; Schroeder phases
+    (φₖ = −πk²/n) keep the peak of the sum low."""
+    w = 2 * np.pi * tones_hz
+    use = [np.sum(amplitude_dps / w) / limits.angle_deg, tones_hz.size * amplitude_dps / limits.rate_dps,
+           np.sum(amplitude_dps * w) / limits.accel_dps2]
+    scale = min(1.0, LIMIT_USE / max(use))
+    n = tones_hz.size
+    phases = np.degrees(np.mod(-np.pi * np.arange(n) ** 2 / n, 2 * np.pi))
+    return [(float(amplitude_dps * scale), float(f), float(ph)) for f, ph in zip(tones_hz, phases)]
+
+
+def align(rec, fits: dict, tones_hz: np.ndarray, hf_offset_v: float, lf_bias_dps: float) -> dict:
+    """Put the LF frames and the reference on the MHD readings' instants (module docstring)."""
+    lf_model = fits["lf"].model
+    passed = tones_hz[np.abs(lf_model.response(tones_hz)) >= 0.5 * abs(lf_model.gain)]
+    f_clock = float(passed.max()) if passed.size else float(tones_hz.min())
+    span = float(min(rec.t_lf_s[-1], rec.t_ref_s[-1]) - max(rec.t_lf_s[0], rec.t_ref_s[0]))
+    block = max(10.0 / f_clock, min(CLOCK_BLOCK_S, span / 4))
+    if span >= 3 * block:
+        tb = estimate_time_base(rec.t_ref_s, rec.ref_dps, rec.t_lf_s, rec.lf_dps - lf_bias_dps, f_clock, block)
+        t_lf = apply_time_base(rec.t_lf_s, tb, epoch_s=rec.t0_s)
+        clock = {"frequency_hz": f_clock, **tb.to_dict()}
+    else:  # too short for three blocks of ten periods: left uncorrected, said so
+        t_lf = rec.t_lf_s
+        clock = {"frequency_hz": f_clock, "block_s": block, "rate_ppm": None, "rate_std_ppm": None,
+                 "note": f"record {span:.3g} s too short for 3 blocks of {block:.3g} s: LF clock not corrected"}
+    t_lf = t_lf - fits["lf"].delay_s
+    t_hf = rec.t_hf_s - fits["hf"].delay_s
+    lo, hi = max(t_lf[0], rec.t_ref_s[0]), min(t_lf[-1], rec.t_ref_s[-1])
+    keep = (t_hf >= lo) & (t_hf <= hi)
+    t = t_hf[keep]
+    return {"t_s": t, "hf_v": rec.hf_v[keep] - hf_offset_v,
+            "lf_dps": resample(t_lf, rec.lf_dps - lf_bias_dps, t),
+            "ref_dps": resample(rec.t_ref_s, rec.ref_dps, t),
+            "clock": clock,
+            "hf_delay_s": fits["hf"].delay_s, "lf_delay_s": fits["lf"].delay_s}
+
+
+class FusionTest(ParameterizedStep):
+    name = "fusion"
+    requires = ("angular_table", "dmm_mhd", "lf_gyro")
+    kinds = ("angular",)
+    produces = FUSION_PRODUCES
+
+    Parameters = FusionParameters
+
+    def duration_s(self) -> float:
+        p = self.p
+        frf = p.frf()
+        return (sum(frf.dwell_s(f) + frf.settle_s + 2 * frf.ramp_s for f in frf.frequencies_hz())
+                + p.static_s + p.duration_s + p.settle_s + 2 * p.ramp_s)
+
+    def run(self, ctx: Context) -> dict[str, Estimate]:
+        p = self.p
+        table = ctx.instruments["angular_table"]
+        total = self.duration_s()
+        frf_total = total - (p.static_s + p.duration_s + p.settle_s + 2 * p.ramp_s)
+        frf = measure_frf(ctx, p.frf(), prefix="frf",
+                          progress=lambda d, t, m="": ctx.progress(d * frf_total / t, total, m))
+        fits = frf["fits"]
+        add_streams(ctx, "fusion")
+        table.stop()
+        ctx.run.event(ctx.clock.now(), "static", "table at rest: MHD offset and LF bias")
+        static = record(ctx, p.static_s, p.rate_hz, p.frame_rate_hz, "fusion", 0,
+                        progress=lambda x: ctx.progress(frf_total + x * p.static_s, total, "static"))
+        hf_offset, lf_bias = float(np.mean(static.hf_v)), float(np.mean(static.lf_dps))
+        tones = p.tones_hz()
+        demand = tone_demand(table.limits(), tones, p.amplitude_dps)
+        table.ramp_time_s = p.ramp_s
+        table.set_tones(demand)
+        table.start()
+        table.wait_running(ctx.clock.sleep, timeout_s=p.ramp_s + RUN_TIMEOUT_MARGIN_S)
+        ctx.clock.sleep(p.settle_s)
+        ctx.run.event(ctx.clock.now(), "profile", f"{tones.size} tones {tones[0]:.3g}-{tones[-1]:.4g} Hz at "
+                      f"{demand[0][0]:.3g} deg/s each", tones_hz=[float(f) for f in tones],
+                      amplitude_dps=demand[0][0])
+        base = frf_total + p.static_s + p.settle_s + p.ramp_s
+        rec = record(ctx, p.duration_s, p.rate_hz, p.frame_rate_hz, "fusion", 1,
+                     progress=lambda x: ctx.progress(base + x * p.duration_s, total, "profile"))
+        table.stop()
+        aligned = align(rec, fits, tones, hf_offset, lf_bias)
+        ctx.run.set_result("fusion.alignment", {k: v for k, v in aligned.items() if not k.endswith(("_v", "_dps"))
+                                                and k != "t_s"}
+                           | {"hf_offset_v": hf_offset, "lf_bias_dps": lf_bias})
+        analysis = analyze_fusion(aligned["t_s"], aligned["hf_v"], aligned["lf_dps"], aligned["ref_dps"],
+                                  p.rate_hz, hf_model=fits["hf"].model, lf_model=fits["lf"].model,
+                                  tones_hz=tones, settle_s=1.0)
+        ctx.run.set_result("fusion.analysis", analysis.to_dict())
+        ctx.run.add_stream("fusion_aligned", {"t_s": "s", "hf_v": "V", "lf_dps": "deg/s", "ref_dps": "deg/s",
+                                              **{estimate_column(m): "deg/s" for m in METHODS}},
+                           "aligned record on the MHD instants and every method's rate estimate")
+        ctx.run.append("fusion_aligned", t_s=aligned["t_s"], hf_v=aligned["hf_v"], lf_dps=aligned["lf_dps"],
+                       ref_dps=aligned["ref_dps"], **{estimate_column(m): analysis.estimates[m] for m in METHODS})
+        return summarize(analysis, aligned["clock"])
+
+
+def summarize(analysis, clock: dict) -> dict[str, Estimate]:
+    amp = analysis.amplitude_error_pct
+    best_single = np.minimum(np.abs(amp["hf"]), np.abs(amp["lf"]))
+    out = {f"rms_error_{m}": Estimate(analysis.rms_error[m], None) for m in METHODS}
+    out["max_amplitude_error_fused"] = Estimate(float(np.max(np.abs(amp["fused"]))), None)
+    out["max_phase_error_fused"] = Estimate(float(np.max(np.abs(analysis.phase_error_deg["fused"]))), None)
+    out["fused_minus_best_sensor"] = Estimate(float(np.max(np.abs(amp["fused"]) - best_single)), None)
+    # stamps are corrected by rate_ppm: a clock fast by δ needs −δ
+    if clock["rate_ppm"] is not None:
+        out["lf_clock_error"] = Estimate(-clock["rate_ppm"], clock["rate_std_ppm"])
+    return out
