@@ -1,5 +1,6 @@
-"""EMD (Document C, step 1): exact reconstruction, IMF properties, agreement with PyEMD,
-the spline and extrema primitives, and the choice of non-random terms."""
+"""EMD (Document C, step 1): exact reconstruction, IMF properties, agreement with PyEMD
+and with the previous pure-numpy implementation (tests/emd_numpy_ref), the spline and
+extrema primitives, and the choice of non-random terms."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import lfilter
 
 from bench.analysis.emd import count_zero_crossings, emd, find_extrema, nonrandom_terms
-from bench.analysis.emd_kernel import Spline, Workspace, envelope_knots, not_a_knot_slopes, sift
+from bench.analysis.emd_kernel import Spline, envelope_knots, not_a_knot_slopes, sift
 
 PyEMD = pytest.importorskip("PyEMD")
 
@@ -145,30 +146,32 @@ def test_spline_equals_scipy_not_a_knot(seed, m):
 
 
 @settings(max_examples=20, deadline=None)
-@given(st.integers(0, 2**31), st.sampled_from([2, 3, 6, 40]), st.sampled_from([2, 5, 60]))
-def test_sift_is_h_minus_the_envelope_mean(seed, gap_u, gap_l):
-    """The blocked sifting (shared running count, run expansion, reused scratch, merged
-    mean) gives h − (upper + lower)/2 with each envelope evaluated on its own, and CubicSpline's values."""
+@given(st.integers(0, 2**31), st.integers(20, 3000), st.booleans())
+def test_sift_is_h_minus_the_envelope_mean(seed, n, quant):
+    """One compiled sifting gives h − (upper + lower)/2 with CubicSpline's envelopes, and the
+    sums, extrema, zero crossings and Rilling counts of the result."""
     rng = np.random.default_rng(seed)
-    n = 3000
-    h = rng.normal(size=n)
-    ws = Workspace(n, block=512)  # several blocks, both evaluation paths
-    splines, refs = [], []
-    for slot, gap in enumerate((gap_u, gap_l)):
-        pos = np.unique(np.r_[-3, np.cumsum(rng.integers(1, 2 * gap, 2 * n // gap)), n + 2])
-        pos = pos[pos <= n + 2]
-        val = rng.normal(size=pos.size)
-        Spline.through(pos, rng.normal(size=pos.size), ws.scratch(slot, pos.size))  # dirty the scratch
-        splines.append(Spline.through(pos, val, ws.scratch(slot, pos.size)))
-        refs.append(CubicSpline(pos.astype(float), val)(np.arange(n)))
-    mean = 0.5 * (refs[0] + refs[1])
-    out = np.empty(n)
-    st_ = sift(h, out, splines[0], splines[1], ws)
+    h = rng.normal(size=n) + np.sin(np.arange(n) / 7.0)
+    if quant:
+        h = np.round(h * 2) / 2  # flat runs and exact zeros: the general extrema rules
+    imax, imin = find_extrema(h)
+    if imax.size + imin.size < 3:
+        return
+    px, vx, pn, vn = envelope_knots(h, imax, imin, 2)
+    up = CubicSpline(px.astype(float), vx)(np.arange(n))
+    lo = CubicSpline(pn.astype(float), vn)(np.arange(n))
+    mean = 0.5 * (up + lo)
+    out, st_ = sift(h, imax, imin, 2, (0.05, 0.5))
     np.testing.assert_allclose(out, h - mean, atol=1e-9)
     assert st_.mean_energy == pytest.approx(np.sum(mean**2), rel=1e-9)
+    assert st_.input_energy == pytest.approx(np.sum(h**2), rel=1e-12)
     np.testing.assert_array_equal(st_.imax, find_extrema(out)[0])
-    sift(h, out, Spline.average(*splines), None, ws)
-    np.testing.assert_allclose(out, h - mean, atol=1e-9)
+    np.testing.assert_array_equal(st_.imin, find_extrema(out)[1])
+    assert st_.zero_crossings == count_zero_crossings(out)
+    half = np.abs(lo - mean)
+    assert abs(st_.over_theta1 - np.count_nonzero(np.abs(mean) > 0.05 * half)) <= 2  # rounding at the threshold
+    assert abs(st_.over_theta2 - np.count_nonzero(np.abs(mean) > 0.5 * half)) <= 2
+
 
 def test_extrema_and_zero_crossings():
     h = np.array([0.0, 1.0, 1.0, 1.0, 0.0, -1.0, -1.0, 2.0, 3.0, 1.0, 1.0])

@@ -40,8 +40,8 @@ fastest first) and a residue.  Conventions and choices:
 * **Exact reconstruction by construction**: ``residue = x − Σ imfs``, so
   ``Σ imfs + residue`` returns ``x`` up to one floating-point rounding.
 
-The sifting itself (blocked envelopes, extrema and sums in one pass) lives in
-:mod:`.emd_kernel`; the choice of the non-random components (:func:`nonrandom_terms`)
+The sifting itself (compiled with numba: envelopes, extrema and sums in one pass per
+sifting, one call per IMF) lives in :mod:`.emd_kernel` and :mod:`.emd_spline`; the choice of the non-random components (:func:`nonrandom_terms`)
 in :mod:`.nonrandom`.
 """
 
@@ -52,8 +52,8 @@ from typing import Literal
 
 import numpy as np
 
-from bench.analysis.emd_kernel import (Spline, Workspace, count_zero_crossings, envelope_knots,
-                                       find_extrema, sift)
+from bench.analysis.emd_kernel import (CONVERGED, DEGENERATE, STOP_CODES, count_zero_crossings, find_extrema,
+                                       sift_imf)
 from bench.analysis.nonrandom import Component, NonRandomTerms, nonrandom_terms
 
 StopRule = Literal["sd", "rilling", "s-number"]
@@ -122,7 +122,6 @@ def emd(x: np.ndarray, *, max_imfs: int | None = None, max_sifts: int = 1000, st
     range_tol = _check("range_tol", range_tol, 0.0)
 
     n = x.size
-    ws = Workspace(n)
     buffers = (np.empty(n), np.empty(n))  # sifting ping-pongs between these
     scale = float(np.ptp(x))
     imfs: list[np.ndarray] = []
@@ -135,14 +134,15 @@ def emd(x: np.ndarray, *, max_imfs: int | None = None, max_sifts: int = 1000, st
         imax, imin = find_extrema(r)
         if imax.size + imin.size < 3:
             break  # the residue is a trend
-        h = _sift_one(r, imax, imin, ws, buffers, stop=stop, max_sifts=max_sifts, sd_threshold=sd_threshold,
-                      thetas=(th1, th2, alpha), s_number=s_number, nbsym=nbsym)
-        if h is None:
+        how, k, where = sift_imf(r, *buffers, imax, imin, STOP_CODES[stop], max_sifts, sd_threshold, th1, th2,
+                                 alpha, s_number, nbsym)
+        if how == DEGENERATE:
             break  # the proto-IMF lost its oscillation: it belongs to the residue
-        imf, k, done = h
-        imfs.append(imf.copy())
-        sifts.append(k)
-        converged.append(done)
+        if how < 0:
+            raise ValueError("an envelope spline system is singular (knot positions not increasing)")
+        imfs.append((r if where < 0 else buffers[where]).copy())
+        sifts.append(int(k))
+        converged.append(how == CONVERGED)
         r -= imfs[-1]
     stack = np.array(imfs) if imfs else np.empty((0, n))
     residue = x - stack.sum(axis=0)  # exact reconstruction by construction
@@ -150,46 +150,3 @@ def emd(x: np.ndarray, *, max_imfs: int | None = None, max_sifts: int = 1000, st
                 "rilling_thresholds": [th1, th2, alpha], "s_number": s_number, "nbsym": nbsym,
                 "range_tol": range_tol}
     return EmdResult(stack, residue, tuple(sifts), tuple(converged), stop, settings)
-
-
-def _sift_one(r: np.ndarray, imax: np.ndarray, imin: np.ndarray, ws: Workspace,
-              buffers: tuple[np.ndarray, np.ndarray], *, stop: str, max_sifts: int, sd_threshold: float,
-              thetas: tuple[float, float, float], s_number: int, nbsym: int
-              ) -> tuple[np.ndarray, int, bool] | None:
-    """Sift one IMF out of ``r``: ``(imf, siftings, converged)``, or None if it degenerates."""
-    h, k, stable, counts = r, 0, 0, (-1, -1)
-    rilling = stop == "rilling"
-    while True:
-        px, vx, pn, vn = envelope_knots(h, imax, imin, nbsym)
-        out = buffers[0] if h is not buffers[0] else buffers[1]
-        upper = Spline.through(px, vx, ws.scratch(0, px.size))
-        lower = Spline.through(pn, vn, ws.scratch(1, pn.size))
-        if not rilling and 10 * (px.size + pn.size) < h.size:
-            # long knot intervals (over ~20 samples): one merged mean spline halves the
-            # per-sample work; below that, merging costs more than it saves (measured)
-            upper, lower = Spline.average(upper, lower), None
-        st = sift(h, out, upper, lower, ws, thetas[:2] if rilling else None)
-        if rilling:
-            if st.over_theta1 <= thetas[2] * h.size and st.over_theta2 == 0:
-                return h, k, True  # h's own envelopes are symmetric enough: h is the IMF
-            if k == max_sifts:
-                return h, k, False
-        k += 1
-        imax, imin = st.imax, st.imin
-        n_ext = imax.size + imin.size
-        if n_ext < 3:
-            return None
-        balanced = abs(n_ext - st.zero_crossings) <= 1
-        if stop == "sd":
-            shaped = vx.min() >= 0 and vn.max() <= 0  # the input's knots, mirrored ones included
-            sd = st.mean_energy / max(st.input_energy, np.finfo(float).tiny)
-            if shaped and balanced and sd < sd_threshold:
-                return out, k, True
-        elif stop == "s-number":
-            stable = stable + 1 if (n_ext, st.zero_crossings) == counts and balanced else 0
-            counts = (n_ext, st.zero_crossings)
-            if stable >= s_number:
-                return out, k, True
-        h = out
-        if not rilling and k == max_sifts:
-            return h, k, False

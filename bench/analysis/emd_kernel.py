@@ -1,73 +1,46 @@
-"""The inner loop of :mod:`bench.analysis.emd`: extrema, mirrored envelope knots and one sifting.
+"""The inner loop of :mod:`bench.analysis.emd`, compiled with numba: extrema, mirrored
+envelope knots, one sifting, and the whole sifting loop of one IMF.
 
 Speed notes (measured beside PyEMD in ``benchmarks/bench_emd.py``; the sifting count is
 fixed by the stop criterion, so only the cost of one sifting can be cut):
 
-* One sifting is a single pass over the record in cache-sized blocks: the envelopes
-  (or, when knot intervals are long, one merged mean spline), the subtraction, the
-  sums of the SD criterion, the extrema and the zero crossings of the result are
-  computed block by block while the block is in cache.  Whole-record temporaries made
-  every step memory-bound.
-* The extrema of the sifted result are found in the same pass, so each sifting finds
+* One compiled call (:func:`sift_imf`) sifts one IMF to the end: no Python, no
+  temporaries between siftings; all buffers are allocated once per IMF.
+* One sifting is one pass over the record: both envelopes (two interval pointers
+  walking their knots, Horner), their mean, ``h − mean``, the sums of the SD criterion,
+  Rilling's exceedance counts, and the extrema and zero crossings of the result.
+  The spline set-up is O(knots) (:mod:`.emd_spline`).
+* The extrema of the sifted result are found in that same pass, so each sifting finds
   extrema once (PyEMD does it three times).
-* Splines, their evaluation and the scratch arrays: :mod:`.emd_spline`.
-* The two envelopes are merged into one mean spline only when knot intervals average
-  over ~20 samples; below that the merge (a Taylor shift per merged interval) costs
-  more than the second evaluation it saves.
-* Sums use ``einsum``, not BLAS ``dot``: on a busy machine a BLAS call may wake its
-  thread pool and cost milliseconds.
+
+The arithmetic per sample repeats the previous numpy implementation's; only the order
+of the two energy sums differs (sequential here), which moves the SD ratio by rounding.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from bench.analysis.emd_spline import BLOCK, Spline, Workspace, interval_indices, not_a_knot_slopes
+from bench.analysis.emd_extrema import (_extrema_into, count_zero_crossings, count_zero_crossings_kernel,
+                                        find_extrema)
+from bench.analysis.emd_spline import Spline, evaluate, not_a_knot_slopes, spline_pair
 
-__all__ = ["BLOCK", "SiftStats", "Spline", "Workspace", "count_zero_crossings", "envelope_knots", "find_extrema",
-           "not_a_knot_slopes", "sift"]
+__all__ = ["SiftStats", "Spline", "count_zero_crossings", "envelope_knots", "evaluate", "find_extrema",
+           "not_a_knot_slopes", "sift", "sift_imf", "STOP_CODES"]
 
-
-# --------------------------------------------------------------------------- extrema
-
-
-def find_extrema(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the local maxima and minima of ``h``.
-
-    A flat run of equal samples between a rise and a fall (or a fall and a rise) counts
-    once, at its middle rounded half to even (as PyEMD); flat runs touching an end of
-    the record are not extrema.
-    """
-    d = np.diff(h)
-    if np.count_nonzero(d) == d.size:  # no flat runs: one comparison per sample
-        up = d > 0
-        chg = np.flatnonzero(up[1:] != up[:-1])
-        idx = chg + 1
-    else:
-        nz = np.flatnonzero(d)
-        up = d[nz] > 0
-        chg = np.flatnonzero(up[1:] != up[:-1])
-        idx = np.rint(0.5 * (nz[chg] + 1 + nz[chg + 1])).astype(np.intp)  # middle of the flat run
-    is_max = up[chg]
-    return idx[is_max], idx[~is_max]
-
-
-def count_zero_crossings(h: np.ndarray) -> int:
-    """Sign changes of ``h`` between consecutive samples, exact zeros skipped."""
-    pos = h > 0
-    if np.count_nonzero(h) == h.size:
-        return int(np.count_nonzero(pos[1:] != pos[:-1]))
-    s = pos[h != 0]
-    return int(np.count_nonzero(s[1:] != s[:-1]))
+STOP_CODES = {"sd": 0, "rilling": 1, "s-number": 2}
+DEGENERATE, CONVERGED, MAX_SIFTS = 0, 1, 2  # how sift_imf ended
+TINY = float(np.finfo(float).tiny)
 
 
 # --------------------------------------------------------------------------- ends
 
 
-def _mirror_start(first: float, imax: np.ndarray, vmax: np.ndarray, imin: np.ndarray, vmin: np.ndarray,
-                  nbsym: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+@numba.njit(cache=True)
+def _mirror_start(first, imax, vmax, imin, vmin, nbsym):
     """Knots reflected before sample 0: ``(pos_max, val_max, pos_min, val_min)``, ascending.
 
     Rilling's rule: reflect about the first extremum unless the first sample lies beyond
@@ -75,27 +48,98 @@ def _mirror_start(first: float, imax: np.ndarray, vmax: np.ndarray, imin: np.nda
     extremum of that kind and the reflection is about it.  Falls back to reflecting the
     first ``nbsym`` extrema about sample 0 when the reflected knots would not reach it.
     """
-    extra_max = extra_min = None
+    extra_max = extra_min = False
     if imax[0] < imin[0]:  # the first extremum is a maximum
         if first > vmin[0]:
-            sym, kmax, kmin = int(imax[0]), slice(1, nbsym + 1), slice(0, nbsym)
+            sym, a0, a1, b0, b1 = imax[0], 1, nbsym + 1, 0, nbsym
         else:  # sample 0 acts as a minimum
-            sym, kmax, kmin, extra_min = 0, slice(0, nbsym), slice(0, nbsym - 1), first
-    else:
-        if first < vmax[0]:
-            sym, kmax, kmin = int(imin[0]), slice(0, nbsym), slice(1, nbsym + 1)
-        else:  # sample 0 acts as a maximum
-            sym, kmax, kmin, extra_max = 0, slice(0, nbsym - 1), slice(0, nbsym), first
-    pmax, qmax, pmin, qmin = imax[kmax], vmax[kmax], imin[kmin], vmin[kmin]
-    if extra_max is not None:
-        pmax, qmax = np.r_[0, pmax], np.r_[extra_max, qmax]
-    if extra_min is not None:
-        pmin, qmin = np.r_[0, pmin], np.r_[extra_min, qmin]
+            sym, a0, a1, b0, b1, extra_min = 0, 0, nbsym, 0, nbsym - 1, True
+    elif first < vmax[0]:
+        sym, a0, a1, b0, b1 = imin[0], 0, nbsym, 1, nbsym + 1
+    else:  # sample 0 acts as a maximum
+        sym, a0, a1, b0, b1, extra_max = 0, 0, nbsym - 1, 0, nbsym, True
+    pmax, qmax = _with_extra(imax[a0:a1], vmax[a0:a1], extra_max, first)
+    pmin, qmin = _with_extra(imin[b0:b1], vmin[b0:b1], extra_min, first)
     tmax, tmin = 2 * sym - pmax, 2 * sym - pmin
-    if not (tmax.size and tmin.size and tmax.min() <= 0 and tmin.min() <= 0):
-        pmax, qmax, pmin, qmin = imax[:nbsym], vmax[:nbsym], imin[:nbsym], vmin[:nbsym]
-        tmax, tmin = -pmax, -pmin
-    return tmax[::-1], qmax[::-1], tmin[::-1], qmin[::-1]
+    if tmax.size == 0 or tmin.size == 0 or tmax.min() > 0 or tmin.min() > 0:
+        tmax, qmax = -imax[:nbsym], vmax[:nbsym].copy()
+        tmin, qmin = -imin[:nbsym], vmin[:nbsym].copy()
+    return tmax[::-1].copy(), qmax[::-1].copy(), tmin[::-1].copy(), qmin[::-1].copy()
+
+
+@numba.njit(cache=True)
+def _with_extra(p, q, extra, first):
+    k = 1 if extra else 0
+    pos, val = np.empty(p.size + k, dtype=np.int64), np.empty(p.size + k)
+    if extra:
+        pos[0], val[0] = 0, first
+    pos[k:], val[k:] = p, q
+    return pos, val
+
+
+@numba.njit(cache=True)
+def _place(pos, val, off, count, lp, lv, rp, rv, n):
+    """Around the extrema at ``pos/val[off : off + count]``: the left reflections before them
+    and the right ones (mapped back) after, in place; a knot whose position does not
+    exceed the one before it is dropped (a reflection landing on a knot; by the
+    reflection rules it does not happen, so the check is cheap and the compaction rare).
+    Returns ``(first, number)`` of the knots."""
+    first = off - lp.size
+    pos[first:off] = lp
+    val[first:off] = lv
+    end = off + count
+    for j in range(rp.size):
+        pos[end + j] = n - 1 - rp[rp.size - 1 - j]
+        val[end + j] = rv[rv.size - 1 - j]
+    m = end + rp.size - first
+    strict = True
+    for j in range(first + 1, min(off + 1, first + m)):  # the left knots and the first junction
+        strict &= pos[j] > pos[j - 1]
+    for j in range(max(end, first + 1), first + m):  # the last junction and the right knots
+        strict &= pos[j] > pos[j - 1]
+    if strict:
+        return first, m
+    prev = pos[first]
+    w = first + 1
+    for j in range(first + 1, first + m):
+        p = pos[j]
+        if p > prev:
+            pos[w] = p
+            val[w] = val[j]
+            w += 1
+        prev = p
+    return first, w - first
+
+
+@numba.njit(cache=True)
+def _side(pos, val, off, count, nbsym, reverse, n):
+    """The first ``nbsym + 1`` extrema at ``pos/val[off : off + count]`` or, with ``reverse``,
+    the last ``nbsym + 1`` in the reversed record's coordinates (``n − 1 − i``, ascending):
+    all that a reflection can use."""
+    k = min(count, nbsym + 1)
+    p, v = np.empty(k, dtype=np.int64), np.empty(k)
+    for j in range(k):
+        i = off + count - 1 - j if reverse else off + j
+        p[j] = n - 1 - pos[i] if reverse else pos[i]
+        v[j] = val[i]
+    return p, v
+
+
+@numba.njit(cache=True)
+def _knots_in_place(h0, h1, n, px, vx, nmax, pn, vn, nmin, nbsym, off):
+    """Envelope knots with mirrored ends around the extrema stored at ``[off : off + count]``
+    of ``px/vx`` (maxima) and ``pn/vn`` (minima); ``h0, h1`` the first and last samples:
+    ``(first_max, m_max, first_min, m_min)``."""
+    fmx, fvx = _side(px, vx, off, nmax, nbsym, False, n)
+    fmn, fvn = _side(pn, vn, off, nmin, nbsym, False, n)
+    lpx, lvx, lpn, lvn = _mirror_start(h0, fmx, fvx, fmn, fvn, nbsym)
+    # the end is the start of the reversed record: reflect there and map back
+    bmx, bvx = _side(px, vx, off, nmax, nbsym, True, n)
+    bmn, bvn = _side(pn, vn, off, nmin, nbsym, True, n)
+    rpx, rvx, rpn, rvn = _mirror_start(h1, bmx, bvx, bmn, bvn, nbsym)
+    sx, mx = _place(px, vx, off, nmax, lpx, lvx, rpx, rvx, n)
+    sn, mn = _place(pn, vn, off, nmin, lpn, lvn, rpn, rvn, n)
+    return sx, mx, sn, mn
 
 
 def envelope_knots(h: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: int
@@ -105,33 +149,121 @@ def envelope_knots(h: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: int
     Needs at least one maximum and one minimum; positions are strictly increasing
     integers whose first is ≤ 0 and last ≥ ``h.size - 1``.
     """
-    n = h.size
-    vmax, vmin = h[imax], h[imin]
-    lpx, lvx, lpn, lvn = _mirror_start(h[0], imax, vmax, imin, vmin, nbsym)
-    # the end is the start of the reversed record: reflect there and map back (only the
-    # last nbsym + 1 extrema of each kind can be reflected)
-    e = -(nbsym + 1)
-    rpx, rvx, rpn, rvn = _mirror_start(h[-1], (n - 1 - imax[e:])[::-1], vmax[e:][::-1],
-                                       (n - 1 - imin[e:])[::-1], vmin[e:][::-1], nbsym)
-    px = np.concatenate([lpx, imax, (n - 1 - rpx)[::-1]])
-    vx = np.concatenate([lvx, vmax, rvx[::-1]])
-    pn = np.concatenate([lpn, imin, (n - 1 - rpn)[::-1]])
-    vn = np.concatenate([lvn, vmin, rvn[::-1]])
-    return (*_strict(px, vx, lpx.size, rpx.size), *_strict(pn, vn, lpn.size, rpn.size))
-
-
-def _strict(pos: np.ndarray, val: np.ndarray, head: int, tail: int) -> tuple[np.ndarray, np.ndarray]:
-    """Drop repeated knot positions (a reflection can land on an existing knot).
-
-    The extrema in between are strictly increasing, so only the ``head`` reflected knots
-    before them and the ``tail`` after them (and their junctions) are checked."""
-    if (np.diff(pos[: head + 2]) > 0).all() and (np.diff(pos[-(tail + 2) :]) > 0).all():
-        return pos, val
-    keep = np.r_[True, np.diff(pos) > 0]
-    return pos[keep], val[keep]
+    h = np.ascontiguousarray(h, dtype=float)
+    imax, imin = (np.ascontiguousarray(i, dtype=np.int64) for i in (imax, imin))
+    if imax.size < 1 or imin.size < 1:
+        raise ValueError(f"envelopes need ≥ 1 maximum and ≥ 1 minimum, got {imax.size} and {imin.size}")
+    off = nbsym + 2
+    px, pn = np.empty(off + imax.size + nbsym + 2, dtype=np.int64), np.empty(off + imin.size + nbsym + 2, dtype=np.int64)
+    vx, vn = np.empty(px.size), np.empty(pn.size)
+    px[off : off + imax.size], vx[off : off + imax.size] = imax, h[imax]
+    pn[off : off + imin.size], vn[off : off + imin.size] = imin, h[imin]
+    sx, mx, sn, mn = _knots_in_place(h[0], h[-1], h.size, px, vx, imax.size, pn, vn, imin.size, nbsym, off)
+    return px[sx : sx + mx].copy(), vx[sx : sx + mx].copy(), pn[sn : sn + mn].copy(), vn[sn : sn + mn].copy()
 
 
 # --------------------------------------------------------------------------- one sifting
+
+
+@numba.njit(cache=True)
+def _envelope_mean(out, px, vx, mx, u1, u2, u3, pn, vn, mn, l1, l2, l3, rilling, th1, th2):  # noqa: PLR0913
+    """``out = (upper + lower)/2`` at every sample; with ``rilling``, the counts of samples
+    where ``|mean| > θ1·a`` and ``> θ2·a`` (``a = |lower − mean|``, the envelope half-range).
+
+    Branch-free: knot positions are distinct integers, so an interval pointer moves at
+    most once per sample (a data-dependent branch per sample and envelope cost more
+    than all the arithmetic)."""
+    ju = jl = over1 = over2 = 0
+    eu, el = mx - 2, mn - 2
+    n = out.size
+    for i in range(n):
+        if i < n - 1:  # the last knots lie at n − 1 or later: no pointer passes its last interval here
+            ju += px[ju + 1] <= i
+            jl += pn[jl + 1] <= i
+        else:
+            ju += (ju < eu) & (px[ju + 1] <= i)
+            jl += (jl < el) & (pn[jl + 1] <= i)
+        t = float(i - px[ju])
+        up = ((u3[ju] * t + u2[ju]) * t + u1[ju]) * t + vx[ju]
+        t = float(i - pn[jl])
+        lo = ((l3[jl] * t + l2[jl]) * t + l1[jl]) * t + vn[jl]
+        mean = (up + lo) * 0.5
+        out[i] = mean
+        if rilling:
+            half = abs(lo - mean)
+            over1 += abs(mean) > th1 * half
+            over2 += abs(mean) > th2 * half
+    return over1, over2
+
+
+@numba.njit(cache=True)
+def _subtract_scan(h, out, imax, imin, vmax, vmin):
+    """``out = h − out`` (``out`` holding the envelope mean) with ``(Σ mean², Σ h², n_max,
+    n_min, zero crossings)``; the extrema of the result go to ``imax``/``imin`` and their
+    values to ``vmax``/``vmin`` (one spare slot each).
+
+    Without flat runs or exact zeros (the rule for every sifting of a noisy record) an
+    extremum is a sign change of consecutive differences: branch-free, as the extrema of
+    noise are unpredictable, every candidate is written and the counts decide.  Otherwise
+    the general rules of :func:`_extrema_into` and :func:`count_zero_crossings` decide."""
+    e_mean = e_in = 0.0
+    nmax = nmin = zc = 0
+    flat = False
+    prev = dprev = 0.0
+    for i in range(2):  # the first two samples: no extremum can end there yet
+        mean = out[i]
+        hi = h[i]
+        e_mean += mean * mean
+        e_in += hi * hi
+        v = hi - mean
+        out[i] = v
+        if i == 1:
+            dprev = v - prev
+            zc += (v > 0.0) != (prev > 0.0)
+            flat |= dprev == 0.0
+        flat |= v == 0.0
+        prev = v
+    for i in range(2, h.size):
+        mean = out[i]
+        hi = h[i]
+        e_mean += mean * mean
+        e_in += hi * hi
+        v = hi - mean
+        out[i] = v
+        d = v - prev
+        imax[nmax] = i - 1
+        imin[nmin] = i - 1
+        vmax[nmax] = prev
+        vmin[nmin] = prev
+        nmax += (dprev > 0.0) & (d < 0.0)
+        nmin += (dprev < 0.0) & (d > 0.0)
+        zc += (v > 0.0) != (prev > 0.0)
+        flat |= (d == 0.0) | (v == 0.0)
+        dprev = d
+        prev = v
+    if flat:
+        nmax, nmin = _extrema_into(out, imax, imin)
+        zc = count_zero_crossings_kernel(out)
+        for j in range(nmax):
+            vmax[j] = out[imax[j]]
+        for j in range(nmin):
+            vmin[j] = out[imin[j]]
+    return e_mean, e_in, nmax, nmin, zc
+
+
+@numba.njit(cache=True)
+def _sift_pass(h, out, px, vx, mx, u1, u2, u3, pn, vn, mn, l1, l2, l3, rilling, th1, th2,  # noqa: PLR0913
+               imax, imin, vmax, vmin):
+    """``out = h − (upper + lower)/2`` with ``(Σ mean², Σ h², n_max, n_min, zero crossings,
+    Rilling's counts over θ1 and θ2)`` of the result; its extrema go to ``imax``/``imin``,
+    their values to ``vmax``/``vmin``.
+
+    Two loops over the record (envelope mean; subtraction, sums, extrema and zero
+    crossings): one fused loop measured twice as slow (register pressure), and a
+    cache-blocked version gained nothing."""
+    over1, over2 = _envelope_mean(out, px, vx, mx, u1, u2, u3, pn, vn, mn, l1, l2, l3, rilling, th1, th2)
+    e_mean, e_in, nmax, nmin, zc = _subtract_scan(h, out, imax, imin, vmax, vmin)
+    return e_mean, e_in, nmax, nmin, zc, over1, over2
 
 
 @dataclass(frozen=True)
@@ -147,77 +279,80 @@ class SiftStats:
     over_theta2: int  # samples with |m| > θ2·a
 
 
-def sift(h: np.ndarray, out: np.ndarray, upper: Spline, lower: Spline | None, ws: Workspace,
-         thetas: tuple[float, float] | None = None) -> SiftStats:
-    """``out = h − (upper + lower)/2`` in one blocked pass, with the sums and counts of
-    :class:`SiftStats`; ``thetas = (θ1, θ2)`` also counts Rilling's exceedances.  With
-    ``lower=None``, ``upper`` is the envelope mean itself (:meth:`Spline.average`)."""
-    if lower is None and thetas is not None:
-        raise ValueError("Rilling's criterion needs both envelopes")
-    ulo, uhi = upper.block_ranges(ws.starts, ws.stops)
-    if lower is not None:
-        llo, lhi = lower.block_ranges(ws.starts, ws.stops)
-    e_mean = e_in = 0.0
-    zc = over1 = over2 = 0
-    maxima: list[np.ndarray] = []
-    minima: list[np.ndarray] = []
-    exact = True  # no flat runs and no exact zeros met: block results are final
-    for k, (a, b) in enumerate(zip(ws.starts.tolist(), ws.stops.tolist())):
-        m = b - a
-        u, lo, t, tmp, flag = ws.u[:m], ws.lo[:m], ws.t[:m], ws.tmp[:m], ws.flag
-        uk, lk = (int(ulo[k]), int(uhi[k])), (int(llo[k]), int(lhi[k])) if lower is not None else None
-        if lower is not None and upper.short_intervals(a, b, *uk) and lower.short_intervals(a, b, *lk):
-            iu, il = interval_indices(a, m, upper.pos, uk, lower.pos, lk, ws)
-            upper.evaluate_block(a, b, *uk, ws, u, iu)
-            lower.evaluate_block(a, b, *lk, ws, lo, il)
-        else:
-            upper.evaluate_block(a, b, *uk, ws, u)
-            if lower is not None:
-                lower.evaluate_block(a, b, *lk, ws, lo)
-        if lower is not None:
-            u += lo
-            u *= 0.5  # u is now the envelope mean
-        if thetas is not None:
-            lo -= u  # -(upper - lower)/2
-            np.abs(lo, out=lo)
-            np.abs(u, out=tmp)
-            np.multiply(lo, thetas[0], out=t)
-            over1 += int(np.count_nonzero(np.greater(tmp, t, out=flag[:m])))
-            np.multiply(lo, thetas[1], out=t)
-            over2 += int(np.count_nonzero(np.greater(tmp, t, out=flag[:m])))
-        hb = h[a:b]
-        # einsum, not BLAS dot: a BLAS call may wake its thread pool, which costs
-        # milliseconds per call on a busy machine
-        e_mean += float(np.einsum("i,i->", u, u))
-        e_in += float(np.einsum("i,i->", hb, hb))
-        np.subtract(hb, u, out=out[a:b])
-        if not exact:
-            continue
-        # extrema at a-1..b-2 (all samples they need are final now); zero crossings of
-        # the pairs (a-1, a)..(b-2, b-1)
-        w0 = max(a - 2, 0)
-        w = out[w0:b]
-        d = ws.d[: w.size - 1]
-        np.subtract(w[1:], w[:-1], out=d)
-        if np.equal(d, 0.0, out=flag[: d.size]).any():  # cheaper than count_nonzero on floats
-            exact = False
-            continue
-        up = np.greater(d, 0, out=flag[: d.size])
-        chg = np.flatnonzero(up[1:] != up[:-1])
-        if chg.size:
-            pos = chg + (w0 + 1)
-            first = 0 if up[chg[0]] else 1  # without flat runs maxima and minima alternate
-            maxima.append(pos[first::2])
-            minima.append(pos[1 - first :: 2])
-        z = out[max(a - 1, 0) : b]
-        if np.equal(z, 0.0, out=flag[: z.size]).any():
-            exact = False
-            continue
-        sgn = np.greater(z, 0, out=flag[: z.size])
-        zc += int(np.count_nonzero(sgn[1:] != sgn[:-1]))
-    if exact:
-        imax, imin = np.concatenate(maxima), np.concatenate(minima)
-    else:  # flat runs or exact zeros: the whole-record rules decide
-        imax, imin = find_extrema(out)
-        zc = count_zero_crossings(out)
-    return SiftStats(e_mean, e_in, imax, imin, zc, over1, over2)
+def sift(h: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: int = 2,
+         thetas: tuple[float, float] = (0.05, 0.5)) -> tuple[np.ndarray, SiftStats]:
+    """One sifting of ``h`` (extrema ``imax``, ``imin``): ``(h − mean envelope, stats)``."""
+    h = np.ascontiguousarray(h, dtype=float)
+    px, vx, pn, vn = envelope_knots(h, imax, imin, nbsym)
+    up, lo = Spline.through(px, vx), Spline.through(pn, vn)
+    out = np.empty_like(h)
+    ext_max, ext_min = np.empty(h.size // 2 + 2, dtype=np.int64), np.empty(h.size // 2 + 2, dtype=np.int64)
+    e_mean, e_in, nmax, nmin, zc, o1, o2 = _sift_pass(
+        h, out, up.pos, up.c0, up.pos.size, up.c1, up.c2, up.c3, lo.pos, lo.c0, lo.pos.size, lo.c1, lo.c2, lo.c3,
+        True, float(thetas[0]), float(thetas[1]), ext_max, ext_min, np.empty(ext_max.size), np.empty(ext_min.size))
+    return out, SiftStats(e_mean, e_in, ext_max[:nmax].copy(), ext_min[:nmin].copy(), zc, o1, o2)
+
+
+# --------------------------------------------------------------------------- one IMF
+
+
+@numba.njit(cache=True)
+def sift_imf(r, buf0, buf1, imax0, imin0, stop_code, max_sifts, sd_threshold, th1, th2, alpha,  # noqa: PLR0913
+             s_number, nbsym):
+    """Sift one IMF out of ``r`` (extrema ``imax0``, ``imin0``), ping-ponging between
+    ``buf0`` and ``buf1``: ``(how, siftings, where)`` with ``how`` one of DEGENERATE,
+    CONVERGED, MAX_SIFTS (or −1: singular spline system) and ``where`` the buffer holding
+    the IMF (0, 1; −1: ``r`` itself).  Stop rules and codes: :data:`STOP_CODES`,
+    :mod:`bench.analysis.emd`."""
+    n = r.size
+    off = nbsym + 2  # room for the left reflections before the extrema
+    cap = off + n // 2 + 2 + nbsym + 2  # + extrema of one kind (one spare) + right reflections
+    # two sets (this sifting's knots, the next one's extrema) of maxima and minima: the
+    # sifting pass writes the extrema of its result where they become the next knots
+    kp = np.empty((4, cap), dtype=np.int64)
+    kv = np.empty((4, cap))
+    coef = np.empty((6, cap))
+    nmax, nmin = imax0.size, imin0.size
+    for j in range(nmax):
+        kp[0, off + j], kv[0, off + j] = imax0[j], r[imax0[j]]
+    for j in range(nmin):
+        kp[1, off + j], kv[1, off + j] = imin0[j], r[imin0[j]]
+    cur, which, k, stable, c_ext, c_zc = 0, -1, 0, 0, -1, -1
+    rilling = stop_code == 1
+    h = r
+    while True:
+        px, vx, pn, vn = kp[2 * cur], kv[2 * cur], kp[2 * cur + 1], kv[2 * cur + 1]
+        sx, mx, sn, mn = _knots_in_place(h[0], h[n - 1], n, px, vx, nmax, pn, vn, nmin, nbsym, off)
+        px, vx, pn, vn = px[sx:], vx[sx:], pn[sn:], vn[sn:]
+        if spline_pair(px, vx, mx, coef[0], coef[1], coef[2], pn, vn, mn, coef[3], coef[4], coef[5]) != 0:
+            return -1, k, which
+        dest = 1 if which == 0 else 0
+        out = buf1 if dest == 1 else buf0
+        nxt = 1 - cur
+        e_mean, e_in, nmax, nmin, zc, over1, over2 = _sift_pass(
+            h, out, px, vx, mx, coef[0], coef[1], coef[2], pn, vn, mn, coef[3], coef[4], coef[5],
+            rilling, th1, th2, kp[2 * nxt, off:], kp[2 * nxt + 1, off:], kv[2 * nxt, off:], kv[2 * nxt + 1, off:])
+        if rilling:
+            if over1 <= alpha * n and over2 == 0:
+                return CONVERGED, k, which  # h's own envelopes are symmetric enough: h is the IMF
+            if k == max_sifts:
+                return MAX_SIFTS, k, which
+        k += 1
+        cur = nxt
+        n_ext = nmax + nmin
+        if n_ext < 3:
+            return DEGENERATE, k, which
+        balanced = abs(n_ext - zc) <= 1
+        if stop_code == 0:
+            shaped = vx[:mx].min() >= 0.0 and vn[:mn].max() <= 0.0  # h's knots, mirrored ones included
+            if shaped and balanced and e_mean / max(e_in, TINY) < sd_threshold:
+                return CONVERGED, k, dest
+        elif stop_code == 2:
+            stable = stable + 1 if n_ext == c_ext and zc == c_zc and balanced else 0
+            c_ext, c_zc = n_ext, zc
+            if stable >= s_number:
+                return CONVERGED, k, dest
+        h = out
+        which = dest
+        if not rilling and k == max_sifts:
+            return MAX_SIFTS, k, which

@@ -1,287 +1,238 @@
 """Envelope splines of :mod:`bench.analysis.emd`: not-a-knot cubic splines through integer
-knots, their evaluation block by block, and the scratch arrays every sifting reuses.
+knots, compiled with numba (the sifting loop in :mod:`.emd_kernel` calls these kernels).
 
-Speed notes (see :mod:`.emd_kernel` for the sifting pass that calls these):
+A spline through knots ``(pos_i, y_i)`` is stored as per-interval polynomials
+``y_i + c1_i·t + c2_i·t² + c3_i·t³`` in ``t = sample − pos_i``; a sample lying on a knot
+uses the interval starting there (so it returns the knot value exactly).
 
-* Spline coefficients come from one symmetric tridiagonal solve per envelope (LAPACK
-  ``ptsv``, about half of the set-up); the rest of the set-up runs in cache-sized
-  chunks on arrays kept in the :class:`Workspace` (fresh arrays of 10⁵ knots cost as
-  much in page faults as their arithmetic).
-* A sample's interval is known from the block's knot range, so no per-sample search
-  happens: ``np.repeat`` of the per-interval sample counts when intervals are longer
-  than ~4 samples, else a running count of knots — one for both envelopes (upper knots
-  count 1, lower ones 2³²), as the cumulative sum is the dearest per-sample step.
-  Gathers use ``mode="wrap"``: the default ``"raise"`` with ``out=`` gathers into a
-  temporary first and costs half as much again.
+The arithmetic follows the previous numpy implementation operation by operation (and
+LAPACK's ``dpttrf``/``dptts2`` for the tridiagonal solve), so the slopes and values are
+the same numbers; knot spacings are integers, which keeps most steps exact anyway.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.linalg import lapack
 
-BLOCK = 16384  # samples per block: a handful of float arrays of this size stay in L2
+__all__ = ["Spline", "evaluate", "not_a_knot_slopes", "spline_coefficients", "spline_pair"]
 
 
-# --------------------------------------------------------------------------- splines
+@numba.njit(cache=True)
+def spline_coefficients(pos, val, m, c1, c2, c3):
+    """Not-a-knot cubic spline through the first ``m ≥ 2`` knots ``(pos, val)`` (``pos``
+    integer, strictly increasing): slopes into ``c1[:m]``, ``c2, c3`` into ``[:m-1]``.
+
+    Two knots give the line and three the parabola
+    through them (scipy's ``CubicSpline`` special cases).  From four knots: the slope
+    equations ``h_i s_{i-1} + 2(h_{i-1} + h_i) s_i + h_{i-1} s_{i+1} = 3(h_i δ_{i-1} +
+    h_{i-1} δ_i)`` (``h`` knot spacings, ``δ`` secant slopes) divided by ``h_{i-1} h_i``,
+    with the end slopes eliminated by the not-a-knot conditions, form a symmetric,
+    strictly diagonally dominant tridiagonal system, solved by LDLᵀ without pivoting
+    (LAPACK ``dptsv``'s recurrences).  Returns 0, or ``i + 1`` if pivot ``i`` is not
+    positive (then the system is singular and the coefficients are undefined).
+    """
+    if m == 2:  # the line
+        c1[0] = (val[1] - val[0]) / float(pos[1] - pos[0])
+        c1[1] = c1[0]
+        c2[0] = 0.0
+        c3[0] = 0.0
+        return 0
+    if m == 3:  # the parabola: s1 from h1 s0 + 2(h0 + h1) s1 + h0 s2 = 3(h1 δ0 + h0 δ1), s0 = 2δ0 - s1, s2 = 2δ1 - s1
+        h0, h1 = float(pos[1] - pos[0]), float(pos[2] - pos[1])
+        d0, d1 = (val[1] - val[0]) / h0, (val[2] - val[1]) / h1
+        c1[1] = (h0 * d1 + h1 * d0) / (h0 + h1)
+        c1[0] = 2.0 * d0 - c1[1]
+        c1[2] = 2.0 * d1 - c1[1]
+        c2[0], c3[0] = _interval(h0, val[1] - val[0], c1[0], c1[1])
+        c2[1], c3[1] = _interval(h1, val[2] - val[1], c1[1], c1[2])
+        return 0
+    diag, low = c2, c3  # D and L of LDLᵀ until the back substitution overwrites them
+    h0, h1, hb, ha, d0, d1, r0, r1 = _ends(pos, val, m)
+    k = m - 2  # unknown inner slopes s_1..s_{m-2}; row j holds s_{j+1}
+    inv_a = 1.0 / h0
+    ra = (val[1] - val[0]) * inv_a * inv_a
+    y = lw = 0.0  # the previous substituted value and L entry
+    bad = 0
+    for j in range(k):
+        inv_a, ra, dj, lw, y = _row(j, k, float(pos[j + 2] - pos[j + 1]), val[j + 2] - val[j + 1], inv_a, ra, y,
+                                    lw, r0, r1)
+        bad = j + 1 if dj <= 0.0 and bad == 0 else bad
+        diag[j], low[j], c1[j + 1] = dj, lw, y
+    if bad:
+        return bad
+    # back substitution, with each interval's c2, c3 as soon as both its slopes are known
+    # (interval j+1's are written after row j's D and L are read)
+    s1 = c1[k] = c1[k] / diag[k - 1]
+    c1[m - 1] = (r1 - d1 * s1) / hb
+    c2[m - 2], c3[m - 2] = _interval(ha, val[m - 1] - val[m - 2], s1, c1[m - 1])
+    for j in range(k - 2, -1, -1):
+        s2, s1 = s1, c1[j + 1] / diag[j] - s1 * low[j]
+        c1[j + 1] = s1
+        c2[j + 1], c3[j + 1] = _interval(float(pos[j + 2] - pos[j + 1]), val[j + 2] - val[j + 1], s1, s2)
+    c1[0] = (r0 - d0 * s1) / h1
+    c2[0], c3[0] = _interval(h0, val[1] - val[0], c1[0], s1)
+    return 0
 
 
-SPLINE_CHUNK = 8192  # knots per chunk of the spline set-up: its temporaries stay in L2
+@numba.njit(cache=True)
+def spline_pair(pu, vu, mu, u1, u2, u3, pl, vl, ml, l1, l2, l3):  # noqa: PLR0913
+    """:func:`spline_coefficients` of both envelopes: 0 or the first failing spline's code.
+
+    The two recurrences run interleaved in one loop: each LDLᵀ step waits on a division,
+    so two independent chains side by side cost little more than one."""
+    if mu < 4 or ml < 4:
+        info = spline_coefficients(pu, vu, mu, u1, u2, u3)
+        return info if info else spline_coefficients(pl, vl, ml, l1, l2, l3)
+    hu0, hu1, hub, hua, du0, du1, ru0, ru1 = _ends(pu, vu, mu)
+    hl0, hl1, hlb, hla, dl0, dl1, rl0, rl1 = _ends(pl, vl, ml)
+    ku, kl = mu - 2, ml - 2
+    iu, il = 1.0 / hu0, 1.0 / hl0
+    rau, ral = (vu[1] - vu[0]) * iu * iu, (vl[1] - vl[0]) * il * il
+    yu = lu = yl = ll = 0.0
+    bad = False
+    for j in range(max(ku, kl)):
+        if j < ku:
+            iu, rau, dj, lu, yu = _row(j, ku, float(pu[j + 2] - pu[j + 1]), vu[j + 2] - vu[j + 1], iu, rau, yu,
+                                       lu, ru0, ru1)
+            bad |= dj <= 0.0
+            u2[j], u3[j], u1[j + 1] = dj, lu, yu
+        if j < kl:
+            il, ral, dj, ll, yl = _row(j, kl, float(pl[j + 2] - pl[j + 1]), vl[j + 2] - vl[j + 1], il, ral, yl,
+                                       ll, rl0, rl1)
+            bad |= dj <= 0.0
+            l2[j], l3[j], l1[j + 1] = dj, ll, yl
+    if bad:  # the failing one's code
+        info = spline_coefficients(pu, vu, mu, u1, u2, u3)
+        return info if info else spline_coefficients(pl, vl, ml, l1, l2, l3)
+    su = u1[ku] = u1[ku] / u2[ku - 1]
+    u1[mu - 1] = (ru1 - du1 * su) / hub
+    u2[mu - 2], u3[mu - 2] = _interval(hua, vu[mu - 1] - vu[mu - 2], su, u1[mu - 1])
+    sl = l1[kl] = l1[kl] / l2[kl - 1]
+    l1[ml - 1] = (rl1 - dl1 * sl) / hlb
+    l2[ml - 2], l3[ml - 2] = _interval(hla, vl[ml - 1] - vl[ml - 2], sl, l1[ml - 1])
+    for t in range(max(ku, kl) - 1):
+        j = ku - 2 - t
+        if j >= 0:
+            s2, su = su, u1[j + 1] / u2[j] - su * u3[j]
+            u1[j + 1] = su
+            u2[j + 1], u3[j + 1] = _interval(float(pu[j + 2] - pu[j + 1]), vu[j + 2] - vu[j + 1], su, s2)
+        j = kl - 2 - t
+        if j >= 0:
+            s2, sl = sl, l1[j + 1] / l2[j] - sl * l3[j]
+            l1[j + 1] = sl
+            l2[j + 1], l3[j + 1] = _interval(float(pl[j + 2] - pl[j + 1]), vl[j + 2] - vl[j + 1], sl, s2)
+    u1[0] = (ru0 - du0 * su) / hu1
+    u2[0], u3[0] = _interval(hu0, vu[1] - vu[0], u1[0], su)
+    l1[0] = (rl0 - dl0 * sl) / hl1
+    l2[0], l3[0] = _interval(hl0, vl[1] - vl[0], l1[0], sl)
+    return 0
+
+
+@numba.njit(cache=True)
+def _ends(pos, val, m):
+    """Spacings ``h0, h1, hb, ha`` at the ends and the not-a-knot end terms ``d0, d1, r0, r1``:
+    ``s0 = (r0 − d0 s1)/h1``, ``s_end = (r1 − d1 s_{end−1})/hb`` (scipy's end rows)."""
+    h0, h1 = float(pos[1] - pos[0]), float(pos[2] - pos[1])
+    hb, ha = float(pos[m - 2] - pos[m - 3]), float(pos[m - 1] - pos[m - 2])
+    d0, d1 = h0 + h1, hb + ha
+    e0, e1 = (val[1] - val[0]) * (1.0 / h0), (val[2] - val[1]) * (1.0 / h1)
+    eb, ea = (val[m - 2] - val[m - 3]) * (1.0 / hb), (val[m - 1] - val[m - 2]) * (1.0 / ha)
+    r0 = ((h0 + 2 * d0) * h1 * e0 + h0 * h0 * e1) / d0
+    r1 = (ha * ha * eb + (2 * d1 + ha) * hb * ea) / d1
+    return h0, h1, hb, ha, d0, d1, r0, r1
+
+
+@numba.njit(cache=True, inline="always")
+def _row(j, k, h, dy, inv_a, ra, y, lw, r0, r1):  # noqa: PLR0913
+    """Row ``j`` (slope ``s_{j+1}``) of the slope system divided by ``h_j h_{j+1}``, its LDLᵀ
+    step (dpttrf) and forward substitution (dptts2), by the same operations as the LAPACK
+    route.  ``h, dy``: interval ``j+1``; ``inv_a, ra``: ``1/h_j`` and ``δ_j/h_j``; ``y, lw``:
+    the previous row's substituted value and L entry.  Returns ``1/h_{j+1}``, ``δ_{j+1}/h_{j+1}``,
+    the pivot D_j, L_j and the substituted value.  Scalars only: an inlined helper taking
+    arrays pays reference counting per call (measured 5× slower)."""
+    inv_b = 1.0 / h
+    rb = dy * inv_b * inv_b
+    rhs = (ra + rb) * 3.0
+    dj = (inv_a + inv_b) * 2.0
+    if j == 0:
+        dj *= 0.5  # the end rows lose half their diagonal to the eliminated end slopes
+        rhs -= r0 * inv_a * inv_b
+    else:
+        if j == k - 1:
+            dj *= 0.5
+            rhs -= r1 * inv_a * inv_b
+        dj = dj - lw * inv_a  # inv_a: the off-diagonal of rows j-1, j
+        rhs = rhs - y * lw
+    return inv_b, rb, dj, inv_b / dj, rhs
+
+
+@numba.njit(cache=True, inline="always")
+def _interval(h, dy, s0, s1):
+    """``c2, c3`` of an interval of length ``h``, rise ``dy`` and end slopes ``s0, s1``
+    (scalars only: no reference counting when inlined)."""
+    delta = dy / h
+    return (3.0 * delta - 2.0 * s0 - s1) / h, (s0 + s1 - 2.0 * delta) / (h * h)
+
+
+@numba.njit(cache=True)
+def evaluate(pos, c0, c1, c2, c3, m, n, out):
+    """The spline with ``m`` knots at samples ``0..n-1`` into ``out`` (``pos[0] ≤ 0``:
+    samples past the last knot use the last interval)."""
+    j = 0
+    for i in range(n):
+        while j < m - 2 and pos[j + 1] <= i:
+            j += 1
+        t = float(i - pos[j])
+        out[i] = ((c3[j] * t + c2[j]) * t + c1[j]) * t + c0[j]
+
+
+def _coefficients(pos: np.ndarray, val: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    pos = np.ascontiguousarray(pos, dtype=np.int64)
+    val = np.ascontiguousarray(val, dtype=float)
+    m = pos.size
+    if m < 2 or val.size != m:
+        raise ValueError(f"a spline needs ≥ 2 knots with one value each, got {m} positions and {val.size} values")
+    if np.any(np.diff(pos) <= 0):
+        raise ValueError("knot positions must be strictly increasing")
+    c1, c2, c3 = np.empty(m), np.empty(m), np.empty(m)
+    info = spline_coefficients(pos, val, m, c1, c2, c3)
+    if info != 0:
+        raise ValueError(f"envelope spline system is singular (pivot {info} not positive)")
+    return c1, c2, c3
 
 
 def not_a_knot_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """First derivatives at the knots of the not-a-knot cubic spline through ``(x, y)``, ≥ 4 knots.
-
-    The slope equations ``h_i s_{i-1} + 2(h_{i-1} + h_i) s_i + h_{i-1} s_{i+1} = 3(h_i δ_{i-1} +
-    h_{i-1} δ_i)`` (``h`` knot spacings, ``δ`` secant slopes) divided by ``h_{i-1} h_i`` are
-    symmetric; eliminating the end slopes with the not-a-knot conditions (scipy's end
-    rows) keeps them symmetric and strictly diagonally dominant, so LAPACK's ``ptsv``
-    (LDLᵀ, no pivoting) solves them — the same slopes as ``CubicSpline`` to rounding.
-    """
-    return _not_a_knot(x, y, coefficients=False)[0]
-
-
-def _not_a_knot(x: np.ndarray, y: np.ndarray, coefficients: bool = True, scratch: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """Slopes ``s`` at the knots and, with ``coefficients``, the per-interval ``c2, c3`` of
-    ``y_i + s_i t + c2 t² + c3 t³``.
-
-    Every step but the LAPACK solve runs chunk by chunk so that its temporaries stay in
-    cache (whole-record temporaries of 10⁵ knots made each step memory-bound); each value
-    is computed by the same operations in the same order as whole-array code would.
-    ``scratch`` (shape ``(≥ 7, ≥ x.size)``, e.g. from :meth:`Workspace.scratch`) holds
-    the results and intermediates instead of fresh arrays.
-    """
-    m = x.size
-    if scratch is None:
-        scratch = np.empty((7, m))
-    dx, dy, inv, s, diag, c2, c3 = (scratch[k, :m] for k in range(7))
-    dx, dy, inv, diag, c2, c3 = dx[:-1], dy[:-1], inv[:-1], diag[:-2], c2[:-1], c3[:-1]
-    rhs = s[1:-1]  # ptsv solves in place: the inner slopes land in s
-    for j0 in range(0, m - 2, SPLINE_CHUNK):  # unknowns j0..j1-1 need intervals j0..j1
-        j1 = min(j0 + SPLINE_CHUNK, m - 2)
-        w = slice(j0, j1 + 1)
-        np.subtract(x[j0 + 1 : j1 + 2], x[j0 : j1 + 1], out=dx[w])
-        np.subtract(y[j0 + 1 : j1 + 2], y[j0 : j1 + 1], out=dy[w])
-        iv = np.divide(1.0, dx[w], out=inv[w])
-        r = dy[w] * iv  # secant slope δ
-        r *= iv
-        np.add(r[:-1], r[1:], out=rhs[j0:j1])
-        rhs[j0:j1] *= 3.0
-        np.add(iv[:-1], iv[1:], out=diag[j0:j1])
-        diag[j0:j1] *= 2.0
-    diag[0] *= 0.5  # the end rows lose half their diagonal to the eliminated end slopes
-    diag[-1] *= 0.5
-    h0, h1, hb, ha = dx[0], dx[1], dx[-2], dx[-1]
-    d0, d1 = h0 + h1, hb + ha
-    delta = (dy[0] * inv[0], dy[1] * inv[1], dy[-2] * inv[-2], dy[-1] * inv[-1])
-    r0 = ((h0 + 2 * d0) * h1 * delta[0] + h0**2 * delta[1]) / d0  # s0 = (r0 - d0 s1) / h1
-    r1 = (ha**2 * delta[-2] + (2 * d1 + ha) * hb * delta[-1]) / d1  # s_end = (r1 - d1 s_{end-1}) / hb
-    rhs[0] -= r0 * inv[0] * inv[1]
-    rhs[-1] -= r1 * inv[-2] * inv[-1]
-    # ptsv overwrites its inputs: none of them is needed afterwards
-    *_, sol, info = lapack.dptsv(diag, inv[1:-1], rhs, overwrite_d=1, overwrite_e=1, overwrite_b=1)
-    if info != 0:
-        raise ValueError(f"envelope spline system is singular (LAPACK ptsv info = {info})")
-    if not np.shares_memory(sol, s):
-        s[1:-1] = sol
-    s[0] = (r0 - d0 * s[1]) / h1
-    s[-1] = (r1 - d1 * s[-2]) / hb
-    if not coefficients:
-        return s, None, None
-    for i0 in range(0, m - 1, SPLINE_CHUNK):
-        w = slice(i0, min(i0 + SPLINE_CHUNK, m - 1))
-        h, s0, s1 = dx[w], s[i0 : w.stop], s[i0 + 1 : w.stop + 1]
-        delta = dy[w] / h
-        a = 3.0 * delta  # c2 = (3δ - 2 s0 - s1) / h
-        a -= 2.0 * s0
-        a -= s1
-        np.divide(a, h, out=c2[w])
-        b = s0 + s1  # c3 = (s0 + s1 - 2δ) / h²
-        b -= 2.0 * delta
-        h *= h
-        np.divide(b, h, out=c3[w])
-    return s, c2, c3
+    """First derivatives at the integer knots ``x`` of the not-a-knot cubic spline through ``(x, y)``
+    (the same slopes as scipy's ``CubicSpline`` to rounding)."""
+    x = np.asarray(x)
+    if np.any(x != np.round(x)):
+        raise ValueError("knot positions must be integers (sample indices)")
+    return _coefficients(x.astype(np.int64), y)[0]
 
 
 @dataclass(frozen=True, eq=False)
 class Spline:
-    """A not-a-knot cubic spline through integer knots, as per-interval polynomials
-    ``c0 + c1·t + c2·t² + c3·t³`` in ``t = sample − pos[i]``."""
+    """A not-a-knot cubic spline through integer knots (diagnostics and tests; the
+    sifting keeps its coefficients in reused buffers instead)."""
 
-    pos: np.ndarray  # knot positions (int)
-    start: np.ndarray  # pos[:-1] as float
-    c0: np.ndarray
+    pos: np.ndarray  # knot positions (int64)
+    c0: np.ndarray  # knot values
     c1: np.ndarray
     c2: np.ndarray
     c3: np.ndarray
 
     @classmethod
-    def through(cls, pos: np.ndarray, val: np.ndarray, scratch: np.ndarray | None = None) -> Spline:
-        """The spline through ``(pos, val)``; ``scratch`` (shape ``(≥ 8, ≥ pos.size)``) holds
-        its arrays instead of fresh ones (they stay valid until ``scratch`` is reused)."""
-        if scratch is None:
-            x = pos.astype(float)
-        else:
-            x = scratch[7, : pos.size]
-            x[:] = pos
-        if x.size >= 4:
-            s, c2, c3 = _not_a_knot(x, val, scratch=scratch)
-            return cls(pos, x[:-1], val[:-1], s[:-1], c2, c3)
-        c3, c2, c1, c0 = CubicSpline(x, val).c  # 2-3 knots: scipy's line / parabola
-        return cls(pos, x[:-1], c0, c1, c2, c3)
-
-    @classmethod
-    def average(cls, a: Spline, b: Spline) -> Spline:
-        """``(a + b) / 2`` as one piecewise cubic on the union of both knot sets, where both
-        are defined: each polynomial re-expanded (Taylor shift) at the merged interval starts.
-
-        Chunked like :func:`_not_a_knot` so that the temporaries stay in cache."""
-        lo, hi = max(a.pos[0], b.pos[0]), min(a.pos[-1], b.pos[-1])
-        pos = np.concatenate([a.pos, b.pos])
-        order = np.argsort(pos, kind="stable")  # two sorted runs: a linear merge, a's knot first on ties
-        pos = pos[order]
-        # the interval of a (of b) holding each merged knot: a running count of its knots
-        ia = np.cumsum(order < a.pos.size)
-        ib = np.arange(1, pos.size + 1) - ia
-        ia -= 1
-        ib -= 1
-        keep = np.empty(pos.size, dtype=bool)  # of repeated positions the last, which counts both
-        np.not_equal(pos[1:], pos[:-1], out=keep[:-1])
-        keep[-1] = True
-        keep &= pos >= lo
-        keep &= pos <= hi
-        pos, ia, ib = pos[keep], ia[keep][:-1], ib[keep][:-1]
-        np.clip(ia, 0, a.pos.size - 2, out=ia)
-        np.clip(ib, 0, b.pos.size - 2, out=ib)
-        start = pos[:-1].astype(float)
-        m = start.size
-        c0, c1, c2, c3 = (np.empty(m) for _ in range(4))
-        for k0 in range(0, m, SPLINE_CHUNK):
-            w = slice(k0, min(k0 + SPLINE_CHUNK, m))
-            q = [s._shifted(i[w], start[w]) for s, i in ((a, ia), (b, ib))]
-            for out, p, r in zip((c0, c1, c2, c3), *q):
-                np.add(p, r, out=out[w])
-                out[w] *= 0.5
-        return cls(pos, start, c0, c1, c2, c3)
-
-    def _shifted(self, i: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Coefficients ``c0..c3`` of interval ``i``'s polynomial re-expanded about ``x``."""
-        d = np.subtract(x, np.take(self.start, i, mode="wrap"))
-        c1, c2, c3 = (np.take(c, i, mode="wrap") for c in (self.c1, self.c2, self.c3))
-        v = c3 * d  # c0 + d (c1 + d (c2 + d c3))
-        v += c2
-        v *= d
-        v += c1
-        v *= d
-        v += np.take(self.c0, i, mode="wrap")
-        e = 3.0 * c3  # 3 c3 d
-        e *= d
-        u = 2.0 * c2  # c1 + d (2 c2 + 3 c3 d)
-        u += e
-        u *= d
-        u += c1
-        e += c2  # c2 + 3 c3 d
-        return v, u, e, c3
-
-    def block_ranges(self, starts: np.ndarray, stops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """First and last interval touching each block ``[start, stop)``."""
-        last = self.pos.size - 2
-        lo = np.searchsorted(self.pos, starts, side="right") - 1
-        hi = np.minimum(np.searchsorted(self.pos, stops - 1, side="right") - 1, last)
-        return lo, hi
-
-    def short_intervals(self, a: int, b: int, lo: int, hi: int) -> bool:
-        """Whether :meth:`evaluate_block` gathers by interval index on block ``[a, b)``."""
-        return 4 * (hi - lo) >= b - a
-
-    def evaluate_block(self, a: int, b: int, lo: int, hi: int, ws: Workspace, out: np.ndarray,
-                       idx: np.ndarray | None = None) -> None:
-        """Write the spline at samples ``a..b-1`` into ``out`` (intervals ``lo..hi``; scratch from
-        ``ws``); ``idx``, when given, is each sample's interval index (short intervals only)."""
-        m = b - a
-        grid, t, tmp = ws.grid, ws.t[:m], ws.tmp[:m]
-        inner = self.pos[lo + 1 : hi + 1]  # knots inside the block, all in (a, b)
-        if idx is None and not self.short_intervals(a, b, lo, hi):
-            # intervals longer than ~4 samples: expanding the coefficients run by run beats
-            # the running count and gathers below (measured: 0.4–0.7× their time)
-            cnt = np.diff(np.concatenate(([a], inner, [b])))
-            sl = slice(lo, hi + 1)
-            np.subtract(grid[a:b], np.repeat(self.start[sl], cnt), out=t)
-            np.multiply(np.repeat(self.c3[sl], cnt), t, out=out)
-            for c in (self.c2, self.c1):  # Horner
-                out += np.repeat(c[sl], cnt)
-                out *= t
-            out += np.repeat(self.c0[sl], cnt)
-            return
-        # short intervals: the interval index of every sample by a running count of knots,
-        # then one gather per coefficient
-        if idx is None:
-            idx = ws.idx[:m]
-            idx[:] = 0
-            idx[inner - a] = 1
-            idx[0] = lo
-            np.cumsum(idx, out=idx)
-        # mode="wrap": the indices are valid, and "raise" gathers into a temporary first
-        np.take(self.start, idx, out=t, mode="wrap")
-        np.subtract(grid[a:b], t, out=t)
-        np.take(self.c3, idx, out=out, mode="wrap")
-        for c in (self.c2, self.c1, self.c0):  # Horner
-            out *= t
-            np.take(c, idx, out=tmp, mode="wrap")
-            out += tmp
+    def through(cls, pos: np.ndarray, val: np.ndarray) -> Spline:
+        """The spline through ``(pos, val)``, ``pos`` strictly increasing integers."""
+        pos = np.ascontiguousarray(pos, dtype=np.int64)
+        val = np.ascontiguousarray(val, dtype=float)
+        return cls(pos, val, *_coefficients(pos, val))
 
     def __call__(self, n: int) -> np.ndarray:
-        """The spline at samples ``0..n-1`` (blocked like a sifting)."""
-        ws = Workspace(n)
+        """The spline at samples ``0..n-1`` (``pos[0] ≤ 0`` expected: earlier samples use the first interval)."""
         out = np.empty(n)
-        lo, hi = self.block_ranges(ws.starts, ws.stops)
-        for k, (a, b) in enumerate(zip(ws.starts.tolist(), ws.stops.tolist())):
-            self.evaluate_block(a, b, int(lo[k]), int(hi[k]), ws, out[a:b])
+        evaluate(self.pos, self.c0, self.c1, self.c2, self.c3, self.pos.size, n, out)
         return out
-
-
-# --------------------------------------------------------------------------- scratch
-
-
-class Workspace:
-    """Scratch arrays reused by every sifting of one record."""
-
-    def __init__(self, n: int, block: int | None = None):
-        self.n = n
-        self.grid = np.arange(n, dtype=float)
-        b = min(BLOCK if block is None else block, n)
-        self.starts = np.arange(0, n, b)
-        self.stops = np.minimum(self.starts + b, n)
-        self.t, self.u, self.lo, self.tmp = (np.empty(b) for _ in range(4))
-        self.idx, self.idx2 = np.empty(b, dtype=np.intp), np.empty(b, dtype=np.intp)
-        self.d = np.empty(b + 1)  # differences of a block and the two samples before it
-        self.flag = np.empty(b + 1, dtype=bool)
-        self._scratch: dict[int, np.ndarray] = {}
-
-    def scratch(self, slot: int, m: int) -> np.ndarray:
-        """A ``(8, ≥ m)`` array kept for ``slot`` (one per envelope): reusing it spares the
-        page faults of fresh arrays of 10⁵ knots, which cost as much as the arithmetic."""
-        buf = self._scratch.get(slot)
-        if buf is None or buf.shape[1] < m:
-            # headroom: the knot count creeps up over the siftings of an IMF
-            buf = self._scratch[slot] = np.empty((8, max(m + m // 4, 64)))
-        return buf
-
-
-def interval_indices(a: int, m: int, pu: np.ndarray, uk: tuple[int, int], pl: np.ndarray, lk: tuple[int, int],
-                      ws: Workspace) -> tuple[np.ndarray, np.ndarray]:
-    """Both envelopes' interval index of every sample of block ``[a, a + m)`` from ONE running
-    count (upper knots count 1, lower knots 2³², split afterwards): a cumulative sum costs
-    more than all other per-sample steps of an evaluation together."""
-    both = ws.idx[:m]
-    both[:] = 0
-    both[pu[uk[0] + 1 : uk[1] + 1] - a] = 1
-    both[pl[lk[0] + 1 : lk[1] + 1] - a] += 1 << 32  # += : a knot of both kinds counts for both
-    both[0] += uk[0] + (lk[0] << 32)
-    np.cumsum(both, out=both)
-    il = np.right_shift(both, 32, out=ws.idx2[:m])
-    return np.bitwise_and(both, 0xFFFFFFFF, out=both), il
