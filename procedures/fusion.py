@@ -13,11 +13,15 @@ Kalman fusion and a complementary filter, all against the table's reference.
    phase drift of the strongest tone the LF sensor passes (``bench.analysis.frf``) and
    removed; each sensor's time axis is moved back by its fitted delay; the LF frames and
    the reference are resampled onto the MHD readings' instants.
-5. ``bench.analysis.fusion_metrics.analyze_fusion`` with the fitted models: fused rate and
-   the baselines, amplitude and phase error per tone, RMS error, NIS.
+5. Tuning (``tune_fraction`` > 0): Document B's process noise, thresholds and interval
+   functions are chosen on the first ``tune_fraction`` of the aligned record
+   (``bench.analysis.fusion_tuning``); everything below is measured on the rest only.
+6. ``bench.analysis.fusion_metrics.analyze_fusion`` with the fitted models and the tuned
+   settings (the fixed-R baseline shares the tuned ``q``): fused rate and the baselines,
+   amplitude and phase error per tone, RMS error, NIS.
 
 Streams: ``frf_*`` and ``fusion_ref|hf|lf`` (raw, as acquired; block 0 static, 1 profile)
-and ``fusion_aligned`` (the aligned series and every method's estimate).
+and ``fusion_aligned`` (the evaluated part of the aligned series and every method's estimate).
 """
 
 from __future__ import annotations
@@ -28,7 +32,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.analysis.frf_timebase import apply_time_base, estimate_time_base, resample
-from bench.analysis.fusion_metrics import analyze_fusion
+from bench.analysis.fusion import tune_fusion_params
+from bench.analysis.fusion_metrics import _residual_var, analyze_fusion, excess_over_best
+from bench.analysis.fusion_tuning import tune_fusion
 from bench.procedure import Context
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
 from procedures.common import Estimate, check_ranges
@@ -53,6 +59,8 @@ FUSION_PRODUCES = {
     "max_phase_error_fused": ("deg", "largest |phase error| of the fused rate over the tones"),
     "fused_minus_best_sensor": ("%", "max over tones of |fused amplitude error| − the better single "
                                      "sensor's (≤ 0: never worse than the better sensor)"),
+    "fused_excess_sigma": ("1", "max over tones of that excess in standard errors of the difference "
+                                "(≤ 2: no worse within the estimates' noise)"),
     "lf_clock_error": ("ppm", "LF frame clock rate error (positive: fast) estimated against the reference"),
 }
 
@@ -71,6 +79,7 @@ class FusionParameters:
     frame_rate_hz: int = 4000
     frf_points_per_decade: int = 2
     frf_amplitude_dps: float = 5.0
+    tune_fraction: float = 0.4     # the first part of the profile record tunes the filter; 0: defaults
 
     def validate(self) -> None:
         check_ranges(asdict(self), {
@@ -78,15 +87,18 @@ class FusionParameters:
             "amplitude_dps": (0.01, 500), "duration_s": (1, 3600), "static_s": (0.5, 600),
             "settle_s": (0, 600), "ramp_s": (0.01, 60), "rate_hz": (1000, MAX_RATE_HZ),
             "frame_rate_hz": (100, 4608), "frf_points_per_decade": (1, 20),
-            "frf_amplitude_dps": (0.01, 500)},
+            "frf_amplitude_dps": (0.01, 500), "tune_fraction": (0, 0.7)},
             integers=("tones_per_decade", "frame_rate_hz", "frf_points_per_decade"))
         if not self.f_min_hz < self.f_max_hz:
             raise ValueError(f"f_min_hz = {self.f_min_hz} must be < f_max_hz = {self.f_max_hz}")
         if self.f_max_hz >= self.rate_hz / 4:
             raise ValueError(f"f_max_hz = {self.f_max_hz} must be below rate_hz/4 = {self.rate_hz / 4:g} Hz")
-        if self.duration_s < 3 / self.f_min_hz:
-            raise ValueError(f"duration_s = {self.duration_s} must cover 3 periods of f_min_hz "
-                             f"(≥ {3 / self.f_min_hz:g} s)")
+        if 0 < self.tune_fraction < 0.1:
+            raise ValueError(f"tune_fraction = {self.tune_fraction} must be 0 (no tuning) or in 0.1..0.7")
+        evaluated = self.duration_s * (1 - self.tune_fraction)
+        if evaluated < 3 / self.f_min_hz:
+            raise ValueError(f"duration_s = {self.duration_s} must leave 3 periods of f_min_hz "
+                             f"(≥ {3 / self.f_min_hz:g} s) after the tuning part ({self.tune_fraction:g})")
         if len(self.tones_hz()) > 16:
             raise ValueError(f"{len(self.tones_hz())} tones; the table synthesises at most 16")
 
@@ -187,10 +199,18 @@ class FusionTest(ParameterizedStep):
         ctx.run.set_result("fusion.alignment", {k: v for k, v in aligned.items() if not k.endswith(("_v", "_dps"))
                                                 and k != "t_s"}
                            | {"hf_offset_v": hf_offset, "lf_bias_dps": lf_bias})
-        analysis = analyze_fusion(aligned["t_s"], aligned["hf_v"], aligned["lf_dps"], aligned["ref_dps"],
+        n_tune = int(round(p.tune_fraction * aligned["t_s"].size))
+        settings = {}
+        if n_tune:
+            tuning = tune_on(aligned, n_tune, fits, tones, p.rate_hz)
+            ctx.run.set_result("fusion.tuning", tuning["tuning"].to_dict())
+            settings = {"params": tuning["params"], "q": tuning["tuning"].q}
+        evaluated = {k: v[n_tune:] for k, v in aligned.items() if k in ("t_s", "hf_v", "lf_dps", "ref_dps")}
+        analysis = analyze_fusion(evaluated["t_s"], evaluated["hf_v"], evaluated["lf_dps"], evaluated["ref_dps"],
                                   p.rate_hz, hf_model=fits["hf"].model, lf_model=fits["lf"].model,
-                                  tones_hz=tones, settle_s=1.0)
+                                  tones_hz=tones, settle_s=1.0, **settings)
         ctx.run.set_result("fusion.analysis", analysis.to_dict())
+        aligned = {**aligned, **evaluated}
         ctx.run.add_stream("fusion_aligned", {"t_s": "s", "hf_v": "V", "lf_dps": "deg/s", "ref_dps": "deg/s",
                                               **{estimate_column(m): "deg/s" for m in METHODS}},
                            "aligned record on the MHD instants and every method's rate estimate")
@@ -199,13 +219,28 @@ class FusionTest(ParameterizedStep):
         return summarize(analysis, aligned["clock"])
 
 
+def tune_on(aligned: dict, n_tune: int, fits: dict, tones: np.ndarray, rate_hz: float) -> dict:
+    """Tune Document B's filter on the first ``n_tune`` aligned samples (``fusion_tuning``):
+    noise variances from the residuals after the tones, base ``q`` from the readings."""
+    part = {k: aligned[k][:n_tune] for k in ("t_s", "hf_v", "lf_dps", "ref_dps")}
+    hf_var, lf_var = (max(float(v), 1e-30) for v in _residual_var(
+        part["t_s"], np.column_stack([part["hf_v"], part["lf_dps"]]), tones))
+    model, _ = tune_fusion_params(fits["hf"].model, fits["lf"].model, hf_var, lf_var, part["hf_v"], part["lf_dps"],
+                                  1.0 / rate_hz)
+    tuning = tune_fusion(part["t_s"], part["hf_v"], part["lf_dps"], part["ref_dps"], rate_hz, model, hf_var, lf_var,
+                         tones)
+    return {"tuning": tuning, "params": tuning.params(hf_var, lf_var)}
+
+
 def summarize(analysis, clock: dict) -> dict[str, Estimate]:
     amp = analysis.amplitude_error_pct
-    best_single = np.minimum(np.abs(amp["hf"]), np.abs(amp["lf"]))
+    excess, sd = excess_over_best(analysis.to_dict())
     out = {f"rms_error_{m}": Estimate(analysis.rms_error[m], None) for m in METHODS}
     out["max_amplitude_error_fused"] = Estimate(float(np.max(np.abs(amp["fused"]))), None)
     out["max_phase_error_fused"] = Estimate(float(np.max(np.abs(analysis.phase_error_deg["fused"]))), None)
-    out["fused_minus_best_sensor"] = Estimate(float(np.max(np.abs(amp["fused"]) - best_single)), None)
+    worst = int(np.argmax(excess))
+    out["fused_minus_best_sensor"] = Estimate(float(excess[worst]), float(sd[worst]))
+    out["fused_excess_sigma"] = Estimate(float(np.max(excess / sd)), None)
     # stamps are corrected by rate_ppm: a clock fast by δ needs −δ
     if clock["rate_ppm"] is not None:
         out["lf_clock_error"] = Estimate(-clock["rate_ppm"], clock["rate_std_ppm"])

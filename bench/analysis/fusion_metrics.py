@@ -111,6 +111,8 @@ class FusionAnalysis:
     rms_error: dict | None = None
     tones_hz: np.ndarray | None = None
     amplitude_error_pct: dict | None = None
+    #: standard error of each amplitude error (%): the series' noise about its tone fit over √(N/2)
+    amplitude_error_std_pct: dict | None = None
     phase_error_deg: dict | None = None
     notes: list = field(default_factory=list)
 
@@ -127,6 +129,8 @@ class FusionAnalysis:
             "tones_hz": floats(self.tones_hz),
             "amplitude_error_pct": None if self.amplitude_error_pct is None else
             {k: floats(v) for k, v in self.amplitude_error_pct.items()},
+            "amplitude_error_std_pct": None if self.amplitude_error_std_pct is None else
+            {k: floats(v) for k, v in self.amplitude_error_std_pct.items()},
             "phase_error_deg": None if self.phase_error_deg is None else
             {k: floats(v) for k, v in self.phase_error_deg.items()},
             "nis": {k: v.to_dict() for k, v in self.nis.items()},
@@ -218,12 +222,29 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
         names = list(estimates)
         phasors = sine_phasors(t[keep], np.column_stack([ref[keep]] + [estimates[k][keep] for k in names]), tones)
         out.tones_hz = tones
-        out.amplitude_error_pct, out.phase_error_deg = {}, {}
+        out.amplitude_error_pct, out.phase_error_deg, out.amplitude_error_std_pct = {}, {}, {}
+        cols = np.column_stack([estimates[k][keep] for k in names])
+        noise = np.sqrt(_residual_var(t[keep], cols, tones))
+        n_eval = cols.shape[0]
         for col, k in enumerate(names, start=1):
             ratio = phasors[:, col] / phasors[:, 0]
             out.amplitude_error_pct[k] = 100 * (np.abs(ratio) - 1)
+            out.amplitude_error_std_pct[k] = 100 * noise[col - 1] * math.sqrt(2.0 / n_eval) / np.abs(phasors[:, 0])
             out.phase_error_deg[k] = np.degrees(np.angle(ratio))
     return out
+
+
+def excess_over_best(analysis: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Per tone: the fused rate's |amplitude error| less the better single sensor's (pp), and
+    the standard error of that difference (pp; zeros when the analysis has none)."""
+    amp = {k: np.abs(np.asarray(v, dtype=float)) for k, v in analysis["amplitude_error_pct"].items()}
+    sd = analysis.get("amplitude_error_std_pct") or {k: np.zeros_like(v) for k, v in amp.items()}
+    sd = {k: np.asarray(v, dtype=float) for k, v in sd.items()}
+    which = np.argmin(np.vstack([amp["hf"], amp["lf"]]), axis=0)
+    idx = np.arange(which.size)
+    best = np.vstack([amp["hf"], amp["lf"]])[which, idx]
+    best_sd = np.vstack([sd["hf"], sd["lf"]])[which, idx]
+    return amp["fused"] - best, np.hypot(sd["fused"], best_sd)
 
 
 def _residual_var(t, ys, tones) -> np.ndarray:

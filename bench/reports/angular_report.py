@@ -9,6 +9,8 @@
   and the fitted models (with their delays);
 * ``angular_errors.png`` — amplitude error (%) and phase error (deg) against frequency for
   every method on one plot;
+* ``angular_tuning.png`` — every tuning candidate's RMS error against its worst excess
+  amplitude error, fixed R and adaptive R at each process noise;
 * ``angular_time.png`` — a window of the record: reference, each sensor alone, the fused
   rate, and every method's error;
 * ``angular_report.json`` — the results it was made from.
@@ -28,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from bench.analysis.fusion_metrics import excess_over_best
 from bench.analysis.fusion_models import SensorModel
 from bench.reports.common import html_table, save_figure
 
@@ -130,6 +133,31 @@ def time_figure(aligned: dict, path: Path) -> str:
     return save_figure(fig, path)
 
 
+def tuning_figure(tuning: dict, path: Path) -> str:
+    """RMS error against worst excess amplitude error of every tuning candidate: fixed R
+    (``upper_factor`` 1) and adaptive R side by side at each process-noise factor."""
+    fig = Figure(figsize=(9, 4.5))
+    ax = fig.subplots()
+    cands = tuning["candidates"]
+    qs = sorted({c["q_factor"] for c in cands})
+    for i, qf in enumerate(qs):
+        for fixed in (True, False):
+            sel = [c for c in cands if c["q_factor"] == qf and (c["upper_factor"] == 1.0) == fixed]
+            if sel:
+                ax.scatter([c["rms_error"] for c in sel], [c["excess_pct"] for c in sel], color=f"C{i}",
+                           marker="s" if fixed else "o", s=40 if fixed else 18, facecolors="none" if fixed else None,
+                           label=f"q×{qf:g} {'fixed R' if fixed else 'adaptive R'}")
+    ch = tuning["chosen"]
+    ax.scatter([ch["rms_error"]], [ch["excess_pct"]], marker="*", s=200, color="k", label="chosen")
+    ax.set_xlabel("RMS error on the tuning stretch (deg/s)")
+    ax.set_ylabel("worst excess amplitude error (pp)")
+    ax.set_yscale("symlog", linthresh=0.1)
+    ax.set_title("tuning: Document B's adaptive R against a fixed R at each process noise")
+    ax.legend(fontsize=6, ncol=3)
+    ax.grid(True, which="both", lw=0.3)
+    return save_figure(fig, path)
+
+
 def _fmt(x, digits: int = 4) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "—"
@@ -137,19 +165,20 @@ def _fmt(x, digits: int = 4) -> str:
 
 
 def claims(analysis: dict) -> list[tuple[str, bool, str]]:
-    """Document B's claims as checks on this run: (claim, holds, evidence)."""
-    amp = {k: np.abs(np.asarray(v, dtype=float)) for k, v in analysis["amplitude_error_pct"].items()}
-    worse = amp["fused"] - np.minimum(amp["hf"], amp["lf"])
+    """Document B's claims as checks on this run: (claim, holds, evidence).  "No worse"
+    allows two standard errors of the difference (the estimates are noisy)."""
+    worse, sd = excess_over_best(analysis)
     rms = analysis["rms_error"]
     f = np.asarray(analysis["tones_hz"], dtype=float)
-    worst = int(np.argmax(worse))
+    worst = int(np.argmax(worse - 2 * sd))
     diverged = any(v.get("diverged", False) for v in analysis["nis"].values())
     return [
-        ("fused amplitude error no worse than the better single sensor at every tone", bool(np.all(worse <= 0)),
-         f"largest excess {worse[worst]:+.3g} percentage points at {f[worst]:.4g} Hz"),
+        ("fused amplitude error no worse than the better single sensor at every tone (within 2σ)",
+         bool(np.all(worse <= 2 * sd)),
+         f"closest: {worse[worst]:+.3g} pp ± {sd[worst]:.2g} (1σ) at {f[worst]:.4g} Hz"),
         ("fused RMS error below the fixed-R Kalman fusion's", bool(rms["fused"] < rms["fixed_r_kf"]),
-         f"{rms['fused']:.4g} vs {rms['fixed_r_kf']:.4g} deg/s "
-         f"({100 * (rms['fused'] / rms['fixed_r_kf'] - 1):+.2f} %)"),
+         f"{rms['fused']:.5g} vs {rms['fixed_r_kf']:.5g} deg/s "
+         f"({100 * (rms['fused'] / rms['fixed_r_kf'] - 1):+.3f} %)"),
         ("the sequential filter does not diverge (NIS)", not diverged,
          ", ".join(f"{k} mean NIS {v['mean']:.3g}" for k, v in analysis["nis"].items())),
     ]
@@ -183,6 +212,18 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
             f"(± {_fmt(clock.get('rate_error_std_ppm'))}) estimated at {_fmt(clock.get('frequency_hz'))} Hz and "
             f"removed; delays moved back: MHD {_fmt(1e6 * align.get('hf_delay_s', 0.0))} µs, "
             f"LF {_fmt(1e6 * align.get('lf_delay_s', 0.0))} µs.") + "</p>")
+        tuning = results.get("fusion.tuning")
+        if tuning:
+            ch = tuning["chosen"]
+            fixed_same_q = [c for c in tuning["candidates"] if c["q_factor"] == ch["q_factor"] and c["upper_factor"] == 1]
+            same = (f"; a fixed R at the same q gives {fixed_same_q[0]['rms_error']:.5g} deg/s, excess "
+                    f"{fixed_same_q[0]['excess_pct']:.3g} pp") if fixed_same_q else ""
+            parts.append("<h2>3. Tuning (on the first part of the record; everything below is the rest)</h2>"
+                         f"<img src='{tuning_figure(tuning, folder / 'angular_tuning.png')}'><p>" + html.escape(
+                             f"Chosen: q × {ch['q_factor']:g} (q = {tuning['q']:.4g} (deg/s)²/s), r_upper = "
+                             f"{ch['upper_factor']:g} σ², disturbed R = {ch['inflate']:g} σ² — RMS "
+                             f"{ch['rms_error']:.5g} deg/s, excess {ch['excess_pct']:.3g} pp{same}. Rule: "
+                             f"{tuning['rule']}.") + "</p>")
         png = errors_figure(analysis, folder / "angular_errors.png")
         rms = analysis["rms_error"]
         best = min(rms, key=rms.get)
@@ -192,7 +233,7 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
             ph = np.abs(np.asarray(analysis["phase_error_deg"][method], dtype=float))
             rows.append([label, _fmt(rms[method]), _fmt(float(amp.max())), _fmt(float(ph.max()))])
         order = list(LABELS)
-        parts.append("<h2>3. Every method against the reference</h2>"
+        parts.append("<h2>4. Every method against the reference</h2>"
                      f"<img src='{png}'>" + html_table(
                          ["method", "RMS error (deg/s)", "max |amplitude error| (%)", "max |phase error| (deg)"],
                          rows, bold_rows={order.index(best)}))
@@ -208,10 +249,10 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
         parts.append("<h3>Consistency (normalised innovation squared)</h3>"
                      + html_table(["filter/update", "mean NIS", "95 % band", "consistent", "diverged"], nis_rows))
         check_rows = [[c, "holds" if ok else "does not hold", ev] for c, ok, ev in claims(analysis)]
-        parts.append("<h2>4. Document B's claims on this run</h2>"
+        parts.append("<h2>5. Document B's claims on this run</h2>"
                      + html_table(["claim", "verdict", "evidence"], check_rows))
         if aligned is not None:
-            parts.append(f"<h2>5. A window of the record</h2><img src='{time_figure(aligned, folder / 'angular_time.png')}'>")
+            parts.append(f"<h2>6. A window of the record</h2><img src='{time_figure(aligned, folder / 'angular_time.png')}'>")
         notes = analysis.get("notes") or []
         if notes:
             parts.append("<h3>Notes</h3><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
@@ -222,6 +263,7 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
     out.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>Angular rig report</title>{style}"
                    f"</head><body>{''.join(parts)}</body></html>", encoding="utf-8")
     (folder / "angular_report.json").write_text(json.dumps(
-        {k: results[k] for k in ("frf.points", "frf.fits", "fusion.analysis", "fusion.alignment") if k in results},
+        {k: results[k] for k in ("frf.points", "frf.fits", "fusion.tuning", "fusion.analysis", "fusion.alignment")
+         if k in results},
         indent=1, allow_nan=False, default=float), encoding="utf-8")
     return out
