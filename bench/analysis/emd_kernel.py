@@ -6,15 +6,25 @@ fixed by the stop criterion, so only the cost of one sifting can be cut):
 
 * One compiled call (:func:`sift_imf`) sifts one IMF to the end: no Python, no
   temporaries between siftings; all buffers are allocated once per IMF.
-* One sifting is one pass over the record: both envelopes (two interval pointers
-  walking their knots, Horner), their mean, ``h − mean``, the sums of the SD criterion,
-  Rilling's exceedance counts, and the extrema and zero crossings of the result.
-  The spline set-up is O(knots) (:mod:`.emd_spline`).
-* The extrema of the sifted result are found in that same pass, so each sifting finds
-  extrema once (PyEMD does it three times).
+* One sifting is two loops over the record: the envelope mean (two interval pointers
+  walking their knots, Horner; Rilling's counts), then ``h − mean`` with the sums of
+  the SD criterion and the extrema and zero crossings of the result.  One fused loop
+  measured twice as slow; both loops are branch-free (the extrema of noise are
+  unpredictable).  The spline set-up is O(knots) (:mod:`.emd_spline`).
+* The extrema of the result are written, with their values, straight into the knot
+  arrays of the next sifting (room left in front for the mirrored knots), so each
+  sifting finds extrema once (PyEMD: three times) and copies no knots.
+* Measured on 3.5·10⁵ samples, about a third of a sifting each: the two spline solves
+  (bound by division throughput: six divisions per knot), the envelope mean and the
+  scan.  numba helpers that take arrays are not inlined into hot loops: an inlined
+  call pays reference counting each time (measured 5× slower).
 
-The arithmetic per sample repeats the previous numpy implementation's; only the order
-of the two energy sums differs (sequential here), which moves the SD ratio by rounding.
+The arithmetic repeats the previous numpy implementation's operation by operation, so
+the IMFs are the same bit for bit (``tests/test_analysis_emd_compiled.py``); only the
+order of the two energy sums differs, which moves the SD ratio by rounding.
+
+numba's on-disk cache does not notice a change in another module: after editing
+:mod:`.emd_spline` or :mod:`.emd_extrema`, delete ``bench/analysis/__pycache__/emd_*.nb?``.
 """
 
 from __future__ import annotations
