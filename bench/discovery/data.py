@@ -66,7 +66,7 @@ class Record:
         if np.any(dt <= 0):
             i = int(np.argmax(dt <= 0))
             raise ValueError(f"t: not strictly increasing at row {i + 1} "
-                             f"(t={t[i + 1]!r} after {t[i]!r}); allowed: t[i+1] > t[i]")
+                             f"(t={float(t[i + 1])!r} after {float(t[i])!r}); allowed: t[i+1] > t[i]")
         object.__setattr__(self, "t_s", t)
         object.__setattr__(self, "y", _as_column("y", self.y, t.size))
         for f in fields(self)[2:]:
@@ -78,7 +78,7 @@ class Record:
             bad = (col < lo) | (col > hi)
             if np.any(bad):
                 i = int(np.argmax(bad))
-                raise ValueError(f"{_short(f.name)}: value {col[i]!r} at row {i} outside "
+                raise ValueError(f"{_short(f.name)}: value {float(col[i])!r} at row {i} outside "
                                  f"the allowed range [{lo}, {hi}]")
             object.__setattr__(self, f.name, col)
 
@@ -210,7 +210,7 @@ def _as_column(name: str, v, n: int | None) -> np.ndarray:
     bad = ~np.isfinite(a)
     if np.any(bad):
         i = int(np.argmax(bad))
-        raise ValueError(f"{name}: non-finite value {a[i]!r} at row {i}; "
+        raise ValueError(f"{name}: non-finite value {float(a[i])!r} at row {i}; "
                          f"allowed: finite values in (-inf, inf)")
     a.setflags(write=False)
     return a
