@@ -1,0 +1,383 @@
+"""The common machinery of catalogue effects: parameters, detectability, drawing, fit starts.
+
+Conventions
+-----------
+* ``u`` is the sensor's unit: g for accelerometers, deg/s for gyros and the MHD sensor;
+  parameter names carry the kind-independent part of the unit (``_s``, ``_hz``, ``_per_c``)
+  and ``Param.unit`` spells the full unit for the kind.
+* An effect acts at one *stage* of the signal path (``Model.predict`` composes them so):
+  ``"input"`` transforms the applied input before the scale factor (time_delay,
+  lowpass_bandwidth, highpass_rolloff, dead_zone); ``"additive"`` adds a term to the output;
+  ``"output"`` transforms the whole output (saturation, then quantization: the ADC comes last).
+  ``Effect.apply(p, rec, y_ideal)`` applies the effect on its own: for input-stage effects it
+  adds ``F[input] - input`` (unit scale factor; ``Model`` uses the exact ``SF·F[input]``).
+* Detectability: the signature's signal-to-noise ratio ``snr(p, rec, noise_sd)``. For a
+  deterministic effect it is ``||P⊥ Δ|| / noise_sd``: Δ the change the effect makes to the
+  reference output (``y = input``, or 0 without an input) and P⊥ the projection away from the
+  base model's calibration regressors (1 and the input), so what a recalibration of bias and
+  scale factor absorbs does not count. Stochastic and quantization effects override it.
+  ``min_effect`` is the main parameter's magnitude at ``snr = MIN_SNR`` (5), never below the
+  physically meaningful floor of the kind; ``draw`` picks the main parameter so that
+  ``snr`` is between ``DRAW_SNR_FACTOR * MIN_SNR`` (15; for effects linear in their main
+  parameter that is ``|main| >= 3 * min_effect``) and ``DRAW_SPAN`` (30) times that, inside the
+  kind's physical range (log-uniform in the main parameter between the two). Other parameters are drawn where the record can resolve them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from bench.discovery.data import Record
+
+KINDS = ("accelerometer", "gyro", "mhd")
+UNIT = {"accelerometer": "g", "gyro": "deg/s", "mhd": "deg/s"}
+#: White-noise sd per sample assumed when none is given and the record cannot tell (u).
+DEFAULT_NOISE_SD = {"accelerometer": 5e-6, "gyro": 3e-3, "mhd": 0.06}
+MIN_SNR = 5.0
+DRAW_SNR_FACTOR = 3.0
+DRAW_SPAN = 30.0
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter: physical range ``[low, high]`` (inclusive) in ``unit``.
+
+    ``log``: positive and drawn/gridded on a log scale; ``linear``: the effect's output is
+    linear in it (a least-squares parameter); ``floor``: smallest physically meaningful
+    magnitude (a coefficient below it is indistinguishable from zero for this sensor class)."""
+
+    name: str
+    unit: str
+    low: float
+    high: float
+    log: bool = False
+    linear: bool = False
+    floor: float = 0.0
+
+    def check(self, value, effect_id: str = "") -> float:
+        """The value as float, or ValueError naming it and the allowed range."""
+        where = f"{effect_id}.{self.name}" if effect_id else self.name
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"{where} = {value!r} is not a number; allowed: [{self.low}, {self.high}] {self.unit}") from None
+        if not (self.low <= v <= self.high):
+            raise ValueError(f"{where} = {v!r} outside the allowed range [{self.low}, {self.high}] {self.unit}")
+        return v
+
+
+def _p(name, unit, low, high, **kw) -> Param:
+    return Param(name, unit, float(low), float(high), **kw)
+
+
+def guess_kind(rec: Record) -> str:
+    """Sensor kind from the record alone: inputs beyond 5 (a rate in deg/s) mean a gyro,
+    otherwise an accelerometer (g). Pass ``kind`` explicitly when it is known."""
+    if rec.logged("input") and float(np.max(np.abs(rec.input))) > 5.0:
+        return "gyro"
+    return "accelerometer"
+
+
+def noise_sd_of(rec: Record, kind: str) -> float:
+    """Robust white-noise sd of ``rec.y`` from first differences (MAD), else the kind's default."""
+    d = np.diff(rec.y)
+    s = float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+    return s if s > 0 else DEFAULT_NOISE_SD[kind]
+
+
+def base_regressors(rec: Record) -> np.ndarray:
+    """Columns a base-model calibration fits: 1 and (when logged) the input."""
+    cols = [np.ones(rec.n)]
+    if rec.logged("input"):
+        cols.append(rec.input)
+    return np.column_stack(cols)
+
+
+def project_out(x: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """x minus its least-squares fit on the columns of a."""
+    coef, *_ = np.linalg.lstsq(a, x, rcond=None)
+    return x - a @ coef
+
+
+class Effect:
+    """One catalogue entry. Subclasses set the class attributes and ``_term``/``_transform``.
+
+    Attributes: ``id``, ``description``, ``form``, ``inputs`` (logged columns needed),
+    ``main_param``, ``signature``, ``stochastic``, ``stage``, ``kinds`` (sensor kinds it
+    applies to), ``identity`` (main-parameter value that leaves the output unchanged),
+    ``increasing`` (a larger main parameter is a larger effect; False for a bandwidth or a
+    saturation limit), ``ranges`` (kind -> tuple of Param)."""
+
+    id: str = ""
+    description: str = ""
+    form: str = ""
+    inputs: tuple[str, ...] = ()
+    main_param: str = ""
+    signature: str = ""
+    stochastic: bool = False
+    stage: str = "additive"
+    kinds: tuple[str, ...] = KINDS
+    identity: float = 0.0
+    increasing: bool = True
+    ranges: dict[str, tuple[Param, ...]] = {}
+
+    # ---- parameters -------------------------------------------------------------------
+    @property
+    def params(self) -> tuple[Param, ...]:
+        """Envelope of the physical ranges over the kinds (unit: each kind's unit listed)."""
+        per = [self.ranges[k] for k in self.kinds]
+        out = []
+        for i, p in enumerate(per[0]):
+            lo = min(q[i].low for q in per)
+            hi = max(q[i].high for q in per)
+            fl = min(q[i].floor for q in per)
+            units = [q[i].unit for q in per]
+            unit = units[0] if len(set(units)) == 1 else " | ".join(f"{u} ({k})" for u, k in zip(units, self.kinds))
+            out.append(replace(p, low=lo, high=hi, floor=fl, unit=unit))
+        return tuple(out)
+
+    def params_for(self, kind: str) -> tuple[Param, ...]:
+        """The physical ranges for one sensor kind (ValueError for a kind it does not apply to)."""
+        if kind not in self.ranges:
+            raise ValueError(f"effect {self.id!r} does not apply to kind {kind!r}; allowed: {list(self.kinds)}")
+        return self.ranges[kind]
+
+    def param(self, name: str, kind: str | None = None) -> Param:
+        for p in (self.params_for(kind) if kind else self.params):
+            if p.name == name:
+                return p
+        raise ValueError(f"effect {self.id!r} has no parameter {name!r}; allowed: {self.param_names}")
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.ranges[self.kinds[0]])
+
+    def check_params(self, p: dict, kind: str | None = None) -> dict:
+        """Validated copy of p (floats): every parameter present, none unknown, each in range."""
+        names = self.param_names
+        unknown = sorted(set(p) - set(names))
+        if unknown:
+            raise ValueError(f"effect {self.id!r}: unknown parameter(s) {unknown}; allowed: {list(names)}")
+        missing = [n for n in names if n not in p]
+        if missing:
+            raise ValueError(f"effect {self.id!r}: missing parameter(s) {missing}; required: {list(names)}")
+        return {q.name: q.check(p[q.name], self.id) for q in (self.params_for(kind) if kind else self.params)}
+
+    def check_inputs(self, rec: Record) -> None:
+        for name in self.inputs:
+            if not rec.has(name):
+                raise ValueError(f"effect {self.id!r} needs the logged column {name!r}, absent from this record")
+
+    # ---- the effect -------------------------------------------------------------------
+    def apply(self, p: dict, rec: Record, y_ideal: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
+        """``y_ideal`` with this effect applied (see the module docstring for stages)."""
+        self.check_inputs(rec)
+        y = np.asarray(y_ideal, dtype=float)
+        if y.shape != (rec.n,):
+            raise ValueError(f"y_ideal has shape {y.shape}; allowed: ({rec.n},) like the record")
+        if self.stochastic:
+            if rng is None:
+                raise ValueError(f"effect {self.id!r} is stochastic: apply needs rng (a numpy Generator)")
+            return y + self._noise(p, rec, rng)
+        if self.stage == "input":
+            u = rec.input
+            return y + (self.transform_input(p, rec, u) - u)
+        if self.stage == "output":
+            return self._transform(p, rec, y)
+        return y + self._term(p, rec)
+
+    def transform_input(self, p: dict, rec: Record, u: np.ndarray) -> np.ndarray:
+        """Input-stage effects: the transformed input (same unit)."""
+        raise NotImplementedError(f"{self.id} is not an input-stage effect")
+
+    def _term(self, p: dict, rec: Record) -> np.ndarray:
+        raise NotImplementedError
+
+    def _transform(self, p: dict, rec: Record, y: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _noise(self, p: dict, rec: Record, rng: np.random.Generator) -> np.ndarray:
+        raise NotImplementedError
+
+    # ---- detectability ----------------------------------------------------------------
+    def reference_output(self, rec: Record) -> np.ndarray:
+        """The output the detectability rule perturbs: ``input`` (unit SF, zero bias) or 0."""
+        return rec.input.copy() if rec.logged("input") else np.zeros(rec.n)
+
+    def snr(self, p: dict, rec: Record, noise_sd: float) -> float:
+        """Signal-to-noise ratio of the effect's signature on rec (see module docstring)."""
+        y0 = self.reference_output(rec)
+        delta = self.apply(p, rec, y0) - y0
+        return float(np.linalg.norm(project_out(delta, base_regressors(rec))) / noise_sd)
+
+    def reference_params(self, rec: Record, kind: str) -> dict:
+        """Typical values of every parameter for judging detectability on rec: geometric mean
+        of the resolvable range (log parameters), 0 for signed linear ones, else the midpoint."""
+        out = {}
+        for q in self.params_for(kind):
+            lo, hi = self.drawable_range(q, rec, kind)
+            out[q.name] = math.sqrt(lo * hi) if q.log else (0.0 if lo <= 0 <= hi and q.linear else 0.5 * (lo + hi))
+        return out
+
+    def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        """The part of a non-main parameter's range the record can resolve (override per effect)."""
+        return q.low, q.high
+
+    def _with_main(self, others: dict, value: float) -> dict:
+        d = dict(others)
+        d[self.main_param] = value
+        return d
+
+    def _threshold(self, others: dict, rec: Record, noise_sd: float, target: float, kind: str) -> float:
+        """Main-parameter magnitude where snr == target (bisection on a log scale)."""
+        q = self.param(self.main_param, kind)
+        hi_mag = max(abs(q.low), abs(q.high))
+        lo_mag = max(q.floor, hi_mag * 1e-12, 1e-300) if not q.log else q.low
+        sgn = 1.0 if q.high > 0 else -1.0
+        f = lambda m: self.snr(self._with_main(others, sgn * m), rec, noise_sd) - target  # noqa: E731
+        a, b = math.log(lo_mag), math.log(hi_mag)
+        fa, fb = f(lo_mag), f(hi_mag)
+        if self.increasing:
+            if fb < 0:
+                return math.inf
+            if fa >= 0:
+                return lo_mag
+        else:
+            if fa < 0:
+                return 0.0
+            if fb >= 0:
+                return hi_mag
+        for _ in range(50):
+            m = 0.5 * (a + b)
+            if (f(math.exp(m)) >= 0) == self.increasing:
+                b = m
+            else:
+                a = m
+            if b - a < 1e-4:
+                break
+        return math.exp(b if self.increasing else a)
+
+    def min_effect(self, rec: Record, noise_sd: float, *, kind: str | None = None,
+                   params: dict | None = None) -> float:
+        """Smallest main-parameter magnitude that matters on rec with white noise ``noise_sd``
+        (the largest for a decreasing effect, e.g. a bandwidth): ``snr = MIN_SNR`` with the other
+        parameters at ``params`` (default: reference values), and never finer than the physical
+        floor. ``math.inf`` (0 for decreasing) when even the range's end is undetectable."""
+        if not noise_sd > 0:
+            raise ValueError(f"noise_sd = {noise_sd!r}; allowed: > 0")
+        kind = kind or guess_kind(rec)
+        others = self.reference_params(rec, kind)
+        if params:
+            others.update({k: v for k, v in params.items() if k in others})
+        thr = self._threshold(others, rec, noise_sd, MIN_SNR, kind)
+        floor = self.param(self.main_param, kind).floor
+        return max(thr, floor) if self.increasing else thr
+
+    def detectable(self, p: dict, rec: Record, noise_sd: float) -> bool:
+        """True when snr(p) >= MIN_SNR."""
+        return self.snr(p, rec, noise_sd) >= MIN_SNR
+
+    # ---- drawing ----------------------------------------------------------------------
+    def draw(self, rng: np.random.Generator, rec: Record, *, kind: str | None = None,
+             noise_sd: float | None = None) -> dict:
+        """Parameters inside the kind's physical ranges, resolvable on rec, with the main
+        parameter log-uniform between the values giving ``snr = DRAW_SNR_FACTOR·MIN_SNR`` (15)
+        and ``DRAW_SPAN`` times that snr (450); random sign for signed parameters. ValueError when the physical
+        range cannot reach that on this record (the record is too short/quiet for it)."""
+        kind = kind or guess_kind(rec)
+        self.params_for(kind)
+        self.check_inputs(rec)
+        sd = noise_sd if noise_sd is not None else noise_sd_of(rec, kind)
+        others = self.draw_others(rng, rec, kind)
+        q = self.param(self.main_param, kind)
+        lo_snr = DRAW_SNR_FACTOR * MIN_SNR
+        thr = self._threshold(others, rec, sd, lo_snr, kind)
+        far = self._threshold(others, rec, sd, lo_snr * DRAW_SPAN, kind)
+        hi_mag = max(abs(q.low), abs(q.high))
+        lo_mag = q.low if q.log else max(q.floor, 0.0)
+        if self.increasing:
+            a, b = max(thr, lo_mag), min(hi_mag, far)
+        else:
+            a, b = max(lo_mag, far), min(thr, hi_mag)
+        c_lo, c_hi = self.main_draw_clip(rec, kind)
+        a, b = max(a, c_lo), min(b, c_hi)
+        if not (0 < a <= b):
+            raise ValueError(f"{self.id}: no {self.main_param} inside [{q.low}, {q.high}] {q.unit} is "
+                             f"detectable on this record (needs {'>=' if self.increasing else '<='} {thr:.3g})")
+        mag = math.exp(rng.uniform(math.log(a), math.log(b)))
+        sign = 1.0 if (q.low >= 0 or rng.random() < 0.5) else -1.0
+        return self.finish_draw(rng, rec, kind, self._with_main(others, sign * mag))
+
+    def draw_others(self, rng: np.random.Generator, rec: Record, kind: str) -> dict:
+        """Non-main parameters: uniform (log-uniform for log params) over the drawable range."""
+        out = {}
+        for q in self.params_for(kind):
+            if q.name == self.main_param:
+                continue
+            lo, hi = self.drawable_range(q, rec, kind)
+            out[q.name] = math.exp(rng.uniform(math.log(lo), math.log(hi))) if q.log else rng.uniform(lo, hi)
+        return out
+
+    def main_draw_clip(self, rec: Record, kind: str) -> tuple[float, float]:
+        """Extra limits on the drawn main magnitude (override: e.g. a saturation limit not far
+        below the signal)."""
+        return 0.0, math.inf
+
+    def finish_draw(self, rng: np.random.Generator, rec: Record, kind: str, p: dict) -> dict:
+        """Hook for parameters drawn relative to the main one."""
+        return p
+
+    # ---- fit starts -------------------------------------------------------------------
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[dict]:
+        """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first):
+        a grid over the nonlinear parameters (their resolvable ranges) with the linear ones
+        solved by least squares at each grid point after projecting out the base regressors;
+        the 3 lowest residual sums of squares are returned."""
+        kind = kind or guess_kind(rec)
+        r = np.asarray(residual, dtype=float)
+        qs = self.params_for(kind)
+        lin = [q for q in qs if q.linear]
+        grids = []
+        for q in qs:
+            if q.linear:
+                continue
+            lo, hi = self.drawable_range(q, rec, kind) if q.name != self.main_param else self.main_grid_range(rec, kind)
+            pts = np.geomspace(lo, hi, 9) if q.log else np.linspace(lo, hi, 5)
+            grids.append((q.name, pts))
+        a = base_regressors(rec)
+        r_perp = project_out(r, a)
+        y0 = self.reference_output(rec)
+        cands = []
+        for combo in _product(grids):
+            p = {q.name: 0.0 for q in lin} | combo
+            if lin:
+                cols = []
+                for q in lin:
+                    pu = dict(p)
+                    pu[q.name] = 1.0
+                    cols.append(project_out(self.apply(pu, rec, y0) - y0, a))
+                m = np.column_stack(cols)
+                coef, *_ = np.linalg.lstsq(m, r_perp, rcond=None)
+                for q, c in zip(lin, coef):
+                    p[q.name] = float(np.clip(c, q.low, q.high))
+            d = project_out(self.apply(p, rec, y0) - y0, a)
+            cands.append((float(np.sum((r_perp - d) ** 2)), p))
+        cands.sort(key=lambda c: c[0])
+        return [c[1] for c in cands[:3]]
+
+    def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
+        q = self.param(self.main_param, kind)
+        return self.drawable_range(q, rec, kind)
+
+
+def _product(grids):
+    if not grids:
+        yield {}
+        return
+    (name, pts), rest = grids[0], grids[1:]
+    for v in pts:
+        for tail in _product(rest):
+            yield {name: float(v)} | tail

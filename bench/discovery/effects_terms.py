@@ -1,0 +1,273 @@
+"""Additive catalogue effects: a deterministic term added to the output (unit u: g or deg/s).
+
+Ranges (per kind) cover a QA-2000-class quartz accelerometer, a tactical FOG and an MHD angular
+rate sensor from datasheet level up to roughly ten times worse (a degraded or mis-installed
+unit), down to a floor below which the coefficient is immaterial for that class.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bench.discovery.data import Record
+from bench.discovery.effects_base import Effect, _p, base_regressors, project_out
+
+#: Reference temperature of the temperature effects, degC: a model file's coefficients then
+#: mean the same on any record (the record's first temperature would tie them to one run);
+#: the constant part at the record's temperatures is absorbed by bias / scale factor.
+T_REF_C = 25.0
+
+
+def _time_range(rec: Record, lo: float, hi: float, min_samples: float = 3.0, frac: float = 0.25):
+    return max(lo, min_samples * rec.dt_s), max(min(hi, frac * rec.duration_s), max(lo, min_samples * rec.dt_s) * 1.01)
+
+
+class WarmupExponential(Effect):
+    id = "warmup_exponential"
+    description = "start-up transient of the bias after power-on (thermal settling of the sensor and electronics)"
+    form = "y += amplitude · exp(−t_on / tau_s)"
+    inputs = ("t_on",)
+    main_param = "amplitude"
+    signature = "time: a decaying offset at the start of the record (early segments), Allan: slope near tau; correlates with t_on"
+    kinds = ("accelerometer", "gyro", "mhd")
+    ranges = {  # QA-2000 start-up tens of µg over minutes; FOG up to ~1000 deg/h; MHD electronics offset
+        "accelerometer": (_p("amplitude", "g", -1e-2, 1e-2, linear=True, floor=1e-7), _p("tau_s", "s", 1.0, 1e5, log=True)),
+        "gyro": (_p("amplitude", "deg/s", -0.3, 0.3, linear=True, floor=1e-6), _p("tau_s", "s", 1.0, 1e5, log=True)),
+        "mhd": (_p("amplitude", "deg/s", -1.0, 1.0, linear=True, floor=1e-4), _p("tau_s", "s", 0.1, 1e5, log=True)),
+    }
+
+    def _term(self, p, rec):
+        return p["amplitude"] * np.exp(-rec.column("t_on") / p["tau_s"])
+
+    def drawable_range(self, q, rec, kind):
+        if q.name == "tau_s":  # resolvable: a few samples up to a quarter of the record
+            return _time_range(rec, q.low, q.high, 5.0, 0.2)
+        return q.low, q.high
+
+
+class LinearDrift(Effect):
+    id = "linear_drift"
+    description = "bias changing at a constant rate over the record (ageing, slow thermal drift)"
+    form = "y += slope_per_s · (t − t[0])"
+    inputs = ("t",)
+    main_param = "slope_per_s"
+    signature = "time: a ramp across the whole record; Allan: +1 slope at the longest tau; spectrum: 1/f² at the lowest bins"
+    ranges = {
+        "accelerometer": (_p("slope_per_s", "g/s", -1e-6, 1e-6, linear=True, floor=1e-12),),
+        "gyro": (_p("slope_per_s", "deg/s/s", -1e-4, 1e-4, linear=True, floor=1e-10),),
+        "mhd": (_p("slope_per_s", "deg/s/s", -1e-3, 1e-3, linear=True, floor=1e-8),),
+    }
+
+    def _term(self, p, rec):
+        return p["slope_per_s"] * (rec.t_s - rec.t_s[0])
+
+
+class TemperatureBias(Effect):
+    id = "temperature_bias"
+    description = "bias temperature sensitivity, linear with an optional quadratic term"
+    form = f"y += coef_per_c·ΔT + coef_per_c2·ΔT², ΔT = temp − {T_REF_C} °C (fixed reference)"
+    inputs = ("temp",)
+    main_param = "coef_per_c"
+    signature = "input: residual correlates with temp (and temp²); time: follows the temperature profile"
+    ranges = {  # QA-2000 sheet < 30 µg/°C; FOG ~0.1-10 deg/h/°C (1e-2 deg/h/°C = 2.8e-6 deg/s/°C)
+        "accelerometer": (_p("coef_per_c", "g/degC", -1e-4, 1e-4, linear=True, floor=1e-8),
+                          _p("coef_per_c2", "g/degC^2", -1e-6, 1e-6, linear=True)),
+        "gyro": (_p("coef_per_c", "deg/s/degC", -3e-3, 3e-3, linear=True, floor=1e-7),
+                 _p("coef_per_c2", "deg/s/degC^2", -1e-4, 1e-4, linear=True)),
+        "mhd": (_p("coef_per_c", "deg/s/degC", -1e-2, 1e-2, linear=True, floor=1e-5),
+                _p("coef_per_c2", "deg/s/degC^2", -1e-3, 1e-3, linear=True)),
+    }
+
+    def _term(self, p, rec):
+        dt = rec.column("temp") - T_REF_C
+        return p["coef_per_c"] * dt + p["coef_per_c2"] * dt * dt
+
+    def draw_others(self, rng, rec, kind):
+        return {"coef_per_c2": 0.0}
+
+    def finish_draw(self, rng, rec, kind, p):
+        # quadratic part at most 30 % of the linear one over the record's temperature swing
+        dt = rec.column("temp") - T_REF_C
+        span = max(float(np.ptp(dt)), 1.0) + abs(float(np.mean(dt)))
+        q = self.param("coef_per_c2", kind)
+        p["coef_per_c2"] = float(np.clip(rng.uniform(-0.3, 0.3) * abs(p["coef_per_c"]) / span, q.low, q.high))
+        return p
+
+
+class TemperatureScaleFactor(Effect):
+    id = "temperature_scale_factor"
+    description = "scale-factor temperature sensitivity"
+    form = f"y += sf_coef_per_c · (temp − {T_REF_C} °C) · input"
+    inputs = ("input", "temp")
+    main_param = "sf_coef_per_c"
+    signature = "input: residual ∝ input·ΔT (grows with |input| and with the temperature change)"
+    ranges = {  # QA-2000 SF TC < 180 ppm/°C; FOG SF TC tens to hundreds of ppm/°C
+        "accelerometer": (_p("sf_coef_per_c", "1/degC", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "gyro": (_p("sf_coef_per_c", "1/degC", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "mhd": (_p("sf_coef_per_c", "1/degC", -1e-2, 1e-2, linear=True, floor=1e-6),),
+    }
+
+    def _term(self, p, rec):
+        return p["sf_coef_per_c"] * (rec.column("temp") - T_REF_C) * rec.input
+
+
+class K2Nonlinearity(Effect):
+    id = "k2_nonlinearity"
+    description = "second-order (even) scale-factor non-linearity"
+    form = "y += k2_per_u · input²"
+    inputs = ("input",)
+    main_param = "k2_per_u"
+    signature = "input: residual ∝ input² (same sign for ±input)"
+    ranges = {  # QA-2000 sheet < 20 µg/g²; FOG: 100 ppm of 490 deg/s full scale ≈ 2e-7 /(deg/s)
+        "accelerometer": (_p("k2_per_u", "1/g", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "gyro": (_p("k2_per_u", "1/(deg/s)", -1e-4, 1e-4, linear=True, floor=1e-10),),
+        "mhd": (_p("k2_per_u", "1/(deg/s)", -1e-3, 1e-3, linear=True, floor=1e-8),),
+    }
+
+    def _term(self, p, rec):
+        return p["k2_per_u"] * rec.input ** 2
+
+
+class K3Nonlinearity(Effect):
+    id = "k3_nonlinearity"
+    description = "third-order (odd) scale-factor non-linearity"
+    form = "y += k3_per_u2 · input³"
+    inputs = ("input",)
+    main_param = "k3_per_u2"
+    signature = "input: residual ∝ input³ minus its linear part (S-shaped against input)"
+    ranges = {  # FOG cubic n·FS·(ω/FS)³: n = 100 ppm at 490 deg/s -> 4e-10 /(deg/s)²
+        "accelerometer": (_p("k3_per_u2", "1/g^2", -1e-4, 1e-4, linear=True, floor=1e-9),),
+        "gyro": (_p("k3_per_u2", "1/(deg/s)^2", -1e-6, 1e-6, linear=True, floor=1e-14),),
+        "mhd": (_p("k3_per_u2", "1/(deg/s)^2", -1e-5, 1e-5, linear=True, floor=1e-12),),
+    }
+
+    def _term(self, p, rec):
+        return p["k3_per_u2"] * rec.input ** 3
+
+
+class ScaleFactorAsymmetry(Effect):
+    id = "scale_factor_asymmetry"
+    description = "different scale factors for positive and negative input (SF+ − SF− = asymmetry·SF)"
+    form = "y += (asymmetry / 2) · |input|"
+    inputs = ("input",)
+    main_param = "asymmetry"
+    signature = "input: residual ∝ |input| (V-shaped against input)"
+    ranges = {  # FOG asymmetry tens of ppm (limit 100 ppm); pendulous accelerometers ~ppm
+        "accelerometer": (_p("asymmetry", "1", -1e-3, 1e-3, linear=True, floor=1e-7),),
+        "gyro": (_p("asymmetry", "1", -1e-2, 1e-2, linear=True, floor=1e-7),),
+        "mhd": (_p("asymmetry", "1", -5e-2, 5e-2, linear=True, floor=1e-6),),
+    }
+
+    def _term(self, p, rec):
+        return 0.5 * p["asymmetry"] * np.abs(rec.input)
+
+
+class Misalignment(Effect):
+    id = "misalignment"
+    description = "input axis tilted toward a cross axis: part of the cross-axis input is sensed"
+    form = "y += angle_rad · cross_input"
+    inputs = ("cross_input",)
+    main_param = "angle_rad"
+    signature = "input: residual correlates with cross_input"
+    ranges = {  # QA-2000 sheet < 70 µrad (mounting adds mrad); FOG/MHD mounting up to tens of mrad
+        "accelerometer": (_p("angle_rad", "rad", -5e-3, 5e-3, linear=True, floor=1e-7),),
+        "gyro": (_p("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
+        "mhd": (_p("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
+    }
+
+    def _term(self, p, rec):
+        return p["angle_rad"] * rec.column("cross_input")
+
+
+class GSensitivity(Effect):
+    id = "g_sensitivity"
+    description = ("gyro bias proportional to the specific force along its input axis (logged as the "
+                   "`accel` column, g): orientation in gravity or a sustained acceleration")
+    form = "y += coef_per_g · accel"
+    inputs = ("accel",)
+    main_param = "coef_per_g"
+    signature = "input: residual correlates with the specific force column `accel`"
+    kinds = ("gyro",)
+    ranges = {  # FOG g-sensitivity ≲ 1-100 deg/h/g (1 deg/h/g = 2.8e-4 deg/s/g)
+        "gyro": (_p("coef_per_g", "deg/s/g", -0.03, 0.03, linear=True, floor=3e-7),),
+    }
+
+    def _term(self, p, rec):
+        return p["coef_per_g"] * rec.column("accel")
+
+
+class VibrationRectification(Effect):
+    id = "vibration_rectification"
+    description = "bias shift under vibration (rectification of the vibration by non-linearities)"
+    form = "y += coef_per_g2 · vib²"
+    inputs = ("vib",)
+    main_param = "coef_per_g2"
+    signature = "input/time: offset during vibration segments ∝ vib² (g rms)"
+    kinds = ("accelerometer", "gyro")
+    ranges = {  # QA-2000-class VRE tens of µg/g²; FOG vibration rectification ≲ 100 deg/h/g²
+        "accelerometer": (_p("coef_per_g2", "g/g^2", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "gyro": (_p("coef_per_g2", "deg/s/g^2", -0.03, 0.03, linear=True, floor=3e-7),),
+    }
+
+    def _term(self, p, rec):
+        return p["coef_per_g2"] * rec.column("vib") ** 2
+
+
+class SinusoidalInterference(Effect):
+    id = "sinusoidal_interference"
+    description = "a periodic disturbance: mains pick-up, a pump or fan, a table's or dither's line"
+    form = "y += amplitude · sin(2π·freq_hz·(t − t[0]) + phase_rad)"
+    inputs = ("t",)
+    main_param = "amplitude"
+    signature = "frequency: a spectral line at freq_hz; time: present throughout"
+    ranges = {
+        "accelerometer": (_p("amplitude", "g", 0.0, 1e-2, floor=1e-8), _p("freq_hz", "Hz", 1e-4, 1e4, log=True),
+                          _p("phase_rad", "rad", -math.pi, math.pi)),
+        "gyro": (_p("amplitude", "deg/s", 0.0, 1.0, floor=1e-6), _p("freq_hz", "Hz", 1e-4, 1e4, log=True),
+                 _p("phase_rad", "rad", -math.pi, math.pi)),
+        "mhd": (_p("amplitude", "deg/s", 0.0, 10.0, floor=1e-4), _p("freq_hz", "Hz", 1e-4, 1e5, log=True),
+                _p("phase_rad", "rad", -math.pi, math.pi)),
+    }
+
+    def _term(self, p, rec):
+        return p["amplitude"] * np.sin(2 * np.pi * p["freq_hz"] * (rec.t_s - rec.t_s[0]) + p["phase_rad"])
+
+    def drawable_range(self, q, rec, kind):
+        if q.name == "freq_hz":  # at least 20 cycles in the record, below 0.4 × the sample rate
+            return max(q.low, 20.0 / rec.duration_s), min(q.high, 0.4 * rec.rate_hz)
+        return q.low, q.high
+
+    def fit_starts(self, rec, residual, *, kind=None):
+        """The three strongest periodogram lines of the residual (uniform records: FFT with a
+        Hann window; else a Lomb-Scargle grid), amplitude and phase by least squares."""
+        kind = kind or "accelerometer"
+        r = project_out(np.asarray(residual, float), base_regressors(rec))
+        f_lo, f_hi = self.drawable_range(self.param("freq_hz", kind), rec, kind)
+        tt = rec.t_s - rec.t_s[0]
+        if rec.is_uniform():
+            spec = np.abs(np.fft.rfft(r * np.hanning(rec.n)))
+            f = np.fft.rfftfreq(rec.n, rec.dt_s)
+        else:
+            from scipy.signal import lombscargle
+            f = np.geomspace(f_lo, f_hi, 4000)
+            spec = lombscargle(tt, r, 2 * np.pi * f)
+        ok = (f >= f_lo * 0.5) & (f <= min(f_hi * 1.25, 0.5 * rec.rate_hz))
+        idx = np.flatnonzero(ok)
+        if idx.size == 0:
+            return []
+        order = idx[np.argsort(spec[idx])[::-1]]
+        starts, used = [], []
+        for i in order:
+            if any(abs(i - j) < 3 for j in used):
+                continue
+            used.append(i)
+            qf = self.param("freq_hz", kind)
+            fr = float(np.clip(f[i], qf.low, qf.high))
+            m = np.column_stack([np.sin(2 * np.pi * fr * tt), np.cos(2 * np.pi * fr * tt)])
+            (a, b), *_ = np.linalg.lstsq(m, r, rcond=None)
+            starts.append({"amplitude": float(math.hypot(a, b)), "freq_hz": fr, "phase_rad": float(math.atan2(b, a))})
+            if len(starts) == 3:
+                break
+        return starts

@@ -1,0 +1,197 @@
+"""Catalogue effects that transform a signal: the input path (delay, bandwidth, high-pass, dead
+zone) or the whole output (saturation, quantization).
+
+Input-path convention: the record starts settled, so the first input value ``u0`` passes and the
+changes ``u − u0`` go through the dynamics from rest (for the MHD sensor, which starts at rest,
+``u0 = 0``). Filters are the sampled single-pole responses (matched pole ``a = exp(−2π·f·dt)``),
+which run from no effect (corner → ∞ low-pass, → 0 high-pass) continuously; they need a uniform
+record.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.signal import lfilter
+
+from bench.discovery.data import Record
+from bench.discovery.effects_base import Effect, _p
+
+
+def _uniform_dt(rec: Record, who: str) -> float:
+    if not rec.is_uniform():
+        raise ValueError(f"{who} needs a uniformly sampled record (every interval within 0.1 % of "
+                         f"the median {rec.dt_s!r} s); resample first")
+    return rec.dt_s
+
+
+class TimeDelay(Effect):
+    id = "time_delay"
+    description = "latency of the sensor's input path (processing, filtering group delay, transport)"
+    form = "input → input(t − delay_s), linear interpolation between samples, input[0] before the start"
+    inputs = ("input",)
+    main_param = "delay_s"
+    signature = "input: residual ∝ −delay·d(input)/dt, spikes at input changes; cross-correlation peak of y and input shifted by delay"
+    stage = "input"
+    ranges = {
+        "accelerometer": (_p("delay_s", "s", 1e-5, 1.0, log=True),),
+        "gyro": (_p("delay_s", "s", 1e-5, 1.0, log=True),),
+        "mhd": (_p("delay_s", "s", 1e-6, 0.1, log=True),),
+    }
+
+    def transform_input(self, p, rec, u):
+        return np.interp(rec.t_s - p["delay_s"], rec.t_s, u)
+
+    def main_grid_range(self, rec, kind):
+        q = self.param("delay_s", kind)
+        return max(q.low, 1e-4 * rec.dt_s), min(q.high, 20 * rec.dt_s)
+
+
+class LowpassBandwidth(Effect):
+    id = "lowpass_bandwidth"
+    description = "finite bandwidth of the sensor or its read-out: a single-pole low-pass on the input path"
+    form = "input → u0 + LP[input − u0], LP: y_k = a·y_{k−1} + (1 − a)·x_k, a = exp(−2π·bandwidth_hz·dt)"
+    inputs = ("input",)
+    main_param = "bandwidth_hz"
+    signature = "time: exponential tails after input steps; frequency: response rolls off above bandwidth_hz"
+    stage = "input"
+    identity = math.inf
+    increasing = False
+    ranges = {  # QA-2000 > 300 Hz but DMM/ADC filters reach 0.01 Hz; FOG ~100-1000 Hz; MHD 8 kHz
+        "accelerometer": (_p("bandwidth_hz", "Hz", 0.01, 1e3, log=True),),
+        "gyro": (_p("bandwidth_hz", "Hz", 0.1, 1e3, log=True),),
+        "mhd": (_p("bandwidth_hz", "Hz", 1.0, 2e4, log=True),),
+    }
+
+    def transform_input(self, p, rec, u):
+        f = p["bandwidth_hz"]
+        if math.isinf(f):
+            return u.copy()
+        a = math.exp(-2 * math.pi * f * _uniform_dt(rec, self.id))
+        return u[0] + lfilter([1 - a], [1, -a], u - u[0])
+
+    def main_grid_range(self, rec, kind):
+        q = self.param("bandwidth_hz", kind)
+        return max(q.low, rec.rate_hz / 300), min(q.high, rec.rate_hz)
+
+
+class HighpassRolloff(Effect):
+    id = "highpass_rolloff"
+    description = "AC coupling: a single-pole high-pass on the input path (the MHD sensor senses no DC rate)"
+    form = "input → u0 + HP[input − u0], HP: y_k = a·(y_{k−1} + x_k − x_{k−1}), a = exp(−2π·corner_hz·dt)"
+    inputs = ("input",)
+    main_param = "corner_hz"
+    signature = "time: droop after input steps (output returns to bias); frequency: loss below corner_hz, phase lead"
+    stage = "input"
+    kinds = ("mhd",)
+    ranges = {"mhd": (_p("corner_hz", "Hz", 1e-3, 100.0, log=True),)}  # MHD preset corner 2.5 Hz
+
+    def transform_input(self, p, rec, u):
+        f = p["corner_hz"]
+        if f == 0:
+            return u.copy()
+        a = math.exp(-2 * math.pi * f * _uniform_dt(rec, self.id))
+        return u[0] + lfilter([a, -a], [1, -a], u - u[0])
+
+    def main_grid_range(self, rec, kind):
+        q = self.param("corner_hz", kind)
+        return max(q.low, 3.0 / rec.duration_s), min(q.high, 0.1 * rec.rate_hz)
+
+
+class DeadZone(Effect):
+    id = "dead_zone"
+    description = "no response to inputs smaller than a threshold (half_width), offset by it beyond"
+    form = "input → sign(input)·max(|input| − half_width, 0)"
+    inputs = ("input",)
+    main_param = "half_width"
+    signature = "input: residual = −clip(input, ±half_width): a step of size half_width at zero input"
+    stage = "input"
+    kinds = ("accelerometer", "gyro")
+    ranges = {  # QA-2000 threshold ≲ 1 µg; FOG read-out thresholds up to ~0.01-1 deg/s when faulty
+        "accelerometer": (_p("half_width", "g", 1e-7, 1e-2, log=True),),
+        "gyro": (_p("half_width", "deg/s", 1e-5, 1.0, log=True),),
+    }
+
+    def transform_input(self, p, rec, u):
+        return np.sign(u) * np.maximum(np.abs(u) - p["half_width"], 0.0)
+
+    def main_grid_range(self, rec, kind):
+        q = self.param("half_width", kind)
+        top = float(np.max(np.abs(rec.input))) if rec.logged("input") else q.high
+        return q.low, max(min(q.high, 0.5 * top), q.low * 1.01)
+
+
+class Saturation(Effect):
+    id = "saturation"
+    description = "output clipping at the sensor's or the acquisition's range (e.g. a DMM or ADC range)"
+    form = "y → clip(y, −limit, +limit)"
+    inputs = ()
+    main_param = "limit"
+    signature = "input: residual non-zero only where |y| would exceed limit; output flat at ±limit"
+    stage = "output"
+    identity = math.inf
+    increasing = False
+    ranges = {  # QA-2000 ±60 g but a tumble's read-out range can be ±1.2 g; FOG ±490 deg/s
+        "accelerometer": (_p("limit", "g", 0.05, 100.0, log=True),),
+        "gyro": (_p("limit", "deg/s", 1.0, 2000.0, log=True),),
+        "mhd": (_p("limit", "deg/s", 1.0, 2000.0, log=True),),
+    }
+
+    def _transform(self, p, rec, y):
+        return np.clip(y, -p["limit"], p["limit"])
+
+    def draw(self, rng, rec, *, kind=None, noise_sd=None):
+        """limit log-uniform in [0.6, 0.95] × the largest |reference output| (inside the kind's
+        range): a part of the excursions clips, never most of the signal — the snr of clipping
+        rises too steeply with depth for the generic snr-band rule to leave a usable interval."""
+        from bench.discovery.effects_base import guess_kind, noise_sd_of, MIN_SNR, DRAW_SNR_FACTOR
+        kind = kind or guess_kind(rec)
+        q = self.params_for(kind)[0]
+        top = float(np.max(np.abs(self.reference_output(rec))))
+        a, b = max(q.low, 0.6 * top), min(q.high, 0.95 * top)
+        sd = noise_sd if noise_sd is not None else noise_sd_of(rec, kind)
+        if not a < b:
+            raise ValueError(f"saturation: the record's largest |input| {top!r} leaves no limit inside "
+                             f"[{q.low}, {q.high}] {q.unit} clipping 5-40 % of it")
+        p = {"limit": math.exp(rng.uniform(math.log(a), math.log(b)))}
+        if self.snr(p, rec, sd) < DRAW_SNR_FACTOR * MIN_SNR:
+            raise ValueError(f"saturation: clipping at {p['limit']!r} is not detectable on this record")
+        return p
+
+    def main_grid_range(self, rec, kind):
+        top = float(np.max(np.abs(self.reference_output(rec))))
+        q = self.param("limit", kind)
+        return max(q.low, 0.3 * top), max(min(q.high, top), q.low * 1.01)
+
+
+class Quantization(Effect):
+    id = "quantization"
+    description = "output resolution: readings on a grid of step (ADC/DMM digits, FOG angle pulses per sample)"
+    form = "y → step · round(y / step)"
+    inputs = ()
+    main_param = "step"
+    signature = "histogram: output values on a lattice of spacing step; error bounded by step/2 (white if step ≪ noise)"
+    stage = "output"
+    ranges = {  # DMM 6½ digits on a 1 V range ≈ 1 µg; FOG 0.1″ pulse at 100 Hz ≈ 3e-3 deg/s
+        "accelerometer": (_p("step", "g", 1e-8, 1e-3, log=True),),
+        "gyro": (_p("step", "deg/s", 1e-6, 0.1, log=True),),
+        "mhd": (_p("step", "deg/s", 1e-5, 1.0, log=True),),
+    }
+
+    def _transform(self, p, rec, y):
+        s = p["step"]
+        return y.copy() if s == 0 else s * np.round(y / s)
+
+    def snr(self, p, rec, noise_sd):
+        """Lattice visibility: |E exp(2πi·y/step)| = exp(−2π²σ²/step²) for Gaussian noise σ,
+        estimated from n samples with sd 1/√n, so z = exp(−2π²σ²/step²)·√n."""
+        s = p["step"]
+        if s <= 0:
+            return 0.0
+        return float(math.exp(-2 * math.pi ** 2 * noise_sd ** 2 / s ** 2) * math.sqrt(rec.n))
+
+    def main_grid_range(self, rec, kind):
+        q = self.param("step", kind)
+        sd = float(np.std(np.diff(rec.y))) / math.sqrt(2) or q.low
+        return max(q.low, sd), min(q.high, 30 * sd)

@@ -1,0 +1,237 @@
+"""A sensor model for the discrepancy workflow: base model + catalogue effects, and its TOML file.
+
+Base model: ``y = bias + scale_factor · input`` (input absent → 0) plus white noise of sd
+``noise_sd`` per sample, in the sensor unit (g or deg/s). Effects compose by stage, each stage
+in the model's listed order: input-path transforms of ``input`` → base → additive terms
+(stochastic ones and the white noise only in ``simulate``) → output transforms (saturation,
+quantization), so the ADC's quantization sees the noisy signal as a real one does.
+
+Model file (TOML)::
+
+    [base]
+    kind = "accelerometer"      # accelerometer | gyro | mhd
+    bias = 1.0e-05               # sensor unit
+    scale_factor = 1.0           # output unit per input unit
+    noise_sd = 5e-06             # white noise sd per sample, sensor unit
+
+    [[effects]]
+    id = "warmup_exponential"
+    [effects.params]
+    amplitude = 6e-05
+    tau_s = 180.0
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+import zlib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from bench.discovery.data import Record
+from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD, KINDS, effect
+
+#: Allowed base-parameter ranges per kind (sensor unit): a raw QA-2000 bias < 4 mg (allow 50 mg),
+#: a FOG's ±1 deg/s (3600 deg/h), an MHD offset; scale factor normalised near 1; noise sd ≥ 0.
+BASE_RANGES = {
+    "accelerometer": {"bias": (-0.05, 0.05), "scale_factor": (0.5, 2.0), "noise_sd": (0.0, 0.1)},
+    "gyro": {"bias": (-1.0, 1.0), "scale_factor": (0.5, 2.0), "noise_sd": (0.0, 10.0)},
+    "mhd": {"bias": (-100.0, 100.0), "scale_factor": (0.5, 2.0), "noise_sd": (0.0, 10.0)},
+}
+
+
+@dataclass(frozen=True)
+class BaseModel:
+    """Bias + scale factor + white noise (sensor unit; ``scale_factor`` output per input unit)."""
+
+    kind: str
+    bias: float = 0.0
+    scale_factor: float = 1.0
+    noise_sd: float = 0.0
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"base.kind = {self.kind!r}; allowed: {list(KINDS)}")
+        for name, (lo, hi) in BASE_RANGES[self.kind].items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= float(v) <= hi):
+                raise ValueError(f"base.{name} = {v!r} outside the allowed range [{lo}, {hi}] for a {self.kind}")
+            object.__setattr__(self, name, float(v))
+
+
+def base_model(kind: str) -> BaseModel:
+    """Default base model per kind: zero bias, unit scale factor, the kind's typical noise sd
+    (accelerometer 5 µg at ~1 Hz readings, FOG 3e-3 deg/s at 10 Hz, MHD 0.06 deg/s at 1 kHz)."""
+    if kind not in KINDS:
+        raise ValueError(f"sensor kind {kind!r}; allowed: {list(KINDS)}")
+    return BaseModel(kind=kind, bias=0.0, scale_factor=1.0, noise_sd=DEFAULT_NOISE_SD[kind])
+
+
+@dataclass(frozen=True)
+class Model:
+    """Base model + effects ``((id, {param: value}), ...)`` in the order found/applied."""
+
+    base: BaseModel
+    effects: tuple[tuple[str, dict], ...] = field(default=())
+
+    def __post_init__(self):
+        checked = []
+        for i, item in enumerate(self.effects):
+            if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], dict)):
+                raise ValueError(f"effects[{i}] = {item!r}; allowed: (effect_id, {{param: value}})")
+            eid, params = item
+            e = effect(eid)
+            if self.base.kind not in e.kinds:
+                raise ValueError(f"effects[{i}]: {eid!r} does not apply to a {self.base.kind}; "
+                                 f"it applies to {list(e.kinds)}")
+            checked.append((eid, e.check_params(params, self.base.kind)))
+        object.__setattr__(self, "effects", tuple(checked))
+
+    @property
+    def effect_ids(self) -> tuple[str, ...]:
+        return tuple(eid for eid, _ in self.effects)
+
+    def with_effect(self, effect_id: str, params: dict) -> "Model":
+        """This model with one more effect (validated against the kind's ranges)."""
+        return Model(self.base, self.effects + ((effect_id, dict(params)),))
+
+    def with_params(self, index: int, params: dict) -> "Model":
+        """This model with effect ``index``'s parameters replaced."""
+        if not 0 <= index < len(self.effects):
+            raise ValueError(f"effect index {index!r}; allowed: 0..{len(self.effects) - 1}")
+        eff = list(self.effects)
+        eff[index] = (eff[index][0], dict(params))
+        return Model(self.base, tuple(eff))
+
+    def with_base(self, **changes) -> "Model":
+        """This model with base fields replaced (e.g. ``bias=``, ``scale_factor=``)."""
+        return Model(replace(self.base, **changes), self.effects)
+
+    def predict(self, rec: Record) -> np.ndarray:
+        """Deterministic output on rec's stimulus (stochastic effects and white noise skipped)."""
+        return self._run(rec, None)
+
+    def simulate(self, rec: Record, rng) -> np.ndarray:
+        """predict + stochastic effects + white noise. ``rng``: a numpy Generator or an int seed.
+        One integer is drawn from rng; each stochastic component then gets its own stream
+        seeded from (that integer, crc32 of its name), so same seed → same output and adding
+        an effect never changes another component's noise."""
+        if isinstance(rng, (int, np.integer)):
+            rng = np.random.default_rng(int(rng))
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng = {rng!r}; allowed: a numpy Generator or an int seed")
+        return self._run(rec, int(rng.integers(0, 2 ** 63)))
+
+    def _run(self, rec: Record, root: int | None) -> np.ndarray:
+        b = self.base
+        u = rec.input if rec.logged("input") else np.zeros(rec.n)
+        staged = [(i, eid, CATALOGUE[eid], p) for i, (eid, p) in enumerate(self.effects)]
+        for _, _, e, p in staged:
+            if e.stage == "input":
+                e.check_inputs(rec)
+                u = e.transform_input(p, rec, u)
+        y = b.bias + b.scale_factor * u
+        for i, eid, e, p in staged:
+            if e.stage != "additive":
+                continue
+            e.check_inputs(rec)
+            if not e.stochastic:
+                y = y + e._term(p, rec)
+            elif root is not None:
+                y = y + e._noise(p, rec, _stream(root, f"{i}:{eid}"))
+        if root is not None and b.noise_sd > 0:
+            y = y + b.noise_sd * _stream(root, "white").standard_normal(rec.n)
+        for _, _, e, p in staged:
+            if e.stage == "output":
+                y = e._transform(p, rec, y)
+        return y
+
+
+def _stream(root: int, name: str) -> np.random.Generator:
+    return np.random.default_rng([root, zlib.crc32(name.encode())])
+
+
+# ---- the model file -------------------------------------------------------------------------
+
+def model_to_dict(model: Model) -> dict:
+    """Plain dict (the TOML document's structure)."""
+    b = model.base
+    return {"base": {"kind": b.kind, "bias": b.bias, "scale_factor": b.scale_factor, "noise_sd": b.noise_sd},
+            "effects": [{"id": eid, "params": dict(p)} for eid, p in model.effects]}
+
+
+def model_from_dict(doc: dict) -> Model:
+    """Inverse of model_to_dict, validating keys, types and ranges (ValueError naming them)."""
+    if not isinstance(doc, dict):
+        raise ValueError(f"model document is {type(doc).__name__}; allowed: a table with [base] and [[effects]]")
+    extra = sorted(set(doc) - {"base", "effects"})
+    if extra:
+        raise ValueError(f"unknown top-level key(s) {extra}; allowed: ['base', 'effects']")
+    base = doc.get("base")
+    if not isinstance(base, dict):
+        raise ValueError("missing [base] table; required keys: ['kind', 'bias', 'scale_factor', 'noise_sd']")
+    keys = {"kind", "bias", "scale_factor", "noise_sd"}
+    if set(base) != keys:
+        raise ValueError(f"[base] keys {sorted(base)}; required exactly: {sorted(keys)}")
+    bm = BaseModel(**base)
+    effects = doc.get("effects", [])
+    if not isinstance(effects, list):
+        raise ValueError(f"effects = {effects!r}; allowed: an array of tables [[effects]]")
+    out = []
+    for i, item in enumerate(effects):
+        if not isinstance(item, dict) or set(item) - {"id", "params"} or "id" not in item:
+            raise ValueError(f"effects[{i}] = {item!r}; allowed keys: id (string), params (table)")
+        params = item.get("params", {})
+        if not isinstance(params, dict):
+            raise ValueError(f"effects[{i}].params = {params!r}; allowed: a table of numbers")
+        for k, v in params.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ValueError(f"effects[{i}].params.{k} = {v!r} is not a number")
+        out.append((str(item["id"]), dict(params)))
+    return Model(bm, tuple(out))
+
+
+def _fmt(v) -> str:
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    f = float(v)
+    if math.isinf(f):
+        return "inf" if f > 0 else "-inf"
+    return repr(f)  # shortest repr: reads back bit for bit
+
+
+def model_to_toml(model: Model) -> str:
+    """The model file's text."""
+    d = model_to_dict(model)
+    lines = ["# inertial-bench discrepancy model: base (bias + scale factor + white noise) and effects",
+             "[base]"]
+    lines += [f"{k} = {_fmt(v)}" for k, v in d["base"].items()]
+    for e in d["effects"]:
+        lines += ["", "[[effects]]", f"id = {_fmt(e['id'])}", "[effects.params]"]
+        lines += [f"{k} = {_fmt(v)}" for k, v in e["params"].items()]
+    return "\n".join(lines) + "\n"
+
+
+def model_from_toml(text: str) -> Model:
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"model file is not valid TOML: {exc}") from None
+    return model_from_dict(doc)
+
+
+def write_model(model: Model, path) -> None:
+    """Write the TOML model file."""
+    Path(path).write_text(model_to_toml(model), encoding="utf-8")
+
+
+def read_model(path) -> Model:
+    """Read and validate a TOML model file (ValueError naming the bad key, value or range)."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ValueError(f"cannot read model file {str(path)!r}: {exc.strerror}") from None
+    return model_from_toml(text)
