@@ -24,6 +24,7 @@ column         field            meaning
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from functools import cached_property
 
 import numpy as np
 
@@ -95,7 +96,7 @@ class Record:
         """Span of the record, s."""
         return float(self.t_s[-1] - self.t_s[0])
 
-    @property
+    @cached_property
     def dt_s(self) -> float:
         """Median sample interval, s."""
         return float(np.median(np.diff(self.t_s)))
@@ -105,8 +106,15 @@ class Record:
         """Sample rate from the median interval, Hz."""
         return 1.0 / self.dt_s
 
+    @cached_property
+    def _uniform(self) -> bool:
+        return self._check_uniform(1e-3)
+
     def is_uniform(self, rtol: float = 1e-3) -> bool:
         """True when every sample interval is within ``rtol`` of the median."""
+        return self._uniform if rtol == 1e-3 else self._check_uniform(rtol)
+
+    def _check_uniform(self, rtol: float) -> bool:
         dt = np.diff(self.t_s)
         return bool(np.all(np.abs(dt - self.dt_s) <= rtol * self.dt_s))
 

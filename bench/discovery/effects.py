@@ -17,8 +17,8 @@ Which effects apply to which kind:
 
 from __future__ import annotations
 
-from bench.discovery.effects_base import (DEFAULT_NOISE_SD, DRAW_SNR_FACTOR, DRAW_SPAN, KINDS, MIN_SNR, UNIT,
-                                          Effect, Param, guess_kind, noise_sd_of)
+from bench.discovery.effects_base import (DEFAULT_NOISE_SD, DRAW_SNR_FACTOR, DRAW_SPAN, KINDS, MIN_SNR, REGISTRY,
+                                          UNIT, Effect, Param, guess_kind, noise_sd_of)
 from bench.discovery.effects_noise import GaussMarkov, RateRandomWalk
 from bench.discovery.effects_terms import (T_REF_C, GSensitivity, K2Nonlinearity, K3Nonlinearity, LinearDrift,
                                            Misalignment, ScaleFactorAsymmetry, SinusoidalInterference,
@@ -33,6 +33,7 @@ _ORDER = (WarmupExponential, LinearDrift, TemperatureBias, TemperatureScaleFacto
           HighpassRolloff, VibrationRectification)
 
 CATALOGUE: dict[str, Effect] = {cls.id: cls() for cls in _ORDER}
+REGISTRY.update(CATALOGUE)
 
 
 def effect(effect_id: str) -> Effect:

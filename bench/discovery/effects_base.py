@@ -37,6 +37,8 @@ UNIT = {"accelerometer": "g", "gyro": "deg/s", "mhd": "deg/s"}
 #: White-noise sd per sample assumed when none is given and the record cannot tell (u).
 DEFAULT_NOISE_SD = {"accelerometer": 5e-6, "gyro": 3e-3, "mhd": 0.06}
 MIN_SNR = 5.0
+#: id -> Effect, filled by bench.discovery.effects (competitor look-ups without an import cycle).
+REGISTRY: dict[str, "Effect"] = {}
 DRAW_SNR_FACTOR = 3.0
 DRAW_SPAN = 30.0
 
@@ -102,6 +104,18 @@ def project_out(x: np.ndarray, a: np.ndarray) -> np.ndarray:
     return x - a @ coef
 
 
+def orthonormal(a: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the column space of a (rank-revealing: tiny columns dropped)."""
+    q, r = np.linalg.qr(a)
+    keep = np.abs(np.diag(r)) > 1e-12 * max(1.0, float(np.max(np.abs(np.diag(r))))) if r.size else []
+    return q[:, keep]
+
+
+def project_q(x: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """x minus its projection on the orthonormal columns q."""
+    return x - q @ (q.T @ x)
+
+
 class Effect:
     """One catalogue entry. Subclasses set the class attributes and ``_term``/``_transform``.
 
@@ -109,7 +123,8 @@ class Effect:
     ``main_param``, ``signature``, ``stochastic``, ``stage``, ``kinds`` (sensor kinds it
     applies to), ``identity`` (main-parameter value that leaves the output unchanged),
     ``increasing`` (a larger main parameter is a larger effect; False for a bandwidth or a
-    saturation limit), ``ranges`` (kind -> tuple of Param)."""
+    saturation limit), ``ranges`` (kind -> tuple of Param), ``competitors`` (effects whose
+    signature this one resembles on typical records: its snr counts only what they cannot absorb)."""
 
     id: str = ""
     description: str = ""
@@ -123,6 +138,7 @@ class Effect:
     identity: float = 0.0
     increasing: bool = True
     ranges: dict[str, tuple[Param, ...]] = {}
+    competitors: tuple[str, ...] = ()
 
     # ---- parameters -------------------------------------------------------------------
     @property
@@ -210,8 +226,12 @@ class Effect:
     def snr(self, p: dict, rec: Record, noise_sd: float) -> float:
         """Signal-to-noise ratio of the effect's signature on rec (see module docstring)."""
         y0 = self.reference_output(rec)
-        delta = self.apply(p, rec, y0) - y0
-        return float(np.linalg.norm(project_out(delta, base_regressors(rec))) / noise_sd)
+        q = orthonormal(base_regressors(rec))
+        delta = project_q(self.apply(p, rec, y0) - y0, q)
+        if self.competitors and np.any(delta):
+            dirs = [competitor_direction(REGISTRY[c], rec, delta, q) for c in self.competitors]
+            delta = project_q(delta, orthonormal(np.column_stack(dirs)))
+        return float(np.linalg.norm(delta) / noise_sd)
 
     def reference_params(self, rec: Record, kind: str) -> dict:
         """Typical values of every parameter for judging detectability on rec: geometric mean
@@ -256,7 +276,7 @@ class Effect:
                 b = m
             else:
                 a = m
-            if b - a < 1e-4:
+            if b - a < 1e-3:
                 break
         return math.exp(b if self.increasing else a)
 
@@ -371,6 +391,48 @@ class Effect:
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
         q = self.param(self.main_param, kind)
         return self.drawable_range(q, rec, kind)
+
+
+def competitor_direction(comp: Effect, rec: Record, delta: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The competitor's signature (projected away from the orthonormal columns ``q``, unit norm)
+    that best matches ``delta`` (already orthogonal to q) up to a scale: all-linear competitors
+    have one direction; otherwise a 13-point log grid of its main parameter over its resolvable
+    range, then 8 golden-section steps."""
+    kind = guess_kind(rec)
+    if kind not in comp.ranges:
+        kind = comp.kinds[0]
+    y0 = comp.reference_output(rec)
+    base = comp.reference_params(rec, kind)
+
+    def direction(v: float) -> np.ndarray:
+        d = project_q(comp.apply(comp._with_main(base, v), rec, y0) - y0, q)
+        nrm = float(np.sqrt(np.dot(d, d)))
+        return d / nrm if nrm > 0 else d
+
+    if all(p.linear for p in comp.params_for(kind)):
+        return direction(1.0)
+
+    def fit(logv: float) -> float:  # captured fraction of delta (maximise)
+        return abs(float(np.dot(direction(math.exp(logv)), delta)))
+
+    lo, hi = comp.main_grid_range(rec, kind)
+    grid = np.linspace(math.log(lo), math.log(hi), 13)
+    vals = [fit(g) for g in grid]
+    i = int(np.argmax(vals))
+    x0, x1 = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    g = (math.sqrt(5) - 1) / 2
+    c, d = x1 - g * (x1 - x0), x0 + g * (x1 - x0)
+    fc, fd = fit(c), fit(d)
+    for _ in range(8):
+        if fc > fd:
+            x1, d, fd = d, c, fc
+            c = x1 - g * (x1 - x0)
+            fc = fit(c)
+        else:
+            x0, c, fc = c, d, fd
+            d = x0 + g * (x1 - x0)
+            fd = fit(d)
+    return direction(math.exp(0.5 * (x0 + x1)))
 
 
 def _product(grids):

@@ -119,6 +119,7 @@ class K2Nonlinearity(Effect):
     form = "y += k2_per_u · input²"
     inputs = ("input",)
     main_param = "k2_per_u"
+    competitors = ("scale_factor_asymmetry",)  # input² and |input| differ only in shape
     signature = "input: residual ∝ input² (same sign for ±input)"
     ranges = {  # QA-2000 sheet < 20 µg/g²; FOG: 100 ppm of 490 deg/s full scale ≈ 2e-7 /(deg/s)
         "accelerometer": (_p("k2_per_u", "1/g", -1e-3, 1e-3, linear=True, floor=1e-8),),
@@ -153,6 +154,7 @@ class ScaleFactorAsymmetry(Effect):
     form = "y += (asymmetry / 2) · |input|"
     inputs = ("input",)
     main_param = "asymmetry"
+    competitors = ("k2_nonlinearity",)
     signature = "input: residual ∝ |input| (V-shaped against input)"
     ranges = {  # FOG asymmetry tens of ppm (limit 100 ppm); pendulous accelerometers ~ppm
         "accelerometer": (_p("asymmetry", "1", -1e-3, 1e-3, linear=True, floor=1e-7),),

@@ -34,6 +34,7 @@ class TimeDelay(Effect):
     main_param = "delay_s"
     signature = "input: residual ∝ −delay·d(input)/dt, spikes at input changes; cross-correlation peak of y and input shifted by delay"
     stage = "input"
+    competitors = ("lowpass_bandwidth",)  # a sampled single pole is a delay for slow inputs
     ranges = {
         "accelerometer": (_p("delay_s", "s", 1e-5, 1.0, log=True),),
         "gyro": (_p("delay_s", "s", 1e-5, 1.0, log=True),),
@@ -58,6 +59,7 @@ class LowpassBandwidth(Effect):
     stage = "input"
     identity = math.inf
     increasing = False
+    competitors = ("time_delay",)
     ranges = {  # QA-2000 > 300 Hz but DMM/ADC filters reach 0.01 Hz; FOG ~100-1000 Hz; MHD 8 kHz
         "accelerometer": (_p("bandwidth_hz", "Hz", 0.01, 1e3, log=True),),
         "gyro": (_p("bandwidth_hz", "Hz", 0.1, 1e3, log=True),),
