@@ -2,15 +2,15 @@
 
 Pure numpy/scipy; residuals in the sensor unit, rates in Hz, τ in s.
 
-Held-out scoring (never shuffled samples): the record is cut into ``n_blocks`` contiguous
-blocks; fold 0 holds out the even blocks, fold 1 the odd ones (interleaved, so both folds see
+Held-out scoring (never shuffled samples): the record is cut into ``n_blocks`` (48)
+contiguous blocks — short enough that a start-up transient spans several of them; fold 0 holds out the even blocks, fold 1 the odd ones (interleaved, so both folds see
 the start-up and the end of the record). A candidate is fitted on a fold's training blocks and
 scored on its held-out blocks; the score is the out-of-sample variance reduction
 ``1 − Σ SSE_test(candidate) / Σ SSE_test(nuisance only)`` over both folds (every sample held
 out once). Under "no effect" it is ≤ 0 on average: an over-fitted shape does not carry over.
 
 Null (documented choice): a **circular moving-block bootstrap of the residual** — blocks of
-``block_len`` consecutive samples drawn with replacement from the residual wrapped on a circle.
+``block_len`` (n/32) consecutive samples drawn with replacement from the residual wrapped on a circle.
 It keeps the residual's autocorrelation up to ``block_len`` lags (coloured noise stays
 coloured) while destroying alignment with time and with every logged input. Each null replicate
 is scored with the candidate's *linearised* regressors (Jacobian columns of the prediction at
@@ -30,7 +30,9 @@ from scipy import signal
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.timeseries_diag import default_lb_lags, ljung_box
 
-N_BLOCKS = 16
+N_BLOCKS = 48
+#: the bootstrap keeps autocorrelation up to n / BOOT_BLOCKS lags
+BOOT_BLOCKS = 32
 
 
 def block_folds(n: int, n_blocks: int = N_BLOCKS) -> np.ndarray:
@@ -46,31 +48,39 @@ def block_folds(n: int, n_blocks: int = N_BLOCKS) -> np.ndarray:
     return labels
 
 
-def _sse_test(x_tr: np.ndarray, r_tr: np.ndarray, x_te: np.ndarray, r_te: np.ndarray) -> np.ndarray:
-    """SSE on the test rows of a least-squares fit on the training rows; ``r_*`` are (n, B)."""
-    if x_tr.shape[1] == 0:
-        return np.sum(r_te ** 2, axis=0)
-    beta, *_ = np.linalg.lstsq(x_tr, r_tr, rcond=None)
-    return np.sum((r_te - x_te @ beta) ** 2, axis=0)
+class LinearScorer:
+    """Held-out variance reduction of ``[x_nuis, x_cand[k]]`` over ``x_nuis`` alone, for many
+    residuals at once: the pseudo-inverses of each fold's training rows are computed once, so
+    a null replicate costs two matrix products per fold.
+
+    ``x_nuis``: (n, p) nuisance columns; ``x_cand[k]``: (n, q) the candidate's columns for
+    fold k (fitted on fold k's training rows); ``folds``: fold label per sample."""
+
+    def __init__(self, x_nuis: np.ndarray, x_cand: list[np.ndarray], folds: np.ndarray):
+        self.parts = []
+        for k in (0, 1):
+            te = folds == k
+            tr = ~te
+            x = np.hstack([x_nuis, x_cand[k]])
+            self.parts.append((tr, te, x[te], np.linalg.pinv(x[tr]), x_nuis[te], np.linalg.pinv(x_nuis[tr])))
+
+    def scores(self, r: np.ndarray) -> np.ndarray:
+        """(B,) scores of ``r`` (n,) or (n, B)."""
+        rt = np.ascontiguousarray((r[:, None] if r.ndim == 1 else r).T)  # (B, n): fast BLAS shapes
+        sse_c = np.zeros(rt.shape[0])
+        sse_b = np.zeros(rt.shape[0])
+        for tr, te, xc_te, pc, xb_te, pb in self.parts:
+            r_tr, r_te = rt[:, tr], rt[:, te]
+            sse_c += np.sum((r_te - (r_tr @ pc.T) @ xc_te.T) ** 2, axis=1)
+            sse_b += np.sum((r_te - (r_tr @ pb.T) @ xb_te.T) ** 2, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(sse_b > 0, 1.0 - sse_c / sse_b, 0.0)
 
 
 def heldout_linear_scores(r: np.ndarray, x_nuis: np.ndarray, x_cand: list[np.ndarray],
                           folds: np.ndarray) -> np.ndarray:
-    """Held-out variance reduction of ``[x_nuis, x_cand[k]]`` over ``x_nuis`` alone.
-
-    ``r``: (n,) or (n, B) residual(s); ``x_nuis``: (n, p) nuisance columns; ``x_cand[k]``: (n, q)
-    the candidate's columns for fold k (fitted on fold k's training rows). Returns (B,) scores."""
-    r2 = r[:, None] if r.ndim == 1 else r
-    sse_c = np.zeros(r2.shape[1])
-    sse_b = np.zeros(r2.shape[1])
-    for k in (0, 1):
-        te = folds == k
-        tr = ~te
-        x = np.hstack([x_nuis, x_cand[k]])
-        sse_c += _sse_test(x[tr], r2[tr], x[te], r2[te])
-        sse_b += _sse_test(x_nuis[tr], r2[tr], x_nuis[te], r2[te])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(sse_b > 0, 1.0 - sse_c / sse_b, 0.0)
+    """:class:`LinearScorer` in one call: (B,) scores of ``r`` (n,) or (n, B)."""
+    return LinearScorer(x_nuis, x_cand, folds).scores(r)
 
 
 def block_bootstrap(r: np.ndarray, block_len: int, n_rep: int, rng: np.random.Generator) -> np.ndarray:
@@ -83,9 +93,9 @@ def block_bootstrap(r: np.ndarray, block_len: int, n_rep: int, rng: np.random.Ge
     return r[idx].T
 
 
-def default_block_len(n: int, n_blocks: int = N_BLOCKS) -> int:
-    """Half a held-out block: correlation up to that lag survives the bootstrap."""
-    return max(1, n // (2 * n_blocks))
+def default_block_len(n: int) -> int:
+    """n / BOOT_BLOCKS samples: correlation up to that lag survives the bootstrap."""
+    return max(1, n // BOOT_BLOCKS)
 
 
 def bootstrap_p_value(r: np.ndarray, x_nuis: np.ndarray, x_cand: list[np.ndarray], folds: np.ndarray,
@@ -97,10 +107,11 @@ def bootstrap_p_value(r: np.ndarray, x_nuis: np.ndarray, x_cand: list[np.ndarray
     ``stop_after`` null scores reached the observed one, p = exceedances / replicates then —
     a clearly large p costs ~100 replicates, a small one the full ``n_rep``."""
     block_len = default_block_len(r.size) if block_len is None else block_len
+    scorer = LinearScorer(x_nuis, x_cand, folds)
     exceed, done = 0, 0
     while done < n_rep:
         m = min(chunk, n_rep - done)
-        null = heldout_linear_scores(block_bootstrap(r, block_len, m, rng), x_nuis, x_cand, folds)
+        null = scorer.scores(block_bootstrap(r, block_len, m, rng))
         exceed += int(np.sum(null >= observed))
         done += m
         if exceed >= stop_after:

@@ -44,6 +44,7 @@ class StochasticFit:
     q_std: float
     lr: float
     p_value: float
+    theta: tuple = ()
 
 
 def _periodogram(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -64,34 +65,56 @@ def _spectrum(kind: str, th: np.ndarray, w: np.ndarray) -> np.ndarray:
     return white + np.exp(th[1]) / (2 - 2 * np.cos(w))
 
 
-def _nll(th, kind, w, i):
-    s = _spectrum(kind, th, w)
+def _nll(th, kind, w, i, known=0.0):
+    s = _spectrum(kind, th, w) + known
     return float(np.sum(np.log(s) + i / s))
 
 
-def fit_stochastic(r: np.ndarray, dt_s: float, kind: str) -> StochasticFit:
-    """Whittle fit of ``kind`` ("gauss_markov" or "random_walk") plus white noise to ``r``."""
+def known_spectrum(components: list[tuple[str, dict]], dt_s: float, w: np.ndarray) -> np.ndarray:
+    """Per-sample spectrum of stochastic effects already in the model: ("gauss_markov",
+    {sigma, tau_s}) and ("rate_random_walk", {k_per_rs}) (q = K²·dt)."""
+    s = np.zeros_like(w)
+    for eid, p in components:
+        if eid == "gauss_markov":
+            phi = np.exp(-dt_s / p["tau_s"])
+            s = s + p["sigma"] ** 2 * (1 - phi ** 2) / (1 - 2 * phi * np.cos(w) + phi ** 2)
+        elif eid == "rate_random_walk":
+            s = s + p["k_per_rs"] ** 2 * dt_s / (2 - 2 * np.cos(w))
+    return s
+
+
+def fit_stochastic(r: np.ndarray, dt_s: float, kind: str, start: np.ndarray | None = None,
+                   known: list[tuple[str, dict]] = ()) -> StochasticFit:
+    """Whittle fit of ``kind`` ("gauss_markov" or "random_walk") plus white noise to ``r``;
+    ``start``: log coordinates to start from (a previous fit's ``theta``) instead of the grid;
+    ``known``: stochastic effects already in the model (their spectrum is fixed, in both the
+    null and the alternative of the likelihood ratio)."""
     if kind not in KINDS:
         raise ValueError(f"kind = {kind!r}; allowed: {KINDS}")
     r = np.asarray(r, dtype=float)
     w, i = _periodogram(r)
+    kn = known_spectrum(list(known), dt_s, w)
     v = float(np.mean(i))
-    nll0 = float(np.sum(np.log(v) + i / v))
+    res0 = optimize.minimize_scalar(lambda a: _nll(np.array([a, -np.inf]), "random_walk", w, i, kn),
+                                    bounds=(np.log(v) - 20, np.log(v) + 2), method="bounded")
+    nll0 = float(res0.fun)
     best = None
-    if kind == "gauss_markov":
-        starts = [np.array([np.log(v * a), np.log(v * b), np.log(phi / (1 - phi))])
-                  for a in (0.9, 0.5) for b in (0.1, 1.0) for phi in (0.9, 0.99, 0.999)]
+    if start is not None:
+        starts = [np.asarray(start, float)]
+    elif kind == "gauss_markov":
+        starts = [np.array([np.log(v * 0.8), np.log(v * b), np.log(phi / (1 - phi))])
+                  for b in (0.1, 1.0) for phi in (0.9, 0.995)]
     else:
-        starts = [np.array([np.log(v * 0.9), np.log(v * b)]) for b in (1e-6, 1e-4, 1e-2)]
+        starts = [np.array([np.log(v * 0.9), np.log(v * b)]) for b in (1e-5, 1e-2)]
     for th0 in starts:
-        res = optimize.minimize(_nll, th0, args=(kind, w, i), method="L-BFGS-B")
+        res = optimize.minimize(_nll, th0, args=(kind, w, i, kn), method="L-BFGS-B")
         if best is None or res.fun < best.fun:
             best = res
     th = best.x
     lr = max(0.0, 2.0 * (nll0 - best.fun))
     df = 2 if kind == "gauss_markov" else 1
     p = float(stats.chi2.sf(lr, df))
-    cov = _inv_hessian(lambda x: _nll(x, kind, w, i), th)
+    cov = _inv_hessian(lambda x: _nll(x, kind, w, i, kn), th)
     white_sd = float(np.sqrt(np.exp(th[0])))
     if kind == "gauss_markov":
         s2, phi = np.exp(th[1]), 1.0 / (1.0 + np.exp(-th[2]))
@@ -102,10 +125,10 @@ def fit_stochastic(r: np.ndarray, dt_s: float, kind: str) -> StochasticFit:
         d_tau = dt_s / np.log(phi) ** 2 * (1 - phi)  # dτ/dth2 = dt/(ln φ)² · (1/φ)·φ(1−φ)
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
         return StochasticFit(kind, white_sd, sigma, tau, 0.0, float(d_sigma * sd[1]),
-                             float(abs(d_tau) * sd[2]), 0.0, lr, p)
+                             float(abs(d_tau) * sd[2]), 0.0, lr, p, tuple(th))
     q = float(np.exp(th[1]))
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-    return StochasticFit(kind, white_sd, 0.0, 0.0, q, 0.0, 0.0, float(q * sd[1]), lr, p)
+    return StochasticFit(kind, white_sd, 0.0, 0.0, q, 0.0, 0.0, float(q * sd[1]), lr, p, tuple(th))
 
 
 def _inv_hessian(f, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
@@ -146,7 +169,8 @@ def _kalman(r: np.ndarray, phi: float, q: float, rv: float) -> np.ndarray:
     return pred
 
 
-def heldout_score(r: np.ndarray, dt_s: float, kind: str, folds: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+def heldout_score(r: np.ndarray, dt_s: float, kind: str, folds: np.ndarray,
+                  start: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
     """Held-out one-step prediction score and the per-sample squared errors (candidate, base).
 
     Parameters are fitted on the training fold only: its held-out blocks are set to zero and
@@ -158,7 +182,7 @@ def heldout_score(r: np.ndarray, dt_s: float, kind: str, folds: np.ndarray) -> t
         te = folds == k
         train = np.where(te, 0.0, r - r[~te].mean())
         frac = float(np.mean(~te))
-        fit = fit_stochastic(train / np.sqrt(frac), dt_s, kind)
+        fit = fit_stochastic(train / np.sqrt(frac), dt_s, kind, start)
         fit_s = StochasticFit(fit.kind, fit.white_sd, fit.sigma, fit.tau_s / dt_s, fit.q,
                               0, 0, 0, 0, 1)
         rc = r - r[~te].mean()

@@ -1,0 +1,306 @@
+"""Name the missing effect: every applicable catalogue candidate against the residual.
+
+For the current (calibrated) model and its residual ``r = y − predict``:
+
+1. Candidates: catalogue effects whose ``kinds`` include the model's kind, whose inputs are
+   logged (``t_on`` falls back to time since the first sample) and that are not yet in the
+   model.
+2. Deterministic candidates (:mod:`.fitting`): multi-start least squares of the model with the
+   effect appended (bias and scale factor refitted with it) on the whole record for the
+   reported parameters ± std; then on each fold's training blocks (interleaved contiguous
+   blocks, :func:`.significance.block_folds`) and scored on the held-out blocks.
+   p-value: circular moving-block bootstrap of the residual with the candidate's linearised
+   regressors (:mod:`.significance`).
+3. Stochastic candidates (:mod:`.stochastic`): Whittle fit to the residual's spectrum, held-out
+   Kalman one-step score, likelihood-ratio p-value.
+4. Benjamini–Hochberg over all candidates' p-values at ``alpha``; a candidate is *named* only
+   if BH-significant, its held-out score is positive, and its main parameter is physically
+   meaningful (``Effect.min_effect``: |main| ≥ it, or ≤ it for a decreasing effect such as a
+   bandwidth).
+5. Best = highest held-out score among named ones; close competitors = other candidates whose
+   score is within two jackknife standard errors (over held-out blocks) of the best's; for each
+   a separating experiment.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.discovery import significance as sig
+from bench.discovery import stochastic as sto
+from bench.discovery.data import Record
+from bench.discovery.fitting import CandidateFitter
+
+# Experiments that separate pairs the catalogue can confuse on a given record.
+SEPARATING = {
+    frozenset({"warmup_exponential", "temperature_bias"}):
+        "vary temperature independently of time since power-on (soak at a second temperature, or power-cycle at a stable temperature)",
+    frozenset({"warmup_exponential", "linear_drift"}):
+        "record longer after power-on (an exponential settles, a drift keeps going) or power-cycle",
+    frozenset({"linear_drift", "temperature_bias"}):
+        "hold temperature constant for a long record, or ramp it down as well as up",
+    frozenset({"linear_drift", "rate_random_walk"}):
+        "repeat the record: a drift repeats with the same slope, a random walk does not",
+    frozenset({"gauss_markov", "rate_random_walk"}):
+        "a record much longer than the correlation time: Gauss–Markov levels off in the Allan curve, a random walk keeps rising",
+    frozenset({"k2_nonlinearity", "scale_factor_asymmetry"}):
+        "apply inputs of both signs with equal magnitudes (k2 is even, asymmetry is odd)",
+    frozenset({"k3_nonlinearity", "saturation"}):
+        "step the input towards full range: saturation clips abruptly, k3 bends smoothly",
+    frozenset({"temperature_bias", "temperature_scale_factor"}):
+        "change temperature at zero input and at a large input",
+    frozenset({"time_delay", "lowpass_bandwidth"}):
+        "sweep input frequency: a delay shifts phase linearly without attenuating, a low-pass attenuates",
+    frozenset({"dead_zone", "quantization"}):
+        "apply slow ramps through zero at several levels: the dead zone sits at zero only",
+    frozenset({"vibration_rectification", "linear_drift"}):
+        "switch vibration on and off during the record",
+    frozenset({"g_sensitivity", "temperature_bias"}):
+        "change orientation (specific force) at constant temperature",
+}
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate's outcome: held-out score (variance reduction, ± jackknife se), p-value,
+    BH-adjusted q, whether its main parameter reaches the minimum effect size, and whether it
+    is named (significant, positive score, big enough)."""
+
+    id: str
+    stochastic: bool
+    params: dict
+    params_std: dict
+    score: float
+    score_se: float
+    p_value: float
+    q_value: float = 1.0
+    big_enough: bool = False
+    min_effect: float = float("nan")
+    named: bool = False
+    err_c: np.ndarray = field(default=None, repr=False)
+    err_b: np.ndarray = field(default=None, repr=False)
+
+    def to_dict(self) -> dict:
+        return {"id": self.id, "stochastic": self.stochastic, "params": self.params,
+                "params_std": self.params_std, "heldout_score": self.score, "heldout_score_se": self.score_se,
+                "p_value": self.p_value, "q_value": self.q_value, "big_enough": self.big_enough,
+                "min_effect": self.min_effect, "named": self.named}
+
+
+@dataclass(frozen=True)
+class Naming:
+    """All candidates (best score first), the named best (or None), close competitors and how
+    to separate them."""
+
+    candidates: tuple[Candidate, ...]
+    best: Candidate | None
+    competitors: tuple[str, ...]
+    separating: tuple[str, ...]
+    null: str = "circular moving-block bootstrap of the residual (linearised regressors)"
+
+    def to_dict(self) -> dict:
+        return {"best": None if self.best is None else self.best.to_dict(),
+                "competitors": list(self.competitors), "separating_experiments": list(self.separating),
+                "candidates": [c.to_dict() for c in self.candidates], "null": self.null}
+
+
+def applicable(model, rec: Record, catalogue: dict) -> list[str]:
+    """Catalogue ids that apply to the model's kind and record and are not in the model yet."""
+    have = {eid for eid, _ in model.effects}
+    out = []
+    for eid, eff in catalogue.items():
+        if eid in have or model.base.kind not in eff.kinds:
+            continue
+        if all(n == "t_on" or rec.logged(n) for n in eff.inputs):
+            out.append(eid)
+    return out
+
+
+def _block_ids(n: int, n_blocks: int) -> np.ndarray:
+    edges = np.linspace(0, n, n_blocks + 1).astype(int)
+    ids = np.empty(n, int)
+    for b, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
+        ids[lo:hi] = b
+    return ids
+
+
+def _jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
+    """Std error of Σnum/Σden by deleting one block at a time (num, den per block)."""
+    k = num.size
+    if k < 3:
+        return float("nan")
+    loo = (num.sum() - num) / np.where(den.sum() - den > 0, den.sum() - den, np.nan)
+    return float(np.sqrt((k - 1) / k * np.nansum((loo - np.nanmean(loo)) ** 2)))
+
+
+def _nuisance(rec: Record) -> np.ndarray:
+    cols = [np.ones(rec.n)]
+    if rec.logged("input"):
+        cols.append(rec.input)
+    return np.column_stack(cols)
+
+
+def _base_errors(r: np.ndarray, x_nuis: np.ndarray, folds: np.ndarray) -> np.ndarray:
+    err = np.zeros_like(r)
+    for k in (0, 1):
+        te = folds == k
+        beta, *_ = np.linalg.lstsq(x_nuis[~te], r[~te], rcond=None)
+        err[te] = (r[te] - x_nuis[te] @ beta) ** 2
+    return err
+
+
+def fit_deterministic(model, rec: Record, effect, eid: str, r: np.ndarray, folds: np.ndarray,
+                      err_b: np.ndarray, rng: np.random.Generator, n_rep: int) -> Candidate:
+    """Full-record fit (reported params), fold fits (held-out score), bootstrap p-value."""
+    kind = model.base.kind
+    f = CandidateFitter(model, rec, effect, eid)
+    b0, s0 = float(model.base.bias), float(model.base.scale_factor)
+    starts = [f.pack(p, b0, s0) for p in effect.fit_starts(rec, r, kind=kind)]
+    full = f.fit(starts)
+    err_c = np.zeros(rec.n)
+    cols = []
+    for k in (0, 1):
+        te = folds == k
+        fk = f.fit([full.x] + starts[:1], rows=~te, max_nfev=40)
+        pred = f.predict(fk.x)
+        err_c[te] = (rec.y - pred)[te] ** 2
+        g = pred - f.predict_without(fk.x)
+        cols.append(np.column_stack([g, f.jacobian(fk.x)]))
+    score = 1.0 - err_c.sum() / err_b.sum() if err_b.sum() > 0 else 0.0
+    x_nuis = _nuisance(rec)
+    if score > 0:
+        lin = float(sig.heldout_linear_scores(r, x_nuis, cols, folds)[0])
+        p = sig.bootstrap_p_value(r, x_nuis, cols, folds, lin, n_rep=n_rep, rng=rng)
+    else:
+        p = 1.0  # no out-of-sample gain: conservatively not significant
+    return Candidate(eid, False, full.params, full.params_std, float(score), float("nan"), float(p),
+                     err_c=err_c, err_b=err_b)
+
+
+def _to_effect_params(effect, kind: str, fit: sto.StochasticFit, dt_s: float) -> tuple[dict, dict]:
+    """Map a spectral fit onto the effect's parameters by their units: a correlation time (s),
+    a level σ (u), or a random-walk density K (u/√s: per-sample variance q = K²·dt)."""
+    p, s = {}, {}
+    for q in effect.params_for(kind):
+        name = q.name
+        if name.endswith("_s") or q.unit == "s":
+            val, sd = fit.tau_s, fit.tau_std_s
+        elif fit.kind == "random_walk":
+            val = math.sqrt(fit.q / dt_s)
+            sd = 0.5 * fit.q_std / max(math.sqrt(fit.q * dt_s), 1e-300)
+        else:
+            val, sd = fit.sigma, fit.sigma_std
+        p[name] = float(np.clip(val, q.low, q.high))
+        s[name] = float(sd)
+    return p, s
+
+
+def fit_stochastic_candidate(model, rec: Record, effect, eid: str, r: np.ndarray,
+                             folds: np.ndarray) -> Candidate:
+    kind = "gauss_markov" if eid == "gauss_markov" else "random_walk"
+    dt = rec.dt_s
+    known = [(e, p) for e, p in model.effects if e in ("gauss_markov", "rate_random_walk")]
+    full = sto.fit_stochastic(r - r.mean(), dt, kind, known=known)
+    score, err_c, err_b = sto.heldout_score(r, dt, kind, folds, np.array(full.theta))
+    params, std = _to_effect_params(effect, model.base.kind, full, dt)
+    return Candidate(eid, True, params, std, score, float("nan"), full.p_value, err_c=err_c, err_b=err_b)
+
+
+def _big_enough(effect, kind: str, params: dict, rec: Record, noise_sd: float) -> tuple[bool, float]:
+    try:
+        thr = effect.min_effect(rec, noise_sd, kind=kind, params=params)
+    except (ValueError, ZeroDivisionError, FloatingPointError):
+        return True, float("nan")
+    v = abs(float(params[effect.main_param]))
+    return (v >= thr if effect.increasing else v <= thr), float(thr)
+
+
+def separating_experiment(a: str, b: str, catalogue: dict) -> str:
+    key = frozenset({a, b})
+    if key in SEPARATING:
+        return f"{a} vs {b}: {SEPARATING[key]}"
+    ia, ib = set(catalogue[a].inputs), set(catalogue[b].inputs)
+    if ia != ib:
+        da = ", ".join(sorted(ia - ib)) or "time"
+        db = ", ".join(sorted(ib - ia)) or "time"
+        return f"{a} vs {b}: vary {da} independently of {db}"
+    return f"{a} vs {b}: a record with a wider range of {', '.join(sorted(ia)) or 'time'}"
+
+
+def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: float = 0.05,
+                seed: int = 0, n_rep: int = 999, n_blocks: int = sig.N_BLOCKS,
+                only: tuple[str, ...] | None = None) -> Naming:
+    """Fit every applicable candidate to ``rec.y − model.predict(rec)``; see module docstring.
+    ``only``: restrict to these ids (tests, quick runs)."""
+    if catalogue is None:
+        from bench.discovery.effects import CATALOGUE as catalogue  # noqa: N811
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
+    rng = np.random.default_rng(seed)
+    r = rec.y - model.predict(rec)
+    folds = sig.block_folds(rec.n, n_blocks)
+    x_nuis = _nuisance(rec)
+    err_b = _base_errors(r, x_nuis, folds)
+    ids = applicable(model, rec, catalogue)
+    if only is not None:
+        ids = [i for i in ids if i in only]
+    kind = model.base.kind
+    cands = []
+    for eid in ids:
+        eff = catalogue[eid]
+        if eff.stochastic:
+            c = fit_stochastic_candidate(model, rec, eff, eid, r, folds)
+        else:
+            c = fit_deterministic(model, rec, eff, eid, r, folds, err_b, rng, n_rep)
+        cands.append(c)
+    if not cands:
+        return Naming((), None, (), ())
+    reject, q = sig.benjamini_hochberg([c.p_value for c in cands], alpha)
+    blocks = _block_ids(rec.n, n_blocks)
+    out = []
+    for c, rej, qv in zip(cands, reject, q):
+        eff = catalogue[c.id]
+        # the minimum effect size only matters for a candidate that could be named (and costs)
+        big, thr = (_big_enough(eff, kind, c.params, rec, model.base.noise_sd) if rej and c.score > 0
+                    else (False, float("nan")))
+        num = np.bincount(blocks, c.err_c, n_blocks)
+        den = np.bincount(blocks, c.err_b, n_blocks)
+        se = _jackknife_ratio(num, den)
+        out.append(Candidate(c.id, c.stochastic, c.params, c.params_std, c.score, se, c.p_value, float(qv),
+                             big, thr, bool(rej and c.score > 0 and big), c.err_c, c.err_b))
+    out.sort(key=lambda c: -c.score)
+    named = [c for c in out if c.named]
+    best = _choose(named)
+    if best is None:
+        return Naming(tuple(out), None, (), ())
+    comps, seps = [], []
+    for c in out:
+        if c.id == best.id or c.score <= 0:
+            continue
+        d_num = np.bincount(blocks, c.err_c - best.err_c, n_blocks)
+        den = np.bincount(blocks, best.err_b, n_blocks)
+        diff = d_num.sum() / den.sum()
+        se = _jackknife_ratio(d_num, den)
+        if np.isfinite(se) and diff <= 2 * se:
+            comps.append(c.id)
+            seps.append(separating_experiment(best.id, c.id, catalogue))
+    return Naming(tuple(out), best, tuple(comps), tuple(seps))
+
+
+def _choose(named: list[Candidate]) -> Candidate | None:
+    """Highest held-out score; a stochastic candidate beats a deterministic one only when its
+    score is higher by more than two standard errors (a waveform that fits is the simpler story)."""
+    if not named:
+        return None
+    det = [c for c in named if not c.stochastic]
+    sto_ = [c for c in named if c.stochastic]
+    if not det:
+        return sto_[0]
+    if not sto_:
+        return det[0]
+    d, s = det[0], sto_[0]
+    margin = 2 * (s.score_se if np.isfinite(s.score_se) else 0.0)
+    return s if s.score - d.score > margin else d

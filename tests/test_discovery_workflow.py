@@ -1,0 +1,183 @@
+"""Discrepancy workflow (issue 7): localization, significance machinery, stochastic shape fits,
+calibration and the whole loop on data with a hidden effect (a fast subset of the scorecard)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import signal
+
+from bench.discovery import significance as sig
+from bench.discovery.data import Record
+from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD
+from bench.discovery.experiments import make_experiment
+from bench.discovery.localize import localize
+from bench.discovery.model import BaseModel, Model, base_model
+from bench.discovery.stochastic import fit_stochastic
+from bench.discovery.workflow import calibrate, discover, white_floor_sd
+
+
+def _white_record(seed: int, n: int = 3000, rate: float = 10.0) -> Record:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / rate
+    return Record(t_s=t, y=rng.normal(0, 1.0, n), input=np.sin(0.5 * t), temp_c=20 + t / t[-1])
+
+
+# ---- localization -----------------------------------------------------------------------
+
+def test_localize_white_noise_flags_nothing_mostly():
+    flagged = sum(localize(r, r.y, 1.0).any_structure for r in (_white_record(s) for s in range(20)))
+    assert flagged <= 2  # five tests at alpha = 0.01 each, Bonferroni inside
+
+
+def test_localize_finds_line_drift_and_input_square():
+    rec = _white_record(1)
+    t = rec.t_s
+    y = rec.y + 0.4 * np.sin(2 * np.pi * 2.0 * t)
+    loc = localize(rec, y, 1.0)
+    lines = [b for b in loc.bands if abs(b.peak_hz - 2.0) < 0.1]
+    assert lines, loc.descriptions()
+    y = rec.y + 0.004 * (t - t.mean())
+    loc = localize(rec, y, 1.0)
+    assert loc.segments or loc.cusum_p < 0.01
+    y = rec.y + 0.5 * rec.input ** 2
+    loc = localize(rec, y, 1.0)
+    assert any(c.column == "input" and c.transform == "x^2" for c in loc.correlations)
+
+
+# ---- significance machinery -------------------------------------------------------------
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.floats(0, 1), min_size=1, max_size=30), st.floats(0.01, 0.2))
+def test_benjamini_hochberg_matches_statsmodels(p, alpha):
+    from statsmodels.stats.multitest import multipletests
+
+    rej, adj = sig.benjamini_hochberg(p, alpha)
+    ref_rej, ref_adj, *_ = multipletests(p, alpha=alpha, method="fdr_bh")
+    assert np.array_equal(rej, ref_rej)
+    assert np.allclose(adj, ref_adj)
+
+
+def test_block_bootstrap_keeps_blocks_and_folds_are_contiguous():
+    rng = np.random.default_rng(0)
+    r = np.arange(100.0)
+    b = sig.block_bootstrap(r, 10, 5, rng)
+    assert b.shape == (100, 5)
+    d = np.diff(b[:, 0]) % 100
+    assert np.mean(d == 1) >= 0.85  # consecutive inside blocks (wrapping on the circle)
+    f = sig.block_folds(160, 16)
+    assert np.count_nonzero(np.diff(f)) == 15  # 16 contiguous blocks, alternating
+
+
+def test_linear_scorer_matches_direct_fit():
+    rng = np.random.default_rng(3)
+    n = 800
+    f = sig.block_folds(n)
+    x0 = np.column_stack([np.ones(n), rng.normal(size=n)])
+    xc = [rng.normal(size=(n, 2))] * 2
+    r = rng.normal(size=n)
+    got = sig.heldout_linear_scores(r, x0, xc, f)[0]
+    sse_c = sse_b = 0.0
+    for k in (0, 1):
+        te = f == k
+        x = np.hstack([x0, xc[k]])
+        bc = np.linalg.lstsq(x[~te], r[~te], rcond=None)[0]
+        bb = np.linalg.lstsq(x0[~te], r[~te], rcond=None)[0]
+        sse_c += np.sum((r[te] - x[te] @ bc) ** 2)
+        sse_b += np.sum((r[te] - x0[te] @ bb) ** 2)
+    assert got == pytest.approx(1 - sse_c / sse_b, rel=1e-9)
+
+
+def test_bootstrap_p_value_uniformish_on_noise_and_small_on_signal():
+    rng = np.random.default_rng(5)
+    n = 2000
+    t = np.arange(n) / 10.0
+    f = sig.block_folds(n)
+    x0 = np.ones((n, 1))
+    xc = [t[:, None]] * 2
+    ps = []
+    for s in range(10):
+        r = np.random.default_rng(100 + s).normal(size=n)
+        obs = sig.heldout_linear_scores(r, x0, xc, f)[0]
+        ps.append(sig.bootstrap_p_value(r, x0, xc, f, obs, n_rep=199, rng=rng))
+    assert np.mean(np.array(ps) < 0.05) <= 0.2
+    r = np.random.default_rng(1).normal(size=n) + 0.002 * t
+    obs = sig.heldout_linear_scores(r, x0, xc, f)[0]
+    assert sig.bootstrap_p_value(r, x0, xc, f, obs, n_rep=199, rng=rng) <= 0.01
+
+
+def test_gap_metrics_white_is_at_floor_and_ljung_box_matches_statsmodels():
+    from statsmodels.stats.diagnostic import acorr_ljungbox
+
+    r = np.random.default_rng(2).normal(0, 2.0, 4000)
+    g = sig.gap_metrics(r, 2.0, 10.0)
+    assert g.rms_ratio == pytest.approx(1.0, abs=0.05)
+    assert g.allan_distance < 0.1 and g.spectral_distance_db < 1.5
+    ref = acorr_ljungbox(r - r.mean(), lags=[20])["lb_pvalue"].iloc[0]
+    assert g.whiteness_p == pytest.approx(ref, rel=1e-6)
+
+
+# ---- stochastic shape fits --------------------------------------------------------------
+
+def test_gauss_markov_recovered_from_spectrum():
+    rng = np.random.default_rng(4)
+    n, dt, tau, s = 8000, 0.1, 3.0, 0.6
+    phi = np.exp(-dt / tau)
+    x = signal.lfilter([1], [1, -phi], rng.normal(0, s * np.sqrt(1 - phi ** 2), n))
+    fit = fit_stochastic(x + rng.normal(0, 1, n), dt, "gauss_markov")
+    assert fit.p_value < 1e-6
+    assert abs(fit.tau_s - tau) <= 3 * fit.tau_std_s
+    assert abs(fit.sigma - s) <= 3 * fit.sigma_std
+    assert fit_stochastic(rng.normal(0, 1, n), dt, "gauss_markov").p_value > 1e-3
+
+
+def test_white_floor_ignores_slow_structure_and_a_line():
+    rng = np.random.default_rng(6)
+    t = np.arange(5000) / 10.0
+    r = rng.normal(0, 0.3, t.size) + 0.01 * t + np.sin(2 * np.pi * 0.7 * t)
+    assert white_floor_sd(r, 10.0) == pytest.approx(0.3, rel=0.08)
+
+
+# ---- calibration and the loop -----------------------------------------------------------
+
+def _hidden(kind, effects, seed, n):
+    rng = np.random.default_rng(seed)
+    rec = make_experiment(kind, rng, n=n)
+    sd = DEFAULT_NOISE_SD[kind]
+    truth = Model(BaseModel(kind=kind, bias=20 * sd, scale_factor=1.0005, noise_sd=sd))
+    for eid in effects:
+        truth = truth.with_effect(eid, CATALOGUE[eid].draw(rng, rec, kind=kind, noise_sd=sd))
+    return rec.replace(y=truth.simulate(rec, rng)), truth
+
+
+def test_calibrate_recovers_bias_scale_factor_and_noise():
+    rec, truth = _hidden("accelerometer", (), 0, 1500)
+    m = calibrate(Model(base_model("accelerometer")), rec)
+    sd = truth.base.noise_sd
+    assert abs(m.base.bias - truth.base.bias) < 5 * sd / np.sqrt(rec.n) * 3
+    assert abs(m.base.scale_factor - truth.base.scale_factor) < 1e-5
+    assert m.base.noise_sd == pytest.approx(sd, rel=0.15)
+
+
+@pytest.mark.parametrize("kind,eid,seed", [("accelerometer", "k2_nonlinearity", 0),
+                                           ("accelerometer", "warmup_exponential", 1),
+                                           ("gyro", "sinusoidal_interference", 2)])
+def test_discover_names_the_hidden_effect_and_closes_the_gap(kind, eid, seed):
+    rec, truth = _hidden(kind, (eid,), seed, 1500)
+    d = discover(rec, Model(base_model(kind)), max_effects=2, seed=seed)
+    assert d.steps and d.steps[0].effect_id == eid
+    main = CATALOGUE[eid].main_param
+    got, sd = d.steps[0].params[main], d.steps[0].params_std[main]
+    assert abs(got - truth.effects[0][1][main]) <= 3 * sd
+    assert d.gap_final.rms_ratio <= 1.1
+    doc = d.to_dict("m.toml")
+    assert doc["effects"][0]["id"] == eid and doc["gap"]["final"] <= 1.1
+
+
+def test_discover_names_nothing_on_clean_data():
+    rec, _ = _hidden("accelerometer", (), 7, 1500)
+    d = discover(rec, Model(base_model("accelerometer")), max_effects=2, seed=7)
+    assert d.steps == () and d.unexplained == ()
+    assert d.to_dict()["effects"] == []
