@@ -100,8 +100,7 @@ def base_regressors(rec: Record) -> np.ndarray:
 
 def project_out(x: np.ndarray, a: np.ndarray) -> np.ndarray:
     """x minus its least-squares fit on the columns of a."""
-    coef, *_ = np.linalg.lstsq(a, x, rcond=None)
-    return x - a @ coef
+    return project_q(x, orthonormal(a))
 
 
 def orthonormal(a: np.ndarray) -> np.ndarray:
@@ -113,7 +112,13 @@ def orthonormal(a: np.ndarray) -> np.ndarray:
 
 def project_q(x: np.ndarray, q: np.ndarray) -> np.ndarray:
     """x minus its projection on the orthonormal columns q."""
-    return x - q @ (q.T @ x)
+    # einsum, not BLAS: threaded BLAS level-1/2 calls stall badly on a loaded 2-core machine
+    return x - np.einsum("ij,j->i", q, np.einsum("ij,i->j", q, x))
+
+
+def vdot(a: np.ndarray, b: np.ndarray) -> float:
+    """Dot product of two vectors (einsum: see project_q)."""
+    return float(np.einsum("i,i->", a, b))
 
 
 class Effect:
@@ -231,7 +236,7 @@ class Effect:
         if self.competitors and np.any(delta):
             dirs = [competitor_direction(REGISTRY[c], rec, delta, q) for c in self.competitors]
             delta = project_q(delta, orthonormal(np.column_stack(dirs)))
-        return float(np.linalg.norm(delta) / noise_sd)
+        return math.sqrt(vdot(delta, delta)) / noise_sd
 
     def reference_params(self, rec: Record, kind: str) -> dict:
         """Typical values of every parameter for judging detectability on rec: geometric mean
@@ -245,6 +250,11 @@ class Effect:
     def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
         """The part of a non-main parameter's range the record can resolve (override per effect)."""
         return q.low, q.high
+
+    def identity_params(self, p: dict) -> dict:
+        """p with the effect switched off: main parameter at ``identity`` (and, for effects with a
+        second amplitude such as temperature_bias's quadratic term, that one at 0 too)."""
+        return self._with_main(p, self.identity)
 
     def _with_main(self, others: dict, value: float) -> dict:
         d = dict(others)
@@ -406,14 +416,14 @@ def competitor_direction(comp: Effect, rec: Record, delta: np.ndarray, q: np.nda
 
     def direction(v: float) -> np.ndarray:
         d = project_q(comp.apply(comp._with_main(base, v), rec, y0) - y0, q)
-        nrm = float(np.sqrt(np.dot(d, d)))
+        nrm = math.sqrt(vdot(d, d))
         return d / nrm if nrm > 0 else d
 
     if all(p.linear for p in comp.params_for(kind)):
         return direction(1.0)
 
     def fit(logv: float) -> float:  # captured fraction of delta (maximise)
-        return abs(float(np.dot(direction(math.exp(logv)), delta)))
+        return abs(vdot(direction(math.exp(logv)), delta))
 
     lo, hi = comp.main_grid_range(rec, kind)
     grid = np.linspace(math.log(lo), math.log(hi), 13)

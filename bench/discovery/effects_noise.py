@@ -13,7 +13,7 @@ import math
 import numba
 import numpy as np
 
-from bench.discovery.effects_base import Effect, _p, base_regressors, project_out
+from bench.discovery.effects_base import Effect, _p, base_regressors, project_out, vdot
 
 
 @numba.njit(cache=True)
@@ -81,11 +81,11 @@ class GaussMarkov(Effect):
         autocorrelation falls to e^{−1} of its lag-1 value, and that tau ×/÷ 3."""
         r = project_out(np.asarray(residual, float), base_regressors(rec))
         r = r - r.mean()
-        var = float(np.dot(r, r) / r.size)
-        c1 = float(np.dot(r[1:], r[:-1]) / r.size)
+        var = vdot(r, r) / r.size
+        c1 = vdot(r[1:], r[:-1]) / r.size
         sigma = math.sqrt(max(c1, var * 0.05))
         lags = np.unique(np.geomspace(1, max(2, rec.n // 10), 40).astype(int))
-        acf = np.array([np.dot(r[k:], r[:-k]) / r.size for k in lags]) / max(c1, 1e-300)
+        acf = np.array([vdot(r[k:], r[:-k]) / r.size for k in lags]) / max(c1, 1e-300)
         below = np.flatnonzero(acf < math.exp(-1))
         tau = float(lags[below[0]] * rec.dt_s) if below.size else rec.duration_s / 30
         q = self.params[1]

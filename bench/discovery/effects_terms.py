@@ -87,6 +87,9 @@ class TemperatureBias(Effect):
     def draw_others(self, rng, rec, kind):
         return {"coef_per_c2": 0.0}
 
+    def identity_params(self, p):
+        return {"coef_per_c": 0.0, "coef_per_c2": 0.0}
+
     def finish_draw(self, rng, rec, kind, p):
         # quadratic part at most 30 % of the linear one over the record's temperature swing
         dt = rec.column("temp") - T_REF_C
