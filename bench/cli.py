@@ -15,7 +15,7 @@ import sys
 #: subcommand modules; each has ``register(subparsers)`` and sets ``func(args) -> int``
 COMMAND_MODULES = ("bench.commands.run", "bench.commands.sim", "bench.commands.runs",
                    "bench.commands.analyze", "bench.commands.acceptance",
-                   "bench.commands.doctor")
+                   "bench.commands.doctor", "bench.commands.discover")
 
 
 class UsageError(Exception):

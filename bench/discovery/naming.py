@@ -3,8 +3,8 @@
 For the current (calibrated) model and its residual ``r = y − predict``:
 
 1. Candidates: catalogue effects whose ``kinds`` include the model's kind, whose inputs are
-   logged (``t_on`` falls back to time since the first sample) and that are not yet in the
-   model.
+   logged and vary (``t_on`` falls back to time since the first sample) and that are not yet
+   in the model.
 2. Deterministic candidates (:mod:`.fitting`): multi-start least squares of the model with the
    effect appended (bias and scale factor refitted with it) on the whole record for the
    reported parameters ± std; then on each fold's training blocks (interleaved contiguous
@@ -114,7 +114,8 @@ def applicable(model, rec: Record, catalogue: dict) -> list[str]:
     for eid, eff in catalogue.items():
         if eid in have or model.base.kind not in eff.kinds:
             continue
-        if all(n == "t_on" or rec.logged(n) for n in eff.inputs):
+        # an input held constant cannot show an effect of it (it is one with the bias)
+        if all(n in ("t", "t_on") or (rec.logged(n) and np.ptp(rec.column(n)) > 0) for n in eff.inputs):
             out.append(eid)
     return out
 

@@ -1,0 +1,188 @@
+"""``bench discover``: find where the model and a measurement disagree, name the missing effect.
+
+``bench discover (--run ID | --measured FILE.csv) [--sensor accelerometer|gyro|mhd]
+[--model FILE.toml] [--out DIR] [--json]``
+
+CSV columns (header row): ``t`` (s) and ``y`` (g or deg/s) required; optional ``input``,
+``cross_input``, ``temp`` (degC), ``t_on`` (s since power-on), ``vib`` (g rms), ``accel`` (g)
+— see :mod:`bench.discovery.data`.
+
+Stored runs: the stream and columns mapped per procedure (:data:`RUN_MAPS`):
+
+=============  ================  ====================================================
+procedure      sensor            mapping
+=============  ================  ====================================================
+startup        accelerometer     output.t_s → t and t_on (s from power-on; t ≥ 0 kept),
+                                 output.acceleration_g → y, temperature.temperature_c
+                                 interpolated onto t → temp; input = +1 g (Document A
+                                 holds the sensitive axis vertical)
+turn_on        gyro              gyro_startup.t_s → t and t_on (t ≥ 0), rate_dps → y,
+                                 temperature_c → temp
+noise (gyro)   gyro              gyro_static.t_s → t, rate_dps → y, temperature_c → temp
+=============  ================  ====================================================
+
+Writes ``discovered_model.toml`` and ``discovery_report.html`` into ``--out`` (default
+``bench-data/discover``). Bad input: one line ``bench: error: …`` and exit 2 (ValueError /
+LookupError / OSError are turned into that by :mod:`bench.cli`).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from bench.discovery.data import CSV_COLUMNS, Record
+
+SENSORS = ("accelerometer", "gyro", "mhd")
+DEFAULT_OUT = "bench-data/discover"
+
+#: procedure -> (sensor, main stream, time col, value col, temperature (stream, col) or None,
+#: time column counts from power-on, constant applied input or None)
+RUN_MAPS = {
+    "startup": ("accelerometer", "output", "t_s", "acceleration_g", ("temperature", "temperature_c"), True, 1.0),
+    "turn_on": ("gyro", "gyro_startup", "t_s", "rate_dps", ("gyro_startup", "temperature_c"), True, None),
+    "noise": ("gyro", "gyro_static", "t_s", "rate_dps", ("gyro_static", "temperature_c"), False, None),
+}
+
+
+def register(sub) -> None:
+    p = sub.add_parser("discover", help="name the effect the model lacks (discrepancy workflow)")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--run", metavar="ID", help="stored run id or 'latest' (startup, turn_on, noise runs)")
+    src.add_argument("--measured", metavar="FILE.csv",
+                     help=f"CSV with a header row; columns {', '.join(CSV_COLUMNS)} (t, y required)")
+    p.add_argument("--sensor", choices=SENSORS, default=None,
+                   help="base model kind when no --model (default: from the run, else accelerometer)")
+    p.add_argument("--model", metavar="FILE.toml", default=None, help="starting model file")
+    p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder [{DEFAULT_OUT}]")
+    p.add_argument("--max-effects", type=int, default=4, help="most effects to add [4]")
+    p.add_argument("--alpha", type=float, default=0.05, help="false-discovery rate [0.05]")
+    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap null [0]")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=discover_command)
+
+
+def read_measured(path: str) -> Record:
+    """A CSV with a header into a Record (ValueError naming the file and the fault)."""
+    from bench.commands.analyze import read_csv_table
+
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        header = [h.strip().lower() for h in fh.readline().split(",")]
+    unknown = [h for h in header if h and h not in CSV_COLUMNS]
+    if unknown:
+        raise ValueError(f"{path}: unknown column(s) {unknown}; allowed: {list(CSV_COLUMNS)}")
+    table = read_csv_table(path, ("t", "y"), tuple(c for c in CSV_COLUMNS if c not in ("t", "y")))
+    try:
+        return Record.from_columns(table)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def read_run(store_path, run_id: str) -> tuple[Record, str, str]:
+    """(record, sensor kind, run id) of a stored run, mapped by :data:`RUN_MAPS`."""
+    from bench.commands.common import require_store, resolve_run_id
+    from bench.store import RunStore
+
+    require_store(store_path)
+    with RunStore(store_path) as store:
+        run_id = resolve_run_id(store, run_id)
+        info = store.get_run(run_id)
+        streams = store.streams(run_id)
+        proc = info.procedure
+        if proc not in RUN_MAPS or RUN_MAPS[proc][1] not in streams:
+            raise ValueError(f"run {run_id} ({proc}) has no stream discover can map; "
+                             f"supported procedures: {', '.join(RUN_MAPS)}")
+        kind, stream, tcol, ycol, temp, from_on, applied = RUN_MAPS[proc]
+        data = store.load(run_id, stream)
+        for col in (tcol, ycol):
+            if col not in data:
+                raise ValueError(f"stream {stream!r} of run {run_id} has no column {col!r}")
+        t = np.asarray(data[tcol], float)
+        y = np.asarray(data[ycol], float)
+        keep = (t >= 0.0) if from_on else np.ones(t.size, bool)
+        keep &= np.isfinite(y)
+        cols = {"t": t[keep], "y": y[keep]}
+        if from_on:
+            cols["t_on"] = t[keep]
+        if applied is not None:
+            cols["input"] = np.full(cols["t"].size, applied)
+        if temp is not None and temp[0] in streams:
+            td = store.load(run_id, temp[0])
+            if temp[1] in td and tcol in td and np.sum(np.isfinite(td[temp[1]])) >= 2:
+                tt, vv = np.asarray(td[tcol], float), np.asarray(td[temp[1]], float)
+                ok = np.isfinite(vv)
+                cols["temp"] = np.interp(cols["t"], tt[ok], vv[ok])
+    _, first = np.unique(cols["t"], return_index=True)  # a store may repeat a timestamp
+    return Record.from_columns({k: v[first] for k, v in cols.items()}), kind, run_id
+
+
+def discover_command(args) -> int:
+    from bench.discovery.model import Model, base_model, read_model, write_model
+    from bench.discovery.workflow import discover
+    from bench.reports.discovery_report import write_discovery_report
+
+    if args.run is not None:
+        rec, run_kind, run_id = read_run(args.store, args.run)
+        label = f"run {run_id}"
+    else:
+        rec, run_kind, label = read_measured(args.measured), None, args.measured
+    if args.model is not None:
+        model = read_model(args.model)
+        if args.sensor is not None and args.sensor != model.base.kind:
+            raise ValueError(f"--sensor {args.sensor} contradicts the model file's kind {model.base.kind!r}")
+    else:
+        model = Model(base_model(args.sensor or run_kind or "accelerometer"))
+    if not 0 <= args.max_effects <= 19:
+        raise ValueError(f"--max-effects {args.max_effects}; allowed: 0..19")
+    if rec.n < 64:
+        raise ValueError(f"{label}: {rec.n} samples; discover needs at least 64")
+    if not rec.is_uniform(rtol=0.05):
+        raise ValueError(f"{label}: sample intervals vary by more than 5 %; discover needs a uniform record")
+    result = discover(rec, model, max_effects=args.max_effects, alpha=args.alpha, seed=args.seed)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    model_file = out / "discovered_model.toml"
+    write_model(result.final_model, model_file)
+    report = write_discovery_report(result, rec, out, label)
+    doc = result.to_dict(str(model_file))
+    doc["report"] = str(report)
+    doc["source"] = label
+    if args.json:
+        print(json.dumps(clean_json(doc), indent=2, allow_nan=False))
+    else:
+        print(summary(result, label, model_file, report))
+    return 0
+
+
+def clean_json(x):
+    """numpy scalars to Python, NaN/inf to None, recursively (JSON without NaN)."""
+    if isinstance(x, dict):
+        return {str(k): clean_json(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [clean_json(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if np.isfinite(x) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def summary(result, label: str, model_file: Path, report: Path) -> str:
+    lines = [f"discrepancy workflow on {label}: residual rms {result.rms_initial:.4g} → {result.rms_final:.4g} "
+             f"(noise floor {result.noise_floor:.4g})"]
+    if not result.steps:
+        lines.append("nothing named: no catalogue effect is significant")
+    for i, s in enumerate(result.steps, 1):
+        ps = ", ".join(f"{k} = {v:.4g} ± {s.params_std.get(k, float('nan')):.2g}" for k, v in s.params.items())
+        lines.append(f"{i}. {s.effect_id} ({ps}); p = {s.p_value:.3g}; rms {s.rms_before:.4g} → {s.rms_after:.4g}")
+        for sep in s.naming.separating:
+            lines.append(f"   close competitor — {sep}")
+    for u in result.unexplained:
+        lines.append(f"unexplained structure: {u}")
+    lines += [f"note: {n}" for n in result.notes]
+    lines += [f"model: {model_file}", f"report: {report}"]
+    return "\n".join(lines)

@@ -1,0 +1,162 @@
+"""Scorecard of the discrepancy workflow (issue 7) on data with hidden effects.
+
+For each sensor kind and each catalogue effect that applies to it, ``--seeds`` records of the
+kind's experiment (:func:`bench.discovery.experiments.make_experiment`, ``--n`` samples) are
+simulated with a base model (bias, scale factor, the kind's white noise) plus the effect with
+parameters drawn by ``Effect.draw`` (physical range, detectable on that record); the workflow
+starts from the bare base model. Reported:
+
+* named first: the first effect named is the hidden one (target ≥ 90 %);
+* recovered: its main parameter within 2 stated standard errors of the truth (≈ 95 % if the
+  stated uncertainty is right);
+* gap ≤ 1.1: final residual rms within 10 % of the model's noise rms (target: all);
+* pairs: two effects hidden at once, both named (target ≥ 80 %);
+* clean: no effect hidden, nothing named (target ≥ 95 %);
+* the confusion matrix (hidden → first named).
+
+Run: ``.venv/bin/python benchmarks/discovery_scorecard.py [--kinds accelerometer,gyro,mhd]
+[--seeds 5] [--pairs 10] [--clean 20] [--n 3000] [--json FILE]``. There is no peer library
+that names effects, so the figures stand alone (targets from the issue beside them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter, defaultdict
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD  # noqa: E402
+from bench.discovery.experiments import make_experiment  # noqa: E402
+from bench.discovery.model import BaseModel, Model, base_model  # noqa: E402
+from bench.discovery.workflow import discover  # noqa: E402
+
+BASE_BIAS = {"accelerometer": 2e-3, "gyro": 0.05, "mhd": 0.5}
+
+
+def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int):
+    """(record, truth model) or None when an effect is not detectable on this record."""
+    rng = np.random.default_rng([seed, len(effects), *[list(CATALOGUE).index(e) for e in effects]])
+    rec = make_experiment(kind, rng, n=n)
+    sd = DEFAULT_NOISE_SD[kind]
+    truth = Model(BaseModel(kind=kind, bias=BASE_BIAS[kind] * rng.uniform(-1, 1),
+                            scale_factor=1.0 + rng.normal(0, 2e-3), noise_sd=sd))
+    for eid in effects:
+        try:
+            p = CATALOGUE[eid].draw(rng, rec, kind=kind, noise_sd=sd)
+        except ValueError:
+            return None
+        truth = truth.with_effect(eid, p)
+    return rec.replace(y=truth.simulate(rec, rng)), truth
+
+
+def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int) -> dict | None:
+    case = hidden_case(kind, effects, seed, n)
+    if case is None:
+        return None
+    rec, truth = case
+    t0 = time.perf_counter()
+    d = discover(rec, Model(base_model(kind)), max_effects=max(2, len(effects) + 1), seed=seed)
+    named = [s.effect_id for s in d.steps]
+    out = {"kind": kind, "hidden": list(effects), "seed": seed, "named": named,
+           "first": named[0] if named else None, "gap_final": d.gap_final.rms_ratio,
+           "unexplained": list(d.unexplained), "seconds": time.perf_counter() - t0, "recovered": None}
+    if effects and named and named[0] == effects[0]:
+        main = CATALOGUE[effects[0]].main_param
+        true_v = truth.effects[0][1][main]
+        got, sd = d.steps[0].params[main], d.steps[0].params_std[main]
+        out.update(true=true_v, fit=got, fit_std=sd,
+                   recovered=bool(np.isfinite(sd) and abs(got - true_v) <= 2 * sd))
+    return out
+
+
+def _pct(k: int, n: int) -> str:
+    return f"{100 * k / n:5.1f} % ({k}/{n})" if n else "   —"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kinds", default="accelerometer,gyro,mhd")
+    ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--pairs", type=int, default=10, help="pair cases per kind")
+    ap.add_argument("--clean", type=int, default=20, help="clean cases per kind")
+    ap.add_argument("--n", type=int, default=3000, help="samples per record")
+    ap.add_argument("--effects", default=None, help="comma-separated subset of effect ids")
+    ap.add_argument("--json", default=None, help="write every case's outcome here")
+    args = ap.parse_args(argv)
+    cases = []
+    t_start = time.perf_counter()
+    for kind in args.kinds.split(","):
+        ids = [e for e, eff in CATALOGUE.items() if kind in eff.kinds
+               and (args.effects is None or e in args.effects.split(","))]
+        for eid in ids:
+            for seed in range(args.seeds):
+                c = run_case(kind, (eid,), seed, args.n)
+                if c is None:
+                    print(f"{kind:13s} {eid:26s} seed {seed}: not detectable on this record (skipped)", flush=True)
+                    continue
+                cases.append(c)
+                mark = "ok " if c["first"] == eid else "MISS"
+                print(f"{kind:13s} {eid:26s} seed {seed}: {mark} named {c['named']} gap {c['gap_final']:.3f} "
+                      f"recovered {c['recovered']} ({c['seconds']:.1f} s)", flush=True)
+        rng = np.random.default_rng(12345)
+        det = [e for e in ids if not CATALOGUE[e].stochastic]
+        for k in range(args.pairs if len(det) >= 2 else 0):
+            pair = tuple(rng.choice(det, 2, replace=False))
+            c = run_case(kind, pair, 1000 + k, args.n)
+            if c is None:
+                continue
+            cases.append(c)
+            print(f"{kind:13s} pair {'+'.join(pair):40s}: named {c['named']}", flush=True)
+        for k in range(args.clean):
+            c = run_case(kind, (), 2000 + k, args.n)
+            cases.append(c)
+            print(f"{kind:13s} clean seed {2000 + k}: named {c['named']} unexplained {len(c['unexplained'])}",
+                  flush=True)
+    report(cases)
+    print(f"total {time.perf_counter() - t_start:.0f} s; records of {args.n} samples")
+    if args.json:
+        Path(args.json).write_text(json.dumps(cases, indent=1, default=float))
+    return 0
+
+
+def report(cases: list[dict]) -> None:
+    singles = [c for c in cases if len(c["hidden"]) == 1]
+    pairs = [c for c in cases if len(c["hidden"]) == 2]
+    clean = [c for c in cases if not c["hidden"]]
+    print("\nper effect (kind: named first | main parameter within 2 std | final gap ≤ 1.1)")
+    by = defaultdict(list)
+    for c in singles:
+        by[(c["kind"], c["hidden"][0])].append(c)
+    for (kind, eid), cs in by.items():
+        first = sum(c["first"] == eid for c in cs)
+        rec = sum(bool(c["recovered"]) for c in cs)
+        gap = sum(c["gap_final"] <= 1.1 for c in cs)
+        print(f"  {kind:13s} {eid:26s} {_pct(first, len(cs))}  {_pct(rec, first)}  {_pct(gap, len(cs))}")
+    n1 = len(singles)
+    f1 = sum(c["first"] == c["hidden"][0] for c in singles)
+    print(f"\nnamed first, all single-effect cases: {_pct(f1, n1)}   (target ≥ 90 %)")
+    rc = sum(bool(c["recovered"]) for c in singles)
+    print(f"main parameter within 2 std (of correctly named): {_pct(rc, f1)}")
+    g = sum(c["gap_final"] <= 1.1 for c in singles if c["first"] == c["hidden"][0])
+    print(f"final gap within 10 % of the noise floor (correctly named): {_pct(g, f1)}")
+    both = sum(set(c["hidden"]) <= set(c["named"]) for c in pairs)
+    print(f"pairs, both named: {_pct(both, len(pairs))}   (target ≥ 80 %)")
+    none = sum(not c["named"] for c in clean)
+    print(f"clean data, nothing named: {_pct(none, len(clean))}   (target ≥ 95 %)")
+    print("\nconfusion (hidden → first named: count)")
+    conf = defaultdict(Counter)
+    for c in singles:
+        conf[c["hidden"][0]][c["first"] or "nothing"] += 1
+    for eid, cnt in conf.items():
+        print(f"  {eid:26s} " + ", ".join(f"{k}: {v}" for k, v in cnt.most_common()))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
