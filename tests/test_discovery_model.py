@@ -1,0 +1,179 @@
+"""Record validation, Model prediction/simulation and the TOML model file (issue 7)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bench.discovery.data import Record
+from bench.discovery.effects import CATALOGUE, KINDS, effects_for
+from bench.discovery.experiments import make_experiment
+from bench.discovery.model import (BaseModel, Model, base_model, model_from_toml, model_to_toml, read_model,
+                                   write_model)
+
+
+def _rec(n=1000, rate=10.0, **cols):
+    return Record(t_s=np.arange(n) / rate, y=np.zeros(n), **cols)
+
+
+# ---- Record ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("cols,message", [
+    ({"t": [0, 1, 1], "y": [0, 0, 0]}, r"t: not strictly increasing at row 2 \(t=1.0 after 1.0\)"),
+    ({"t": [0, 2, 1], "y": [0, 0, 0]}, "t: not strictly increasing"),
+    ({"t": [0, 1, 2], "y": [0, 0]}, "y: length 2 differs from t's length 3"),
+    ({"t": [0, 1, 2], "y": [0, float("nan"), 0]}, "y: non-finite value nan at row 1"),
+    ({"t": [0, float("inf")], "y": [0, 0]}, "t: non-finite value inf"),
+    ({"t": [0, 1], "y": [0, 0], "vib": [-1, 0]}, r"vib: value -1.0 at row 0 outside the allowed range \[0.0, 1000.0\]"),
+    ({"t": [0, 1], "y": [0, 0], "temp": [25, 900]}, r"temp: value 900.0 at row 1 outside the allowed range"),
+    ({"t": [0, 1], "y": [0, 0], "t_on": [-5, 1]}, "t_on: value -5.0"),
+    ({"t": [0, 1], "y": [0, 0], "input": [[1, 2], [3, 4]]}, r"input: shape \(2, 2\)"),
+    ({"t": [0, 1], "y": [0, 0], "input": ["a", "b"]}, "input: not numeric"),
+    ({"t": [0, 1], "y": [0, 0], "speed": [1, 2]}, "unknown column 'speed'"),
+    ({"t": [0, 1]}, "missing required column 'y'"),
+    ({"t": [0], "y": [0]}, "at least 2"),
+])
+def test_record_rejects_bad_columns_naming_column_value_and_range(cols, message):
+    with pytest.raises(ValueError, match=message):
+        Record.from_columns(cols)
+
+
+def test_record_columns_fallbacks_and_slices():
+    rec = Record.from_columns({" T ": [10.0, 11.0, 12.0, 13.0], "y": [1, 2, 3, 4], "temp": [20, 21, 22, 23],
+                               "accel": [0, 1, 0, -1], "cross_input": [0, 0, 1, 1]})
+    np.testing.assert_array_equal(rec.column("t_on"), [0, 1, 2, 3])  # starts at power-on by default
+    assert rec.has("t_on") and not rec.logged("t_on") and rec.has("accel") and not rec.has("vib")
+    with pytest.raises(ValueError, match="column 'vib' was not logged in this record; logged: "):
+        rec.column("vib")
+    with pytest.raises(ValueError, match="unknown column name 'wind'"):
+        rec.has("wind")
+    part = rec.slice(slice(2, 4))
+    np.testing.assert_array_equal(part.column("t_on"), [2, 3])  # time since power-on survives the slice
+    np.testing.assert_array_equal(rec.slice(np.array([0, 3])).y, [1, 4])
+    assert set(rec.to_columns()) == {"t", "y", "temp", "accel", "cross_input"}
+    assert Record.from_columns(rec.to_columns()).temp_c.tolist() == [20, 21, 22, 23]
+    assert rec.replace(y=np.zeros(4)).y.sum() == 0 and rec.rate_hz == pytest.approx(1.0)
+    with pytest.raises(ValueError):
+        rec.y[0] = 5.0  # columns are read-only
+
+
+# ---- Model ---------------------------------------------------------------------------------------
+
+def test_base_model_validates_and_predicts_bias_plus_scale_factor():
+    assert base_model("gyro") == BaseModel("gyro", 0.0, 1.0, 3e-3)
+    with pytest.raises(ValueError, match=r"base.kind = 'sonar'; allowed: \['accelerometer', 'gyro', 'mhd'\]"):
+        BaseModel("sonar")
+    with pytest.raises(ValueError, match=r"base.scale_factor = 7.0 outside the allowed range \[0.5, 2.0\]"):
+        BaseModel("gyro", scale_factor=7.0)
+    u = np.linspace(-1, 1, 100)
+    rec = _rec(100, input=u)
+    m = Model(BaseModel("accelerometer", bias=2e-3, scale_factor=1.01, noise_sd=0.0))
+    np.testing.assert_allclose(m.predict(rec), 2e-3 + 1.01 * u)
+    np.testing.assert_allclose(m.predict(_rec(100)), 2e-3)  # no input logged: input 0
+
+
+def test_model_rejects_effects_outside_the_kind():
+    m = Model(base_model("accelerometer"))
+    with pytest.raises(ValueError, match="'g_sensitivity' does not apply to a accelerometer"):
+        m.with_effect("g_sensitivity", {"coef_per_g": 1e-4})
+    with pytest.raises(ValueError, match=r"k2_nonlinearity.k2_per_u = 0.5 outside the allowed range \[-0.001, 0.001\] 1/g"):
+        m.with_effect("k2_nonlinearity", {"k2_per_u": 0.5})
+    with pytest.raises(ValueError, match=r"unknown parameter\(s\) \['k9'\]"):
+        m.with_effect("k2_nonlinearity", {"k2_per_u": 1e-5, "k9": 1.0})
+    with pytest.raises(ValueError, match=r"missing parameter\(s\) \['tau_s'\]"):
+        m.with_effect("warmup_exponential", {"amplitude": 1e-5})
+
+
+def test_predict_composes_stages_input_then_additive_then_output():
+    rng = np.random.default_rng(1)
+    u = np.repeat(rng.uniform(-1, 1, 50), 20)
+    rec = _rec(1000, input=u, temp_c=25 + np.linspace(0, 5, 1000))
+    m = (Model(BaseModel("accelerometer", bias=1e-3, scale_factor=2.0, noise_sd=1e-5))
+         .with_effect("lowpass_bandwidth", {"bandwidth_hz": 0.5})
+         .with_effect("temperature_bias", {"coef_per_c": 1e-5, "coef_per_c2": 0.0})
+         .with_effect("quantization", {"step": 1e-4}))
+    lp = CATALOGUE["lowpass_bandwidth"].transform_input({"bandwidth_hz": 0.5}, rec, u)
+    expect = 1e-3 + 2.0 * lp + 1e-5 * (rec.temp_c - 25.0)  # the bias is not low-passed; SF scales the filtered input
+    np.testing.assert_allclose(m.predict(rec), 1e-4 * np.round(expect / 1e-4))
+
+
+def test_simulate_is_deterministic_and_streams_are_independent():
+    rec = make_experiment("gyro", np.random.default_rng(0), n=3000)
+    m = Model(base_model("gyro")).with_effect("gauss_markov", {"sigma": 1e-3, "tau_s": 20.0})
+    a, b = m.simulate(rec, 7), m.simulate(rec, np.random.default_rng(7))
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(a, m.simulate(rec, 7))
+    assert not np.array_equal(a, m.simulate(rec, 8))
+    # adding a deterministic effect changes the prediction, not the noise realisation
+    m2 = m.with_effect("k2_nonlinearity", {"k2_per_u": 1e-6})
+    np.testing.assert_allclose(m2.simulate(rec, 7) - m2.predict(rec), a - m.predict(rec), atol=1e-12)
+    white = Model(base_model("gyro")).simulate(rec, 3) - rec.input
+    assert np.std(white) == pytest.approx(3e-3, rel=0.05)
+    with pytest.raises(ValueError, match="rng = 'x'"):
+        m.simulate(rec, "x")
+
+
+def test_simulated_quantization_acts_on_the_noisy_output():
+    rec = _rec(2000, input=np.zeros(2000))
+    m = Model(BaseModel("gyro", noise_sd=0.01)).with_effect("quantization", {"step": 0.004})
+    y = m.simulate(rec, 1)
+    np.testing.assert_allclose(y / 0.004, np.round(y / 0.004), atol=1e-9)
+    assert len(np.unique(np.round(y / 0.004))) > 5  # the noise spreads over several steps
+
+
+# ---- model file ------------------------------------------------------------------------------
+
+@st.composite
+def models(draw):
+    kind = draw(st.sampled_from(KINDS))
+    lo_b, hi_b = {"accelerometer": (-0.05, 0.05), "gyro": (-1.0, 1.0), "mhd": (-100.0, 100.0)}[kind]
+    base = BaseModel(kind, draw(st.floats(lo_b, hi_b)), draw(st.floats(0.5, 2.0)), draw(st.floats(0.0, 0.1)))
+    effects = []
+    for e in draw(st.lists(st.sampled_from(effects_for(kind)), max_size=5)):
+        effects.append((e.id, {q.name: draw(st.floats(q.low, q.high)) for q in e.params_for(kind)}))
+    return Model(base, tuple(effects))
+
+
+@settings(max_examples=60)
+@given(model=models())
+def test_model_file_round_trips_exactly(model):
+    text = model_to_toml(model)
+    back = model_from_toml(text)
+    assert back == model
+    for (_, p), (_, q) in zip(back.effects, model.effects):  # bit for bit, signs of zero included
+        assert all(math.copysign(1, p[k]) == math.copysign(1, q[k]) for k in p)
+
+
+def test_model_file_on_disk(tmp_path):
+    m = (Model(base_model("accelerometer")).with_effect("warmup_exponential", {"amplitude": 6e-5, "tau_s": 180.0})
+         .with_effect("sinusoidal_interference", {"amplitude": 1e-6, "freq_hz": 0.05, "phase_rad": -1.0}))
+    write_model(m, tmp_path / "unit.toml")
+    assert read_model(tmp_path / "unit.toml") == m
+    with pytest.raises(ValueError, match="cannot read model file"):
+        read_model(tmp_path / "missing.toml")
+
+
+_GOOD_BASE = '[base]\nkind = "gyro"\nbias = 0.0\nscale_factor = 1.0\nnoise_sd = 0.003\n'
+
+
+@pytest.mark.parametrize("text,message", [
+    ("[base\nkind=1", "not valid TOML"),
+    ('[base]\nkind = "gyro"\n', r"\[base\] keys \['kind'\]; required exactly"),
+    (_GOOD_BASE.replace("0.003", "-1.0"), r"base.noise_sd = -1.0 outside the allowed range \[0.0, 10.0\]"),
+    (_GOOD_BASE + "[extra]\na = 1\n", r"unknown top-level key\(s\) \['extra'\]"),
+    (_GOOD_BASE + '[[effects]]\nid = "warp_drive"\n[effects.params]\n', "unknown effect id 'warp_drive'"),
+    (_GOOD_BASE + '[[effects]]\nid = "highpass_rolloff"\n[effects.params]\ncorner_hz = 1.0\n',
+     "'highpass_rolloff' does not apply to a gyro"),
+    (_GOOD_BASE + '[[effects]]\nid = "time_delay"\n[effects.params]\ndelay_s = 5.0\n',
+     r"time_delay.delay_s = 5.0 outside the allowed range \[1e-05, 1.0\] s"),
+    (_GOOD_BASE + '[[effects]]\nid = "time_delay"\n[effects.params]\ndelay_s = "soon"\n',
+     r"effects\[0\].params.delay_s = 'soon' is not a number"),
+    (_GOOD_BASE + '[[effects]]\nid = "time_delay"\nhow = 1\n', r"effects\[0\] = .* allowed keys: id"),
+])
+def test_bad_model_files_name_the_key_value_and_range(text, message):
+    with pytest.raises(ValueError, match=message):
+        model_from_toml(text)
