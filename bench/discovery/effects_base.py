@@ -31,6 +31,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bench.discovery.data import Record
+from bench.discovery.effects_linalg import (base_regressors, competitor_direction, orthonormal, product_grid,  # noqa: F401
+                                            project_out, project_q, vdot)
 
 KINDS = ("accelerometer", "gyro", "mhd")
 UNIT = {"accelerometer": "g", "gyro": "deg/s", "mhd": "deg/s"}
@@ -88,37 +90,6 @@ def noise_sd_of(rec: Record, kind: str) -> float:
     d = np.diff(rec.y)
     s = float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
     return s if s > 0 else DEFAULT_NOISE_SD[kind]
-
-
-def base_regressors(rec: Record) -> np.ndarray:
-    """Columns a base-model calibration fits: 1 and (when logged) the input."""
-    cols = [np.ones(rec.n)]
-    if rec.logged("input"):
-        cols.append(rec.input)
-    return np.column_stack(cols)
-
-
-def project_out(x: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """x minus its least-squares fit on the columns of a."""
-    return project_q(x, orthonormal(a))
-
-
-def orthonormal(a: np.ndarray) -> np.ndarray:
-    """An orthonormal basis of the column space of a (rank-revealing: tiny columns dropped)."""
-    q, r = np.linalg.qr(a)
-    keep = np.abs(np.diag(r)) > 1e-12 * max(1.0, float(np.max(np.abs(np.diag(r))))) if r.size else []
-    return q[:, keep]
-
-
-def project_q(x: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """x minus its projection on the orthonormal columns q."""
-    # einsum, not BLAS: threaded BLAS level-1/2 calls stall badly on a loaded 2-core machine
-    return x - np.einsum("ij,j->i", q, np.einsum("ij,i->j", q, x))
-
-
-def vdot(a: np.ndarray, b: np.ndarray) -> float:
-    """Dot product of two vectors (einsum: see project_q)."""
-    return float(np.einsum("i,i->", a, b))
 
 
 class Effect:
@@ -224,6 +195,9 @@ class Effect:
         raise NotImplementedError
 
     # ---- detectability ----------------------------------------------------------------
+    def _competitor_direction(self, comp: "Effect", rec: Record, delta: np.ndarray, q: np.ndarray) -> np.ndarray:
+        return competitor_direction(comp, rec, delta, q, guess_kind(rec))
+
     def reference_output(self, rec: Record) -> np.ndarray:
         """The output the detectability rule perturbs: ``input`` (unit SF, zero bias) or 0."""
         return rec.input.copy() if rec.logged("input") else np.zeros(rec.n)
@@ -234,7 +208,7 @@ class Effect:
         q = orthonormal(base_regressors(rec))
         delta = project_q(self.apply(p, rec, y0) - y0, q)
         if self.competitors and np.any(delta):
-            dirs = [competitor_direction(REGISTRY[c], rec, delta, q) for c in self.competitors]
+            dirs = [self._competitor_direction(REGISTRY[c], rec, delta, q) for c in self.competitors]
             delta = project_q(delta, orthonormal(np.column_stack(dirs)))
         return math.sqrt(vdot(delta, delta)) / noise_sd
 
@@ -381,7 +355,7 @@ class Effect:
         r_perp = project_out(r, a)
         y0 = self.reference_output(rec)
         cands = []
-        for combo in _product(grids):
+        for combo in product_grid(grids):
             p = {q.name: 0.0 for q in lin} | combo
             if lin:
                 cols = []
@@ -401,55 +375,3 @@ class Effect:
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
         q = self.param(self.main_param, kind)
         return self.drawable_range(q, rec, kind)
-
-
-def competitor_direction(comp: Effect, rec: Record, delta: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """The competitor's signature (projected away from the orthonormal columns ``q``, unit norm)
-    that best matches ``delta`` (already orthogonal to q) up to a scale: all-linear competitors
-    have one direction; otherwise a 13-point log grid of its main parameter over its resolvable
-    range, then 8 golden-section steps."""
-    kind = guess_kind(rec)
-    if kind not in comp.ranges:
-        kind = comp.kinds[0]
-    y0 = comp.reference_output(rec)
-    base = comp.reference_params(rec, kind)
-
-    def direction(v: float) -> np.ndarray:
-        d = project_q(comp.apply(comp._with_main(base, v), rec, y0) - y0, q)
-        nrm = math.sqrt(vdot(d, d))
-        return d / nrm if nrm > 0 else d
-
-    if all(p.linear for p in comp.params_for(kind)):
-        return direction(1.0)
-
-    def fit(logv: float) -> float:  # captured fraction of delta (maximise)
-        return abs(vdot(direction(math.exp(logv)), delta))
-
-    lo, hi = comp.main_grid_range(rec, kind)
-    grid = np.linspace(math.log(lo), math.log(hi), 13)
-    vals = [fit(g) for g in grid]
-    i = int(np.argmax(vals))
-    x0, x1 = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    g = (math.sqrt(5) - 1) / 2
-    c, d = x1 - g * (x1 - x0), x0 + g * (x1 - x0)
-    fc, fd = fit(c), fit(d)
-    for _ in range(8):
-        if fc > fd:
-            x1, d, fd = d, c, fc
-            c = x1 - g * (x1 - x0)
-            fc = fit(c)
-        else:
-            x0, c, fc = c, d, fd
-            d = x0 + g * (x1 - x0)
-            fd = fit(d)
-    return direction(math.exp(0.5 * (x0 + x1)))
-
-
-def _product(grids):
-    if not grids:
-        yield {}
-        return
-    (name, pts), rest = grids[0], grids[1:]
-    for v in pts:
-        for tail in _product(rest):
-            yield {name: float(v)} | tail
