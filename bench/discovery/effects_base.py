@@ -115,6 +115,7 @@ class Effect:
     increasing: bool = True
     ranges: dict[str, tuple[Param, ...]] = {}
     competitors: tuple[str, ...] = ()
+    draw_span_main: float = DRAW_SPAN
 
     # ---- parameters -------------------------------------------------------------------
     @property
@@ -300,6 +301,9 @@ class Effect:
         lo_snr = DRAW_SNR_FACTOR * MIN_SNR
         thr = self._threshold(others, rec, sd, lo_snr, kind)
         far = self._threshold(others, rec, sd, lo_snr * DRAW_SPAN, kind)
+        # never more than draw_span_main times the threshold in the parameter itself (an snr that
+        # saturates, as quantization's does, would otherwise open the whole range)
+        far = min(far, thr * self.draw_span_main) if self.increasing else max(far, thr / self.draw_span_main)
         hi_mag = max(abs(q.low), abs(q.high))
         lo_mag = q.low if q.log else max(q.floor, 0.0)
         if self.increasing:

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from bench.discovery.data import Record
-from bench.discovery.effects_base import Effect, _p, base_regressors, project_out
+from bench.discovery.effects_base import Effect, _p, base_regressors, guess_kind, project_out
 
 #: Reference temperature of the temperature effects, degC: a model file's coefficients then
 #: mean the same on any record (the record's first temperature would tie them to one run);
@@ -247,7 +247,7 @@ class SinusoidalInterference(Effect):
     def fit_starts(self, rec, residual, *, kind=None):
         """The three strongest periodogram lines of the residual (uniform records: FFT with a
         Hann window; else a Lomb-Scargle grid), amplitude and phase by least squares."""
-        kind = kind or "accelerometer"
+        kind = kind or guess_kind(rec)
         r = project_out(np.asarray(residual, float), base_regressors(rec))
         f_lo, f_hi = self.drawable_range(self.param("freq_hz", kind), rec, kind)
         tt = rec.t_s - rec.t_s[0]

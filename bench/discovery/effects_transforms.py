@@ -175,6 +175,7 @@ class Quantization(Effect):
     main_param = "step"
     signature = "histogram: output values on a lattice of spacing step; error bounded by step/2 (white if step ≪ noise)"
     stage = "output"
+    draw_span_main = 5.0  # steps of 3-17 noise sd: a visible lattice, not a staircase hiding the signal
     ranges = {  # DMM 6½ digits on a 1 V range ≈ 1 µg; FOG 0.1″ pulse at 100 Hz ≈ 3e-3 deg/s
         "accelerometer": (_p("step", "g", 1e-8, 1e-3, log=True),),
         "gyro": (_p("step", "deg/s", 1e-6, 0.1, log=True),),
