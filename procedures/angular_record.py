@@ -23,12 +23,19 @@ Every chunk is appended to the run's streams as it arrives (nothing acquired is 
 
 from __future__ import annotations
 
+import logging
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 
 from bench.procedure import Context
+from instruments.angular_table import AngularTableAbortedError
+
+log = logging.getLogger(__name__)
+#: status bit of a frame whose rate was clipped at the unit's full scale (docs/FOG_SERIAL.md)
+STATUS_OVER_RANGE = 0x08
 
 #: the DMM needs this much of each reading interval outside the aperture (instruments.multimeter)
 APERTURE_FRACTION = 0.8
@@ -78,9 +85,16 @@ def aperture_for(interval_s: float, aperture_range_s: tuple[float, float]) -> fl
 
 
 def record(ctx: Context, duration_s: float, rate_hz: float, frame_rate_hz: int, prefix: str,
-           block: int, *, chunk_s: float = 1.0, progress=None) -> Record:
+           block: int, *, chunk_s: float = 1.0, progress=None, require_motion: bool = True) -> Record:
     """Acquire ``duration_s`` of all three signals (HF and reference at ``rate_hz``, LF at
-    ``frame_rate_hz``), streaming each chunk into ``<prefix>_ref|hf|lf`` tagged ``block``."""
+    ``frame_rate_hz``), streaming each chunk into ``<prefix>_ref|hf|lf`` tagged ``block``.
+
+    After every chunk the table's state is read: ABORT raises
+    :class:`~instruments.angular_table.AngularTableAbortedError`, and with
+    ``require_motion`` anything but RUN raises — a recording of a table that stopped is not
+    the profile asked for.  LF frames over range (clipped at full scale), dropped or corrupt
+    raise.  Whatever happens, every sample that reached the bench is stored first (the LF
+    frames of a timeout, the DMM and reference samples still in the instruments)."""
     table, dmm, lf = (ctx.instruments[n] for n in ("angular_table", "dmm_mhd", "lf_gyro"))
     if not (0 < rate_hz <= MAX_RATE_HZ):
         raise ValueError(f"rate_hz {rate_hz!r} not in (0, {MAX_RATE_HZ:g}] Hz")
@@ -100,47 +114,83 @@ def record(ctx: Context, duration_s: float, rate_hz: float, frame_rate_hz: int, 
     counts = {"ref": 0, "hf": 0, "lf": 0}
     ref_angle: list[np.ndarray] = []
     frames_per_chunk = max(1, int(round(chunk_s * frame_rate_hz)))
+
+    def store_frames(frames) -> None:
+        t = t0 + (np.asarray(frames.index, dtype=float) + 0.5) / frame_rate_hz
+        ctx.run.append(f"{prefix}_lf", t_s=t, rate_dps=frames.rate_dps, counts=frames.counts,
+                       status=frames.status, block=np.full(t.size, block))
+        got["lf"].append((t, frames.rate_dps))
+        counts["lf"] += t.size
+
+    def drain() -> tuple[int, int]:
+        """Store whatever the DMM and the reference capture hold now."""
+        volts = dmm.read_available()
+        if volts.size:
+            k = counts["hf"] + np.arange(volts.size)
+            t = t0 + plan.trigger_delay_s + k * interval + aperture / 2
+            ctx.run.append(f"{prefix}_hf", t_s=t, voltage_v=volts, block=np.full(t.size, block))
+            got["hf"].append((t, volts))
+            counts["hf"] += volts.size
+        t_ref, angle, rate = table.read_reference()
+        if t_ref.size:
+            t = t0 + t_ref
+            ctx.run.append(f"{prefix}_ref", t_s=t, angle_deg=angle, rate_dps=rate, block=np.full(t.size, block))
+            got["ref"].append((t, rate))
+            ref_angle.append(angle)
+            counts["ref"] += t.size
+        return volts.size, t_ref.size
+
     stalled = 0.0
     try:
         while counts["lf"] < n_lf or counts["hf"] < n or counts["ref"] < n:
             before = ctx.clock.now()
             if counts["lf"] < n_lf:
                 want = min(frames_per_chunk, n_lf - counts["lf"])
-                frames = lf.read_frames(want, timeout_s=chunk_s * want / frames_per_chunk + STALL_MARGIN_S,
-                                        wait=ctx.clock.sleep)
+                try:
+                    frames = lf.read_frames(want, timeout_s=chunk_s * want / frames_per_chunk + STALL_MARGIN_S,
+                                            wait=ctx.clock.sleep)
+                except Exception as exc:
+                    partial = getattr(exc, "frames", None)  # a timeout or broken line carries what arrived
+                    if partial is not None and len(partial):
+                        store_frames(partial)
+                    raise
+                store_frames(frames)
                 if frames.dropped or frames.corrupt:
-                    raise RuntimeError(f"lf_gyro line: {frames.dropped} frames dropped, {frames.corrupt} corrupt")
-                t = t0 + (np.asarray(frames.index, dtype=float) + 0.5) / frame_rate_hz
-                ctx.run.append(f"{prefix}_lf", t_s=t, rate_dps=frames.rate_dps, counts=frames.counts,
-                               status=frames.status, block=np.full(t.size, block))
-                got["lf"].append((t, frames.rate_dps))
-                counts["lf"] += t.size
+                    raise RuntimeError(f"lf_gyro line: {frames.dropped} frames dropped, {frames.corrupt} corrupt "
+                                       "(the frames received are stored)")
+                over = int(np.count_nonzero(np.asarray(frames.status) & STATUS_OVER_RANGE))
+                if over:
+                    raise RuntimeError(f"lf_gyro: {over} frames over range (clipped at the unit's full scale); "
+                                       "lower the amplitude")
             else:
                 ctx.clock.sleep(max(interval, min(chunk_s, (n - min(counts["hf"], counts["ref"])) * interval)))
-            volts = dmm.read_available()
-            if volts.size:
-                k = counts["hf"] + np.arange(volts.size)
-                t = t0 + plan.trigger_delay_s + k * interval + aperture / 2
-                ctx.run.append(f"{prefix}_hf", t_s=t, voltage_v=volts, block=np.full(t.size, block))
-                got["hf"].append((t, volts))
-                counts["hf"] += volts.size
-            t_ref, angle, rate = table.read_reference()
-            if t_ref.size:
-                t = t0 + t_ref
-                ctx.run.append(f"{prefix}_ref", t_s=t, angle_deg=angle, rate_dps=rate,
-                               block=np.full(t.size, block))
-                got["ref"].append((t, rate))
-                ref_angle.append(angle)
-                counts["ref"] += t.size
-            stalled = stalled + (ctx.clock.now() - before) if not (volts.size or t_ref.size) else 0.0
+            new_hf, new_ref = drain()
+            state = table.state
+            if state == "ABORT":
+                raise AngularTableAbortedError(f"angular_table went to ABORT at {ctx.clock.now():.6g} s "
+                                               "(interlock or emergency stop) during the recording; data so far stored")
+            if require_motion and state != "RUN":
+                raise RuntimeError(f"angular_table is {state} during the recording (expected RUN); data so far stored")
+            stalled = stalled + (ctx.clock.now() - before) if not (new_hf or new_ref) else 0.0
             if stalled > duration_s + STALL_MARGIN_S:
                 raise TimeoutError(f"angular rig: after {stalled:.3g} s waiting, {counts['hf']}/{n} MHD "
                                    f"readings, {counts['ref']}/{n} reference samples")
             if progress is not None:
                 progress(min(counts["hf"], counts["ref"]) / n)
+    except BaseException as exc:
+        try:  # keep what the instruments still hold: the run says why it stopped, with its data
+            drain()
+        except Exception as drain_exc:  # noqa: BLE001 - the original error is the one to report
+            exc.add_note(f"(could not read the remaining MHD/reference samples: {drain_exc})")
+        raise
     finally:
         if lf.streaming:
-            lf.stop()
+            try:
+                lf.stop()
+            except Exception as stop_exc:  # noqa: BLE001 - never mask the error being raised
+                if sys.exc_info()[0] is None:
+                    raise
+                log.warning("lf_gyro stop failed after an error: %s", stop_exc)
     if not np.all(np.isfinite(np.concatenate([v for _, v in got["hf"]]))):
         raise RuntimeError("dmm_mhd overload: the MHD output left the 1 V range")
 

@@ -9,10 +9,11 @@ Kalman fusion and a complementary filter, all against the table's reference.
 3. The profile: a multi-tone demand (``tones_per_decade`` log-spaced tones from
    ``f_min_hz`` to ``f_max_hz``, each ``amplitude_dps``, phases spread so the peaks do not
    add up), ramped up, ``settle_s``, then ``duration_s`` recorded at ``rate_hz``.
-4. Alignment: the LF frame clock's rate error is estimated against the reference from the
-   phase drift of the strongest tone the LF sensor passes (``bench.analysis.frf``) and
-   removed; each sensor's time axis is moved back by its fitted delay; the LF frames and
-   the reference are resampled onto the MHD readings' instants.
+4. Alignment: each sensor clock's rate error (the LF frames', the MHD DMM's) is estimated
+   against the reference from the phase drift of the highest tone that sensor passes
+   (``bench.analysis.frf_timebase``) and removed; each sensor's time axis is moved back by
+   its fitted delay; the DMM aperture's droop is compensated (as the FRF divides it out);
+   the LF frames and the reference are resampled onto the MHD readings' instants.
 5. Tuning (``tune_fraction`` > 0): Document B's process noise, thresholds and interval
    functions are chosen on the first ``tune_fraction`` of the aligned record
    (``bench.analysis.fusion_tuning``); everything below is measured on the rest only.
@@ -31,7 +32,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.analysis.frf_timebase import apply_time_base, estimate_time_base, resample
+from bench.analysis.frf_timebase import aperture_compensate, apply_time_base, estimate_time_base, resample
 from bench.analysis.fusion import tune_fusion_params
 from bench.analysis.fusion_metrics import _residual_var, analyze_fusion, excess_over_best
 from bench.analysis.fusion_tuning import tune_fusion
@@ -41,7 +42,8 @@ from procedures.common import Estimate, check_ranges
 from procedures.frf import FrfParameters, LIMIT_USE, RUN_TIMEOUT_MARGIN_S, measure_frf
 from procedures.steps import ParameterizedStep
 
-CLOCK_BLOCK_S = 5.0       # block length of the LF clock estimate
+CLOCK_BLOCK_S = 5.0       # block length of the clock estimates
+METRIC_SETTLE_S = 1.0     # the metrics skip the first second of the evaluated part (filter start-up)
 METHODS = ("fused", "fixed_r_kf", "complementary", "hf", "lf")
 
 
@@ -62,6 +64,7 @@ FUSION_PRODUCES = {
     "fused_excess_sigma": ("1", "max over tones of that excess in standard errors of the difference "
                                 "(≤ 2: no worse within the estimates' noise)"),
     "lf_clock_error": ("ppm", "LF frame clock rate error (positive: fast) estimated against the reference"),
+    "hf_clock_error": ("ppm", "MHD DMM sample clock rate error (positive: fast) estimated against the reference"),
 }
 
 
@@ -95,10 +98,12 @@ class FusionParameters:
             raise ValueError(f"f_max_hz = {self.f_max_hz} must be below rate_hz/4 = {self.rate_hz / 4:g} Hz")
         if 0 < self.tune_fraction < 0.1:
             raise ValueError(f"tune_fraction = {self.tune_fraction} must be 0 (no tuning) or in 0.1..0.7")
-        evaluated = self.duration_s * (1 - self.tune_fraction)
+        evaluated = self.duration_s * (1 - self.tune_fraction) - METRIC_SETTLE_S
         if evaluated < 3 / self.f_min_hz:
             raise ValueError(f"duration_s = {self.duration_s} must leave 3 periods of f_min_hz "
-                             f"(≥ {3 / self.f_min_hz:g} s) after the tuning part ({self.tune_fraction:g})")
+                             f"(≥ {3 / self.f_min_hz:g} s) after the tuning part ({self.tune_fraction:g}) "
+                             f"and the metrics' {METRIC_SETTLE_S:g}-s settling")
+        self.frf().validate()  # the models come from this FRF: refuse a grid that cannot be fitted
         if len(self.tones_hz()) > 16:
             raise ValueError(f"{len(self.tones_hz())} tones; the table synthesises at most 16")
 
@@ -126,30 +131,40 @@ def tone_demand(limits, tones_hz: np.ndarray, amplitude_dps: float) -> list[tupl
     return [(float(amplitude_dps * scale), float(f), float(ph)) for f, ph in zip(tones_hz, phases)]
 
 
+def _clock(rec, t_y, y, f_hz: float, span_s: float) -> tuple[np.ndarray, dict]:
+    """``t_y`` on the table clock: the rate error estimated from the tone at ``f_hz`` in
+    blocks of ≥ 10 periods (short enough that a 100-ppm clock drifts < ¼ period per
+    block) and removed; left as it is, and said so, when the record holds < 3 blocks."""
+    block = max(10.0 / f_hz, min(CLOCK_BLOCK_S, span_s / 4, 0.25 / (f_hz * 1e-4)))
+    if span_s < 3 * block:
+        return t_y, {"frequency_hz": f_hz, "block_s": block, "rate_ppm": None, "rate_std_ppm": None,
+                     "note": f"record {span_s:.3g} s too short for 3 blocks of {block:.3g} s: clock not corrected"}
+    tb = estimate_time_base(rec.t_ref_s, rec.ref_dps, t_y, y, f_hz, block)
+    return apply_time_base(t_y, tb, epoch_s=rec.t0_s), {"frequency_hz": f_hz, **tb.to_dict()}
+
+
 def align(rec, fits: dict, tones_hz: np.ndarray, hf_offset_v: float, lf_bias_dps: float) -> dict:
     """Put the LF frames and the reference on the MHD readings' instants (module docstring)."""
-    lf_model = fits["lf"].model
+    lf_model, hf_model = fits["lf"].model, fits["hf"].model
     passed = tones_hz[np.abs(lf_model.response(tones_hz)) >= 0.5 * abs(lf_model.gain)]
-    f_clock = float(passed.max()) if passed.size else float(tones_hz.min())
-    span = float(min(rec.t_lf_s[-1], rec.t_ref_s[-1]) - max(rec.t_lf_s[0], rec.t_ref_s[0]))
-    block = max(10.0 / f_clock, min(CLOCK_BLOCK_S, span / 4))
-    if span >= 3 * block:
-        tb = estimate_time_base(rec.t_ref_s, rec.ref_dps, rec.t_lf_s, rec.lf_dps - lf_bias_dps, f_clock, block)
-        t_lf = apply_time_base(rec.t_lf_s, tb, epoch_s=rec.t0_s)
-        clock = {"frequency_hz": f_clock, **tb.to_dict()}
-    else:  # too short for three blocks of ten periods: left uncorrected, said so
-        t_lf = rec.t_lf_s
-        clock = {"frequency_hz": f_clock, "block_s": block, "rate_ppm": None, "rate_std_ppm": None,
-                 "note": f"record {span:.3g} s too short for 3 blocks of {block:.3g} s: LF clock not corrected"}
+    f_lf = float(passed.max()) if passed.size else float(tones_hz.min())
+    passed = tones_hz[np.abs(hf_model.response(tones_hz)) >= 0.5 * abs(hf_model.gain)]
+    f_hf = float(passed.max()) if passed.size else float(tones_hz.max())
+    span = float(min(rec.t_lf_s[-1], rec.t_hf_s[-1], rec.t_ref_s[-1]) - max(rec.t_lf_s[0], rec.t_hf_s[0],
+                                                                           rec.t_ref_s[0]))
+    t_lf, clock_lf = _clock(rec, rec.t_lf_s, rec.lf_dps - lf_bias_dps, f_lf, span)
+    t_hf, clock_hf = _clock(rec, rec.t_hf_s, rec.hf_v - hf_offset_v, f_hf, span)
     t_lf = t_lf - fits["lf"].delay_s
-    t_hf = rec.t_hf_s - fits["hf"].delay_s
+    t_hf = t_hf - fits["hf"].delay_s
+    # the DMM aperture's droop (−1 % at 1 kHz with an 80-µs aperture) taken out, as in the FRF
+    hf_v = aperture_compensate(rec.hf_v - hf_offset_v, rec.aperture_s, 1.0 / rec.rate_hz)
     lo, hi = max(t_lf[0], rec.t_ref_s[0]), min(t_lf[-1], rec.t_ref_s[-1])
     keep = (t_hf >= lo) & (t_hf <= hi)
     t = t_hf[keep]
-    return {"t_s": t, "hf_v": rec.hf_v[keep] - hf_offset_v,
+    return {"t_s": t, "hf_v": hf_v[keep],
             "lf_dps": resample(t_lf, rec.lf_dps - lf_bias_dps, t),
             "ref_dps": resample(rec.t_ref_s, rec.ref_dps, t),
-            "clock": clock,
+            "clock": clock_lf, "hf_clock": clock_hf,
             "hf_delay_s": fits["hf"].delay_s, "lf_delay_s": fits["lf"].delay_s}
 
 
@@ -178,7 +193,7 @@ class FusionTest(ParameterizedStep):
         add_streams(ctx, "fusion")
         table.stop()
         ctx.run.event(ctx.clock.now(), "static", "table at rest: MHD offset and LF bias")
-        static = record(ctx, p.static_s, p.rate_hz, p.frame_rate_hz, "fusion", 0,
+        static = record(ctx, p.static_s, p.rate_hz, p.frame_rate_hz, "fusion", 0, require_motion=False,
                         progress=lambda x: ctx.progress(frf_total + x * p.static_s, total, "static"))
         hf_offset, lf_bias = float(np.mean(static.hf_v)), float(np.mean(static.lf_dps))
         tones = p.tones_hz()
@@ -208,7 +223,7 @@ class FusionTest(ParameterizedStep):
         evaluated = {k: v[n_tune:] for k, v in aligned.items() if k in ("t_s", "hf_v", "lf_dps", "ref_dps")}
         analysis = analyze_fusion(evaluated["t_s"], evaluated["hf_v"], evaluated["lf_dps"], evaluated["ref_dps"],
                                   p.rate_hz, hf_model=fits["hf"].model, lf_model=fits["lf"].model,
-                                  tones_hz=tones, settle_s=1.0, **settings)
+                                  tones_hz=tones, settle_s=METRIC_SETTLE_S, **settings)
         ctx.run.set_result("fusion.analysis", analysis.to_dict())
         aligned = {**aligned, **evaluated}
         ctx.run.add_stream("fusion_aligned", {"t_s": "s", "hf_v": "V", "lf_dps": "deg/s", "ref_dps": "deg/s",
@@ -216,7 +231,7 @@ class FusionTest(ParameterizedStep):
                            "aligned record on the MHD instants and every method's rate estimate")
         ctx.run.append("fusion_aligned", t_s=aligned["t_s"], hf_v=aligned["hf_v"], lf_dps=aligned["lf_dps"],
                        ref_dps=aligned["ref_dps"], **{estimate_column(m): analysis.estimates[m] for m in METHODS})
-        return summarize(analysis, aligned["clock"])
+        return summarize(analysis, aligned["clock"], aligned["hf_clock"])
 
 
 def tune_on(aligned: dict, n_tune: int, fits: dict, tones: np.ndarray, rate_hz: float) -> dict:
@@ -232,7 +247,7 @@ def tune_on(aligned: dict, n_tune: int, fits: dict, tones: np.ndarray, rate_hz: 
     return {"tuning": tuning, "params": tuning.params(hf_var, lf_var)}
 
 
-def summarize(analysis, clock: dict) -> dict[str, Estimate]:
+def summarize(analysis, clock: dict, hf_clock: dict | None = None) -> dict[str, Estimate]:
     amp = analysis.amplitude_error_pct
     excess, sd = excess_over_best(analysis.to_dict())
     out = {f"rms_error_{m}": Estimate(analysis.rms_error[m], None) for m in METHODS}
@@ -244,4 +259,6 @@ def summarize(analysis, clock: dict) -> dict[str, Estimate]:
     # stamps are corrected by rate_ppm: a clock fast by δ needs −δ
     if clock["rate_ppm"] is not None:
         out["lf_clock_error"] = Estimate(-clock["rate_ppm"], clock["rate_std_ppm"])
+    if hf_clock is not None and hf_clock["rate_ppm"] is not None:
+        out["hf_clock_error"] = Estimate(-hf_clock["rate_ppm"], hf_clock["rate_std_ppm"])
     return out

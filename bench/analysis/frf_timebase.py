@@ -154,8 +154,9 @@ def resample(t_src, y_src, t_dst, method: str = "sinc", *, half_width: int = SIN
     ``"cubic"`` (any increasing grid): not-a-knot cubic spline, error growing as ``(f/fs)⁴``:
     ≈ 10⁻⁶ at 0.02, 5·10⁻⁴ at 0.1, 0.025 at 0.25, 0.3 at 0.4 (measured) — fine for the
     reference at 10 kHz below 200 Hz, not for the 2 kHz LF frames above ~100 Hz.  Neither
-    restores what the source's own sampling removed (an interval-mean frame's ``sinc(f/fs)``
-    roll-off is the sensor's response and stays in its FRF)."""
+    restores what the source's own sampling removed: an interval-mean frame's ``sinc(f/fs)``
+    roll-off stays in the resampled series (``procedures/frf.py`` divides it out of the
+    measured FRF; :func:`aperture_compensate` undoes such a droop on a series)."""
     t, v, _ = _check_record(t_src, y_src, "y_src")
     td = np.asarray(t_dst, dtype=float)
     if method not in RESAMPLE_METHODS:
@@ -196,3 +197,21 @@ def resample(t_src, y_src, t_dst, method: str = "sinc", *, half_width: int = SIN
     if np.any(edge):
         out[edge] = CubicSpline(t, v)(td.ravel()[edge])
     return out.reshape(td.shape)
+
+
+def aperture_compensate(y, aperture_s: float, interval_s: float) -> np.ndarray:
+    """Undo the droop of readings that are means over ``aperture_s`` taken every
+    ``interval_s`` (a DMM's aperture, a frame's interval): the mean's response
+    sinc(f·T) ≈ 1 − (2πfT)²/24 is cancelled to second order by the symmetric 3-tap filter
+    ``y − c·(y[n−1] − 2y[n] + y[n+1])`` with ``c = (T/Ts)²/24`` (response 1 + c(2πfTs)²).
+    Residual error O((2πfT)⁴): 1·10⁻⁴ at f·T = 0.08.  The end samples are left as they are.
+    Offline only: it looks one sample ahead."""
+    y = np.asarray(y, dtype=float)
+    if not (math.isfinite(aperture_s) and math.isfinite(interval_s) and 0 < aperture_s <= interval_s):
+        raise ValueError(f"aperture_s {aperture_s!r} must be in (0, interval_s = {interval_s!r}] s")
+    if y.ndim != 1 or y.size < 3:
+        raise ValueError(f"y must be 1-D with at least 3 samples (has shape {y.shape})")
+    c = (aperture_s / interval_s) ** 2 / 24.0
+    out = y.copy()
+    out[1:-1] -= c * (y[:-2] - 2.0 * y[1:-1] + y[2:])
+    return out

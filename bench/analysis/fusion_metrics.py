@@ -111,8 +111,13 @@ class FusionAnalysis:
     rms_error: dict | None = None
     tones_hz: np.ndarray | None = None
     amplitude_error_pct: dict | None = None
-    #: standard error of each amplitude error (%): the series' noise about its tone fit over √(N/2)
+    #: standard error of each amplitude error (%): the series' noise at the tone (:func:`tone_noise_std`)
     amplitude_error_std_pct: dict | None = None
+    #: per tone, |fused amplitude error| − the better single sensor's (pp), its standard error
+    #: (from the fused-minus-sensor series) and which sensor was better
+    excess_pct: np.ndarray | None = None
+    excess_std_pct: np.ndarray | None = None
+    excess_best: list | None = None
     phase_error_deg: dict | None = None
     notes: list = field(default_factory=list)
 
@@ -131,6 +136,8 @@ class FusionAnalysis:
             {k: floats(v) for k, v in self.amplitude_error_pct.items()},
             "amplitude_error_std_pct": None if self.amplitude_error_std_pct is None else
             {k: floats(v) for k, v in self.amplitude_error_std_pct.items()},
+            "excess_pct": floats(self.excess_pct), "excess_std_pct": floats(self.excess_std_pct),
+            "excess_best": None if self.excess_best is None else list(self.excess_best),
             "phase_error_deg": None if self.phase_error_deg is None else
             {k: floats(v) for k, v in self.phase_error_deg.items()},
             "nis": {k: v.to_dict() for k, v in self.nis.items()},
@@ -224,19 +231,35 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
         out.tones_hz = tones
         out.amplitude_error_pct, out.phase_error_deg, out.amplitude_error_std_pct = {}, {}, {}
         cols = np.column_stack([estimates[k][keep] for k in names])
-        noise = np.sqrt(_residual_var(t[keep], cols, tones))
-        n_eval = cols.shape[0]
+        ref_amp = np.abs(phasors[:, 0])
+        resid = _residual(t[keep], cols, tones)
+        noise = {k: tone_noise_std(resid[:, j], rate_hz, tones) for j, k in enumerate(names)}
         for col, k in enumerate(names, start=1):
             ratio = phasors[:, col] / phasors[:, 0]
             out.amplitude_error_pct[k] = 100 * (np.abs(ratio) - 1)
-            out.amplitude_error_std_pct[k] = 100 * noise[col - 1] * math.sqrt(2.0 / n_eval) / np.abs(phasors[:, 0])
+            out.amplitude_error_std_pct[k] = 100 * noise[k] / ref_amp
             out.phase_error_deg[k] = np.degrees(np.angle(ratio))
+        # fused against the better single sensor, tone by tone: the two share their noise, so
+        # the excess's standard error comes from the difference series, not from each alone
+        amp = np.abs(np.vstack([out.amplitude_error_pct["hf"], out.amplitude_error_pct["lf"]]))
+        best = np.argmin(amp, axis=0)
+        diff = _residual(t[keep], np.column_stack([estimates["fused"][keep] - estimates[m][keep]
+                                                   for m in ("hf", "lf")]), tones)
+        diff_sd = np.vstack([tone_noise_std(diff[:, j], rate_hz, tones) for j in range(2)])
+        idx = np.arange(tones.size)
+        out.excess_pct = np.abs(out.amplitude_error_pct["fused"]) - amp[best, idx]
+        out.excess_std_pct = 100 * diff_sd[best, idx] / ref_amp
+        out.excess_best = [("hf", "lf")[b] for b in best]
     return out
 
 
 def excess_over_best(analysis: dict) -> tuple[np.ndarray, np.ndarray]:
     """Per tone: the fused rate's |amplitude error| less the better single sensor's (pp), and
-    the standard error of that difference (pp; zeros when the analysis has none)."""
+    the standard error of that difference (pp) — as :func:`analyze_fusion` computed them from
+    the fused-minus-sensor series; for an older analysis without them, from each series'
+    own standard error (an overestimate: the two share their noise)."""
+    if analysis.get("excess_pct") is not None:
+        return (np.asarray(analysis["excess_pct"], dtype=float), np.asarray(analysis["excess_std_pct"], dtype=float))
     amp = {k: np.abs(np.asarray(v, dtype=float)) for k, v in analysis["amplitude_error_pct"].items()}
     sd = analysis.get("amplitude_error_std_pct") or {k: np.zeros_like(v) for k, v in amp.items()}
     sd = {k: np.asarray(v, dtype=float) for k, v in sd.items()}
@@ -247,9 +270,35 @@ def excess_over_best(analysis: dict) -> tuple[np.ndarray, np.ndarray]:
     return amp["fused"] - best, np.hypot(sd["fused"], best_sd)
 
 
+def _residual(t, ys, tones) -> np.ndarray:
+    """Each column of ``ys`` less its LS fit at the tones (and its mean)."""
+    t = np.asarray(t, dtype=float)
+    arg = 2 * np.pi * np.outer(t - t[0], tones)
+    design = np.column_stack([np.ones_like(t), np.cos(arg), np.sin(arg)])
+    coef, *_ = np.linalg.lstsq(design, ys, rcond=None)
+    return ys - design @ coef
+
+
 def _residual_var(t, ys, tones) -> np.ndarray:
     """Variance of each column of ``ys`` after removing its LS fit at the tones (and its mean)."""
-    a = sine_phasors(t, ys, tones)
-    arg = 2 * np.pi * np.outer(t - t[0], tones)
-    fit = np.cos(arg) @ a.real - np.sin(arg) @ a.imag
-    return np.var(ys - fit, axis=0)
+    return np.var(_residual(t, ys, tones), axis=0)
+
+
+def tone_noise_std(residual, rate_hz: float, tones_hz, half_bins: int = 8) -> np.ndarray:
+    """Standard error of one component (cos or sin) of a least-squares phasor at each tone,
+    from the noise left in ``residual`` (the series less its tone fit), coloured or not:
+    ``√(S(f)/T)`` with ``S`` the one-sided PSD at the tone — the periodogram averaged over
+    ±``half_bins`` bins around it, skipping the tone's own bins and every other tone's —
+    and ``T`` the record length.  (For white noise of variance σ² this is σ√(2/N).)"""
+    r = np.asarray(residual, dtype=float)
+    n = r.size
+    psd = 2.0 * np.abs(np.fft.rfft(r - r.mean())) ** 2 / (rate_hz * n)
+    df = rate_hz / n
+    tone_bins = np.round(np.asarray(tones_hz, dtype=float) / df).astype(int)
+    out = np.empty(tone_bins.size)
+    for i, k in enumerate(tone_bins):
+        bins = np.arange(max(k - half_bins, 1), min(k + half_bins + 1, psd.size))
+        near_tone = np.min(np.abs(bins[:, None] - tone_bins[None, :]), axis=1) <= 1
+        use = bins[~near_tone] if np.any(~near_tone) else bins
+        out[i] = math.sqrt(float(np.mean(psd[use])) / (n / rate_hz))
+    return out

@@ -17,9 +17,10 @@ amplitude error over the tones: ``|fused error| − min(|MHD alone error|, |LF a
 error|)`` in percentage points (Document B's claim is that this is never positive).
 
 **Rule**: among candidates whose excess is, at every tone, at most ``tolerance_pct``
-(default: two standard errors of the difference — each amplitude estimate's standard
-error is its series' noise about the tone fit over √(N/2), relative to the tone), the
-lowest RMS error; if none qualifies, the lowest excess (then RMS).  Ties go to the smaller factors.  The conventional
+(default: two standard errors of the excess — from the noise of the fused-minus-sensor
+series at the tone, :func:`~bench.analysis.fusion_metrics.tone_noise_std`: the fused rate
+and the sensor share most of their noise), the lowest RMS error; if none qualifies, the
+lowest excess (then RMS).  Ties go to the smaller factors.  The conventional
 fixed-R filter of the comparison shares the chosen ``q`` (same model), so what differs
 between the two is only Document B's adaptive R.
 """
@@ -33,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench.analysis import fusion as fu
+from bench.analysis.fusion_metrics import tone_noise_std
 from bench.analysis.fusion_models import FusionModel
 
 Q_FACTORS = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0)
@@ -95,9 +97,9 @@ class _Phasors:
         c = self.pinv @ y
         return c[1:1 + self.n] - 1j * c[1 + self.n:1 + 2 * self.n]
 
-    def residual_std(self, y: np.ndarray) -> float:
-        """Standard deviation of ``y`` less its fit at the tones (the noise of its phasors)."""
-        return float(np.std(y - self.q @ (self.q.T @ y)))
+    def residual(self, y: np.ndarray) -> np.ndarray:
+        """``y`` less its least-squares fit at the tones."""
+        return y - self.q @ (self.q.T @ y)
 
 
 def tune_fusion(t_s, hf, lf, ref, rate_hz: float, model: FusionModel, hf_var: float, lf_var: float, tones_hz, *,
@@ -126,14 +128,11 @@ def tune_fusion(t_s, hf, lf, ref, rate_hz: float, model: FusionModel, hf_var: fl
     def amp_err_pct(y: np.ndarray) -> np.ndarray:
         return 100 * np.abs(np.abs(phasors(y[keep]) / a_ref) - 1)
 
-    n = t[keep].size
-    # σ of an amplitude estimate (%): residual noise over √(N/2), relative to the tone
-    sigma_pct = lambda y: 100 * phasors.residual_std(y[keep]) * math.sqrt(2.0 / n) / np.abs(a_ref)  # noqa: E731
     singles = [hf / model.hf.gain, lf / model.lf.gain]
     errs = np.array([amp_err_pct(y) for y in singles])
     which = np.argmin(errs, axis=0)
-    best_single = errs[which, np.arange(tones.size)]
-    best_sigma = np.array([sigma_pct(y) for y in singles])[which, np.arange(tones.size)]
+    idx = np.arange(tones.size)
+    best_single = errs[which, idx]
     ts = 1.0 / rate_hz
     candidates = []
     for qf, up, inf in itertools.product(sorted(q_factors), sorted(upper_factors), sorted(inflates)):
@@ -145,9 +144,12 @@ def tune_fusion(t_s, hf, lf, ref, rate_hz: float, model: FusionModel, hf_var: fl
         e = rate[keep] - ref[keep]
         rms = float(np.sqrt(np.mean(e * e)))
         excess = amp_err_pct(rate) - best_single
-        # per tone: 2 standard errors of the difference (fused and best-sensor estimates), or the caller's
-        tol = (2 * np.hypot(sigma_pct(rate), best_sigma) if tolerance_pct is None
-               else np.full(tones.size, float(tolerance_pct)))
+        if tolerance_pct is None:  # 2 standard errors of the excess, from the fused-minus-sensor series
+            sd = np.vstack([tone_noise_std(phasors.residual(rate[keep] - y[keep]), rate_hz, tones)
+                            for y in singles])[which, idx]
+            tol = 2 * 100 * sd / np.abs(a_ref)
+        else:
+            tol = np.full(tones.size, float(tolerance_pct))
         candidates.append(Candidate(qf, up, inf, rms, float(np.max(excess)), bool(np.all(excess <= tol))))
     tolerance = float(tolerance_pct) if tolerance_pct is not None else math.nan
     feasible = [c for c in candidates if c.feasible]

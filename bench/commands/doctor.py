@@ -168,7 +168,9 @@ def _check_serial(inst: InstrumentConfig, config: StationConfig, powered: dict) 
     try:
         with Station(_single(config, inst)) as station:
             driver = station.instruments[inst.name]
-            if powered.get(channel) is False:
+            # only the gyro is fed by the station's supply ([wiring] gyro_supply_channel); other
+            # serial units (the angular rig's LF sensor) have their own power: always asked
+            if inst.name == "gyro" and powered.get(channel) is False:
                 h.status = "OFF"
                 h.reason = f"unpowered: supply output CH{channel} is off (line opened, not asked)"
                 return h
@@ -210,13 +212,15 @@ def _short(exc: BaseException) -> str:
 
 def print_table(station: str, results: list[Health]) -> None:
     print(f"station {station}: {len(results)} instrument(s)")
-    print(f"{'instrument':<11} {'driver':<21} {'address':<34} {'identity':<48} "
+    wn = max([len("instrument")] + [len(r.name) for r in results])
+    wd = max([len("driver")] + [len(r.driver) for r in results])
+    print(f"{'instrument':<{wn}} {'driver':<{wd}} {'address':<34} {'identity':<48} "
           f"{'errors':>6} {'rtt ms':>7}  status")
     for r in results:
         rtt = "-" if r.round_trip_ms is None else f"{r.round_trip_ms:.1f}"
         errors = "-" if r.status == "FAIL" and not r.identity else str(len(r.errors))
         status = r.status + (f" ({r.reason})" if r.reason else "")
-        print(f"{r.name:<11} {r.driver:<21} {r.address[:34]:<34} {r.identity[:48] or '-':<48} "
+        print(f"{r.name:<{wn}} {r.driver:<{wd}} {r.address[:34]:<34} {r.identity[:48] or '-':<48} "
               f"{errors:>6} {rtt:>7}  {status}")
     bad = sum(r.status == "FAIL" for r in results)
     print("all healthy" if not bad else f"{bad} unhealthy")
