@@ -269,3 +269,14 @@ def test_experiments_log_what_their_kind_needs_and_are_deterministic():
     assert np.max(np.abs(g.input)) == pytest.approx(100.0) and np.min(np.abs(g.input)) == 0.0
     with pytest.raises(ValueError, match="sensor kind 'sonar'"):
         make_experiment("sonar", np.random.default_rng(0))
+
+
+def test_fit_params_narrow_time_constants_and_frequencies_to_the_record(records):
+    rec = records["accelerometer"]  # 3600 s at 1 Hz
+    tau = CATALOGUE["warmup_exponential"].fit_params(rec, "accelerometer")[1]
+    assert (tau.name, tau.low, tau.high) == ("tau_s", 1.0, 1799.5)  # half of 3599 s
+    f = CATALOGUE["sinusoidal_interference"].fit_params(rec, "accelerometer")[1]
+    assert f.high == 0.5 and f.low == pytest.approx(2 / 3599)
+    assert CATALOGUE["gauss_markov"].fit_params(rec, "accelerometer")[1].high == pytest.approx(0.2 * 3599)
+    assert CATALOGUE["k2_nonlinearity"].fit_params(rec, "accelerometer") == \
+        CATALOGUE["k2_nonlinearity"].params_for("accelerometer")

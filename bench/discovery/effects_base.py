@@ -138,6 +138,21 @@ class Effect:
             raise ValueError(f"effect {self.id!r} does not apply to kind {kind!r}; allowed: {list(self.kinds)}")
         return self.ranges[kind]
 
+    def fit_params(self, rec: Record, kind: str) -> tuple[Param, ...]:
+        """The kind's parameters with ranges narrowed to what rec can resolve (bounds for a fit):
+        e.g. a warm-up tau longer than half the record is a linear drift on it, a line above the
+        Nyquist frequency an alias. Same names and order as ``params_for(kind)``."""
+        out = []
+        for q in self.params_for(kind):
+            lo, hi = self.fit_range(q, rec, kind)
+            lo, hi = max(lo, q.low), min(hi, q.high)
+            out.append(replace(q, low=lo, high=hi) if lo < hi else q)
+        return tuple(out)
+
+    def fit_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        """Resolvable range of one parameter on rec (override per effect; default: physical)."""
+        return q.low, q.high
+
     def param(self, name: str, kind: str | None = None) -> Param:
         for p in (self.params_for(kind) if kind else self.params):
             if p.name == name:

@@ -76,6 +76,11 @@ class GaussMarkov(Effect):
             return lo, max(min(q.high, rec.duration_s / 30), lo * 1.01)
         return q.low, q.high
 
+    def fit_range(self, q, rec, kind):
+        if q.name == "tau_s":  # a correlation time beyond a fifth of the record looks like a walk or drift
+            return rec.dt_s, 0.2 * rec.duration_s
+        return q.low, q.high
+
     def fit_starts(self, rec, residual, *, kind=None):
         """sigma from the residual's sd after the white part (lag-1 covariance), tau_s where the
         autocorrelation falls to e^{−1} of its lag-1 value, and that tau ×/÷ 3."""

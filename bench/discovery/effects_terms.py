@@ -46,6 +46,11 @@ class WarmupExponential(Effect):
             return _time_range(rec, q.low, q.high, 5.0, 0.2)
         return q.low, q.high
 
+    def fit_range(self, q, rec, kind):
+        if q.name == "tau_s":  # beyond half the record the decay is a straight line: linear_drift's job
+            return rec.dt_s, 0.5 * rec.duration_s
+        return q.low, q.high
+
 
 class LinearDrift(Effect):
     id = "linear_drift"
@@ -242,6 +247,11 @@ class SinusoidalInterference(Effect):
     def drawable_range(self, q, rec, kind):
         if q.name == "freq_hz":  # at least 20 cycles in the record, below 0.4 × the sample rate
             return max(q.low, 20.0 / rec.duration_s), min(q.high, 0.4 * rec.rate_hz)
+        return q.low, q.high
+
+    def fit_range(self, q, rec, kind):
+        if q.name == "freq_hz":  # two cycles in the record up to the Nyquist frequency
+            return 2.0 / rec.duration_s, 0.5 * rec.rate_hz
         return q.low, q.high
 
     def fit_starts(self, rec, residual, *, kind=None):
