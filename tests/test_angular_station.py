@@ -83,7 +83,8 @@ def test_frf_streams_hold_every_sample(frf_run):
     hf = store.load(outcome.run_id, "frf_hf")
     lf = store.load(outcome.run_id, "frf_lf")
     for d in (ref, hf, lf):
-        assert np.all(np.diff(d["block"]) >= 0) and d["block"].max() == 9  # 10 dwells (0.3-300 Hz, 3 per decade), all stored
+        # the clock dwell (block -1), then 10 dwells (0.3-300 Hz, 3 per decade), all stored
+        assert np.all(np.diff(d["block"]) >= 0) and d["block"].min() == -1 and d["block"].max() == 9
     assert ref["t_s"].size == hf["t_s"].size
     assert np.all(np.isfinite(hf["voltage_v"]))
 
@@ -123,6 +124,9 @@ def test_cli_frf_writes_the_report_and_json(tmp_path, capsys):
     (["frf", "--points-per-decade", "1", "--f-min-hz", "10", "--f-max-hz", "100"], "at least 5"),
     (["fusion", "--duration-s", "5"], "3 periods"),
     (["fusion", "--frame-rate-hz", "9000"], "frame_rate_hz"),
+    (["fusion", "--f-min-hz", "1", "--f-max-hz", "10", "--duration-s", "4", "--tune-fraction", "0"], "at least 5"),
+    (["frf", "--f-min-hz", "10", "--f-max-hz", "1000", "--frame-rate-hz", "100", "--points-per-decade", "2"],
+     "usable"),
 ])
 def test_bad_parameters_are_one_line_exit_2_before_the_station_opens(tmp_path, capsys, args, fragment):
     code = main(["--store", str(tmp_path / "b.sqlite"), "run", *args, "--no-progress"])
@@ -137,7 +141,7 @@ def test_interlock_during_the_frf_aborts_and_keeps_what_was_acquired(tmp_path):
         sim.faults.inject("interlock", "angular_table", at_s=sim.world.now + 8.0)
 
     outcome, _, store = _run(tmp_path, step, faults=trip)
-    assert outcome.status == "aborted"
+    assert outcome.status == "aborted" and "ABORT" in outcome.reason
     assert store.load(outcome.run_id, "frf_ref")["t_s"].size > 0
 
 
@@ -187,3 +191,41 @@ def test_demands_respect_the_table_limits():
     w = 2 * np.pi * np.array([d[1] for d in demand])
     amp = np.array([d[0] for d in demand])
     assert np.sum(amp / w) <= 0.5 * lim.angle_deg + 1e-9 and np.sum(amp * w) <= 0.5 * lim.accel_dps2 + 1e-6
+
+
+def test_lf_frames_lost_on_the_line_abort_and_every_sample_so_far_is_kept(tmp_path):
+    step = FrfTest(FrfParameters(f_min_hz=1.0, f_max_hz=100.0, points_per_decade=2))
+
+    def lossy(sim):
+        sim.faults.inject("frame", "lf_gyro", at_s=sim.world.now + 25.0, loss=0.01)
+
+    outcome, _, store = _run(tmp_path, step, faults=lossy)
+    assert outcome.status == "aborted" and "dropped" in outcome.reason
+    for stream in ("frf_ref", "frf_hf", "frf_lf"):
+        assert store.load(outcome.run_id, stream)["t_s"].size > 0
+    # the chunk with the lost frames is stored too (its frames run past the fault's instant)
+    assert store.load(outcome.run_id, "frf_lf")["t_s"].max() > 25.0
+
+
+def test_clipped_lf_frames_abort_the_frf(tmp_path):
+    step = FrfTest(FrfParameters(f_min_hz=3.0, f_max_hz=30.0, points_per_decade=4, amplitude_dps=500.0,
+                                 min_dwell_s=0.5))
+    outcome, _, _ = _run(tmp_path, step)
+    assert outcome.status == "aborted" and "over range" in outcome.reason
+
+
+def test_a_slow_dmm_timebase_is_measured_and_removed(tmp_path):
+    store = RunStore(tmp_path / "runs.sqlite")
+    cfg = builtin_sim_config()
+    cfg.simulation["dmm_timebase_ppm"] = 40.0
+    step = FrfTest(FrfParameters(f_min_hz=1.0, f_max_hz=1000.0, points_per_decade=2, min_periods=4))
+    with Station(cfg, seed=5, unit_serial="MHD-SIM-0002", unit_kind="angular") as station:
+        truth = station.sim.angular_truth()
+        outcome = execute(StepProcedure(step), station, store, unit_serial="MHD-SIM-0002", seed=5)
+    v = _values(outcome)
+    clock = v["hf_clock_error"]
+    assert abs(clock["value"] - (-40.0)) < 4 * clock["uncertainty"] + 0.2  # slow by 40 = fast by −40
+    assert v["hf_delay"]["value"] == pytest.approx(1 / (2 * math.pi * truth["mhd"]["lowpass_corner_hz"]), abs=5e-6)
+    lf = v["lf_clock_error"]
+    assert abs(lf["value"] - truth["lf"]["frame_clock_error_ppm"]) < 4 * lf["uncertainty"] + 0.5
+    assert v["lf_delay"]["value"] == pytest.approx(truth["lf"]["latency_s"], abs=3e-5)

@@ -99,3 +99,40 @@ def test_tuning_rejects_bad_input(kwargs, fragment):
     args.update(kwargs)
     with pytest.raises(ValueError, match=fragment):
         tune_fusion(t, y, y, y, RATE_HZ, FusionModel(hf_m, lf_m, 1.0), 1e-6, 1e-6, tones, **args)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(1.0, 1500.0), st.floats(0.2, 1.0), st.floats(0, 2 * math.pi))
+def test_aperture_compensation_restores_the_amplitude_of_aperture_means(f_hz, duty, phase):
+    from bench.analysis.frf_timebase import aperture_compensate
+    from bench.analysis.fusion_metrics import sine_phasors
+
+    ts, ap = 1e-4, duty * 1e-4
+    t = np.arange(20000) * ts
+    w = 2 * np.pi * f_hz
+    # exact mean of sin(w t + φ) over [t - ap/2, t + ap/2]
+    y = np.sin(w * t + phase) * np.sinc(f_hz * ap)
+    y_c = aperture_compensate(y, ap, ts)
+    a = np.abs(sine_phasors(t[1:-1], y_c[1:-1], [f_hz]))[0]
+    assert abs(a - 1) < 2e-4 + 0.02 * (w * ap) ** 4  # second-order cancellation; fourth order left
+    assert abs(np.abs(sine_phasors(t, y, [f_hz]))[0] - np.sinc(f_hz * ap)) < 1e-9
+
+
+def test_tone_noise_std_matches_the_spread_of_phasor_estimates():
+    from bench.analysis.fusion_metrics import _residual, sine_phasors, tone_noise_std
+
+    rng = np.random.default_rng(4)
+    t = np.arange(20000) / 1000.0
+    tones = np.array([3.0, 37.0])
+    est, pred = [], []
+    for _ in range(200):
+        e = rng.standard_normal(t.size)
+        noise = np.convolve(e, [1.0, 0.8, 0.5], mode="same")  # coloured
+        y = np.sin(2 * np.pi * 3 * t) + 0.5 * np.cos(2 * np.pi * 37 * t) + noise
+        est.append(sine_phasors(t, y, tones))
+        pred.append(tone_noise_std(_residual(t, y[:, None], tones)[:, 0], 1000.0, tones))
+    spread = np.std(np.real(np.array(est)), axis=0)
+    assert np.allclose(np.mean(pred, axis=0), spread, rtol=0.2)
+    with pytest.raises(ValueError, match="aperture_s"):
+        from bench.analysis.frf_timebase import aperture_compensate
+        aperture_compensate(np.ones(5), 2e-4, 1e-4)
