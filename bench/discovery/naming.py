@@ -18,7 +18,8 @@ For the current (calibrated) model and its residual ``r = y − predict``:
    if BH-significant, its held-out score is positive, and its main parameter is physically
    meaningful (``Effect.min_effect``: |main| ≥ it, or ≤ it for a decreasing effect such as a
    bandwidth).
-5. Best = highest held-out score among named ones; close competitors = other candidates whose
+5. Best = highest held-out score among named ones (a simpler candidate within one standard
+   error is preferred); close competitors = other candidates whose
    score is within two jackknife standard errors (over held-out blocks) of the best's; for each
    a separating experiment.
 """
@@ -168,7 +169,10 @@ def fit_deterministic(model, rec: Record, effect, eid: str, r: np.ndarray, folds
     cols = []
     for k in (0, 1):
         te = folds == k
-        fk = f.fit([full.x] + starts[:1], rows=~te, max_nfev=40)
+        # starts from the training blocks alone: a shape (a frequency, a time constant) chosen
+        # with the held-out samples in view would leak them into the held-out score
+        starts_k = [f.pack(p, b0, s0) for p in effect.fit_starts(rec, np.where(te, 0.0, r), kind=kind)[:2]]
+        fk = f.fit(starts_k, rows=~te, max_nfev=40)
         pred = f.predict(fk.x)
         err_c[te] = (rec.y - pred)[te] ** 2
         g = pred - f.predict_without(fk.x)
@@ -301,6 +305,7 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
     out.sort(key=lambda c: -c.score)
     named = [c for c in out if c.named]
     best = _choose(named)
+    best = _parsimonious(best, named, blocks, n_blocks, catalogue, kind)
     if best is None:
         return Naming(tuple(out), None, (), ())
     comps, seps = [], []
@@ -336,3 +341,23 @@ def _choose(named: list[Candidate]) -> Candidate | None:
     d, s = det[0], sto_[0]
     margin = 2 * (s.score_se if np.isfinite(s.score_se) else 0.0)
     return s if s.score - d.score > margin else d
+
+
+def _parsimonious(best: Candidate | None, named: list[Candidate], blocks: np.ndarray, n_blocks: int,
+                  catalogue: dict, kind: str) -> Candidate | None:
+    """Among deterministic named candidates whose held-out score is within one (paired, block
+    jackknife) standard error of the best's, the one with the fewest parameters (Occam: a long
+    warm-up time constant is a drift on a short record)."""
+    if best is None or best.stochastic or best.err_c is None:
+        return best
+    n_par = lambda c: len(catalogue[c.id].params_for(kind))  # noqa: E731
+    pick = best
+    for c in named:
+        if c.stochastic or c.err_c is None or c.id == best.id or n_par(c) >= n_par(pick):
+            continue
+        d_num = np.bincount(blocks, c.err_c - best.err_c, n_blocks)
+        den = np.bincount(blocks, best.err_b, n_blocks)
+        se = _jackknife_ratio(d_num, den)
+        if np.isfinite(se) and d_num.sum() / den.sum() <= se:
+            pick = c
+    return pick

@@ -48,6 +48,14 @@ def block_folds(n: int, n_blocks: int = N_BLOCKS) -> np.ndarray:
     return labels
 
 
+RCOND = 1e-8
+
+
+def _unit_columns(x: np.ndarray) -> np.ndarray:
+    norm = np.linalg.norm(x, axis=0)
+    return x / np.where(norm > 0, norm, 1.0)
+
+
 class LinearScorer:
     """Held-out variance reduction of ``[x_nuis, x_cand[k]]`` over ``x_nuis`` alone, for many
     residuals at once: the pseudo-inverses of each fold's training rows are computed once, so
@@ -61,8 +69,12 @@ class LinearScorer:
         for k in (0, 1):
             te = folds == k
             tr = ~te
-            x = np.hstack([x_nuis, x_cand[k]])
-            self.parts.append((tr, te, x[te], np.linalg.pinv(x[tr]), x_nuis[te], np.linalg.pinv(x_nuis[tr])))
+            x = _unit_columns(np.hstack([x_nuis, x_cand[k]]))
+            xb = _unit_columns(x_nuis)
+            # near-collinear columns (an effect's change and its derivative) must not turn into
+            # huge opposite coefficients: singular values below 1e-8 of the largest are dropped
+            self.parts.append((tr, te, x[te], np.linalg.pinv(x[tr], rcond=RCOND), xb[te],
+                               np.linalg.pinv(xb[tr], rcond=RCOND)))
 
     def scores(self, r: np.ndarray) -> np.ndarray:
         """(B,) scores of ``r`` (n,) or (n, B)."""
