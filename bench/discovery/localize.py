@@ -118,7 +118,11 @@ class Localization:
 
     def descriptions(self) -> list[str]:
         """One line per finding, for the report and the "unexplained structure" list."""
-        out = [s.describe() for s in self.segments]
+        segs = sorted(self.segments, key=lambda s: -abs(s.z_mean))
+        out = [s.describe() for s in segs[:4]]
+        if len(segs) > 4:
+            out.append(f"… and {len(segs) - 4} more segments depart (from "
+                       f"{min(s.start_s for s in segs):.6g} s to {max(s.end_s for s in segs):.6g} s)")
         if self.cusum_p < self.alpha:
             out.append(f"cumulative sum departs from a zero-mean record (CUSUM p = {self.cusum_p:.2g})")
         out += [b.describe() for b in self.bands]

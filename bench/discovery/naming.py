@@ -244,6 +244,12 @@ def separating_experiment(a: str, b: str, catalogue: dict) -> str:
     key = frozenset({a, b})
     if key in SEPARATING:
         return f"{a} vs {b}: {SEPARATING[key]}"
+    if catalogue[a].stochastic != catalogue[b].stochastic:
+        det, sto_ = (a, b) if catalogue[b].stochastic else (b, a)
+        need = ", ".join(sorted(set(catalogue[det].inputs) - {"t", "t_on"}))
+        how = f" with the same {need} profile" if need else ""
+        return (f"{a} vs {b}: repeat the record{how}: {det} repeats its waveform, {sto_} (a random "
+                f"process) does not")
     ia, ib = set(catalogue[a].inputs), set(catalogue[b].inputs)
     if ia != ib:
         da = ", ".join(sorted(ia - ib)) or "time"

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 from scipy import signal
 
 from bench.analysis.allan import overlapping_adev
@@ -33,7 +34,8 @@ def _fmt(x, digits: int = 4) -> str:
 
 
 def _welch(r: np.ndarray, rate_hz: float):
-    nperseg = min(r.size, max(64, 2 ** int(np.log2(max(r.size // 16, 64)))))
+    # finer than the localization's Welch (a quarter of the record per segment): lines show
+    nperseg = min(r.size, max(64, 2 ** int(np.log2(max(r.size // 4, 64)))))
     return signal.welch(r, fs=rate_hz, window="hann", nperseg=nperseg, detrend="constant")
 
 
@@ -51,6 +53,7 @@ def _plots(t: np.ndarray, before: np.ndarray, after: np.ndarray, noise_sd: float
         ax[1].loglog(f[1:], p[1:], color=c, lw=0.8, label=lab)
     ax[1].axhline(2 * noise_sd ** 2 / rate_hz, color="k", ls="--", lw=0.8, label="white floor")
     ax[1].set(xlabel="f (Hz)", ylabel="PSD (unit²/Hz)", title="Welch PSD")
+    ax[1].xaxis.set_minor_formatter(NullFormatter())
     ax[1].legend(fontsize=8)
     for r, c, lab in ((before, "0.6", "before"), (after, "C0", "after")):
         if r.size >= 16:
