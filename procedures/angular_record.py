@@ -14,9 +14,10 @@ Time stamps (bench-clock seconds, the instant of the start commands = ``t0``):
   carries the angle increment over its interval) on the sensor's nominal clock.
 
 Clock errors and latencies are not corrected here: that needs the reference and is the
-analysis' job (``bench.analysis.frf``).  On the simulated station the start commands reach
-every instrument at the same simulated instant; on hardware the DMM would be triggered by
-the table controller's trigger output so that the MHD and reference clocks share one start.
+analysis' job (``bench.analysis.frf_timebase``, ``procedures.frf``).  On the simulated
+station the start commands reach every instrument at the same simulated instant; on
+hardware the commands' latencies would add start offsets (ms), which the fitted delays
+absorb — the DMM should then be started by the table controller's trigger output.
 
 Every chunk is appended to the run's streams as it arrives (nothing acquired is lost).
 """

@@ -18,8 +18,8 @@ replace any drawn figure.
 
 Clocks: the table's reference capture runs on the world clock (the reference); the LF
 frames on the unit's clock, ``frame_clock_error_ppm`` fast; the DMM's sample timer on its
-timebase, ``dmm_timebase_ppm`` slow (default 0: on hardware the MHD DMM is triggered from
-the table controller's sample clock, so its readings are on the table clock).  The LF
+timebase, ``dmm_timebase_ppm`` slow (default 0).  The procedures measure both rate errors
+against the reference and remove them.  The LF
 unit reports the motion ``latency_s`` late.
 """
 
