@@ -16,8 +16,9 @@ Time stamps (bench-clock seconds, the instant of the start commands = ``t0``):
 Clock errors and latencies are not corrected here: that needs the reference and is the
 analysis' job (``bench.analysis.frf_timebase``, ``procedures.frf``).  On the simulated
 station the start commands reach every instrument at the same simulated instant; on
-hardware the commands' latencies would add start offsets (ms), which the fitted delays
-absorb — the DMM should then be started by the table controller's trigger output.
+hardware the commands' latencies would add start offsets of milliseconds that differ from
+record to record: there the DMM and the LF unit must be started by the table controller's
+trigger output (not modelled yet).
 
 Every chunk is appended to the run's streams as it arrives (nothing acquired is lost).
 """
