@@ -97,7 +97,7 @@ def test_discover_a_stored_startup_run(tmp_path, capsys):
     from procedures.startup import StartupAcquisition, StartupParameters
 
     store_path = tmp_path / "bench.sqlite"
-    params = StartupParameters(duration_s=300.0, rate_hz=5.0, off_wait_s=10.0, chunk_s=60.0)
+    params = StartupParameters(duration_s=240.0, rate_hz=4.0, off_wait_s=10.0, chunk_s=60.0)
     config = builtin_sim_config()
     config.simulation = {"accelerometer": {"warmup_amplitude_g": 6e-5}}
     with RunStore(store_path) as store, Station(config, seed=2, unit_serial="QA-D-1") as station:
