@@ -27,7 +27,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .base import SCPIInstrument, control, in_range, int_in_range, measurement, parse_bool, parse_int
-from .protocols import Wait
+from .ramped import RampedController
 
 STATES = ("IDLE", "RAMP", "RUN", "ABORT")
 SPACINGS = ("LIN", "LOG")
@@ -102,9 +102,11 @@ def check_tones(tones: Sequence[Sequence[float]], limits: AngularLimits) -> tupl
     return tuple(out)
 
 
-class AngularVibrationTable(SCPIInstrument):
+class AngularVibrationTable(RampedController, SCPIInstrument):
     """An angular vibration table and its controller.  The constructor does no I/O;
     ``allowed`` holds the figures the driver validates against (see :meth:`limits`)."""
+
+    aborted_error = AngularTableAbortedError
 
     idempotent_queries = SCPIInstrument.idempotent_queries | frozenset({
         ":STAT?", ":REF:POIN?", ":REF:OVER?", ":REF:RUNN?", ":LIM:ANGL?", ":LIM:RATE?", ":LIM:ACC?",
@@ -249,35 +251,6 @@ class AngularVibrationTable(SCPIInstrument):
             raise ValueError(f"{self.name}: reference block of {values.size} values is not whole triples")
         return values.reshape(-1, 3)
 
-    # ---- waiting -----------------------------------------------------------------------
-    def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
-        """Poll ``:STAT?`` until RUN; :class:`AngularTableAbortedError` on ABORT,
-        RuntimeError on IDLE (nothing is starting), TimeoutError after ``timeout_s``."""
-        return self._wait_for("RUN", wait, timeout_s, poll_s)
-
-    def wait_idle(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
-        """Poll ``:STAT?`` until IDLE (ramp-down or sweep finished); otherwise as :meth:`wait_running`."""
-        return self._wait_for("IDLE", wait, timeout_s, poll_s)
-
-    def _wait_for(self, goal: str, wait: Wait, timeout_s: float, poll_s: float) -> str:
-        timeout = in_range("timeout_s", timeout_s, (0.0, float("inf")))
-        poll = in_range("poll_s", poll_s, (1e-6, float("inf")))
-        if not callable(wait):
-            raise ValueError(f"wait={wait!r} is not callable; pass the bench clock's wait")
-        waited = 0.0
-        while True:
-            state = self.state
-            if state == goal:
-                return state
-            if state == "ABORT":
-                raise AngularTableAbortedError(f"{self.name}: ABORT while waiting for {goal}")
-            if goal == "RUN" and state == "IDLE":
-                raise RuntimeError(f"{self.name}: IDLE while waiting for RUN (not started?)")
-            if timeout - waited <= 1e-9:
-                raise TimeoutError(f"{self.name}: not {goal} after {waited:g} s (state {state})")
-            step = min(poll, timeout - waited)
-            wait(step)
-            waited += step
 
 
 __all__ = ["AngularLimits", "AngularTableAbortedError", "AngularVibrationTable", "STATES", "SweepSpec",

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 from .base import SCPIInstrument, control, in_range, measurement, parse_bool
-from .protocols import Wait
+from .ramped import RampedController
 
 STATES = ("IDLE", "RAMP", "RUN", "ABORT")
 
@@ -97,8 +97,10 @@ def _parse_profile(reply: str) -> RandomProfileSpec | SineProfileSpec | None:
     raise ValueError(f":PROF? reply {reply!r} is not NONE, SINE,<hz>,<g> or RAND,<f>,<asd>,...")
 
 
-class VibrationTable(SCPIInstrument):
+class VibrationTable(RampedController, SCPIInstrument):
     """A shaker and its random-vibration controller.  The constructor does no I/O."""
+
+    aborted_error = VibrationAbortedError
 
     def __init__(self, resource: Any, name: str | None = None,
                  limits: VibrationLimits | None = None) -> None:
@@ -185,32 +187,3 @@ class VibrationTable(SCPIInstrument):
 
     def interlock_reset(self) -> None:
         self.configure_command(":INT:RES")
-
-    def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
-        """Poll ``:STAT?`` until RUN; :class:`VibrationAbortedError` on ABORT,
-        RuntimeError on IDLE (nothing is starting), TimeoutError after ``timeout_s``."""
-        return self._wait_for("RUN", wait, timeout_s, poll_s)
-
-    def wait_idle(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
-        """Poll ``:STAT?`` until IDLE (ramp-down finished); otherwise as :meth:`wait_running`."""
-        return self._wait_for("IDLE", wait, timeout_s, poll_s)
-
-    def _wait_for(self, goal: str, wait: Wait, timeout_s: float, poll_s: float) -> str:
-        timeout = in_range("timeout_s", timeout_s, (0.0, float("inf")))
-        poll = in_range("poll_s", poll_s, (1e-6, float("inf")))
-        if not callable(wait):
-            raise ValueError(f"wait={wait!r} is not callable; pass the bench clock's wait")
-        waited = 0.0
-        while True:
-            state = self.state
-            if state == goal:
-                return state
-            if state == "ABORT":
-                raise VibrationAbortedError(f"{self.name}: ABORT while waiting for {goal}")
-            if goal == "RUN" and state == "IDLE":
-                raise RuntimeError(f"{self.name}: IDLE while waiting for RUN (not started?)")
-            if timeout - waited <= 1e-9:
-                raise TimeoutError(f"{self.name}: not {goal} after {waited:g} s (state {state})")
-            step = min(poll, timeout - waited)
-            wait(step)
-            waited += step

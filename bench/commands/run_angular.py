@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 from bench.commands.common import print_outcome
-from bench.commands.run_steps import add_parameter_options, execute_step, exit_code, step_from_args
+from bench.commands.run_steps import add_parameter_options, execute_step, exit_code, load_step, step_from_args
 
 ANALYSIS_PREFIX = "analysis/angular/"
 COMMANDS = {
@@ -28,19 +28,11 @@ COMMANDS = {
 }
 
 
-def _load(name: str):
-    import importlib
-
-    module, cls, _ = COMMANDS[name]
-    step = getattr(importlib.import_module(module), cls)
-    return step, step.Parameters
-
-
 def register_procedure(procs, common) -> None:
     for name, (_, _, help_text) in COMMANDS.items():
         p = procs.add_parser(name, help=help_text)
         common(p)
-        add_parameter_options(p, _load(name)[1])
+        add_parameter_options(p, load_step(name, COMMANDS)[1])
         p.add_argument("--report", metavar="DIR", default=None,
                        help="also write the HTML report into DIR/<run id>/")
         p.set_defaults(func=run_angular, step_name=name)
@@ -78,7 +70,7 @@ def run_angular(args) -> int:
     report_root = None if args.report is None else Path(args.report)
     if report_root is not None and report_root.exists() and not report_root.is_dir():
         raise ValueError(f"--report {args.report!r} exists and is not a folder")
-    step = step_from_args(args, *_load(args.step_name))  # validated before the station opens
+    step = step_from_args(args, *load_step(args.step_name, COMMANDS))  # validated before the station opens
     outcome = execute_step(args, step)
     report = report_error = None
     if outcome.status == "passed":

@@ -27,10 +27,12 @@ STEP_COMMANDS = {
     "gyro_startup": ("procedures.turn_on", "GyroTurnOnTest",
                      "gyro cold start from its frames: turn-on time, warm-up drift"),
 }
-def _load(name: str):
+def load_step(name: str, commands: dict | None = None):
+    """The step class and its parameter dataclass of command ``name`` in ``commands``
+    (name → (module, class, help); default :data:`STEP_COMMANDS`)."""
     import importlib
 
-    module, cls, _ = STEP_COMMANDS[name]
+    module, cls, _ = (STEP_COMMANDS if commands is None else commands)[name]
     step = getattr(importlib.import_module(module), cls)
     return step, step.Parameters
 
@@ -54,7 +56,7 @@ def register_procedure(procs, common) -> None:
     for name, (_, _, help_text) in STEP_COMMANDS.items():
         p = procs.add_parser(name, help=help_text)
         common(p)
-        add_parameter_options(p, _load(name)[1])
+        add_parameter_options(p, load_step(name)[1])
         p.set_defaults(func=run_step, step_name=name)
 
 
@@ -79,7 +81,7 @@ def exit_code(outcome) -> int:
 
 
 def run_step(args) -> int:
-    outcome = execute_step(args, step_from_args(args, *_load(args.step_name)))
+    outcome = execute_step(args, step_from_args(args, *load_step(args.step_name)))
     if args.json:
         json.dump(outcome.to_dict(), sys.stdout, indent=2, allow_nan=False)  # NaN → null in to_dict
         print()

@@ -1,0 +1,43 @@
+"""What the shaker controller and the angular vibration table share: a ``:STAT?`` of
+IDLE | RAMP | RUN | ABORT, and waiting for RUN or IDLE on the bench clock (never sleeping)."""
+
+from __future__ import annotations
+
+from .protocols import Wait
+from .validate import in_range
+
+
+class RampedController:
+    """Mixin for a driver with a ``state`` property (IDLE, RAMP, RUN, ABORT) and a ``name``;
+    ``aborted_error`` is the exception raised when the controller reports ABORT."""
+
+    aborted_error: type[Exception] = RuntimeError
+
+    def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
+        """Poll ``:STAT?`` until RUN; :attr:`aborted_error` on ABORT, RuntimeError on IDLE
+        (nothing is starting), TimeoutError after ``timeout_s``."""
+        return self._wait_for("RUN", wait, timeout_s, poll_s)
+
+    def wait_idle(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
+        """Poll ``:STAT?`` until IDLE (ramp-down finished); otherwise as :meth:`wait_running`."""
+        return self._wait_for("IDLE", wait, timeout_s, poll_s)
+
+    def _wait_for(self, goal: str, wait: Wait, timeout_s: float, poll_s: float) -> str:
+        timeout = in_range("timeout_s", timeout_s, (0.0, float("inf")))
+        poll = in_range("poll_s", poll_s, (1e-6, float("inf")))
+        if not callable(wait):
+            raise ValueError(f"wait={wait!r} is not callable; pass the bench clock's wait")
+        waited = 0.0
+        while True:
+            state = self.state
+            if state == goal:
+                return state
+            if state == "ABORT":
+                raise self.aborted_error(f"{self.name}: ABORT while waiting for {goal}")
+            if goal == "RUN" and state == "IDLE":
+                raise RuntimeError(f"{self.name}: IDLE while waiting for RUN (not started?)")
+            if timeout - waited <= 1e-9:
+                raise TimeoutError(f"{self.name}: not {goal} after {waited:g} s (state {state})")
+            step = min(poll, timeout - waited)
+            wait(step)
+            waited += step
