@@ -280,3 +280,11 @@ def test_fit_params_narrow_time_constants_and_frequencies_to_the_record(records)
     assert CATALOGUE["gauss_markov"].fit_params(rec, "accelerometer")[1].high == pytest.approx(0.2 * 3599)
     assert CATALOGUE["k2_nonlinearity"].fit_params(rec, "accelerometer") == \
         CATALOGUE["k2_nonlinearity"].params_for("accelerometer")
+
+
+def test_short_experiments_move_within_their_dwells():
+    rec = make_experiment("accelerometer", np.random.default_rng(4), n=300)  # 90 dwells of 3.3 s
+    theta = np.rad2deg(np.arctan2(rec.cross_input, rec.input)) % 360
+    assert np.all(np.abs(rec.input) <= 1.0)
+    # every dwell reaches its position: the angles visited include the 15° grid
+    assert {round(a) % 360 for a in theta} >= set(range(0, 360, 15)) - {90, 270}

@@ -34,18 +34,20 @@ DEFAULTS = {"accelerometer": (7200, 1.0), "gyro": (20000, 10.0), "mhd": (30000, 
 
 
 def _dwell_path(t: np.ndarray, levels: np.ndarray, slew_per_s: float) -> np.ndarray:
-    """Dwell at each level for an equal share of the record, moving between them at slew_per_s."""
+    """Dwell at each level for an equal share of the record, moving between them at slew_per_s
+    (at most half a dwell per move)."""
     t0, dur = t[0], t[-1] - t[0]
     starts = t0 + dur * np.arange(len(levels)) / len(levels)
     kt, kv = [t0], [levels[0]]
     for i in range(1, len(levels)):
-        ramp = abs(levels[i] - levels[i - 1]) / slew_per_s
+        # a short record's dwells may be shorter than a move: then move faster (half a dwell)
+        ramp = min(abs(levels[i] - levels[i - 1]) / slew_per_s, 0.5 * dur / len(levels))
         kt += [starts[i], starts[i] + ramp]
         kv += [levels[i - 1], levels[i]]
     kt.append(t[-1] + 1.0)
     kv.append(levels[-1])
     kt = np.asarray(kt)
-    kt = np.maximum.accumulate(kt + np.arange(kt.size) * 1e-9)  # strictly increasing knots
+    kt = np.maximum.accumulate(kt + np.arange(kt.size) * 1e-9 * max(dur, 1.0))  # zero-length moves: keep knots increasing
     return np.interp(t, kt, np.asarray(kv, float))
 
 
