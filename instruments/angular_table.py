@@ -179,18 +179,6 @@ class AngularVibrationTable(RampedController, SCPIInstrument):
             self.configure_command(":SYNT:MODE SWE")
         return SweepSpec(f0, f1, t, a, sp)
 
-    def start(self) -> None:
-        """``:STAR``: ramp the staged demand up (while running: the old one down first)."""
-        self.configure_command(":STAR")
-
-    def stop(self) -> None:
-        """``:STOP``: ramp down to rest (does not wait)."""
-        self.configure_command(":STOP")
-
-    def abort(self) -> None:
-        """``:ABOR``: cut the motion now (rest within 10 ms); the controller latches ABORT."""
-        self.configure_command(":ABOR")
-
     def limits(self) -> AngularLimits:
         """The table's limits read from the controller (degrees); other fields as ``allowed``."""
         f_min, f_max = (float(x) for x in self.query(":LIM:FREQ?").split(","))
@@ -204,15 +192,6 @@ class AngularVibrationTable(RampedController, SCPIInstrument):
                              reference_memory=self.allowed.reference_memory)
 
     # ---- interlock ---------------------------------------------------------------------
-    def interlock_open(self) -> None:
-        self.configure_command(":INT:OPEN")
-
-    def interlock_close(self) -> None:
-        self.configure_command(":INT:CLOS")
-
-    def interlock_reset(self) -> None:
-        self.configure_command(":INT:RES")
-
     # ---- reference capture -------------------------------------------------------------
     def configure_reference(self, rate_hz: float, count: int) -> None:
         """``count`` samples at ``rate_hz`` on the next :meth:`start_reference`."""

@@ -1,5 +1,6 @@
-"""What the shaker controller and the angular vibration table share: a ``:STAT?`` of
-IDLE | RAMP | RUN | ABORT, and waiting for RUN or IDLE on the bench clock (never sleeping)."""
+"""What the shaker controller and the angular vibration table share: ``:STAR``, ``:STOP``,
+``:ABOR``, the interlock commands, a ``:STAT?`` of IDLE | RAMP | RUN | ABORT, and waiting
+for RUN or IDLE on the bench clock (never sleeping)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,28 @@ class RampedController:
     ``aborted_error`` is the exception raised when the controller reports ABORT."""
 
     aborted_error: type[Exception] = RuntimeError
+
+    def start(self) -> None:
+        """``:STAR``: ramp the demand up and run (while running: the old one down first)."""
+        self.configure_command(":STAR")
+
+    def stop(self) -> None:
+        """``:STOP``: ramp down to rest (does not wait)."""
+        self.configure_command(":STOP")
+
+    def abort(self) -> None:
+        """``:ABOR``: cut the drive now; the controller latches ABORT."""
+        self.configure_command(":ABOR")
+
+    def interlock_open(self) -> None:
+        self.configure_command(":INT:OPEN")
+
+    def interlock_close(self) -> None:
+        self.configure_command(":INT:CLOS")
+
+    def interlock_reset(self) -> None:
+        """``:INT:RES``: clear a latched ABORT once at rest."""
+        self.configure_command(":INT:RES")
 
     def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
         """Poll ``:STAT?`` until RUN; :attr:`aborted_error` on ABORT, RuntimeError on IDLE

@@ -172,18 +172,3 @@ class VibrationTable(RampedController, SCPIInstrument):
         g = in_range("peak_g", peak_g, (1e-6, self.limits.max_sine_peak_g))
         self.configure_command(f":PROF:SINE {_exact(f)},{_exact(g)}")
         return SineProfileSpec(f, g)
-
-    def start(self) -> None:
-        """``:STAR``: ramp up to the level and run."""
-        self.configure_command(":STAR")
-
-    def stop(self) -> None:
-        """``:STOP``: ramp down to rest (does not wait)."""
-        self.configure_command(":STOP")
-
-    def abort(self) -> None:
-        """``:ABOR``: cut the drive now (the controller latches ABORT)."""
-        self.configure_command(":ABOR")
-
-    def interlock_reset(self) -> None:
-        self.configure_command(":INT:RES")
