@@ -57,7 +57,7 @@ class BaseModel:
             raise ValueError(f"base.kind = {self.kind!r}; allowed: {list(KINDS)}")
         for name, (lo, hi) in BASE_RANGES[self.kind].items():
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= float(v) <= hi):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (lo <= float(v) <= hi):
                 raise ValueError(f"base.{name} = {v!r} outside the allowed range [{lo}, {hi}] for a {self.kind}")
             object.__setattr__(self, name, float(v))
 
