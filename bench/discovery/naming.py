@@ -37,6 +37,10 @@ from bench.discovery import stochastic as sto
 from bench.discovery.data import Record
 from bench.discovery.fitting import CandidateFitter
 
+# A stochastic candidate must survive the best deterministic one (see _choose).
+SURVIVE_P = 1e-6
+SURVIVE_FRACTION = 0.1
+
 # Experiments that separate pairs the catalogue can confuse on a given record.
 SEPARATING = {
     frozenset({"warmup_exponential", "temperature_bias"}):
@@ -85,7 +89,9 @@ class Candidate:
     named: bool = False
     err_c: np.ndarray = field(default=None, repr=False)
     err_b: np.ndarray = field(default=None, repr=False)
-    aic_gain: float = float("nan")  # stochastic: likelihood-ratio statistic − 2·(extra parameters)
+    aic_gain: float = float("nan")  # stochastic: LR statistic − ln(n/2)·(extra parameters) (BIC)
+    lr: float = float("nan")  # stochastic: likelihood-ratio statistic against the model's noise
+    resid_full: np.ndarray = field(default=None, repr=False)  # deterministic: y − fitted prediction
 
     def to_dict(self) -> dict:
         return {"id": self.id, "stochastic": self.stochastic, "params": self.params,
@@ -141,6 +147,10 @@ def _jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
     return float(np.sqrt((k - 1) / k * np.nansum((loo - np.nanmean(loo)) ** 2)))
 
 
+def catalogue_stochastic(eid: str) -> bool:
+    return eid in ("gauss_markov", "rate_random_walk")
+
+
 def _nuisance(rec: Record) -> np.ndarray:
     cols = [np.ones(rec.n)]
     if rec.logged("input"):
@@ -181,11 +191,16 @@ def fit_deterministic(model, rec: Record, effect, eid: str, r: np.ndarray, folds
     x_nuis = _nuisance(rec)
     if score > 0:
         lin = float(sig.heldout_linear_scores(r, x_nuis, cols, folds)[0])
-        p = sig.bootstrap_p_value(r, x_nuis, cols, folds, lin, n_rep=n_rep, rng=rng)
+        draw = None
+        if any(catalogue_stochastic(e) for e, _ in model.effects):
+            def draw(m):  # the model's own noise: white + its stochastic effects
+                base = model.predict(rec)
+                return np.column_stack([model.simulate(rec, rng) - base for _ in range(m)])
+        p = sig.bootstrap_p_value(r, x_nuis, cols, folds, lin, n_rep=n_rep, rng=rng, draw=draw)
     else:
         p = 1.0  # no out-of-sample gain: conservatively not significant
     return Candidate(eid, False, full.params, full.params_std, float(score), float("nan"), float(p),
-                     err_c=err_c, err_b=err_b)
+                     err_c=err_c, err_b=err_b, resid_full=rec.y - f.predict(full.x))
 
 
 def _to_effect_params(effect, kind: str, fit: sto.StochasticFit, dt_s: float) -> tuple[dict, dict]:
@@ -216,7 +231,7 @@ def fit_stochastic_candidate(model, rec: Record, effect, eid: str, r: np.ndarray
     params, std = _to_effect_params(effect, model.base.kind, full, dt)
     df = 2 if kind == "gauss_markov" else 1
     return Candidate(eid, True, params, std, score, float("nan"), full.p_value, err_c=err_c, err_b=err_b,
-                     aic_gain=full.lr - 2 * df)
+                     aic_gain=full.lr - math.log(rec.n / 2) * df, lr=full.lr)
 
 
 def fit_lattice_candidate(model, rec: Record, effect, eid: str, folds: np.ndarray) -> Candidate:
@@ -303,14 +318,17 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
             sd = min(sd, float(np.sqrt(np.mean(c.err_c))))
         big, thr = (_big_enough(eff, kind, c.params, rec, sd) if rej and c.score > 0
                     else (False, float("nan")))
+        if c.id == "gauss_markov" and c.params.get("tau_s", 0.0) >= rec.duration_s / 5:
+            big = False  # a correlation time beyond a fifth of the record is not identifiable on it
         se = float("nan")
         if c.err_c is not None:
             se = _jackknife_ratio(np.bincount(blocks, c.err_c, n_blocks), np.bincount(blocks, c.err_b, n_blocks))
         out.append(Candidate(c.id, c.stochastic, c.params, c.params_std, c.score, se, c.p_value, float(qv),
-                             big, thr, bool(rej and c.score > 0 and big), c.err_c, c.err_b, c.aic_gain))
+                             big, thr, bool(rej and c.score > 0 and big), c.err_c, c.err_b, c.aic_gain,
+                             c.lr, c.resid_full))
     out.sort(key=lambda c: -c.score)
     named = [c for c in out if c.named]
-    best = _choose(named)
+    best = _choose(named, model, rec, alpha / max(len(cands), 1))
     best = _parsimonious(best, named, blocks, n_blocks, catalogue, kind)
     if best is None:
         return Naming(tuple(out), None, (), ())
@@ -330,23 +348,44 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
     return Naming(tuple(out), best, tuple(comps), tuple(seps))
 
 
-def _choose(named: list[Candidate]) -> Candidate | None:
+def _choose(named: list[Candidate], model, rec: Record, p_survive: float) -> Candidate | None:
     """Highest held-out score among deterministic candidates; among stochastic ones the best
-    Akaike gain of the spectral fit; a stochastic candidate beats a deterministic one only when
-    its held-out score is higher by more than two standard errors (a waveform that fits is the
-    simpler story)."""
+    BIC gain of the spectral fit. Between the two, the spectrum's shape decides: the
+    stochastic candidate is named only if it *survives* the deterministic ones — refitted to the
+    residual left by the best deterministic fit (and the other named waveforms' contributions,
+    refitted jointly) it is still clearly significant
+    (p < min(``p_survive``, 1e-6)) and keeps at least a tenth of its likelihood-ratio statistic (a random walk stays a random
+    walk once a straight line is removed; the colour a missing waveform lends the residual goes
+    with the waveform)."""
     if not named:
         return None
     det = [c for c in named if not c.stochastic]
-    # between stochastic shapes the spectrum decides (Akaike on the Whittle likelihood)
+    # between stochastic shapes the spectrum decides (BIC on the Whittle likelihood: a
+    # Gauss–Markov needs a clearly better fit than a random walk for its extra parameter)
     sto_ = sorted((c for c in named if c.stochastic), key=lambda c: -c.aic_gain)
+    if len(sto_) > 1 and sto_[0].id == "gauss_markov" and sto_[1].id == "rate_random_walk" \
+            and sto_[0].params.get("tau_s", 0.0) >= rec.duration_s / 5:
+        sto_ = [sto_[1], sto_[0]]  # a correlation time beyond the record is a random walk on it
     if not det:
         return sto_[0]
     if not sto_:
         return det[0]
     d, s = det[0], sto_[0]
-    margin = 2 * (s.score_se if np.isfinite(s.score_se) else 0.0)
-    return s if s.score - d.score > margin else d
+    if d.resid_full is None:
+        return d
+    kind = "gauss_markov" if s.id == "gauss_markov" else "random_walk"
+    known = [(e, p) for e, p in model.effects if e in ("gauss_markov", "rate_random_walk")]
+    r = d.resid_full - d.resid_full.mean()
+    # the other named waveforms too (a second missing effect colours what the first leaves):
+    # their own fitted contributions, refitted jointly by least squares to what is left
+    r0 = rec.y - model.predict(rec)
+    others = [r0 - c.resid_full for c in det[1:] if c.resid_full is not None]
+    if others:
+        g = np.column_stack(others + [np.ones(rec.n)])
+        coef, *_ = np.linalg.lstsq(g, r, rcond=None)
+        r = r - g @ coef
+    after = sto.fit_stochastic(r, rec.dt_s, kind, known=known)
+    return s if (after.p_value < min(p_survive, SURVIVE_P) and after.lr >= SURVIVE_FRACTION * s.lr) else d
 
 
 def _parsimonious(best: Candidate | None, named: list[Candidate], blocks: np.ndarray, n_blocks: int,

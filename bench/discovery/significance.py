@@ -17,7 +17,9 @@ is scored with the candidate's *linearised* regressors (Jacobian columns of the 
 each fold's training fit, fixed), the amplitude refitted on the replicate's training blocks and
 scored on its held-out blocks exactly like the data — cheap enough for ~10³ replicates per
 candidate. Because the columns were chosen on training blocks only, the observed held-out
-linear score and the null's are computed the same way.
+linear score and the null's are computed the same way. When the model already has stochastic
+effects, the null replicates are simulations of the model's own noise instead (parametric
+bootstrap), whose autocorrelation the model states.
 """
 
 from __future__ import annotations
@@ -112,18 +114,22 @@ def default_block_len(n: int) -> int:
 
 def bootstrap_p_value(r: np.ndarray, x_nuis: np.ndarray, x_cand: list[np.ndarray], folds: np.ndarray,
                       observed: float, *, n_rep: int = 999, block_len: int | None = None,
-                      rng: np.random.Generator, chunk: int = 100, stop_after: int = 10) -> float:
+                      rng: np.random.Generator, chunk: int = 100, stop_after: int = 10,
+                      draw=None) -> float:
     """``(1 + #{null ≥ observed}) / (n_rep + 1)`` under the circular block bootstrap of ``r``.
 
     Sequential (Besag & Clifford 1991): replicates are drawn in chunks and drawing stops once
     ``stop_after`` null scores reached the observed one, p = exceedances / replicates then —
-    a clearly large p costs ~100 replicates, a small one the full ``n_rep``."""
+    a clearly large p costs ~100 replicates, a small one the full ``n_rep``. ``draw(m)``: an
+    (n, m) array of null residuals replacing the block bootstrap (the workflow passes the
+    model's own noise when the model has stochastic effects: a random walk's memory is longer
+    than any bootstrap block)."""
     block_len = default_block_len(r.size) if block_len is None else block_len
     scorer = LinearScorer(x_nuis, x_cand, folds)
     exceed, done = 0, 0
     while done < n_rep:
         m = min(chunk, n_rep - done)
-        null = scorer.scores(block_bootstrap(r, block_len, m, rng))
+        null = scorer.scores(block_bootstrap(r, block_len, m, rng) if draw is None else draw(m))
         exceed += int(np.sum(null >= observed))
         done += m
         if exceed >= stop_after:
@@ -173,14 +179,15 @@ def _welch(x: np.ndarray, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def gap_metrics(residual: np.ndarray, noise_sd: float, rate_hz: float,
-                model_noise: np.ndarray | None = None) -> Gap:
+                model_noise: np.ndarray | None = None, floor_rms: float | None = None) -> Gap:
     """Gap of ``residual`` (y − deterministic prediction) to the model's noise.
 
     ``model_noise``: one realisation of the model's own noise (white + its stochastic effects)
     on the same grid; None → white noise of sd ``noise_sd`` (expected ADEV σ/√(τ·fs), PSD
-    2σ²/fs). RMS ratio uses the model noise's rms when given."""
+    2σ²/fs). RMS ratio uses ``floor_rms`` when given, else the model noise's rms."""
     r = np.asarray(residual, dtype=float)
-    floor_rms = noise_sd if model_noise is None else float(np.sqrt(np.mean(model_noise ** 2)))
+    if floor_rms is None:
+        floor_rms = noise_sd if model_noise is None else float(np.sqrt(np.mean(model_noise ** 2)))
     rms_ratio = float(np.sqrt(np.mean(r ** 2)) / floor_rms)
     if r.size < 32:
         return Gap(rms_ratio, float("nan"), float("nan"), float("nan"))

@@ -7,7 +7,10 @@ spectrum (equivalently its ACF / Allan curve):
   rad/sample) under S(ω) = σw² + S_c(ω) with S_c the candidate's spectrum in per-sample units:
   first-order Gauss–Markov (AR(1), x_k = φ x_{k−1} + e, var x = σ²):
   S_c = σ²(1 − φ²)/|1 − φe^{−iω}|²; random walk (x_k = x_{k−1} + e, var e = q):
-  S_c = q/|1 − e^{−iω}|². Parameter standard errors from the inverse Hessian of the Whittle
+  S_c = q/|1 − e^{−iω}|². The random walk's q is then re-estimated on the first differences
+  (stationary: q + σw²|1 − e^{−iω}|²; the levels' periodogram overstates q through the
+  end-point jump of a finite walk); the likelihood ratio stays the levels' one so the two
+  shapes are compared on the same data. Parameter standard errors from the inverse Hessian of the Whittle
   log-likelihood (numerical, in the optimiser's log coordinates, mapped by the delta method).
 * significance: likelihood-ratio statistic against white noise of free variance, referred to
   χ² with the number of extra parameters (2 for Gauss–Markov, 1 for the random walk).
@@ -65,9 +68,22 @@ def _spectrum(kind: str, th: np.ndarray, w: np.ndarray) -> np.ndarray:
     return white + np.exp(th[1]) / (2 - 2 * np.cos(w))
 
 
-def _nll(th, kind, w, i, known=0.0):
+def _nll(th, kind, w, i, known=0.0, diff=False):
     s = _spectrum(kind, th, w) + known
+    if diff:  # periodogram of first differences: every level spectrum times |1 − e^{−iω}|²
+        s = s * (2 - 2 * np.cos(w))
     return float(np.sum(np.log(s) + i / s))
+
+
+def _random_walk_q(r: np.ndarray, th0: np.ndarray) -> tuple[float, float]:
+    """(q, std q) of a random walk + white from the Whittle fit of the first differences
+    (stationary: q + σw²|1 − e^{−iω}|²), which the levels' periodogram biases upwards through
+    the end-point jump of a finite walk."""
+    w, i = _periodogram(np.diff(r))
+    res = optimize.minimize(_nll, th0, args=("random_walk", w, i, 0.0, True), method="L-BFGS-B")
+    cov = _inv_hessian(lambda x: _nll(x, "random_walk", w, i, 0.0, True), res.x)
+    q = float(np.exp(res.x[1]))
+    return q, float(q * np.sqrt(max(cov[1, 1], 0.0)))
 
 
 def known_spectrum(components: list[tuple[str, dict]], dt_s: float, w: np.ndarray) -> np.ndarray:
@@ -126,9 +142,12 @@ def fit_stochastic(r: np.ndarray, dt_s: float, kind: str, start: np.ndarray | No
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
         return StochasticFit(kind, white_sd, sigma, tau, 0.0, float(d_sigma * sd[1]),
                              float(abs(d_tau) * sd[2]), 0.0, lr, p, tuple(th))
-    q = float(np.exp(th[1]))
-    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-    return StochasticFit(kind, white_sd, 0.0, 0.0, q, 0.0, 0.0, float(q * sd[1]), lr, p, tuple(th))
+    if not known:
+        q, q_std = _random_walk_q(r, th)
+    else:  # the differenced fit has no room for known components: keep the levels' estimate
+        q = float(np.exp(th[1]))
+        q_std = float(q * np.sqrt(max(cov[1, 1], 0.0)))
+    return StochasticFit(kind, white_sd, 0.0, 0.0, q, 0.0, 0.0, q_std, lr, p, tuple(th))
 
 
 def _inv_hessian(f, x: np.ndarray, h: float = 1e-3) -> np.ndarray:
