@@ -20,6 +20,11 @@ from scipy import optimize
 from bench.discovery.data import Record
 
 
+def _periodic(q) -> bool:
+    """A phase parameter spanning one full turn."""
+    return q.unit == "rad" and "phase" in q.name and q.high - q.low >= 2 * math.pi - 1e-9
+
+
 @dataclass(frozen=True)
 class Fit:
     """An effect fitted together with bias and scale factor."""
@@ -61,6 +66,8 @@ class CandidateFitter:
         p = {}
         for q, v in zip(self.qs, x[self.n_base:]):
             val = math.exp(v) if q.log else float(v)
+            if _periodic(q):  # a phase wraps: the optimiser must not stall at ±π
+                val = (val + math.pi) % (2 * math.pi) - math.pi
             p[q.name] = float(np.clip(val, q.low, q.high))
         return p, bias, sf
 
@@ -69,8 +76,10 @@ class CandidateFitter:
 
         rng = BASE_RANGES[self.kind]
         base = [rng["bias"], rng["scale_factor"]][: self.n_base]
-        lo = [b[0] for b in base] + [math.log(q.low) if q.log else q.low for q in self.qs]
-        hi = [b[1] for b in base] + [math.log(q.high) if q.log else q.high for q in self.qs]
+        lo = [b[0] for b in base] + [-8 * math.pi if _periodic(q) else math.log(q.low) if q.log else q.low
+                                     for q in self.qs]
+        hi = [b[1] for b in base] + [8 * math.pi if _periodic(q) else math.log(q.high) if q.log else q.high
+                                     for q in self.qs]
         return np.array(lo), np.array(hi)
 
     def x_scale(self) -> np.ndarray:
