@@ -163,7 +163,8 @@ def test_calibrate_recovers_bias_scale_factor_and_noise():
 
 @pytest.mark.parametrize("kind,eid,seed", [("accelerometer", "k2_nonlinearity", 0),
                                            ("accelerometer", "warmup_exponential", 1),
-                                           ("gyro", "sinusoidal_interference", 2)])
+                                           ("gyro", "sinusoidal_interference", 2),
+                                           ("accelerometer", "rate_random_walk", 0)])
 def test_discover_names_the_hidden_effect_and_closes_the_gap(kind, eid, seed):
     rec, truth = _hidden(kind, (eid,), seed, 1500)
     d = discover(rec, Model(base_model(kind)), max_effects=2, seed=seed)
@@ -181,3 +182,13 @@ def test_discover_names_nothing_on_clean_data():
     d = discover(rec, Model(base_model("accelerometer")), max_effects=2, seed=7)
     assert d.steps == () and d.unexplained == ()
     assert d.to_dict()["effects"] == []
+
+
+def test_separating_experiments_name_the_inputs_or_the_known_recipe():
+    from bench.discovery.separating import separating_experiment
+
+    assert "temperature independently of time since power-on" in separating_experiment(
+        "warmup_exponential", "temperature_bias", CATALOGUE)
+    assert "vary cross_input independently of vib" in separating_experiment(
+        "misalignment", "vibration_rectification", CATALOGUE)
+    assert "repeat the record" in separating_experiment("k2_nonlinearity", "gauss_markov", CATALOGUE)
