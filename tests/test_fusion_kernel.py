@@ -202,8 +202,10 @@ def test_fixed_r_one_sensor_equals_the_textbook_filter(sensor, lf_order, discret
     x0, p0 = fu.initial_state(model, hf, lf)
     run = fu.sequential_kalman([y], [h], [AdaptiveNoise.fixed(r)], phi, q, x0, p0)
     rate, p = textbook_kalman(y, h, r, phi, q, x0, p0)
-    assert_close(run.rate, rate)
-    np.testing.assert_allclose(run.final_p, p, rtol=1e-9, atol=1e-12 * np.max(np.abs(p)))
+    assert_close(run.rate, rate)  # the fused rate: equal to 1e-12 (the claim)
+    # the covariance: the textbook (I − KH)P⁻ is not exactly symmetric (its two triangles differ by
+    # ~1e-12 of max|P|); ours is symmetric by construction — compare with its symmetric part
+    np.testing.assert_allclose(run.final_p, 0.5 * (p + p.T), rtol=1e-9, atol=1e-11 * np.max(np.abs(p)))
 
 
 def test_p_stays_exactly_symmetric_and_positive_definite_over_a_long_run():
