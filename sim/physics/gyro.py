@@ -262,16 +262,8 @@ class FiberOpticGyro:
         second, third); ``f_sensor_g`` (n, 3): specific force in g; ``vibration_g_rms``:
         random-vibration level, a scalar or (n,) along the IA, or (n, 3) per sensor axis.
         """
-        t = np.asarray(t_edges_s, dtype=float)
-        if t.ndim != 1 or t.size < 1 or not np.all(np.isfinite(t)):
-            raise ValueError("t_edges_s must be a finite 1-D array of at least one edge")
+        t, dt = check_frame_edges(t_edges_s, self._t_edge)
         n = t.size - 1
-        dt = np.diff(t)
-        if n and dt.min() <= 0.0:
-            raise ValueError("t_edges_s must be strictly increasing")
-        if self._t_edge is not None and t[0] < self._t_edge:
-            raise ValueError(f"t_edges_s[0]={t[0]!r} s precedes the previous call's last edge "
-                             f"{self._t_edge!r} s")
         omega = np.asarray(omega_sensor_dps, dtype=float)
         f = np.asarray(f_sensor_g, dtype=float)
         for name, arr in (("omega_sensor_dps", omega), ("f_sensor_g", f)):
@@ -376,6 +368,21 @@ class FiberOpticGyro:
             "slow_knot_step_s": self._slow.step_s, "vib_resonance_phase_rad": self._vib_phase,
         })
         return out
+
+
+def check_frame_edges(t_edges_s, last_edge_s: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Frame interval edges (n+1 → n intervals) as an array with their widths: finite, 1-D,
+    at least one edge, strictly increasing, not before ``last_edge_s`` (the previous call's
+    last edge; None on the first call).  ValueError naming the fault otherwise."""
+    t = np.asarray(t_edges_s, dtype=float)
+    if t.ndim != 1 or t.size < 1 or not np.all(np.isfinite(t)):
+        raise ValueError("t_edges_s must be a finite 1-D array of at least one edge")
+    dt = np.diff(t)
+    if dt.size and dt.min() <= 0.0:
+        raise ValueError("t_edges_s must be strictly increasing")
+    if last_edge_s is not None and t[0] < last_edge_s:
+        raise ValueError(f"t_edges_s[0]={t[0]!r} s precedes the previous call's last edge {last_edge_s!r} s")
+    return t, dt
 
 
 def _quantise(angle_pulses: np.ndarray, start: int) -> tuple[np.ndarray, int]:

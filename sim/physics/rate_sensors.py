@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from sim.physics.gyro import _HALF_PULSE, STATUS_OVER_RANGE, STATUS_READY, _quantise
+from sim.physics.gyro import _HALF_PULSE, STATUS_OVER_RANGE, STATUS_READY, _quantise, check_frame_edges
 from sim.physics.rate_sensor_lti import LinearRateSensor, PiecesFn, Section, _check
 
 __all__ = ["LF_PRESET", "MHD_PRESET", "STATUS_OVER_RANGE", "STATUS_READY", "LfGyroUnit", "LfRateParams", "MhdParams",
@@ -257,15 +257,8 @@ class LfGyroUnit:
         """Pulse counts (int64, n) over the n intervals between ``t_edges_s`` (n+1, strictly
         increasing, starting at or after the previous call's last edge).  The table
         arguments are accepted for interface compatibility and ignored."""
-        t = np.asarray(t_edges_s, dtype=float)
-        if t.ndim != 1 or t.size < 1 or not np.all(np.isfinite(t)):
-            raise ValueError("t_edges_s must be a finite 1-D array of at least one edge")
+        t, dt = check_frame_edges(t_edges_s, self._t_edge)
         n = t.size - 1
-        dt = np.diff(t)
-        if n and dt.min() <= 0.0:
-            raise ValueError("t_edges_s must be strictly increasing")
-        if self._t_edge is not None and t[0] < self._t_edge:
-            raise ValueError(f"t_edges_s[0] = {t[0]!r} s precedes the previous call's last edge {self._t_edge!r} s")
         self._t_edge = float(t[-1])
         if n == 0:
             return np.zeros(0, dtype=np.int64)
