@@ -8,7 +8,24 @@ from .protocols import Wait
 from .validate import in_range
 
 
-class RampedController:
+class Interlocked:
+    """Mixin for a driver of a controller with a safety interlock (``:INT:OPEN|CLOS|RES``):
+    the turntable, the shaker, the angular vibration table."""
+
+    def interlock_close(self) -> None:
+        """``:INT:CLOS``: close the interlock (drives enabled)."""
+        self.configure_command(":INT:CLOS")
+
+    def interlock_open(self) -> None:
+        """``:INT:OPEN``: open the interlock (drives cut)."""
+        self.configure_command(":INT:OPEN")
+
+    def interlock_reset(self) -> None:
+        """``:INT:RES``: clear a latched trip (ABORT) once at rest."""
+        self.configure_command(":INT:RES")
+
+
+class RampedController(Interlocked):
     """Mixin for a driver with a ``state`` property (IDLE, RAMP, RUN, ABORT) and a ``name``;
     ``aborted_error`` is the exception raised when the controller reports ABORT."""
 
@@ -26,15 +43,6 @@ class RampedController:
         """``:ABOR``: cut the drive now; the controller latches ABORT."""
         self.configure_command(":ABOR")
 
-    def interlock_open(self) -> None:
-        self.configure_command(":INT:OPEN")
-
-    def interlock_close(self) -> None:
-        self.configure_command(":INT:CLOS")
-
-    def interlock_reset(self) -> None:
-        """``:INT:RES``: clear a latched ABORT once at rest."""
-        self.configure_command(":INT:RES")
 
     def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
         """Poll ``:STAT?`` until RUN; :attr:`aborted_error` on ABORT, RuntimeError on IDLE

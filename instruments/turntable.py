@@ -28,6 +28,7 @@ from .base import (
     read_settings,
 )
 from .protocols import Wait
+from .ramped import Interlocked
 
 log = logging.getLogger(__name__)
 
@@ -212,7 +213,7 @@ class StopFailure:
     error: Exception
 
 
-class DualAxisTurntable(SCPIInstrument):
+class DualAxisTurntable(Interlocked, SCPIInstrument):
     """Two-axis position/rate table; ``table.axis[1]`` (inner), ``table.axis[2]`` (outer).
 
     ``limits`` overrides :data:`DEFAULT_LIMITS` per axis.  The constructor does no I/O.
@@ -231,18 +232,6 @@ class DualAxisTurntable(SCPIInstrument):
 
     interlock_closed = measurement(":INT?", "True while the interlock is closed (drives enabled).",
                                    parse=parse_bool)
-
-    def interlock_close(self) -> None:
-        """``:INT:CLOS``: close the interlock (enables the drives)."""
-        self.configure_command(":INT:CLOS")
-
-    def interlock_open(self) -> None:
-        """``:INT:OPEN``: open the interlock (drives disabled)."""
-        self.configure_command(":INT:OPEN")
-
-    def interlock_reset(self) -> None:
-        """``:INT:RES``: clear a latched interlock trip."""
-        self.configure_command(":INT:RES")
 
     def snapshot_details(self) -> dict[str, Any]:
         return {"axes": {n: read_settings(ax, ax.snapshot_settings) for n, ax in self.axis.items()}}
