@@ -30,15 +30,22 @@ FusionParams = fu.FusionParams
 METHODS = ("fused", "hf", "lf", "fixed_r_kf", "complementary")
 
 
+def _tone_fit(t_s, y, freqs_hz) -> tuple[np.ndarray, np.ndarray]:
+    """One joint least-squares fit of ``c + Σᵢ (aᵢ cos 2πfᵢt + bᵢ sin 2πfᵢt)`` to each column of
+    ``y``: the phasors (tone × column) and the residual (same shape as ``y``)."""
+    t = np.asarray(t_s, dtype=float)
+    f = np.asarray(freqs_hz, dtype=float)
+    y = np.asarray(y, dtype=float)
+    arg = 2 * np.pi * np.outer(t - t[0], f)
+    design = np.column_stack([np.ones_like(t), np.cos(arg), np.sin(arg)])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    return coef[1:1 + f.size] - 1j * coef[1 + f.size:1 + 2 * f.size], y - design @ coef
+
+
 def sine_phasors(t_s, y, freqs_hz) -> np.ndarray:
     """Complex amplitudes ``Aᵢ`` (``y ≈ c + Σ |Aᵢ| cos(2πfᵢt + arg Aᵢ)``) by one joint LS fit;
     ``y`` may hold several series as columns (then one row of phasors per tone, column per series)."""
-    t = np.asarray(t_s, dtype=float)
-    f = np.asarray(freqs_hz, dtype=float)
-    arg = 2 * np.pi * np.outer(t - t[0], f)
-    design = np.column_stack([np.ones_like(t), np.cos(arg), np.sin(arg)])
-    coef, *_ = np.linalg.lstsq(design, np.asarray(y, dtype=float), rcond=None)
-    return coef[1:1 + f.size] - 1j * coef[1 + f.size:1 + 2 * f.size]
+    return _tone_fit(t_s, y, freqs_hz)[0]
 
 
 def detect_tones(y, rate_hz: float, max_tones: int = 24, rel_threshold: float = 1e-2) -> np.ndarray:
@@ -227,13 +234,14 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
         e = {k: v[keep] - ref[keep] for k, v in estimates.items()}
         out.rms_error = {k: float(np.sqrt(np.mean(v * v))) for k, v in e.items()}
         names = list(estimates)
-        phasors = sine_phasors(t[keep], np.column_stack([ref[keep]] + [estimates[k][keep] for k in names]), tones)
+        # one fit gives every series' phasors and its residual (column 0: the reference)
+        phasors, resid = _tone_fit(t[keep], np.column_stack([ref[keep]] + [estimates[k][keep] for k in names]),
+                                   tones)
+        resid = {k: resid[:, j] for j, k in enumerate(names, start=1)}
         out.tones_hz = tones
         out.amplitude_error_pct, out.phase_error_deg, out.amplitude_error_std_pct = {}, {}, {}
-        cols = np.column_stack([estimates[k][keep] for k in names])
         ref_amp = np.abs(phasors[:, 0])
-        resid = _residual(t[keep], cols, tones)
-        noise = {k: tone_noise_std(resid[:, j], rate_hz, tones) for j, k in enumerate(names)}
+        noise = {k: tone_noise_std(resid[k], rate_hz, tones) for k in names}
         for col, k in enumerate(names, start=1):
             ratio = phasors[:, col] / phasors[:, 0]
             out.amplitude_error_pct[k] = 100 * (np.abs(ratio) - 1)
@@ -243,9 +251,8 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
         # the excess's standard error comes from the difference series, not from each alone
         amp = np.abs(np.vstack([out.amplitude_error_pct["hf"], out.amplitude_error_pct["lf"]]))
         best = np.argmin(amp, axis=0)
-        diff = _residual(t[keep], np.column_stack([estimates["fused"][keep] - estimates[m][keep]
-                                                   for m in ("hf", "lf")]), tones)
-        diff_sd = np.vstack([tone_noise_std(diff[:, j], rate_hz, tones) for j in range(2)])
+        # the fit is linear: the difference series' residual is the difference of the residuals
+        diff_sd = np.vstack([tone_noise_std(resid["fused"] - resid[m], rate_hz, tones) for m in ("hf", "lf")])
         idx = np.arange(tones.size)
         out.excess_pct = np.abs(out.amplitude_error_pct["fused"]) - amp[best, idx]
         out.excess_std_pct = 100 * diff_sd[best, idx] / ref_amp
@@ -272,11 +279,7 @@ def excess_over_best(analysis: dict) -> tuple[np.ndarray, np.ndarray]:
 
 def _residual(t, ys, tones) -> np.ndarray:
     """Each column of ``ys`` less its LS fit at the tones (and its mean)."""
-    t = np.asarray(t, dtype=float)
-    arg = 2 * np.pi * np.outer(t - t[0], tones)
-    design = np.column_stack([np.ones_like(t), np.cos(arg), np.sin(arg)])
-    coef, *_ = np.linalg.lstsq(design, ys, rcond=None)
-    return ys - design @ coef
+    return _tone_fit(t, ys, tones)[1]
 
 
 def _residual_var(t, ys, tones) -> np.ndarray:
