@@ -21,9 +21,9 @@ demo: $(STAMP)
 	$(BIN)/bench --store $(STORE) acceptance --station sim --unit FOG-SIM-0002 --seed 1 \
 		--report bench-data/reports
 
-## test: the whole suite (hypothesis derandomised in CI)
+## test: the whole suite (hypothesis derandomised in CI), one worker per core (pytest-xdist)
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -p no:cacheprovider
+	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
 
 ## bench-speed: the benchmark scripts, side by side with their peers
 bench-speed: $(STAMP)
