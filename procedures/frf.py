@@ -35,7 +35,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.analysis.frf import frf_point
+from bench.analysis.frf import component_std, frf_point
 from bench.analysis.frf_timebase import apply_time_base, estimate_time_base
 from bench.analysis.fusion_models import fit_transfer_function
 from bench.procedure import Context
@@ -208,8 +208,8 @@ def response_of(points: dict, sensor: str) -> tuple[np.ndarray, np.ndarray, np.n
     rows = [(f, r) for f, r in zip(points["freq_hz"], points[sensor]) if r is not None]
     f = np.array([fk for fk, _ in rows], dtype=float)
     h = np.array([r["mag"] * np.exp(1j * math.radians(r["phase_deg"])) for _, r in rows])
-    sd = np.array([math.sqrt(0.5 * (r["mag_std"] ** 2 + (r["mag"] * math.radians(r["phase_std_deg"])) ** 2))
-                   for _, r in rows])
+    sd = component_std([r["mag"] for _, r in rows], [r["mag_std"] for _, r in rows],
+                       [r["phase_std_deg"] for _, r in rows])
     return f, h, sd
 
 

@@ -293,7 +293,7 @@ class FrfResult:
     def h_std(self) -> np.ndarray:
         """Per-component standard uncertainty of ``Re h``/``Im h``: the mean of the magnitude and
         tangential (|h|·σφ) variances, square-rooted."""
-        return np.sqrt(0.5 * (self.mag_std ** 2 + (self.mag * np.radians(self.phase_std_deg)) ** 2))
+        return component_std(self.mag, self.mag_std, self.phase_std_deg)
 
     @property
     def weights(self) -> np.ndarray:
@@ -304,6 +304,14 @@ class FrfResult:
         return {"freq_hz": self.freq_hz.tolist(), "h_re": self.h.real.tolist(), "h_im": self.h.imag.tolist(),
                 "mag": self.mag.tolist(), "phase_deg": self.phase_deg.tolist(), "mag_std": self.mag_std.tolist(),
                 "phase_std_deg": self.phase_std_deg.tolist(), "points": [p.to_dict() for p in self.points]}
+
+
+def component_std(mag, mag_std, phase_std_deg) -> np.ndarray:
+    """Per-component standard uncertainty of ``Re h``/``Im h`` from a magnitude ``mag`` with
+    standard uncertainty ``mag_std`` and a phase uncertainty ``phase_std_deg`` (degrees): the
+    mean of the magnitude and tangential (|h|·σφ) variances, square-rooted."""
+    mag, mag_std, phase_std_deg = (np.asarray(a, dtype=float) for a in (mag, mag_std, phase_std_deg))
+    return np.sqrt(0.5 * (mag_std ** 2 + (mag * np.radians(phase_std_deg)) ** 2))
 
 
 def frf(dwells, **kwargs) -> FrfResult:
