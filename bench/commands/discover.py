@@ -7,19 +7,8 @@ CSV columns (header row): ``t`` (s) and ``y`` (g or deg/s) required; optional ``
 ``cross_input``, ``temp`` (degC), ``t_on`` (s since power-on), ``vib`` (g rms), ``accel`` (g)
 — see :mod:`bench.discovery.data`.
 
-Stored runs: the stream and columns mapped per procedure (:data:`RUN_MAPS`):
-
-=============  ================  ====================================================
-procedure      sensor            mapping
-=============  ================  ====================================================
-startup        accelerometer     output.t_s → t and t_on (s from power-on; t ≥ 0 kept),
-                                 output.acceleration_g → y, temperature.temperature_c
-                                 interpolated onto t → temp; input = +1 g (Document A
-                                 holds the sensitive axis vertical)
-turn_on        gyro              gyro_startup.t_s → t and t_on (t ≥ 0), rate_dps → y,
-                                 temperature_c → temp
-noise (gyro)   gyro              gyro_static.t_s → t, rate_dps → y, temperature_c → temp
-=============  ================  ====================================================
+Stored runs: the streams :mod:`bench.commands.discover_runs` maps (start-up, static noise
+and vibration records of both sensors; ``--stream`` picks one when a run holds several).
 
 Writes ``discovered_model.toml`` and ``discovery_report.html`` into ``--out`` (default
 ``bench-data/discover``). Bad input: one line ``bench: error: …`` and exit 2 (ValueError /
@@ -28,31 +17,26 @@ LookupError / OSError are turned into that by :mod:`bench.cli`).
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
 import numpy as np
 
+from bench.commands.discover_runs import read_run
 from bench.discovery.data import CSV_COLUMNS, Record
 
 SENSORS = ("accelerometer", "gyro", "mhd")
 DEFAULT_OUT = "bench-data/discover"
 
-#: procedure -> (sensor, main stream, time col, value col, temperature (stream, col) or None,
-#: time column counts from power-on, constant applied input or None)
-RUN_MAPS = {
-    "startup": ("accelerometer", "output", "t_s", "acceleration_g", ("temperature", "temperature_c"), True, 1.0),
-    "turn_on": ("gyro", "gyro_startup", "t_s", "rate_dps", ("gyro_startup", "temperature_c"), True, None),
-    "noise": ("gyro", "gyro_static", "t_s", "rate_dps", ("gyro_static", "temperature_c"), False, None),
-}
-
-
 def register(sub) -> None:
     p = sub.add_parser("discover", help="name the effect the model lacks (discrepancy workflow)")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--run", metavar="ID", help="stored run id or 'latest' (startup, turn_on, noise runs)")
+    src.add_argument("--run", metavar="ID", help="stored run id or 'latest' (start-up, noise and vibration runs)")
     src.add_argument("--measured", metavar="FILE.csv",
                      help=f"CSV with a header row; columns {', '.join(CSV_COLUMNS)} (t, y required)")
+    p.add_argument("--stream", metavar="NAME", default=None,
+                   help="which stream of the run (default: the first mappable; see discover_runs)")
     p.add_argument("--sensor", choices=SENSORS, default=None,
                    help="base model kind when no --model (default: from the run, else accelerometer)")
     p.add_argument("--model", metavar="FILE.toml", default=None, help="starting model file")
@@ -65,57 +49,34 @@ def register(sub) -> None:
 
 
 def read_measured(path: str) -> Record:
-    """A CSV with a header into a Record (ValueError naming the file and the fault)."""
+    """A CSV with a header into a Record (ValueError naming the file and the fault). Header
+    names are matched case-insensitively after stripping blanks; a repeated or unknown name
+    is refused."""
     from bench.commands.analyze import read_csv_table
 
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        header = [h.strip().lower() for h in fh.readline().split(",")]
-    unknown = [h for h in header if h and h not in CSV_COLUMNS]
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            raw = next(csv.reader(fh), [])
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise ValueError(f"cannot read {path}: {exc}") from None
+    header = [h.strip().lower() for h in raw]
+    unknown = [h for h, r in zip(header, raw) if h and h not in CSV_COLUMNS]
     if unknown:
         raise ValueError(f"{path}: unknown column(s) {unknown}; allowed: {list(CSV_COLUMNS)}")
-    table = read_csv_table(path, ("t", "y"), tuple(c for c in CSV_COLUMNS if c not in ("t", "y")))
+    repeated = sorted({h for h in header if h and header.count(h) > 1})
+    if repeated:
+        raise ValueError(f"{path}: column(s) {repeated} appear more than once in the header")
+    original = {h: r.strip() for h, r in zip(header, raw) if h}
+    for name in ("t", "y"):
+        if name not in original:
+            raise ValueError(f"{path}: no column {name!r}; columns are {', '.join(original.values()) or '(none)'}")
+    optional = tuple(original[c] for c in CSV_COLUMNS if c not in ("t", "y") and c in original)
+    table = read_csv_table(path, (original["t"], original["y"]), optional)
+    lower = {v: k for k, v in original.items()}
     try:
-        return Record.from_columns(table)
+        return Record.from_columns({lower[k]: v for k, v in table.items()})
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
-
-
-def read_run(store_path, run_id: str) -> tuple[Record, str, str]:
-    """(record, sensor kind, run id) of a stored run, mapped by :data:`RUN_MAPS`."""
-    from bench.commands.common import require_store, resolve_run_id
-    from bench.store import RunStore
-
-    require_store(store_path)
-    with RunStore(store_path) as store:
-        run_id = resolve_run_id(store, run_id)
-        info = store.get_run(run_id)
-        streams = store.streams(run_id)
-        proc = info.procedure
-        if proc not in RUN_MAPS or RUN_MAPS[proc][1] not in streams:
-            raise ValueError(f"run {run_id} ({proc}) has no stream discover can map; "
-                             f"supported procedures: {', '.join(RUN_MAPS)}")
-        kind, stream, tcol, ycol, temp, from_on, applied = RUN_MAPS[proc]
-        data = store.load(run_id, stream)
-        for col in (tcol, ycol):
-            if col not in data:
-                raise ValueError(f"stream {stream!r} of run {run_id} has no column {col!r}")
-        t = np.asarray(data[tcol], float)
-        y = np.asarray(data[ycol], float)
-        keep = (t >= 0.0) if from_on else np.ones(t.size, bool)
-        keep &= np.isfinite(y)
-        cols = {"t": t[keep], "y": y[keep]}
-        if from_on:
-            cols["t_on"] = t[keep]
-        if applied is not None:
-            cols["input"] = np.full(cols["t"].size, applied)
-        if temp is not None and temp[0] in streams:
-            td = store.load(run_id, temp[0])
-            if temp[1] in td and tcol in td and np.sum(np.isfinite(td[temp[1]])) >= 2:
-                tt, vv = np.asarray(td[tcol], float), np.asarray(td[temp[1]], float)
-                ok = np.isfinite(vv)
-                cols["temp"] = np.interp(cols["t"], tt[ok], vv[ok])
-    _, first = np.unique(cols["t"], return_index=True)  # a store may repeat a timestamp
-    return Record.from_columns({k: v[first] for k, v in cols.items()}), kind, run_id
 
 
 def discover_command(args) -> int:
@@ -124,9 +85,10 @@ def discover_command(args) -> int:
     from bench.reports.discovery_report import write_discovery_report
 
     if args.run is not None:
-        rec, run_kind, run_id = read_run(args.store, args.run)
-        label = f"run {run_id}"
+        rec, run_kind, label = read_run(args.store, args.run, args.stream)
     else:
+        if args.stream is not None:
+            raise ValueError("--stream applies to --run only")
         rec, run_kind, label = read_measured(args.measured), None, args.measured
     if args.model is not None:
         model = read_model(args.model)
