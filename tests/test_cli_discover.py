@@ -69,6 +69,10 @@ def test_discover_from_a_model_file_that_already_has_the_effect_names_nothing(hi
     ("t,y\n0,1\n1,abc\n", "not a number"),
     ("t,y\n0,1\n0,2\n" + "".join(f"{i},1\n" for i in range(1, 80)), "strictly increasing"),
     ("t,y\n" + "".join(f"{i},1\n" for i in range(10)), "at least 64"),
+    ("t,y,y\n" + "".join(f"{i},1,1\n" for i in range(80)), "more than once"),
+    ("t,Y,T\n0,1,2\n", "more than once"),
+    ("y,temp\n1,20\n", "no column 't'"),
+    ("t,y\n0,1\n1,nan\n" + "".join(f"{i},1\n" for i in range(2, 80)), "not finite"),
 ])
 def test_bad_csv_is_one_line_exit_2(tmp_path, capsys, content, needle):
     f = tmp_path / "bad.csv"
@@ -77,6 +81,23 @@ def test_bad_csv_is_one_line_exit_2(tmp_path, capsys, content, needle):
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and err.startswith("bench: error:")
     assert needle in err
+
+
+def test_header_names_are_matched_whatever_their_case(tmp_path):
+    from bench.commands.discover import read_measured
+
+    f = tmp_path / "case.csv"
+    f.write_text(" T , Y ,Temp\n" + "".join(f"{i},{0.001 * i},{20 + 0.01 * i}\n" for i in range(80)))
+    rec = read_measured(str(f))
+    assert rec.temp_c is not None and rec.temp_c[-1] == 20.79 and rec.y[1] == 0.001
+
+
+def test_a_binary_file_is_named_in_the_error(tmp_path, capsys):
+    f = tmp_path / "blob.csv"
+    f.write_bytes(bytes(range(256)) * 4)
+    assert main(["discover", "--measured", str(f), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "blob.csv" in err
 
 
 def test_missing_file_store_and_contradicting_sensor_exit_2(tmp_path, capsys, hidden_csv):
