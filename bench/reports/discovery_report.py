@@ -87,6 +87,14 @@ def _candidates_table(naming) -> str:
                        "named", "parameters"], rows, bold)
 
 
+def _model_table(model) -> str:
+    b = model.base
+    rows = [["base", "bias", _fmt(b.bias, 6)], ["base", "scale_factor", _fmt(b.scale_factor, 8)],
+            ["base", "noise_sd (white, per sample)", _fmt(b.noise_sd, 4)]]
+    rows += [[eid, k, _fmt(v, 6)] for eid, p in model.effects for k, v in p.items()]
+    return html_table(["part", "parameter", "value"], rows)
+
+
 def write_discovery_report(result, rec, out_dir, label: str) -> Path:
     """Write ``discovery_report.html`` (and its PNGs) into ``out_dir``; return the HTML path."""
     out = Path(out_dir)
@@ -131,6 +139,7 @@ def write_discovery_report(result, rec, out_dir, label: str) -> Path:
     parts += [f"<p>Final residual rms {_fmt(result.rms_final)}; model noise floor {_fmt(result.noise_floor)} "
               f"(ratio {_fmt(result.rms_final / result.noise_floor, 3)}).</p>",
               _gap_table(result.gap_initial, result.gap_final)]
+    parts += ["<h3>Final model (written to the model file)</h3>", _model_table(result.final_model)]
     parts += [f"<p>note: {html.escape(n)}</p>" for n in result.notes]
     if result.steps:
         img = _plots(rec.t_s, result.residual_initial, result.residual_final, result.final_model.base.noise_sd,
