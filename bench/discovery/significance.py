@@ -60,14 +60,25 @@ def _unit_columns(x: np.ndarray) -> np.ndarray:
 
 class LinearScorer:
     """Held-out variance reduction of ``[x_nuis, x_cand[k]]`` over ``x_nuis`` alone, for many
-    residuals at once: the pseudo-inverses of each fold's training rows are computed once, so
-    a null replicate costs two matrix products per fold.
+    residuals at once.
 
     ``x_nuis``: (n, p) nuisance columns; ``x_cand[k]``: (n, q) the candidate's columns for
-    fold k (fitted on fold k's training rows); ``folds``: fold label per sample."""
+    fold k (fitted on fold k's training rows); ``folds``: fold label per sample.
+
+    Everything a score needs is a handful of inner products of the residual with fixed columns:
+    with β = P·r_train (P the training rows' pseudo-inverse), the held-out error is
+    ‖r_te‖² − 2βᵀ(X_teᵀ r_te) + βᵀ(X_teᵀX_te)β. So one (n, m)ᵀ·(n, B) product (m ≈ 4(p+q)
+    columns: P rows on the training samples, X columns on the held-out ones) and the per-fold
+    sums of r² give all B scores — no (B, n) gathers or fitted curves (the old implementation
+    built those per fold and per model). Where the fit leaves under 1e-6 of ‖r_te‖² the
+    expansion would lose digits to cancellation, and that replicate is scored directly."""
 
     def __init__(self, x_nuis: np.ndarray, x_cand: list[np.ndarray], folds: np.ndarray):
+        folds = np.asarray(folds)
+        n = folds.size
         self.parts = []
+        blocks = []
+        col = 0
         for k in (0, 1):
             te = folds == k
             tr = ~te
@@ -75,18 +86,42 @@ class LinearScorer:
             xb = _unit_columns(x_nuis)
             # near-collinear columns (an effect's change and its derivative) must not turn into
             # huge opposite coefficients: singular values below 1e-8 of the largest are dropped
-            self.parts.append((tr, te, x[te], np.linalg.pinv(x[tr], rcond=RCOND), xb[te],
-                               np.linalg.pinv(xb[tr], rcond=RCOND)))
+            fits = []
+            for xm in (x, xb):
+                pinv = np.linalg.pinv(xm[tr], rcond=RCOND)
+                q = xm.shape[1]
+                w = np.zeros((n, 2 * q))
+                w[tr, :q] = pinv.T  # β = wᵀ r
+                w[te, q:] = xm[te]  # X_teᵀ r
+                blocks.append(w)
+                fits.append((slice(col, col + q), slice(col + q, col + 2 * q), xm[te].T @ xm[te], pinv, xm))
+                col += 2 * q
+            self.parts.append((tr, te, fits))
+        self.w = np.hstack(blocks)
+        # runs of equal fold label: ‖r_te‖² as per-run dot products, without a squared copy
+        cut = np.flatnonzero(np.diff(folds)) + 1
+        self.runs = [(int(a), int(b), int(folds[a])) for a, b in zip(np.r_[0, cut], np.r_[cut, n])]
 
     def scores(self, r: np.ndarray) -> np.ndarray:
         """(B,) scores of ``r`` (n,) or (n, B)."""
-        rt = np.ascontiguousarray((r[:, None] if r.ndim == 1 else r).T)  # (B, n): fast BLAS shapes
-        sse_c = np.zeros(rt.shape[0])
-        sse_b = np.zeros(rt.shape[0])
-        for tr, te, xc_te, pc, xb_te, pb in self.parts:
-            r_tr, r_te = rt[:, tr], rt[:, te]
-            sse_c += np.sum((r_te - (r_tr @ pc.T) @ xc_te.T) ** 2, axis=1)
-            sse_b += np.sum((r_te - (r_tr @ pb.T) @ xb_te.T) ** 2, axis=1)
+        rt = r[None, :] if r.ndim == 1 else r.T  # (B, n): rows contiguous for BLAS
+        if rt.strides[1] != rt.itemsize:
+            rt = np.ascontiguousarray(rt)
+        proj = (rt @ self.w).T  # (m, B)
+        ss = np.zeros((2, rt.shape[0]))  # ‖r_te‖² of each fold
+        for a, b, k in self.runs:
+            ss[k] += np.einsum("bi,bi->b", rt[:, a:b], rt[:, a:b])
+        sse = np.zeros((2, rt.shape[0]))  # candidate, nuisance only
+        for k, (tr, te, fits) in enumerate(self.parts):
+            for j, (sb, sx, gram, pinv, xm) in enumerate(fits):
+                beta, xr = proj[sb], proj[sx]
+                e = ss[k] - 2 * np.sum(beta * xr, axis=0) + np.sum(beta * (gram @ beta), axis=0)
+                bad = np.flatnonzero(e < 1e-6 * ss[k])
+                if bad.size:  # nearly all explained: the expansion's cancellation would show
+                    rb = rt[bad].T
+                    e[bad] = np.sum((rb[te] - xm[te] @ (pinv @ rb[tr])) ** 2, axis=0)
+                sse[j] += e
+        sse_c, sse_b = sse
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(sse_b > 0, 1.0 - sse_c / sse_b, 0.0)
 
@@ -98,13 +133,18 @@ def heldout_linear_scores(r: np.ndarray, x_nuis: np.ndarray, x_cand: list[np.nda
 
 
 def block_bootstrap(r: np.ndarray, block_len: int, n_rep: int, rng: np.random.Generator) -> np.ndarray:
-    """(n, n_rep) circular moving-block bootstrap replicates of ``r``."""
+    """(n, n_rep) circular moving-block bootstrap replicates of ``r``.
+
+    Sample j of a block starting at i is r[(i + j) mod n]; the record is extended by one block
+    so each block is a contiguous slice (a block copy instead of per-sample modulo indexing)."""
     n = r.size
     block_len = int(np.clip(block_len, 1, n))
     n_b = -(-n // block_len)
     starts = rng.integers(0, n, size=(n_rep, n_b))
-    idx = (starts[:, :, None] + np.arange(block_len)[None, None, :]).reshape(n_rep, -1)[:, :n] % n
-    return r[idx].T
+    ext = np.concatenate([r, r[:block_len]])
+    windows = np.lib.stride_tricks.sliding_window_view(ext, block_len)  # (n + 1, block_len) view
+    out = windows[starts].reshape(n_rep, n_b * block_len)[:, :n]
+    return out.T  # (n, n_rep) view of row-contiguous replicates: LinearScorer reads rows
 
 
 def default_block_len(n: int) -> int:

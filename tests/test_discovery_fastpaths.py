@@ -1,0 +1,130 @@
+"""The fast lattice visibility, held-out scorer and block bootstrap equal the straightforward
+implementations they replaced (kept here as the references) to floating-point noise."""
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bench.discovery import lattice as lat
+from bench.discovery import significance as sig
+
+
+def visibility_reference(y, s):
+    """The original: one pass of n cos + n sin over all samples per step."""
+    s = np.atleast_1d(np.asarray(s, float))
+    out = np.empty(s.size)
+    for k, sk in enumerate(s):
+        ph = 2 * np.pi * y / sk
+        out[k] = math.hypot(float(np.mean(np.cos(ph))), float(np.mean(np.sin(ph))))
+    return out
+
+
+class LinearScorerReference:
+    """The original: per fold, fitted curves over every held-out sample for both models."""
+
+    def __init__(self, x_nuis, x_cand, folds):
+        self.parts = []
+        for k in (0, 1):
+            te = folds == k
+            tr = ~te
+            x = sig._unit_columns(np.hstack([x_nuis, x_cand[k]]))
+            xb = sig._unit_columns(x_nuis)
+            self.parts.append((tr, te, x[te], np.linalg.pinv(x[tr], rcond=sig.RCOND), xb[te],
+                               np.linalg.pinv(xb[tr], rcond=sig.RCOND)))
+
+    def scores(self, r):
+        rt = np.ascontiguousarray((r[:, None] if r.ndim == 1 else r).T)
+        sse_c = np.zeros(rt.shape[0])
+        sse_b = np.zeros(rt.shape[0])
+        for tr, te, xc_te, pc, xb_te, pb in self.parts:
+            r_tr, r_te = rt[:, tr], rt[:, te]
+            sse_c += np.sum((r_te - (r_tr @ pc.T) @ xc_te.T) ** 2, axis=1)
+            sse_b += np.sum((r_te - (r_tr @ pb.T) @ xb_te.T) ** 2, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(sse_b > 0, 1.0 - sse_c / sse_b, 0.0)
+
+
+def block_bootstrap_reference(r, block_len, n_rep, rng):
+    n = r.size
+    block_len = int(np.clip(block_len, 1, n))
+    n_b = -(-n // block_len)
+    starts = rng.integers(0, n, size=(n_rep, n_b))
+    idx = (starts[:, :, None] + np.arange(block_len)[None, None, :]).reshape(n_rep, -1)[:, :n] % n
+    return r[idx].T
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 31), step_sd=st.sampled_from([0.0, 0.3, 1.0, 2.5, 4.0]),
+       n=st.sampled_from([40, 2000, 30000]), offset=st.floats(-50, 50))
+def test_visibility_equals_reference(seed, step_sd, n, offset):
+    rng = np.random.default_rng(seed)
+    y = offset + rng.standard_normal(n)
+    if step_sd:
+        y = np.round(y / step_sd) * step_sd
+    grid = np.geomspace(0.25, 4.2, 60)
+    assert np.allclose(lat.visibility(y, grid), visibility_reference(y, grid), rtol=0, atol=1e-11)
+    cf = lat.CharFun(y, 2 * np.pi / 0.2)
+    assert np.allclose(lat.visibility(y, grid, cf=cf), visibility_reference(y, grid), rtol=0, atol=1e-11)
+
+
+def test_charfun_refuses_frequencies_beyond_its_bins():
+    cf = lat.CharFun(np.random.default_rng(0).standard_normal(5000), 10.0)
+    try:
+        cf(np.array([11.0]))
+    except ValueError as e:
+        assert "omega" in str(e)
+    else:
+        raise AssertionError("no ValueError")
+
+
+def test_fit_lattice_finds_step_of_quantized_record():
+    rng = np.random.default_rng(4)
+    sd, step = 1.0, 1.7
+    y = np.round((3.0 + sd * rng.standard_normal(20000)) / step) * step
+    fit = lat.fit_lattice(y, sd, 0.01, 10.0)
+    assert abs(fit.step - step) < 1e-3 * step and fit.p_value < 1e-6
+
+
+def _scorer_case(seed, n, n_cand, with_input):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.1
+    folds = sig.block_folds(n)
+    cols = [np.ones(n)] + ([np.sin(t / 7.0) + 0.1 * rng.standard_normal(n)] if with_input else [])
+    x_nuis = np.column_stack(cols)
+    x_cand = [np.column_stack([np.exp(-t / (20 + k)) * t ** j for j in range(n_cand)]) for k in (0, 1)]
+    r = 0.3 * x_cand[0][:, 0] + rng.standard_normal(n)
+    return r, x_nuis, x_cand, folds
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2 ** 31), n=st.sampled_from([200, 3001, 20000]), n_cand=st.integers(1, 3),
+       with_input=st.booleans())
+def test_linear_scorer_equals_reference(seed, n, n_cand, with_input):
+    r, x_nuis, x_cand, folds = _scorer_case(seed, n, n_cand, with_input)
+    reps = sig.block_bootstrap(r, sig.default_block_len(n), 30, np.random.default_rng(seed))
+    fast = sig.LinearScorer(x_nuis, x_cand, folds)
+    ref = LinearScorerReference(x_nuis, x_cand, folds)
+    assert np.allclose(fast.scores(reps), ref.scores(reps), rtol=1e-9, atol=1e-11)
+    assert np.allclose(fast.scores(r), ref.scores(r), rtol=1e-9, atol=1e-11)
+
+
+def test_linear_scorer_exact_fit_uses_direct_error():
+    # a residual the candidate explains entirely: the expansion would be all cancellation
+    r, x_nuis, x_cand, folds = _scorer_case(1, 3000, 2, False)
+    exact = x_cand[0][:, 0] * 1e3 + 1e-9 * np.random.default_rng(2).standard_normal(r.size)
+    both = np.column_stack([exact, r])
+    fast = sig.LinearScorer(x_nuis, x_cand, folds).scores(both)
+    ref = LinearScorerReference(x_nuis, x_cand, folds).scores(both)
+    assert np.allclose(fast, ref, rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2 ** 31), n=st.integers(1, 500), block_len=st.integers(1, 600),
+       n_rep=st.integers(1, 7))
+def test_block_bootstrap_equals_reference(seed, n, block_len, n_rep):
+    r = np.random.default_rng(seed).standard_normal(n)
+    a = sig.block_bootstrap(r, block_len, n_rep, np.random.default_rng(seed))
+    b = block_bootstrap_reference(r, block_len, n_rep, np.random.default_rng(seed))
+    assert a.shape == (n, n_rep) and np.array_equal(a, b)
