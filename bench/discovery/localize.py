@@ -30,6 +30,7 @@ from scipy import signal, special, stats
 
 from bench.analysis.allan import overlapping_adev
 from bench.discovery.data import Record
+from bench.discovery.significance import welch_dof, welch_nperseg
 
 INPUT_COLUMNS = ("input", "cross_input", "temp", "t_on", "vib", "accel")
 
@@ -176,11 +177,10 @@ def spectral_bands(r: np.ndarray, rate_hz: float, noise_sd: float, alpha: float 
                    nperseg: int | None = None):
     """Welch PSD, the white floor and the flagged lines and bands."""
     n = r.size
-    nperseg = int(nperseg or min(n, max(64, 2 ** int(np.log2(max(n // 16, 64))))))
+    nperseg = int(nperseg or welch_nperseg(n))
     f, p = signal.welch(r, fs=rate_hz, window="hann", nperseg=nperseg, detrend=False)
     floor = 2.0 * noise_sd ** 2 / rate_hz
-    k = max(1, 2 * (n - nperseg) // nperseg + 1)  # segments averaged at 50 % overlap
-    nu = 2.0 * k * 0.9  # Hann's overlap correlation costs a little of the 2k dof
+    nu = welch_dof(n, nperseg)
     crit = stats.chi2.isf(alpha / max(f.size, 1), nu) / nu
     flag = p / floor > crit
     flag[0] = False  # DC: the calibrated bias

@@ -213,8 +213,25 @@ class Gap:
                 "spectral_distance_db": self.spectral_distance_db, "whiteness_p": self.whiteness_p}
 
 
+def welch_nperseg(n: int) -> int:
+    """Welch segment length for an n-sample record, the one used by every discovery spectrum:
+    the power of two nearest below n/16 (≥ 64, ≤ n) — about 31 half-overlapping segments, so each
+    PSD bin has ~56 degrees of freedom while 1/16 of the record still resolves slow structure."""
+    n = int(n)
+    if n < 1:
+        raise ValueError(f"n = {n}; allowed: >= 1")
+    return min(n, max(64, 2 ** int(np.log2(max(n // 16, 64)))))
+
+
+def welch_dof(n: int, nperseg: int) -> float:
+    """Degrees of freedom of a Welch (Hann, 50 % overlap) PSD bin: 2 per segment, less ~10 % for
+    the correlation of overlapping Hann segments."""
+    k = max(1, 2 * (n - nperseg) // nperseg + 1)
+    return 2.0 * k * 0.9
+
+
 def _welch(x: np.ndarray, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    nperseg = min(x.size, max(64, 2 ** int(np.log2(max(x.size // 16, 64)))))
+    nperseg = welch_nperseg(x.size)
     return signal.welch(x, fs=rate_hz, window="hann", nperseg=nperseg, detrend=False)
 
 

@@ -1,0 +1,100 @@
+"""Wall time of `bench discover`'s hot functions on a 180k-sample record, old code vs new.
+
+    .venv/bin/python benchmarks/bench_discovery.py [--n 180100] [--reps 999]
+
+The audit (issue 7, #11) profiled `bench discover` on a default start-up run (180,100 samples,
+150 s wall): lattice.visibility 34 s in 3 quantization fits, LinearScorer.scores 32 s and
+block_bootstrap 9 s in the bootstrap p-values. This times, on a record of that size,
+``lattice.fit_lattice`` + ``lattice.heldout_score`` (the quantization candidate) and
+``significance.bootstrap_p_value`` (one deterministic candidate's null, up to ``--reps``
+replicates) with the current code and with the straightforward implementations they replaced
+(kept in tests/test_discovery_fastpaths.py as the references), checks both give the same
+numbers, and prints the times and the ratio. The reference "peer" here is our own old code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench.discovery import lattice as lat  # noqa: E402
+from bench.discovery import significance as sig  # noqa: E402
+
+
+def _reference():
+    spec = importlib.util.spec_from_file_location("fastpath_ref", ROOT / "tests" / "test_discovery_fastpaths.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@contextmanager
+def old_code(ref):
+    """Swap the reference implementations in for the duration of the block."""
+    saved = lat.visibility, sig.LinearScorer, sig.block_bootstrap
+    lat.visibility = lambda y, s, cf=None: ref.visibility_reference(y, s)
+    sig.LinearScorer = ref.LinearScorerReference
+    sig.block_bootstrap = ref.block_bootstrap_reference
+    try:
+        yield
+    finally:
+        lat.visibility, sig.LinearScorer, sig.block_bootstrap = saved
+
+
+def workload(n: int, reps: int) -> dict:
+    rng = np.random.default_rng(7)
+    rate_hz = 100.0
+    t = np.arange(n) / rate_hz
+    sd = 5e-6
+    warm = 7e-5 * np.exp(-t / 160.0)
+    y = 1e-3 + warm + sd * rng.standard_normal(n)  # a start-up record: bias, warm-up, white noise
+    folds = sig.block_folds(n)
+    out = {}
+    t0 = time.perf_counter()
+    fit = lat.fit_lattice(y, sd, 1e-7, 1e-3)
+    score = lat.heldout_score(y, sd, folds, 1e-7, 1e-3)
+    out["quantization candidate"] = (time.perf_counter() - t0, (fit.step, fit.visibility, score))
+    x_nuis = np.ones((n, 1))
+    g = np.exp(-t / 150.0)
+    x_cand = [np.column_stack([g, t * g / 150.0]), np.column_stack([g, t * g / 152.0])]
+    r = y - y.mean()
+    t0 = time.perf_counter()
+    obs = float(sig.heldout_linear_scores(r, x_nuis, x_cand, folds)[0])
+    # observed → 1e9 so every replicate is drawn: the full-length null of a significant candidate
+    p = sig.bootstrap_p_value(r, x_nuis, x_cand, folds, 1e9, n_rep=reps, rng=np.random.default_rng(1))
+    out["bootstrap p-value"] = (time.perf_counter() - t0, (obs, p))
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=180100)
+    ap.add_argument("--reps", type=int, default=999)
+    a = ap.parse_args(argv)
+    ref = _reference()
+    new = workload(a.n, a.reps)
+    with old_code(ref):
+        old = workload(a.n, a.reps)
+    print(f"n = {a.n} samples, {a.reps} bootstrap replicates")
+    print(f"{'function':26s} {'old (s)':>9s} {'new (s)':>9s} {'ratio':>7s}  same result")
+    tot_old = tot_new = 0.0
+    for k in new:
+        (to, ro), (tn, rn) = old[k], new[k]
+        same = np.allclose(ro, rn, rtol=1e-9, atol=1e-12)
+        print(f"{k:26s} {to:9.2f} {tn:9.2f} {to / tn:7.1f}  {same}  {rn}")
+        tot_old, tot_new = tot_old + to, tot_new + tn
+    print(f"{'total':26s} {tot_old:9.2f} {tot_new:9.2f} {tot_old / tot_new:7.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
