@@ -1,0 +1,108 @@
+"""Standardized one-step innovations of a residual under the model's noise: white + its
+stochastic effects (Kalman filter). White, unit-variance samples when the model is right, so the
+white-noise localization tests apply to them whatever colour the model's noise has.
+
+State space (one state per stochastic effect, sample interval dt = 1/rate_hz):
+
+* ``gauss_markov`` {sigma, tau_s}: x_k = φ·x_{k−1} + σ·√(1−φ²)·w_k, φ = e^{−dt/τ}; starts
+  stationary (variance σ²), as :mod:`bench.discovery.effects_noise` simulates it;
+* ``rate_random_walk`` {k_per_rs}: x_k = x_{k−1} + K·√dt·w_k; its level at the first sample is
+  not known once the bias is calibrated, so it starts with the variance the walk reaches over
+  the record (K²·T) — the first innovations are then a little under unit variance, never over;
+* observation: r_k = Σ x_k + v_k, v white of sd ``white_sd``.
+
+Innovation e_k = r_k − E[r_k | r_<k], standardized by its variance S_k. The filter is linear
+in the residual: ``innovations(a·r1 + b·r2) = a·innovations(r1) + b·innovations(r2)``, so a
+logged input passed through it is what its effect looks like in the innovations.
+Units: residual and ``white_sd`` in the sensor unit, rate in Hz, the output dimensionless.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+#: stochastic effect ids this filter models
+SUPPORTED = ("gauss_markov", "rate_random_walk")
+
+
+@numba.njit(cache=True)
+def _filter(y, phi, q, p0, r_var):  # pragma: no cover - compiled
+    m = phi.size
+    n = y.size
+    x = np.zeros(m)
+    p = np.zeros((m, m))
+    for i in range(m):
+        p[i, i] = p0[i]
+    out = np.empty(n)
+    hp = np.zeros(m)
+    for k in range(n):
+        pred = 0.0
+        for i in range(m):
+            pred += x[i]
+        s = r_var
+        for i in range(m):
+            acc = 0.0
+            for j in range(m):
+                acc += p[i, j]
+            hp[i] = acc  # (H P)_i = (P Hᵀ)_i, P symmetric
+            s += acc
+        e = y[k] - pred
+        out[k] = e / math.sqrt(s)
+        for i in range(m):  # update with gain K = P Hᵀ / S
+            x[i] += hp[i] * e / s
+        for i in range(m):
+            for j in range(m):
+                p[i, j] -= hp[i] * hp[j] / s
+        for i in range(m):  # predict: diagonal F and Q
+            x[i] *= phi[i]
+            for j in range(m):
+                p[i, j] *= phi[i] * phi[j]
+            p[i, i] += q[i]
+    return out
+
+
+def _states(rate_hz: float, n: int, effects) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    dt = 1.0 / rate_hz
+    phi, q, p0 = [], [], []
+    for eid, p in effects:
+        if eid == "gauss_markov":
+            sigma, tau = float(p["sigma"]), float(p["tau_s"])
+            if not (math.isfinite(sigma) and sigma >= 0 and math.isfinite(tau) and tau > 0):
+                raise ValueError(f"gauss_markov sigma = {sigma!r}, tau_s = {tau!r}; allowed: sigma >= 0, tau_s > 0")
+            f = math.exp(-dt / tau)
+            phi.append(f)
+            q.append(sigma ** 2 * (1.0 - f * f))
+            p0.append(sigma ** 2)
+        elif eid == "rate_random_walk":
+            k = float(p["k_per_rs"])
+            if not (math.isfinite(k) and k >= 0):
+                raise ValueError(f"rate_random_walk k_per_rs = {k!r}; allowed: a finite number >= 0")
+            phi.append(1.0)
+            q.append(k * k * dt)
+            p0.append(k * k * dt * n)
+        else:
+            raise ValueError(f"stochastic effect {eid!r}; allowed: {SUPPORTED}")
+    return np.array(phi, float), np.array(q, float), np.array(p0, float)
+
+
+def innovations(residual, rate_hz: float, white_sd: float, stochastic_effects=()) -> np.ndarray:
+    """Standardized one-step innovations of ``residual`` (sensor unit, uniform samples at
+    ``rate_hz``) under white noise of sd ``white_sd`` plus ``stochastic_effects`` — (id, params)
+    pairs as in ``Model.effects``, ids in :data:`SUPPORTED`. Without stochastic effects this is
+    ``residual / white_sd``."""
+    r = np.asarray(residual, dtype=float)
+    if r.ndim != 1 or r.size == 0:
+        raise ValueError(f"residual has shape {r.shape}; allowed: a non-empty 1-D array")
+    if not np.all(np.isfinite(r)):
+        raise ValueError("residual has non-finite values; allowed: finite numbers")
+    if not (isinstance(rate_hz, (int, float, np.floating)) and math.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz = {rate_hz!r}; allowed: a finite number > 0")
+    if not (math.isfinite(white_sd) and white_sd > 0):
+        raise ValueError(f"white_sd = {white_sd!r}; allowed: a finite number > 0")
+    phi, q, p0 = _states(float(rate_hz), r.size, list(stochastic_effects))
+    if phi.size == 0:
+        return r / white_sd
+    return _filter(r, phi, q, p0, float(white_sd) ** 2)
