@@ -210,6 +210,12 @@ class Effect:
     def _noise(self, p: dict, rec: Record, rng: np.random.Generator) -> np.ndarray:
         raise NotImplementedError
 
+    def expected_transform(self, p: dict, rec: Record, y: np.ndarray, noise_sd: float) -> np.ndarray:
+        """Output-stage effects: the mean of ``_transform(y + n)`` over white Gaussian ``n`` of sd
+        ``noise_sd`` (``Model.predict``'s output, since readings are transformed *noisy* signals).
+        Default: ``_transform(y)``, exact for a transform linear in its input."""
+        return self._transform(p, rec, y)
+
     # ---- detectability ----------------------------------------------------------------
     def _competitor_direction(self, comp: "Effect", rec: Record, delta: np.ndarray, q: np.ndarray) -> np.ndarray:
         return competitor_direction(comp, rec, delta, q, guess_kind(rec))

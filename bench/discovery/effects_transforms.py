@@ -14,9 +14,54 @@ import math
 
 import numpy as np
 from scipy.signal import lfilter
+from scipy.special import ndtr
 
 from bench.discovery.data import Record
 from bench.discovery.effects_base import Effect, _p
+
+
+def expected_quantized(x: np.ndarray, step: float, noise_sd: float) -> np.ndarray:
+    """``E[step·round((x + n)/step)]`` for Gaussian ``n`` of sd ``noise_sd`` (same unit as x).
+
+    A reading is the quantized noisy signal, so its expectation is the quantizer smoothed by
+    the noise (dither), not the quantized noiseless signal. With ``u = x/step``,
+    ``τ = noise_sd/step``: for τ ≥ 1/2 the Fourier series of the sawtooth,
+    ``u + Σ_k (−1)^k e^{−2π²k²τ²} sin(2πku)/(πk)``, cut where the factor falls below 1e-17
+    (k ≤ 1.4/τ, so at most 3 terms); for τ < 1/2 the exact level sum
+    ``⌊u⌋ + Σ_{m≥1} P(U ≥ ⌊u⌋ + m − ½) − Σ_{m≥0} P(U < ⌊u⌋ − m − ½)`` over the ±9τ window
+    (U ~ N(u, τ²)), which is exact rounding at τ = 0."""
+    x = np.asarray(x, dtype=float)
+    if step <= 0:
+        return x.copy()
+    u, tau = x / step, float(noise_sd) / step
+    if tau <= 0:
+        return step * np.round(u)
+    if tau >= 0.5:
+        out = u.copy()
+        for k in range(1, int(math.ceil(math.sqrt(math.log(1e17) / (2 * math.pi ** 2)) / tau)) + 1):
+            out += (-1) ** k * math.exp(-2 * math.pi ** 2 * k * k * tau * tau) * np.sin(2 * math.pi * k * u) / (math.pi * k)
+        return step * out
+    a = np.floor(u)
+    out = a.copy()
+    for m in range(int(math.ceil(9 * tau)) + 2):
+        if m >= 1:
+            out += ndtr((u - (a + m - 0.5)) / tau)
+        out -= ndtr(((a - m - 0.5) - u) / tau)
+    return step * out
+
+
+def expected_clipped(x: np.ndarray, limit: float, noise_sd: float) -> np.ndarray:
+    """``E[clip(x + n, −limit, limit)]`` for Gaussian ``n`` of sd ``noise_sd``:
+    ``x − E[(X − L)⁺] + E[(−L − X)⁺]``, ``E[(X − L)⁺] = σφ(β) − (L − x)Φ(−β)``, β = (L − x)/σ."""
+    x = np.asarray(x, dtype=float)
+    if noise_sd <= 0 or math.isinf(limit):
+        return np.clip(x, -limit, limit)
+    sd = float(noise_sd)
+    b, a = (limit - x) / sd, (-limit - x) / sd
+    phi = lambda z: np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)  # noqa: E731
+    over = sd * phi(b) - (limit - x) * ndtr(-b)
+    under = sd * phi(a) + (-limit - x) * ndtr(a)
+    return x - over + under
 
 
 def _uniform_dt(rec: Record, who: str) -> float:
@@ -143,6 +188,10 @@ class Saturation(Effect):
     def _transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])
 
+    def expected_transform(self, p, rec, y, noise_sd):
+        """E[clip(y + n)]: within a few noise sd of the limit the mean reading is below it."""
+        return expected_clipped(y, p["limit"], noise_sd)
+
     def draw(self, rng, rec, *, kind=None, noise_sd=None):
         """limit log-uniform in [0.6, 0.95] × the largest |reference output| (inside the kind's
         range): a part of the excursions clips, never most of the signal — the snr of clipping
@@ -185,6 +234,10 @@ class Quantization(Effect):
     def _transform(self, p, rec, y):
         s = p["step"]
         return y.copy() if s == 0 else s * np.round(y / s)
+
+    def expected_transform(self, p, rec, y, noise_sd):
+        """The mean reading E[Q(y + n)] (dithered quantizer, ``expected_quantized``)."""
+        return expected_quantized(y, p["step"], noise_sd)
 
     def snr(self, p, rec, noise_sd):
         """Lattice visibility: |E exp(2πi·y/step)| = exp(−2π²σ²/step²) for Gaussian noise σ,
