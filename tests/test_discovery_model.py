@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from hypothesis import strategies as st
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE, KINDS, effects_for
 from bench.discovery.experiments import make_experiment
+from bench.discovery.effects_transforms import expected_quantized
 from bench.discovery.model import (BaseModel, Model, base_model, model_from_toml, model_to_toml, read_model,
                                    write_model)
 
@@ -98,7 +100,10 @@ def test_predict_composes_stages_input_then_additive_then_output():
          .with_effect("quantization", {"step": 1e-4}))
     lp = CATALOGUE["lowpass_bandwidth"].transform_input({"bandwidth_hz": 0.5}, rec, u)
     expect = 1e-3 + 2.0 * lp + 1e-5 * (rec.temp_c - 25.0)  # the bias is not low-passed; SF scales the filtered input
-    np.testing.assert_allclose(m.predict(rec), 1e-4 * np.round(expect / 1e-4))
+    # readings are Q(signal + noise): predict is their mean, the dithered quantizer
+    np.testing.assert_allclose(m.predict(rec), expected_quantized(expect, 1e-4, 1e-5), rtol=1e-12)
+    noiseless = Model(replace(m.base, noise_sd=0.0), m.effects)
+    np.testing.assert_allclose(noiseless.predict(rec), 1e-4 * np.round(expect / 1e-4))
 
 
 def test_simulate_is_deterministic_and_streams_are_independent():
@@ -125,6 +130,37 @@ def test_simulated_quantization_acts_on_the_noisy_output():
     assert len(np.unique(np.round(y / 0.004))) > 5  # the noise spreads over several steps
 
 
+@settings(max_examples=8, deadline=None)
+@given(step_sd=st.floats(1.0, 17.0), slope=st.floats(5e-9, 5e-8), seed=st.integers(0, 2 ** 16))
+def test_residual_of_a_quantized_record_has_no_staircase(step_sd, slope, seed):
+    # the audit's case (/tmp/audit7/quant_predict.py): a 200-sample moving mean of y - predict
+    # was 0.82 sd with predict = Q(signal), against ~0.1 sd for white residuals
+    sd, n = 5e-6, 4000
+    t = np.arange(n) * 0.5
+    rec = Record(t_s=t, y=np.zeros(n), t_on_s=t)
+    m = (Model(BaseModel("accelerometer", 1e-3, 1.0, sd)).with_effect("linear_drift", {"slope_per_s": slope})
+         .with_effect("quantization", {"step": step_sd * sd}))
+    r = m.simulate(rec, seed) - m.predict(rec)
+    white = float(np.std(r)) / math.sqrt(200)  # a white residual's moving-mean sd
+    lp = np.convolve(r, np.ones(200) / 200, mode="valid")
+    assert float(np.sqrt(np.mean(lp ** 2))) <= 1.5 * white
+
+
+def test_saturated_prediction_is_the_mean_reading_near_the_limit():
+    n = 20000
+    rec = _rec(n, input=np.full(n, 0.999))
+    m = Model(BaseModel("accelerometer", 0.0, 1.0, 0.01)).with_effect("saturation", {"limit": 1.0})
+    mean = float(np.mean(m.simulate(rec, 2)))
+    assert float(m.predict(rec)[0]) == pytest.approx(mean, abs=3 * 0.01 / math.sqrt(n))
+    assert float(m.predict(rec)[0]) < 0.999 - 0.002  # half the readings clip: the mean is pulled in
+
+
+def test_effects_listed_twice_are_refused_naming_the_id():
+    m = Model(base_model("gyro")).with_effect("linear_drift", {"slope_per_s": 1e-6})
+    with pytest.raises(ValueError, match=r"effects\[1\]: effect 'linear_drift' is listed twice \(also effects\[0\]\)"):
+        m.with_effect("linear_drift", {"slope_per_s": 2e-6})
+
+
 # ---- model file ------------------------------------------------------------------------------
 
 @st.composite
@@ -133,9 +169,10 @@ def models(draw):
     lo_b, hi_b = {"accelerometer": (-0.05, 0.05), "gyro": (-1.0, 1.0), "mhd": (-100.0, 100.0)}[kind]
     base = BaseModel(kind, draw(st.floats(lo_b, hi_b)), draw(st.floats(0.5, 2.0)), draw(st.floats(0.0, 0.1)))
     effects = []
-    for e in draw(st.lists(st.sampled_from(effects_for(kind)), max_size=5)):
+    for e in draw(st.lists(st.sampled_from(effects_for(kind)), max_size=5, unique_by=lambda e: e.id)):
         effects.append((e.id, {q.name: draw(st.floats(q.low, q.high)) for q in e.params_for(kind)}))
-    return Model(base, tuple(effects))
+    rate = draw(st.one_of(st.none(), st.floats(1e-3, 1e6)))
+    return Model(replace(base, rate_hz=rate), tuple(effects))
 
 
 @settings(max_examples=60)
@@ -157,12 +194,34 @@ def test_model_file_on_disk(tmp_path):
         read_model(tmp_path / "missing.toml")
 
 
+def test_model_file_records_the_rate_its_noise_sd_is_per_sample_at(tmp_path):
+    m = Model(base_model("gyro"))  # 3e-3 deg/s per sample
+    write_model(m, tmp_path / "g.toml", rate_hz=10.0)
+    assert "rate_hz = 10.0" in (tmp_path / "g.toml").read_text()
+    back = read_model(tmp_path / "g.toml")
+    assert back.base.rate_hz == 10.0 and back.base.noise_sd == 3e-3
+    # the same unit read at 40 Hz: the density is kept, the per-sample sd doubles
+    assert read_model(tmp_path / "g.toml", rate_hz=40.0).base.noise_sd == pytest.approx(6e-3, rel=1e-12)
+    # files written before the rate was recorded still read, with no rate
+    assert model_from_toml(_GOOD_BASE).base.rate_hz is None
+    assert model_from_toml(_GOOD_BASE).at_rate(40.0).base.noise_sd == 0.003
+    with pytest.raises(ValueError, match=r"base.rate_hz = -1.0 outside the allowed range"):
+        model_from_toml(_GOOD_BASE + "rate_hz = -1.0\n")
+
+
 _GOOD_BASE = '[base]\nkind = "gyro"\nbias = 0.0\nscale_factor = 1.0\nnoise_sd = 0.003\n'
 
 
 @pytest.mark.parametrize("text,message", [
     ("[base\nkind=1", "not valid TOML"),
-    ('[base]\nkind = "gyro"\n', r"\[base\] keys \['kind'\]; required exactly"),
+    ('[base]\nkind = "gyro"\n', r"\[base\] keys \['kind'\]; required: .*optional: \['rate_hz'\]"),
+    (_GOOD_BASE + "rate = 1.0\n", r"\[base\] keys .*'rate'"),
+    (_GOOD_BASE + ('[[effects]]\nid = "linear_drift"\n[effects.params]\nslope_per_s = 1e-9\n') * 2,
+     r"effects\[1\]: effect 'linear_drift' is listed twice"),
+    (_GOOD_BASE + '[[effects]]\nid = "warmup_exponential"\n[effects.params]\namplitude = 1e-5\n',
+     r"effect 'warmup_exponential': missing parameter\(s\) \['tau_s'\]"),
+    (_GOOD_BASE + '[[effects]]\nid = "linear_drift"\n[effects.params]\nslope_per_s = 1e-9\nk = 1.0\n',
+     r"effect 'linear_drift': unknown parameter\(s\) \['k'\]"),
     (_GOOD_BASE.replace("0.003", "-1.0"), r"base.noise_sd = -1.0 outside the allowed range \[0.0, 10.0\]"),
     (_GOOD_BASE + "[extra]\na = 1\n", r"unknown top-level key\(s\) \['extra'\]"),
     (_GOOD_BASE + '[[effects]]\nid = "warp_drive"\n[effects.params]\n', "unknown effect id 'warp_drive'"),

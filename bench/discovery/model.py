@@ -6,6 +6,15 @@ in the model's listed order: input-path transforms of ``input`` → base → add
 (stochastic ones and the white noise only in ``simulate``) → output transforms (saturation,
 quantization), so the ADC's quantization sees the noisy signal as a real one does.
 
+``predict`` is the expected reading: the output transforms act on signal + noise, so their mean
+over the white noise (sd ``noise_sd``) is predicted — the dithered quantizer
+``E[Q(x + n)]`` and the softened clip ``E[clip(x + n)]`` (``Effect.expected_transform``), never
+``Q(x)``, whose staircase the data do not have. Both present: each takes the mean of the stage
+before it with the full noise sd (exact except within a few sd of the saturation limit). Slow
+stochastic effects (Gauss–Markov, random walk) move the operating point rather than dither a
+reading, and are left out of the mean. Input-stage transforms (dead zone, delay, filters) act on
+the applied input, which carries no sensor noise, so their noiseless form is already the mean.
+
 Model file (TOML)::
 
     [base]
@@ -13,6 +22,7 @@ Model file (TOML)::
     bias = 1.0e-05               # sensor unit
     scale_factor = 1.0           # output unit per input unit
     noise_sd = 5e-06             # white noise sd per sample, sensor unit
+    rate_hz = 1.0                # sample rate noise_sd refers to (optional: files before it lack it)
 
     [[effects]]
     id = "warmup_exponential"
@@ -42,15 +52,23 @@ BASE_RANGES = {
     "mhd": {"bias": (-100.0, 100.0), "scale_factor": (0.5, 2.0), "noise_sd": (0.0, 10.0)},
 }
 
+#: Sample rates a model file may state (Hz).
+RATE_RANGE_HZ = (1e-6, 1e9)
+
 
 @dataclass(frozen=True)
 class BaseModel:
-    """Bias + scale factor + white noise (sensor unit; ``scale_factor`` output per input unit)."""
+    """Bias + scale factor + white noise (sensor unit; ``scale_factor`` output per input unit).
+
+    ``noise_sd`` is per sample; ``rate_hz`` is the sample rate it was measured at (None: not
+    recorded). The white-noise density ``noise_sd/√rate_hz`` (u/√Hz) is the physical constant:
+    ``Model.at_rate`` carries the model to another rate."""
 
     kind: str
     bias: float = 0.0
     scale_factor: float = 1.0
     noise_sd: float = 0.0
+    rate_hz: float | None = None
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -60,6 +78,12 @@ class BaseModel:
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (lo <= float(v) <= hi):
                 raise ValueError(f"base.{name} = {v!r} outside the allowed range [{lo}, {hi}] for a {self.kind}")
             object.__setattr__(self, name, float(v))
+        r = self.rate_hz
+        if r is not None:
+            if isinstance(r, bool) or not isinstance(r, (int, float, np.integer, np.floating)) \
+                    or not (RATE_RANGE_HZ[0] <= float(r) <= RATE_RANGE_HZ[1]):
+                raise ValueError(f"base.rate_hz = {r!r} outside the allowed range {list(RATE_RANGE_HZ)} Hz")
+            object.__setattr__(self, "rate_hz", float(r))
 
 
 def base_model(kind: str) -> BaseModel:
@@ -79,11 +103,16 @@ class Model:
 
     def __post_init__(self):
         checked = []
+        seen: dict[str, int] = {}
         for i, item in enumerate(self.effects):
             if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], dict)):
                 raise ValueError(f"effects[{i}] = {item!r}; allowed: (effect_id, {{param: value}})")
             eid, params = item
             e = effect(eid)
+            if eid in seen:  # one entry per effect: a second copy would double its term
+                raise ValueError(f"effects[{i}]: effect {eid!r} is listed twice (also effects[{seen[eid]}]); "
+                                 f"allowed: each effect once, with all its parameters")
+            seen[eid] = i
             if self.base.kind not in e.kinds:
                 raise ValueError(f"effects[{i}]: {eid!r} does not apply to a {self.base.kind}; "
                                  f"it applies to {list(e.kinds)}")
@@ -110,8 +139,21 @@ class Model:
         """This model with base fields replaced (e.g. ``bias=``, ``scale_factor=``)."""
         return Model(replace(self.base, **changes), self.effects)
 
+    def at_rate(self, rate_hz: float) -> "Model":
+        """This model for records sampled at ``rate_hz``: the white-noise sd per sample scaled by
+        ``√(rate_hz / base.rate_hz)`` (constant density); with no recorded rate, the rate is
+        recorded and noise_sd kept (it is taken to be per sample at ``rate_hz``)."""
+        b = self.base
+        new = replace(b, rate_hz=rate_hz)  # validates the rate
+        if b.rate_hz is None or b.rate_hz == new.rate_hz:
+            return Model(new, self.effects)
+        sd = b.noise_sd * math.sqrt(new.rate_hz / b.rate_hz)
+        return Model(replace(new, noise_sd=sd), self.effects)
+
     def predict(self, rec: Record) -> np.ndarray:
-        """Deterministic output on rec's stimulus (stochastic effects and white noise skipped)."""
+        """Expected output on rec's stimulus: the deterministic signal, and through the output
+        transforms (saturation, quantization) their mean over the white noise — readings are
+        Q(signal + noise), whose mean is the dithered quantizer, not Q(signal)."""
         return self._run(rec, None)
 
     def simulate(self, rec: Record, rng) -> np.ndarray:
@@ -146,7 +188,8 @@ class Model:
             y = y + b.noise_sd * _stream(root, "white").standard_normal(rec.n)
         for _, _, e, p in staged:
             if e.stage == "output":
-                y = e._transform(p, rec, y)
+                # a reading is the transformed noisy signal: predict its mean, simulate it
+                y = e._transform(p, rec, y) if root is not None else e.expected_transform(p, rec, y, b.noise_sd)
         return y
 
 
@@ -159,7 +202,10 @@ def _stream(root: int, name: str) -> np.random.Generator:
 def model_to_dict(model: Model) -> dict:
     """Plain dict (the TOML document's structure)."""
     b = model.base
-    return {"base": {"kind": b.kind, "bias": b.bias, "scale_factor": b.scale_factor, "noise_sd": b.noise_sd},
+    base = {"kind": b.kind, "bias": b.bias, "scale_factor": b.scale_factor, "noise_sd": b.noise_sd}
+    if b.rate_hz is not None:
+        base["rate_hz"] = b.rate_hz
+    return {"base": base,
             "effects": [{"id": eid, "params": dict(p)} for eid, p in model.effects]}
 
 
@@ -174,8 +220,8 @@ def model_from_dict(doc: dict) -> Model:
     if not isinstance(base, dict):
         raise ValueError("missing [base] table; required keys: ['kind', 'bias', 'scale_factor', 'noise_sd']")
     keys = {"kind", "bias", "scale_factor", "noise_sd"}
-    if set(base) != keys:
-        raise ValueError(f"[base] keys {sorted(base)}; required exactly: {sorted(keys)}")
+    if not keys <= set(base) <= keys | {"rate_hz"}:
+        raise ValueError(f"[base] keys {sorted(base)}; required: {sorted(keys)}, optional: ['rate_hz']")
     bm = BaseModel(**base)
     effects = doc.get("effects", [])
     if not isinstance(effects, list):
@@ -223,15 +269,21 @@ def model_from_toml(text: str) -> Model:
     return model_from_dict(doc)
 
 
-def write_model(model: Model, path) -> None:
-    """Write the TOML model file."""
+def write_model(model: Model, path, *, rate_hz: float | None = None) -> None:
+    """Write the TOML model file; ``rate_hz`` (the record's sample rate) is recorded with the
+    per-sample noise sd (``Model.at_rate``), so the file means the same at any rate."""
+    if rate_hz is not None:
+        model = model.at_rate(rate_hz)
     Path(path).write_text(model_to_toml(model), encoding="utf-8")
 
 
-def read_model(path) -> Model:
-    """Read and validate a TOML model file (ValueError naming the bad key, value or range)."""
+def read_model(path, *, rate_hz: float | None = None) -> Model:
+    """Read and validate a TOML model file (ValueError naming the bad key, value or range);
+    with ``rate_hz``, carried to that sample rate (``Model.at_rate``: noise_sd rescaled when the
+    file records its rate)."""
     try:
         text = Path(path).read_text(encoding="utf-8")
     except OSError as exc:
         raise ValueError(f"cannot read model file {str(path)!r}: {exc.strerror}") from None
-    return model_from_toml(text)
+    model = model_from_toml(text)
+    return model if rate_hz is None else model.at_rate(rate_hz)
