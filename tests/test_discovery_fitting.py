@@ -64,6 +64,7 @@ def test_stationary_hac_equals_the_dense_toeplitz_sandwich():
     ez = e - e.mean()
     gam = np.array([ez[l:] @ ez[: n - l] / n for l in range(n)])
     w = np.clip(1 - np.arange(n) / (lag + 1.0), 0, None)
+    gam = gam + (gam[0] + 2 * np.sum(w[1:] * gam[1:])) / (n - lag - 1)  # demeaning's bias undone
     sigma = toeplitz(gam * w)
     b = np.linalg.inv(j.T @ j)
     dense = b @ j.T @ sigma @ j @ b * n / (n - 3)

@@ -104,7 +104,8 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, max_lag: int, rows: np
     ``stationary=False``: Newey–West, ``S = Σ_{|l|≤L} w_l Σ_t z_t z_{t−l}ᵀ``, ``z_t = J_t e_t``
     (statsmodels' ``cov_type="HAC"`` with ``use_correction=True``). ``stationary=True``: the
     errors' autocovariance is taken as stationary, ``S = Σ_{|l|≤L} w_l γ̂(l) Σ_t J_t J_{t−l}ᵀ`` with
-    ``γ̂(l) = Σ_t e_t e_{t−l} / n`` — the sandwich ``(JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹`` with the tapered
+    ``γ̂(l) = Σ_t e_t e_{t−l} / n + Ŝ/(n − L − 1)`` (the second term undoes the demeaning's
+    downward bias, Ŝ the tapered sum of the first) — the sandwich ``(JᵀJ)⁻¹ JᵀΣJ (JᵀJ)⁻¹`` with the tapered
     Toeplitz estimate of Σ. A transient regressor (a warm-up, a step) has large scores on a few
     hundred samples only, where the score products are too few to estimate their correlation;
     γ̂ uses every sample, and the least-squares orthogonality ``Σ J_t e_t = 0`` (which drags the
@@ -121,7 +122,11 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, max_lag: int, rows: np
     w = 1.0 - np.arange(lag + 1) / (lag + 1.0)
     if stationary:
         ez = np.where(rows, e - e[rows].mean(), 0.0)
-        w = w * _lagged_products(ez[:, None], lag)[:, 0, 0] / max(n, 1)
+        g = _lagged_products(ez[:, None], lag)[:, 0, 0] / max(n, 1)
+        if n > lag + 1:  # a demeaned series' γ̂(l) is low by S/n at every lag (S the long-run
+            # variance): summed over the window that is (L+1)·S/n, so add S/(n − L − 1) back
+            g = g + (w[0] * g[0] + 2 * float(np.dot(w[1:], g[1:]))) / (n - lag - 1)
+        w = w * g
         gam = _lagged_products(np.where(rows[:, None], jac, 0.0), lag)
     else:
         gam = _lagged_products(np.where(rows[:, None], jac * e[:, None], 0.0), lag)
