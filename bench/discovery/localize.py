@@ -23,14 +23,16 @@ empty with probability about ``1 - alpha`` per test:
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import signal, special, stats
 
-from bench.analysis.allan import overlapping_adev
+from bench.analysis.allan import averaging_factors
+from bench.analysis.allan_stats import edf_greenhall
 from bench.discovery.data import Record
-from bench.discovery.significance import welch_dof, welch_nperseg
+from bench.discovery.significance import welch_dof, welch_nperseg, white_floor
 
 INPUT_COLUMNS = ("input", "cross_input", "temp", "t_on", "vib", "accel")
 
@@ -80,6 +82,18 @@ class TauRange:
 
 
 @dataclass(frozen=True)
+class Jump:
+    """One sample far beyond the floor (a step or a spike at that instant)."""
+
+    t_s: float
+    value: float
+    z: float
+
+    def describe(self) -> str:
+        return f"jump at t = {self.t_s:.6g} s: {self.value:.3g} ({self.z:+.1f} σ)"
+
+
+@dataclass(frozen=True)
 class InputCorrelation:
     """Correlation of the residual with a transform of a logged column."""
 
@@ -110,11 +124,12 @@ class Localization:
     adev: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     adev_white: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     alpha: float = 0.01
+    jumps: tuple[Jump, ...] = ()
 
     @property
     def any_structure(self) -> bool:
         """True when any test flags departure from the floor."""
-        return bool(self.segments or self.bands or self.taus or self.correlations
+        return bool(self.segments or self.bands or self.taus or self.correlations or self.jumps
                     or self.cusum_p < self.alpha)
 
     def descriptions(self) -> list[str]:
@@ -126,6 +141,7 @@ class Localization:
                        f"{min(s.start_s for s in segs):.6g} s to {max(s.end_s for s in segs):.6g} s)")
         if self.cusum_p < self.alpha:
             out.append(f"cumulative sum departs from a zero-mean record (CUSUM p = {self.cusum_p:.2g})")
+        out += [j.describe() for j in self.jumps]
         out += [b.describe() for b in self.bands]
         out += [t.describe() for t in self.taus]
         out += [c.describe() for c in self.correlations]
@@ -135,6 +151,7 @@ class Localization:
         return {"segments": [s.__dict__ for s in self.segments], "cusum_p": self.cusum_p,
                 "bands": [b.__dict__ for b in self.bands], "taus": [t.__dict__ for t in self.taus],
                 "correlations": [c.__dict__ for c in self.correlations],
+                "jumps": [j.__dict__ for j in self.jumps],
                 "descriptions": self.descriptions()}
 
 
@@ -149,82 +166,114 @@ def _check(residual, rec: Record, noise_sd: float) -> np.ndarray:
     return r
 
 
+def _ratio_sf(ratio, dof, floor_dof: float):
+    """P(X ≥ ratio) for X = (χ²_dof/dof)/(χ²_ν/ν), ν = ``floor_dof``: a mean square over an
+    estimated floor (F distribution); a known floor (ν = ∞) gives the χ² tail."""
+    ratio = np.asarray(ratio, float)
+    if np.isinf(floor_dof):
+        return stats.chi2.sf(ratio * dof, dof)
+    return stats.f.sf(ratio, dof, floor_dof)
+
+
+def _z_sf2(z, floor_dof: float):
+    """Two-sided tail of a mean over an estimated sd: Student t with ν = ``floor_dof``."""
+    z = np.abs(np.asarray(z, float))
+    return 2 * (stats.norm.sf(z) if np.isinf(floor_dof) else stats.t.sf(z, floor_dof))
+
+
+def _floor_average(sf, x: float, floor_dof: float, n_q: int = 64) -> float:
+    """E_w[sf(x·w)], w = σ̂/σ ~ √(χ²_ν/ν): a tail computed for a known sd, averaged over the
+    estimated floor's spread (mid-quantile rule)."""
+    if np.isinf(floor_dof):
+        return float(sf(x))
+    w = np.sqrt(stats.chi2.ppf((np.arange(n_q) + 0.5) / n_q, floor_dof) / floor_dof)
+    return float(np.mean(sf(x * w)))
+
+
 def time_segments(r: np.ndarray, t_s: np.ndarray, noise_sd: float, n_segments: int = 16,
-                  alpha: float = 0.01) -> tuple[tuple[Segment, ...], float]:
-    """Flagged segments and the CUSUM p-value (Kolmogorov limit of max|S_k|/(σ√n))."""
+                  alpha: float = 0.01, *, floor_dof: float = np.inf) -> tuple[tuple[Segment, ...], float]:
+    """Flagged segments and the CUSUM p-value (Kolmogorov limit of max|S_k|/(σ√n)).
+    ``floor_dof``: dof of ``noise_sd``² when it was estimated (∞: known)."""
     n = r.size
     n_segments = max(1, min(n_segments, n // 8))
     edges = np.linspace(0, n, n_segments + 1).astype(int)
     a = alpha / (2 * n_segments)  # Bonferroni over segments and the two tests
-    z_crit = stats.norm.isf(a / 2)
-    out = []
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        seg = r[lo:hi]
-        m = seg.size
-        z = seg.mean() / (noise_sd / np.sqrt(m))
-        ms = float(np.mean(seg ** 2))
-        chi_p = stats.chi2.sf(m * ms / noise_sd ** 2, m)
-        if abs(z) > z_crit or chi_p < a:
-            out.append(Segment(float(t_s[lo]), float(t_s[hi - 1]), float(seg.mean()),
-                               float(np.sqrt(ms) / noise_sd), float(z)))
+    m = np.diff(edges)
+    mean = np.add.reduceat(r, edges[:-1]) / m
+    ms = np.add.reduceat(r * r, edges[:-1]) / m
+    z = mean / (noise_sd / np.sqrt(m))
+    # only excess variance is structure: a quiet segment is not something the model misses
+    bad = (_z_sf2(z, floor_dof) < a) | (_ratio_sf(ms / noise_sd ** 2, m, floor_dof) < a)
+    out = tuple(Segment(float(t_s[edges[i]]), float(t_s[edges[i + 1] - 1]), float(mean[i]),
+                        float(np.sqrt(ms[i]) / noise_sd), float(z[i])) for i in np.flatnonzero(bad))
     # a bridge: the residual's own mean is removed, max |B| has the Kolmogorov law
     s = np.cumsum(r - r.mean()) / (noise_sd * np.sqrt(n))
-    cusum_p = float(special.kolmogorov(np.max(np.abs(s))))
-    return tuple(out), cusum_p
+    cusum_p = _floor_average(special.kolmogorov, float(np.max(np.abs(s))), floor_dof)
+    return out, cusum_p
 
 
 def spectral_bands(r: np.ndarray, rate_hz: float, noise_sd: float, alpha: float = 0.01,
-                   nperseg: int | None = None):
-    """Welch PSD, the white floor and the flagged lines and bands."""
+                   nperseg: int | None = None, *, floor_dof: float = np.inf):
+    """Welch PSD, the white floor and the flagged lines and bands (excess power only)."""
     n = r.size
     nperseg = int(nperseg or welch_nperseg(n))
     f, p = signal.welch(r, fs=rate_hz, window="hann", nperseg=nperseg, detrend=False)
     floor = 2.0 * noise_sd ** 2 / rate_hz
     nu = welch_dof(n, nperseg)
-    crit = stats.chi2.isf(alpha / max(f.size, 1), nu) / nu
-    flag = p / floor > crit
+    flag = _ratio_sf(p / floor, nu, floor_dof) < alpha / max(f.size, 1)
     flag[0] = False  # DC: the calibrated bias
     bands = []
-    i = 0
-    while i < f.size:
-        if not flag[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < f.size and flag[j + 1]:
-            j += 1
+    for i, j in _runs(flag):
         pk = i + int(np.argmax(p[i:j + 1]))
         bands.append(Band("line" if j - i <= 1 else "band", float(f[i]), float(f[j]),
                           float(f[pk]), float(p[pk] / floor)))
-        i = j + 1
     return tuple(bands), f, p, floor
 
 
-def allan_taus(r: np.ndarray, rate_hz: float, noise_sd: float, alpha: float = 0.01):
-    """τ ranges where the white expectation lies outside the ADEV's (1 − alpha) interval."""
+def _runs(flag: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of each run of True."""
+    d = np.diff(np.r_[0, flag.astype(np.int8), 0])
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1))
+
+
+def allan_taus(r: np.ndarray, rate_hz: float, noise_sd: float, alpha: float = 0.01, *,
+               floor_dof: float = np.inf):
+    """τ ranges where the ADEV exceeds the white expectation σ/√(τ·fs): one-sided test of
+    AVAR/white against χ²(edf)/edf (Greenhall's EDF for white rate noise, the null), or the F
+    law when σ was estimated; Bonferroni over the octave τ list. A deficit is not flagged."""
     if r.size < 16:
         return (), np.zeros(0), np.zeros(0), np.zeros(0)
     n_tau = max(1, int(np.log2(r.size // 2)) + 1)  # octave τ list length: Bonferroni over it
-    res = overlapping_adev(r, rate_hz, "octave", unit=None, confidence=1.0 - alpha / n_tau)
-    tau, adev = res.tau_s, res.adev
+    ms = averaging_factors(r.size, rate_hz, "octave")
+    # overlapping AVAR from the phase (cumulative sum), as bench.analysis.allan computes it
+    x = np.concatenate([[0.0], np.cumsum(r - r.mean())])
+    avar = np.array([np.mean((x[2 * m:] - 2 * x[m:-m] + x[:-2 * m]) ** 2) for m in ms]) / (2.0 * ms ** 2)
+    tau, adev = ms / rate_hz, np.sqrt(avar)
     white = noise_sd / np.sqrt(tau * rate_hz)
-    lo, hi = res.adev_ci[:, 0], res.adev_ci[:, 1]
-    bad = (lo > white) | (hi < white)
-    bad &= np.isfinite(lo) & np.isfinite(hi)
+    edf = _white_edf(r.size, tuple(int(m) for m in ms))
+    bad = _ratio_sf((adev / white) ** 2, edf, floor_dof) < alpha / n_tau
     out = []
-    i = 0
-    while i < tau.size:
-        if not bad[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < tau.size and bad[j + 1]:
-            j += 1
+    for i, j in _runs(bad):
         ratio = adev[i:j + 1] / white[i:j + 1]
-        worst = ratio[int(np.argmax(np.abs(np.log(ratio))))]
-        out.append(TauRange(float(tau[i]), float(tau[j]), float(worst)))
-        i = j + 1
+        out.append(TauRange(float(tau[i]), float(tau[j]), float(np.max(ratio))))
     return tuple(out), tau, adev, white
+
+
+@functools.lru_cache(maxsize=64)
+def _white_edf(n: int, ms: tuple[int, ...]) -> np.ndarray:
+    """Greenhall's EDF of the overlapping AVAR of n white rate samples at each factor m."""
+    return edf_greenhall(0, np.array(ms), n + 1)
+
+
+def jumps(r: np.ndarray, t_s: np.ndarray, noise_sd: float, alpha: float = 0.01, *,
+          floor_dof: float = np.inf, max_report: int = 4) -> tuple[Jump, ...]:
+    """Single samples beyond the Gaussian extreme of n white samples (Bonferroni over n): in
+    Kalman innovations a step of the output shows as one such sample."""
+    z = r / noise_sd
+    p = _z_sf2(z, floor_dof) * r.size
+    idx = np.flatnonzero(p < alpha)
+    idx = idx[np.argsort(-np.abs(z[idx]))][:max_report]
+    return tuple(Jump(float(t_s[i]), float(r[i]), float(z[i])) for i in sorted(idx))
 
 
 def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
@@ -235,8 +284,11 @@ def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
     return c / c[0] if c[0] > 0 else np.zeros(max_lag + 1)
 
 
-def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01) -> tuple[InputCorrelation, ...]:
-    """Significant correlations of the residual with x, x², x³ (and dx/dt of ``input``)."""
+def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01, *,
+                       transform=None) -> tuple[InputCorrelation, ...]:
+    """Significant correlations of the residual with x, x², x³ (and dx/dt of ``input``).
+    ``transform``: applied to each of those columns first (the whitening filter, when ``r`` are
+    innovations: an effect β·v of the output shows in them as β·transform(v))."""
     n = r.size
     max_lag = min(n - 1, max(10, n // 20))
     acf_r = _acf(r, max_lag)
@@ -254,7 +306,7 @@ def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01) -> tuple
         for tname, v in trans.items():
             if np.ptp(v) == 0:
                 continue
-            cands.append((name, tname, v))
+            cands.append((name, tname, v if transform is None else transform(v)))
     out = []
     a = alpha / max(len(cands), 1)
     z_crit = stats.norm.isf(a / 2)
@@ -276,15 +328,68 @@ def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01) -> tuple
 
 
 def localize(rec: Record, residual, noise_sd: float, *, alpha: float = 0.01,
-             n_segments: int = 16) -> Localization:
+             n_segments: int = 16, floor_dof: float = np.inf, transform=None,
+             find_jumps: bool = False) -> Localization:
     """Localize the departure of ``residual`` (= y − model prediction) from white noise of sd
-    ``noise_sd``: time segments, spectral lines/bands, Allan τ ranges, input correlations."""
+    ``noise_sd``: time segments, spectral lines/bands, Allan τ ranges, input correlations (and,
+    with ``find_jumps``, single outlying samples). Each of these families is tested at
+    ``alpha``. ``floor_dof``: dof of ``noise_sd``² when it was estimated from the same data
+    (∞: known); ``transform``: see :func:`input_correlations`."""
     r = _check(residual, rec, float(noise_sd))
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
+    if not floor_dof > 0:
+        raise ValueError(f"floor_dof = {floor_dof!r}; allowed: > 0 (inf: a known floor)")
     rate = rec.rate_hz
-    segs, cusum_p = time_segments(r, rec.t_s, noise_sd, n_segments, alpha)
-    bands, f, p, floor = spectral_bands(r, rate, noise_sd, alpha)
-    taus, tau, adev, white = allan_taus(r, rate, noise_sd, alpha)
-    corr = input_correlations(r, rec, alpha)
-    return Localization(segs, cusum_p, bands, taus, corr, f, p, floor, tau, adev, white, alpha)
+    segs, cusum_p = time_segments(r, rec.t_s, noise_sd, n_segments, alpha, floor_dof=floor_dof)
+    bands, f, p, floor = spectral_bands(r, rate, noise_sd, alpha, floor_dof=floor_dof)
+    taus, tau, adev, white = allan_taus(r, rate, noise_sd, alpha, floor_dof=floor_dof)
+    corr = input_correlations(r, rec, alpha, transform=transform)
+    jmp = jumps(r, rec.t_s, noise_sd, alpha, floor_dof=floor_dof) if find_jumps else ()
+    return Localization(segs, cusum_p, bands, taus, corr, f, p, floor, tau, adev, white, alpha, jmp)
+
+
+#: test families of :func:`unexplained_structure` (segments, CUSUM, spectrum, Allan, inputs,
+#: jumps): each is tested at alpha / N_FAMILIES, so all together at most alpha (Bonferroni)
+N_FAMILIES = 6
+
+
+def unexplained_structure(rec: Record, residual, model, *, alpha: float = 0.05) -> tuple[str, ...]:
+    """Where ``residual`` (= rec.y − model.predict(rec), sensor unit) departs from the model's
+    noise: descriptions of time segments, jumps, spectral lines/bands, Allan τ ranges and input
+    correlations; empty when there is none.
+
+    Without stochastic effects in ``model`` the residual itself is tested against white noise;
+    with them (gauss_markov, rate_random_walk) its standardized Kalman innovations
+    (:func:`bench.discovery.whiten.innovations`), which are white when the model is right —
+    logged inputs go through the same filter before correlating. The white level is estimated
+    from the tested series itself (:func:`significance.white_floor`, dof ≈ 0.35·n), and every
+    test allows for that (F / Student / averaged tails instead of χ² / normal); only excess
+    structure counts; the six test families share ``alpha`` (Bonferroni), so on a series that
+    is white all of it is reported with probability ≤ ``alpha``."""
+    from bench.discovery.effects import CATALOGUE  # noqa: PLC0415 (effects import the models)
+    from bench.discovery.whiten import innovations  # noqa: PLC0415
+
+    r = np.asarray(residual, dtype=float)
+    _check(r, rec, 1.0)
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
+    if rec.n < 32:
+        return ()
+    r = r - r.mean()
+    sto = [(eid, p) for eid, p in model.effects if CATALOGUE[eid].stochastic]
+    rate, white = rec.rate_hz, float(model.base.noise_sd)
+    if sto:
+        x = innovations(r, rate, white, sto)
+
+        def transform(v):
+            return innovations(v - v.mean(), rate, white, sto)
+        prefix = "in the Kalman innovations under the model's noise: "
+    else:
+        x, transform, prefix = r, None, ""
+    sd, dof = white_floor(x, rate)
+    if not (np.isfinite(sd) and sd > 0):
+        return ()
+    loc = localize(rec, x, sd, alpha=alpha / N_FAMILIES, floor_dof=dof, transform=transform,
+                   find_jumps=True)
+    return tuple(prefix + d for d in loc.descriptions())
