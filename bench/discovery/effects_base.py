@@ -216,6 +216,16 @@ class Effect:
         Default: ``_transform(y)``, exact for a transform linear in its input."""
         return self._transform(p, rec, y)
 
+    def pre_transform_sd(self, p: dict, floor_sd: float) -> float:
+        """Output-stage effects: the white sd before this transform, given the residual floor
+        ``floor_sd`` measured by a model without it (default: the same)."""
+        return floor_sd
+
+    def residual_var(self, p: dict, noise_sd: float) -> float:
+        """Output-stage effects: variance of a reading about the model's mean when the white sd
+        before the transform is ``noise_sd`` (default: noise_sd²)."""
+        return noise_sd ** 2
+
     # ---- detectability ----------------------------------------------------------------
     def _competitor_direction(self, comp: "Effect", rec: Record, delta: np.ndarray, q: np.ndarray) -> np.ndarray:
         return competitor_direction(comp, rec, delta, q, guess_kind(rec))

@@ -25,43 +25,35 @@ def expected_quantized(x: np.ndarray, step: float, noise_sd: float) -> np.ndarra
 
     A reading is the quantized noisy signal, so its expectation is the quantizer smoothed by
     the noise (dither), not the quantized noiseless signal. With ``u = x/step``,
-    ``τ = noise_sd/step``: for τ ≥ 1/2 the Fourier series of the sawtooth,
+    ``τ = noise_sd/step``: for τ ≥ 0.2 the Fourier series of the sawtooth,
     ``u + Σ_k (−1)^k e^{−2π²k²τ²} sin(2πku)/(πk)``, cut where the factor falls below 1e-17
-    (k ≤ 1.4/τ, so at most 3 terms); for τ < 1/2 the exact level sum
-    ``⌊u⌋ + Σ_{m≥1} P(U ≥ ⌊u⌋ + m − ½) − Σ_{m≥0} P(U < ⌊u⌋ − m − ½)`` over the ±9τ window
-    (U ~ N(u, τ²)), which is exact rounding at τ = 0."""
+    (k ≤ 1.41/τ: at most 8 terms, harmonics by the Chebyshev recurrence); for τ < 0.2 the exact
+    level sum ``⌊u⌋ + Σ_{m≥1} P(U ≥ ⌊u⌋ + m − ½) − Σ_{m≥0} P(U < ⌊u⌋ − m − ½)``
+    (U ~ N(u, τ²)) over the thresholds within 9τ, which is exact rounding at τ = 0."""
     x = np.asarray(x, dtype=float)
     if step <= 0:
         return x.copy()
     u, tau = x / step, float(noise_sd) / step
-    if tau <= 0:
+    if tau == 0:
         return step * np.round(u)
-    if tau >= 0.5:
+    if tau >= 0.2:
+        theta = 2 * math.pi * u
+        c2 = 2 * np.cos(theta)
+        s_prev, s_k = np.zeros_like(u), np.sin(theta)
         out = u.copy()
         for k in range(1, int(math.ceil(math.sqrt(math.log(1e17) / (2 * math.pi ** 2)) / tau)) + 1):
-            out += (-1) ** k * math.exp(-2 * math.pi ** 2 * k * k * tau * tau) * np.sin(2 * math.pi * k * u) / (math.pi * k)
+            out += (-1) ** k * math.exp(-2 * math.pi ** 2 * k * k * tau * tau) / (math.pi * k) * s_k
+            s_prev, s_k = s_k, c2 * s_k - s_prev  # sin((k+1)θ) = 2cosθ·sin(kθ) − sin((k−1)θ)
         return step * out
     a = np.floor(u)
-    out = a.copy()
-    for m in range(int(math.ceil(9 * tau)) + 2):
-        if m >= 1:
-            out += ndtr((u - (a + m - 0.5)) / tau)
-        out -= ndtr(((a - m - 0.5) - u) / tau)
+    f = u - a  # in [0, 1): thresholds at a + m − ½ above (m ≥ 1) and a − m − ½ below (m ≥ 0)
+    out = a
+    with np.errstate(over="ignore", divide="ignore"):  # tiny τ: ±inf arguments, ndtr 0 or 1
+        for m in range(1, int(math.ceil(1.5 + 9 * tau)) + 1):
+            out = out + ndtr((f - m + 0.5) / tau)
+        for m in range(0, int(math.ceil(9 * tau - 0.5)) + 1):
+            out = out - ndtr(-(f + m + 0.5) / tau)
     return step * out
-
-
-def expected_clipped(x: np.ndarray, limit: float, noise_sd: float) -> np.ndarray:
-    """``E[clip(x + n, −limit, limit)]`` for Gaussian ``n`` of sd ``noise_sd``:
-    ``x − E[(X − L)⁺] + E[(−L − X)⁺]``, ``E[(X − L)⁺] = σφ(β) − (L − x)Φ(−β)``, β = (L − x)/σ."""
-    x = np.asarray(x, dtype=float)
-    if noise_sd <= 0 or math.isinf(limit):
-        return np.clip(x, -limit, limit)
-    sd = float(noise_sd)
-    b, a = (limit - x) / sd, (-limit - x) / sd
-    phi = lambda z: np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)  # noqa: E731
-    over = sd * phi(b) - (limit - x) * ndtr(-b)
-    under = sd * phi(a) + (-limit - x) * ndtr(a)
-    return x - over + under
 
 
 def _uniform_dt(rec: Record, who: str) -> float:
@@ -188,10 +180,6 @@ class Saturation(Effect):
     def _transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])
 
-    def expected_transform(self, p, rec, y, noise_sd):
-        """E[clip(y + n)]: within a few noise sd of the limit the mean reading is below it."""
-        return expected_clipped(y, p["limit"], noise_sd)
-
     def draw(self, rng, rec, *, kind=None, noise_sd=None):
         """limit log-uniform in [0.6, 0.95] × the largest |reference output| (inside the kind's
         range): a part of the excursions clips, never most of the signal — the snr of clipping
@@ -238,6 +226,27 @@ class Quantization(Effect):
     def expected_transform(self, p, rec, y, noise_sd):
         """The mean reading E[Q(y + n)] (dithered quantizer, ``expected_quantized``)."""
         return expected_quantized(y, p["step"], noise_sd)
+
+    def pre_transform_sd(self, p, floor_sd):
+        """Noise sd before the quantizer when the residual of the model WITHOUT it has white sd
+        ``floor_sd``: that residual is noise + rounding error, independent and uniform over a
+        step for a signal of uniform phase, so ``floor² = σ² + step²/12``."""
+        return math.sqrt(max(floor_sd ** 2 - p["step"] ** 2 / 12.0, 0.0))
+
+    def residual_var(self, p, noise_sd):
+        """Variance of a reading about its mean, ``Var[Q(x + n) | x]`` averaged over the phase of
+        x: ``σ² + step²/12 − Σ_k step²·e^{−4π²k²σ²/step²}/(2π²k²)`` (0 at σ = 0, σ² + step²/12
+        once σ ≳ step/2); for σ < 1e-4·step the limit ``σ² + step·σ/√π`` (a Bernoulli flip within
+        a few σ of each threshold)."""
+        s, sd = p["step"], float(noise_sd)
+        if s <= 0:
+            return sd ** 2
+        tau = sd / s
+        if tau < 1e-4:
+            return sd * sd + s * sd / math.sqrt(math.pi)
+        k = np.arange(1, int(math.ceil(4.0 / tau)) + 2, dtype=float)
+        return float(sd * sd + s * s / 12.0
+                     - s * s * np.sum(np.exp(-4 * math.pi ** 2 * k * k * tau * tau) / (k * k)) / (2 * math.pi ** 2))
 
     def snr(self, p, rec, noise_sd):
         """Lattice visibility: |E exp(2πi·y/step)| = exp(−2π²σ²/step²) for Gaussian noise σ,

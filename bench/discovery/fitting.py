@@ -155,8 +155,13 @@ class Fit:
 class CandidateFitter:
     """Fits effect ``effect_id`` (appended to ``model``) to ``rec`` on row masks."""
 
-    def __init__(self, model, rec: Record, effect, effect_id: str):
+    def __init__(self, model, rec: Record, effect, effect_id: str, *, noise_is_floor: bool = True):
+        """``noise_is_floor``: ``model.base.noise_sd`` is the residual floor measured without the
+        effect (the naming step), so an output transform's own noise share is taken out of it
+        (``Effect.pre_transform_sd``: the rounding error for quantization) before its dithered
+        prediction; False when it is already the noise sd before the transform."""
         self.model, self.rec, self.effect, self.id = model, rec, effect, effect_id
+        self.noise_is_floor = noise_is_floor
         self.kind = model.base.kind
         self.qs = effect.params_for(self.kind)
         self.with_sf = rec.logged("input")
@@ -206,6 +211,8 @@ class CandidateFitter:
     def model_at(self, x: np.ndarray):
         p, bias, sf = self.unpack(x)
         base = replace(self.model.base, bias=bias, scale_factor=sf)
+        if self.noise_is_floor and self.effect.stage == "output":
+            base = replace(base, noise_sd=self.effect.pre_transform_sd(p, base.noise_sd))
         return replace(self.model, base=base).with_effect(self.id, p)
 
     def predict(self, x: np.ndarray) -> np.ndarray:
