@@ -6,11 +6,12 @@ simulated with a base model (bias, scale factor, the kind's white noise) plus th
 parameters drawn by ``Effect.draw`` (physical range, detectable on that record); the workflow
 starts from the bare base model. Reported:
 
-* named first: the first effect named is the hidden one (target ≥ 90 %);
+* named first: the first effect named is the hidden one (target ≥ 90 %); "named first and
+  nothing else": it is the only effect named; spurious extras: effects named beyond the hidden one;
 * recovered: its main parameter within 2 stated standard errors of the truth (≈ 95 % if the
   stated uncertainty is right);
 * gap ≤ 1.1: final residual rms within 10 % of the model's noise rms (target: all);
-* pairs: two effects hidden at once, both named (target ≥ 80 %);
+* pairs: two effects hidden at once, both named AND nothing else named (target ≥ 80 %);
 * clean: no effect hidden, nothing named (target ≥ 95 %);
 * the confusion matrix (hidden → first named).
 
@@ -102,7 +103,7 @@ def main(argv=None) -> int:
                     print(f"{kind:13s} {eid:26s} seed {seed}: not detectable on this record (skipped)", flush=True)
                     continue
                 cases.append(c)
-                mark = "ok " if c["first"] == eid else "MISS"
+                mark = "ok " if c["named"] == [eid] else "xtra" if c["first"] == eid else "MISS"
                 print(f"{kind:13s} {eid:26s} seed {seed}: {mark} named {c['named']} gap {c['gap_final']:.3f} "
                       f"recovered {c['recovered']} ({c['seconds']:.1f} s)", flush=True)
         rng = np.random.default_rng(12345)
@@ -113,7 +114,8 @@ def main(argv=None) -> int:
             if c is None:
                 continue
             cases.append(c)
-            print(f"{kind:13s} pair {'+'.join(pair):40s}: named {c['named']}", flush=True)
+            mark = "ok " if set(c["named"]) == set(pair) and len(c["named"]) == 2 else "MISS"
+            print(f"{kind:13s} pair {'+'.join(pair):40s}: {mark} named {c['named']}", flush=True)
         for k in range(args.clean):
             c = run_case(kind, (), 2000 + k, args.n)
             cases.append(c)
@@ -130,7 +132,7 @@ def report(cases: list[dict]) -> None:
     singles = [c for c in cases if len(c["hidden"]) == 1]
     pairs = [c for c in cases if len(c["hidden"]) == 2]
     clean = [c for c in cases if not c["hidden"]]
-    print("\nper effect (kind: named first | main parameter within 2 std | final gap ≤ 1.1)")
+    print("\nper effect (kind: named first | main parameter within 2 std | final gap ≤ 1.1 | only it named)")
     by = defaultdict(list)
     for c in singles:
         by[(c["kind"], c["hidden"][0])].append(c)
@@ -138,16 +140,26 @@ def report(cases: list[dict]) -> None:
         first = sum(c["first"] == eid for c in cs)
         rec = sum(bool(c["recovered"]) for c in cs)
         gap = sum(c["gap_final"] <= 1.1 for c in cs)
-        print(f"  {kind:13s} {eid:26s} {_pct(first, len(cs))}  {_pct(rec, first)}  {_pct(gap, len(cs))}")
+        only = sum(c["named"] == [eid] for c in cs)
+        print(f"  {kind:13s} {eid:26s} {_pct(first, len(cs))}  {_pct(rec, first)}  {_pct(gap, len(cs))}"
+              f"  {_pct(only, len(cs))}")
     n1 = len(singles)
     f1 = sum(c["first"] == c["hidden"][0] for c in singles)
     print(f"\nnamed first, all single-effect cases: {_pct(f1, n1)}   (target ≥ 90 %)")
+    only = sum(c["named"] == c["hidden"] for c in singles)
+    print(f"named first and nothing else: {_pct(only, n1)}")
+    extra = [c for c in singles if len(c["named"]) > 1 or (c["named"] and c["named"][0] != c["hidden"][0])]
+    n_extra = sum(len([e for e in c["named"] if e != c["hidden"][0]]) for c in singles)
+    print(f"single-effect cases with spurious extra effects: {len(extra)}/{n1} ({n_extra} spurious effects named)")
     rc = sum(bool(c["recovered"]) for c in singles)
     print(f"main parameter within 2 std (of correctly named): {_pct(rc, f1)}")
     g = sum(c["gap_final"] <= 1.1 for c in singles if c["first"] == c["hidden"][0])
     print(f"final gap within 10 % of the noise floor (correctly named): {_pct(g, f1)}")
-    both = sum(set(c["hidden"]) <= set(c["named"]) for c in pairs)
-    print(f"pairs, both named: {_pct(both, len(pairs))}   (target ≥ 80 %)")
+    both = sum(set(c["hidden"]) == set(c["named"]) and len(c["named"]) == 2 for c in pairs)
+    print(f"pairs, both named and nothing else: {_pct(both, len(pairs))}   (target ≥ 80 %)")
+    sub = sum(set(c["hidden"]) <= set(c["named"]) for c in pairs)
+    print(f"pairs, both named (extras allowed): {_pct(sub, len(pairs))}; "
+          f"with spurious extras: {sum(bool(set(c['named']) - set(c['hidden'])) for c in pairs)}/{len(pairs)}")
     none = sum(not c["named"] for c in clean)
     print(f"clean data, nothing named: {_pct(none, len(clean))}   (target ≥ 95 %)")
     print("\nconfusion (hidden → first named: count)")

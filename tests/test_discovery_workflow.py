@@ -168,7 +168,7 @@ def test_calibrate_recovers_bias_scale_factor_and_noise():
 def test_discover_names_the_hidden_effect_and_closes_the_gap(kind, eid, seed):
     rec, truth = _hidden(kind, (eid,), seed, 1500)
     d = discover(rec, Model(base_model(kind)), max_effects=2, seed=seed)
-    assert d.steps and d.steps[0].effect_id == eid
+    assert [s.effect_id for s in d.steps] == [eid]  # the hidden one and nothing else
     main = CATALOGUE[eid].main_param
     got, sd = d.steps[0].params[main], d.steps[0].params_std[main]
     assert abs(got - truth.effects[0][1][main]) <= 3 * sd
@@ -184,6 +184,19 @@ def test_discover_names_nothing_on_clean_data():
     assert d.to_dict()["effects"] == []
 
 
+def test_discover_names_both_hidden_effects_and_nothing_else_with_progress():
+    # the audit's spurious-first pair (time_delay + k3): a missing waveform's colour must not be
+    # named as Gauss–Markov noise ahead of it
+    rec, _ = _hidden("accelerometer", ("time_delay", "k3_nonlinearity"), 3, 1500)
+    msgs = []
+    d = discover(rec, Model(base_model("accelerometer")), max_effects=3, seed=3, n_rep=199,
+                 progress=msgs.append)
+    assert sorted(s.effect_id for s in d.steps) == ["k3_nonlinearity", "time_delay"]
+    assert any(m.startswith("step 1: ") and "(1/" in m for m in msgs)
+    assert any(m.startswith("step 1: named ") and "→" in m for m in msgs)
+    assert msgs[-1].endswith("nothing significant; stopping")
+
+
 def test_separating_experiments_name_the_inputs_or_the_known_recipe():
     from bench.discovery.separating import separating_experiment
 
@@ -192,3 +205,96 @@ def test_separating_experiments_name_the_inputs_or_the_known_recipe():
     assert "vary cross_input independently of vib" in separating_experiment(
         "misalignment", "vibration_rectification", CATALOGUE)
     assert "repeat the record" in separating_experiment("k2_nonlinearity", "gauss_markov", CATALOGUE)
+
+
+# ---- audit regressions ------------------------------------------------------------------
+
+def test_calibrate_refuses_a_bias_outside_its_range_instead_of_clipping():
+    rec, _ = _hidden("accelerometer", (), 0, 600)
+    wrong_unit = rec.replace(y=rec.y * 1000.0 + 0.5)  # mg logged as g: bias 0.5 "g"
+    with pytest.raises(ValueError, match=r"bias = .* outside the allowed range .*wrong unit or missing input"):
+        calibrate(Model(base_model("accelerometer")), wrong_unit)
+
+
+def test_calibrate_leaves_scale_factor_alone_when_the_input_is_constant():
+    rng = np.random.default_rng(1)
+    n = 600
+    t = np.arange(n) * 1.0
+    rec = Record(t_s=t, y=1.0 + 0.01 + rng.normal(0, 5e-6, n), input=np.ones(n))
+    m = calibrate(Model(base_model("accelerometer")).with_base(scale_factor=1.0), rec)
+    assert m.base.scale_factor == 1.0  # not separable from the bias: kept, not split arbitrarily
+    assert m.base.bias == pytest.approx(0.01, abs=1e-5)
+
+
+def test_calibrate_refits_nonlinear_parameters_of_effects_in_the_model():
+    rec, truth = _hidden("accelerometer", ("warmup_exponential",), 1, 1500)
+    p = dict(truth.effects[0][1])
+    # from a τ 60 % off and from the truth: the same least-squares optimum (τ is refitted, not frozen)
+    wrong = calibrate(Model(truth.base).with_effect("warmup_exponential", dict(p, tau_s=p["tau_s"] * 1.6)), rec)
+    right = calibrate(Model(truth.base).with_effect("warmup_exponential", p), rec)
+    assert wrong.effects[0][1]["tau_s"] == pytest.approx(right.effects[0][1]["tau_s"], rel=0.01)
+    sse = lambda m: float(np.sum((rec.y - m.predict(rec)) ** 2))  # noqa: E731
+    assert sse(wrong) <= sse(right) * 1.001
+
+
+def test_min_effect_that_raises_fails_closed():
+    from bench.discovery.naming import _big_enough
+
+    class Boom:
+        main_param = "a"
+        increasing = True
+
+        def min_effect(self, *a, **k):
+            raise ValueError("cannot judge")
+
+    rec, _ = _hidden("accelerometer", (), 0, 300)
+    big, thr = _big_enough(Boom(), "accelerometer", {"a": 1e9}, rec, 1e-6)
+    assert big is False and np.isnan(thr)
+
+
+def test_step_std_is_recomputed_at_the_recalibrated_model():
+    from bench.discovery.fitting import CandidateFitter
+
+    rec, _ = _hidden("accelerometer", ("linear_drift",), 0, 1500)
+    d = discover(rec, Model(base_model("accelerometer")), max_effects=1, seed=0, n_rep=99)
+    (step,) = d.steps
+    m = d.final_model
+    f = CandidateFitter(Model(m.base), rec, CATALOGUE["linear_drift"], "linear_drift")
+    x = f.pack(m.effects[0][1], m.base.bias, m.base.scale_factor)
+    want = f.fit([x], max_nfev=1).params_std
+    assert step.params_std == pytest.approx(want, rel=1e-9)
+    assert step.params == m.effects[0][1]
+
+
+def test_stochastic_p_value_is_calibrated_on_the_models_own_noise():
+    # 20 draws of the calibrated base model's own noise: each stochastic candidate's LR p-value
+    # falls below 5 % in about 5 % of them
+    rec = make_experiment("accelerometer", np.random.default_rng(0), n=1500)
+    m = Model(base_model("accelerometer"))
+    ps = {"gauss_markov": [], "rate_random_walk": []}
+    for s in range(20):
+        r = m.simulate(rec, np.random.default_rng(s)) - m.predict(rec)
+        for eid, kind in (("gauss_markov", "gauss_markov"), ("rate_random_walk", "random_walk")):
+            # the candidate's p-value is this fit's (floored): without the held-out score's cost
+            ps[eid].append(fit_stochastic(r - r.mean(), rec.dt_s, kind, bootstrap=False).p_value)
+    for eid, p in ps.items():
+        assert np.mean(np.array(p) < 0.05) <= 0.1, (eid, p)
+
+
+def test_random_walk_std_covers_the_truth():
+    rng = np.random.default_rng(11)
+    n, k = 2000, 2e-7
+    z = []
+    for _ in range(12):
+        r = np.cumsum(rng.normal(0, k, n)) + rng.normal(0, 5e-6, n)
+        f = fit_stochastic(r - r.mean(), 1.0, "random_walk")
+        kk, sd = np.sqrt(f.q), 0.5 * f.q_std / np.sqrt(f.q)
+        z.append((kk - k) / sd)
+    assert np.mean(np.abs(z) < 2) >= 0.75
+    assert abs(np.mean(z)) < 1.0  # no gross bias
+
+
+def test_p_value_never_underflows_to_zero():
+    rng = np.random.default_rng(2)
+    r = np.cumsum(rng.normal(0, 1.0, 4000)) + rng.normal(0, 0.01, 4000)
+    assert fit_stochastic(r - r.mean(), 1.0, "random_walk").p_value == 1e-300

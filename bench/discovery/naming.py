@@ -12,14 +12,18 @@ For the current (calibrated) model and its residual ``r = y − predict``:
    p-value: circular moving-block bootstrap of the residual with the candidate's linearised
    regressors (:mod:`.significance`).
 3. Stochastic candidates (:mod:`.stochastic`): Whittle fit to the residual's spectrum, held-out
-   Kalman one-step score, likelihood-ratio p-value. Quantization (:mod:`.lattice`): judged on
+   Kalman one-step score, likelihood-ratio p-value against the model's own noise (white + its
+   stochastic effects), floored at ``P_FLOOR``. Quantization (:mod:`.lattice`): judged on
    the output histogram (readings on a lattice), Rayleigh-tail p-value.
 4. Benjamini–Hochberg over all candidates' p-values at ``alpha``; a candidate is *named* only
    if BH-significant, its held-out score is positive, and its main parameter is physically
    meaningful (``Effect.min_effect``: |main| ≥ it, or ≤ it for a decreasing effect such as a
-   bandwidth).
-5. Best = highest held-out score among named ones (a simpler candidate within one standard
-   error is preferred); close competitors = other candidates whose
+   bandwidth; a size that cannot be judged — min_effect raising — is not big enough).
+5. Best: deterministic first — the highest held-out score among the named deterministic ones
+   (a simpler candidate within one standard error is preferred); a named stochastic candidate
+   replaces it only when it explains more on a common (Whittle) likelihood, survives the
+   deterministic fit, and the deterministic one is not significant against a null that includes
+   the stochastic process (:func:`_choose`); close competitors = other candidates whose
    score is within two jackknife standard errors (over held-out blocks) of the best's; for each
    a separating experiment.
 """
@@ -28,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -41,6 +46,9 @@ from bench.discovery.separating import separating_experiment
 # A stochastic candidate must survive the best deterministic one (see _choose).
 SURVIVE_P = 1e-6
 SURVIVE_FRACTION = 0.1
+#: Smallest p-value reported: a χ² or Rayleigh tail below it underflows to 0.0 in floating point;
+#: "p < 1e-300" is what such a value means.
+P_FLOOR = 1e-300
 
 @dataclass(frozen=True)
 class Candidate:
@@ -64,6 +72,8 @@ class Candidate:
     aic_gain: float = float("nan")  # stochastic: LR statistic − ln(n/2)·(extra parameters) (BIC)
     lr: float = float("nan")  # stochastic: likelihood-ratio statistic against the model's noise
     resid_full: np.ndarray = field(default=None, repr=False)  # deterministic: y − fitted prediction
+    cols: list = field(default=None, repr=False)  # deterministic: per-fold linearised regressors
+    lin: float = float("nan")  # deterministic: held-out score of the linearised regressors
 
     def to_dict(self) -> dict:
         return {"id": self.id, "stochastic": self.stochastic, "params": self.params,
@@ -103,11 +113,9 @@ def applicable(model, rec: Record, catalogue: dict) -> list[str]:
 
 
 def _block_ids(n: int, n_blocks: int) -> np.ndarray:
-    edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    ids = np.empty(n, int)
-    for b, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
-        ids[lo:hi] = b
-    return ids
+    """Index of each sample's contiguous block: the blocks of :func:`.significance.block_folds`."""
+    folds = sig.block_folds(n, n_blocks)
+    return np.concatenate([[0], np.cumsum(np.diff(folds) != 0)]).astype(int)
 
 
 def _jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
@@ -119,8 +127,11 @@ def _jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
     return float(np.sqrt((k - 1) / k * np.nansum((loo - np.nanmean(loo)) ** 2)))
 
 
-def catalogue_stochastic(eid: str) -> bool:
-    return eid in ("gauss_markov", "rate_random_walk")
+def _stochastic_in(model) -> list[tuple[str, dict]]:
+    """The model's stochastic effects (``Effect.stochastic`` in the catalogue) with their params."""
+    from bench.discovery.effects import CATALOGUE  # noqa: PLC0415
+
+    return [(e, p) for e, p in model.effects if CATALOGUE[e].stochastic]
 
 
 def _nuisance(rec: Record) -> np.ndarray:
@@ -161,10 +172,11 @@ def fit_deterministic(model, rec: Record, effect, eid: str, r: np.ndarray, folds
         cols.append(np.column_stack([g, f.jacobian(fk.x)]))
     score = 1.0 - err_c.sum() / err_b.sum() if err_b.sum() > 0 else 0.0
     x_nuis = _nuisance(rec)
+    lin = float("nan")
     if score > 0:
         lin = float(sig.heldout_linear_scores(r, x_nuis, cols, folds)[0])
         draw = None
-        if any(catalogue_stochastic(e) for e, _ in model.effects):
+        if _stochastic_in(model):
             def draw(m):  # the model's own noise: white + its stochastic effects
                 base = model.predict(rec)
                 return np.column_stack([model.simulate(rec, rng) - base for _ in range(m)])
@@ -172,7 +184,7 @@ def fit_deterministic(model, rec: Record, effect, eid: str, r: np.ndarray, folds
     else:
         p = 1.0  # no out-of-sample gain: conservatively not significant
     return Candidate(eid, False, full.params, full.params_std, float(score), float("nan"), float(p),
-                     err_c=err_c, err_b=err_b, resid_full=rec.y - f.predict(full.x))
+                     err_c=err_c, err_b=err_b, resid_full=rec.y - f.predict(full.x), cols=cols, lin=lin)
 
 
 def _to_effect_params(effect, kind: str, fit: sto.StochasticFit, dt_s: float) -> tuple[dict, dict]:
@@ -194,15 +206,18 @@ def _to_effect_params(effect, kind: str, fit: sto.StochasticFit, dt_s: float) ->
 
 
 def fit_stochastic_candidate(model, rec: Record, effect, eid: str, r: np.ndarray,
-                             folds: np.ndarray) -> Candidate:
+                             folds: np.ndarray, rng: np.random.Generator | None = None) -> Candidate:
+    """Whittle fit, held-out score and p-value of a stochastic candidate: the LR against the
+    model's own noise (white + its stochastic effects, their spectrum fixed) referred to χ²."""
     kind = "gauss_markov" if eid == "gauss_markov" else "random_walk"
     dt = rec.dt_s
-    known = [(e, p) for e, p in model.effects if e in ("gauss_markov", "rate_random_walk")]
+    known = _stochastic_in(model)
     full = sto.fit_stochastic(r - r.mean(), dt, kind, known=known)
     score, err_c, err_b = sto.heldout_score(r, dt, kind, folds, np.array(full.theta))
     params, std = _to_effect_params(effect, model.base.kind, full, dt)
     df = 2 if kind == "gauss_markov" else 1
-    return Candidate(eid, True, params, std, score, float("nan"), full.p_value, err_c=err_c, err_b=err_b,
+    p = full.p_value
+    return Candidate(eid, True, params, std, score, float("nan"), max(p, P_FLOOR), err_c=err_c, err_b=err_b,
                      aic_gain=full.lr - math.log(rec.n / 2) * df, lr=full.lr)
 
 
@@ -215,23 +230,25 @@ def fit_lattice_candidate(model, rec: Record, effect, eid: str, folds: np.ndarra
         return Candidate(eid, False, {q.name: q.low}, {q.name: float("nan")}, 0.0, float("nan"), 1.0)
     score = lat.heldout_score(rec.y, sd, folds, q.low, q.high)
     return Candidate(eid, False, {q.name: float(np.clip(fit.step, q.low, q.high))}, {q.name: fit.step_std},
-                     score, float("nan"), fit.p_value)
+                     score, float("nan"), max(float(fit.p_value), P_FLOOR))
 
 
 def _big_enough(effect, kind: str, params: dict, rec: Record, noise_sd: float) -> tuple[bool, float]:
     try:
         thr = effect.min_effect(rec, noise_sd, kind=kind, params=params)
     except (ValueError, ZeroDivisionError, FloatingPointError):
-        return True, float("nan")
+        return False, float("nan")  # fail closed: a size that cannot be judged is not big enough
     v = abs(float(params[effect.main_param]))
     return (v >= thr if effect.increasing else v <= thr), float(thr)
 
 
 def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: float = 0.05,
                 seed: int = 0, n_rep: int = 999, n_blocks: int = sig.N_BLOCKS,
-                only: tuple[str, ...] | None = None) -> Naming:
+                only: tuple[str, ...] | None = None,
+                progress: Callable[[str], None] | None = None) -> Naming:
     """Fit every applicable candidate to ``rec.y − model.predict(rec)``; see module docstring.
-    ``only``: restrict to these ids (tests, quick runs)."""
+    ``only``: restrict to these ids (tests, quick runs); ``progress``: called with a short
+    message (``"gauss_markov (5/17)"``) before each candidate's fit."""
     if catalogue is None:
         from bench.discovery.effects import CATALOGUE as catalogue  # noqa: N811
     if not 0 < alpha < 1:
@@ -246,10 +263,12 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
         ids = [i for i in ids if i in only]
     kind = model.base.kind
     cands = []
-    for eid in ids:
+    for k, eid in enumerate(ids):
+        if progress is not None:
+            progress(f"{eid} ({k + 1}/{len(ids)})")
         eff = catalogue[eid]
         if eff.stochastic:
-            c = fit_stochastic_candidate(model, rec, eff, eid, r, folds)
+            c = fit_stochastic_candidate(model, rec, eff, eid, r, folds, rng)
         elif eid == "quantization":
             c = fit_lattice_candidate(model, rec, eff, eid, folds)
         else:
@@ -279,11 +298,25 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
             se = _jackknife_ratio(np.bincount(blocks, c.err_c, n_blocks), np.bincount(blocks, c.err_b, n_blocks))
         out.append(Candidate(c.id, c.stochastic, c.params, c.params_std, c.score, se, c.p_value, float(qv),
                              big, thr, bool(rej and c.score > 0 and big), c.err_c, c.err_b, c.aic_gain,
-                             c.lr, c.resid_full))
+                             c.lr, c.resid_full, c.cols, c.lin))
     out.sort(key=lambda c: -c.score)
     named = [c for c in out if c.named]
-    best = _choose(named, model, rec, alpha / max(len(cands), 1))
-    best = _parsimonious(best, named, blocks, n_blocks, catalogue, kind)
+    det_pick = _parsimonious(next((c for c in named if not c.stochastic), None), named, blocks, n_blocks,
+                             catalogue, kind)
+    named = ([det_pick] if det_pick is not None else []) + [c for c in named if c is not det_pick]
+
+    def det_p_under(s: Candidate, d: Candidate) -> float:
+        """p of ``d``'s held-out score when the model's noise includes stochastic ``s``."""
+        if d.cols is None or not np.isfinite(d.lin):
+            return 1.0
+        m_s = model.with_effect(s.id, s.params)
+        base = m_s.predict(rec)
+
+        def draw(m):
+            return np.column_stack([m_s.simulate(rec, rng) - base for _ in range(m)])
+        return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw)
+
+    best = _choose(named, model, rec, catalogue, kind, det_p_under, alpha)
     if best is None:
         return Naming(tuple(out), None, (), ())
     comps, seps = [], []
@@ -302,15 +335,27 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
     return Naming(tuple(out), best, tuple(comps), tuple(seps))
 
 
-def _choose(named: list[Candidate], model, rec: Record, p_survive: float) -> Candidate | None:
-    """Highest held-out score among deterministic candidates; among stochastic ones the best
-    BIC gain of the spectral fit. Between the two, the spectrum's shape decides: the
-    stochastic candidate is named only if it *survives* the deterministic ones — refitted to the
-    residual left by the best deterministic fit (and the other named waveforms' contributions,
-    refitted jointly) it is still clearly significant
-    (p < min(``p_survive``, 1e-6)) and keeps at least a tenth of its likelihood-ratio statistic (a random walk stays a random
-    walk once a straight line is removed; the colour a missing waveform lends the residual goes
-    with the waveform)."""
+def _choose(named: list[Candidate], model, rec: Record, catalogue: dict, kind: str,
+            det_p_under=None, alpha: float = 0.05) -> Candidate | None:
+    """Deterministic first: the highest held-out score among the named deterministic candidates
+    (then :func:`_parsimonious`). A named stochastic candidate (best BIC gain of its spectral fit)
+    replaces it only if all hold:
+
+    * it explains more: its BIC gain over the model's noise (Whittle likelihood ratio −
+      ln(n/2)·parameters) exceeds the deterministic one's on the same likelihood (the white +
+      known-stochastic Whittle likelihood of the residual before and after the deterministic
+      fit, less ln(n/2) per parameter). A missing waveform that leaves the residual
+      coloured (a delay, a saturation) explains far more as itself than as noise colour;
+    * the deterministic candidate is NOT significant (p ≥ ``alpha``, ``det_p_under``) when the
+      null is the model's noise plus the stochastic candidate: a drift that a random walk
+      produces anyway is not evidence of a drift, whereas a temperature or input term stays
+      significant against any noise that ignores temperature and input — the colour then came
+      from the waveform (two missing terms colour the residual more than one removes);
+    * it survives the deterministic fit: refitted to the residual that fit leaves it stays
+      clearly significant (p < ``SURVIVE_P``) and keeps a tenth of its likelihood-ratio
+      statistic (a random walk stays a random walk once a straight line is removed).
+
+    Without a named deterministic candidate, the best stochastic one."""
     if not named:
         return None
     det = [c for c in named if not c.stochastic]
@@ -321,25 +366,24 @@ def _choose(named: list[Candidate], model, rec: Record, p_survive: float) -> Can
             and sto_[0].params.get("tau_s", 0.0) >= rec.duration_s / 5:
         sto_ = [sto_[1], sto_[0]]  # a correlation time beyond the record is a random walk on it
     if not det:
-        return sto_[0]
-    if not sto_:
-        return det[0]
-    d, s = det[0], sto_[0]
-    if d.resid_full is None:
+        return sto_[0] if sto_ else None
+    d = det[0]
+    if not sto_ or d.resid_full is None:
         return d
-    kind = "gauss_markov" if s.id == "gauss_markov" else "random_walk"
-    known = [(e, p) for e, p in model.effects if e in ("gauss_markov", "rate_random_walk")]
-    r = d.resid_full - d.resid_full.mean()
-    # the other named waveforms too (a second missing effect colours what the first leaves):
-    # their own fitted contributions, refitted jointly by least squares to what is left
+    s = sto_[0]
+    known = _stochastic_in(model)
     r0 = rec.y - model.predict(rec)
-    others = [r0 - c.resid_full for c in det[1:] if c.resid_full is not None]
-    if others:
-        g = np.column_stack(others + [np.ones(rec.n)])
-        coef, *_ = np.linalg.lstsq(g, r, rcond=None)
-        r = r - g @ coef
-    after = sto.fit_stochastic(r, rec.dt_s, kind, known=known)
-    return s if (after.p_value < min(p_survive, SURVIVE_P) and after.lr >= SURVIVE_FRACTION * s.lr) else d
+    lr_d = 2.0 * (sto.white_nll(r0, rec.dt_s, known) - sto.white_nll(d.resid_full, rec.dt_s, known))
+    bic_d = lr_d - math.log(rec.n / 2) * len(catalogue[d.id].params_for(kind))
+    if s.aic_gain <= bic_d:
+        return d
+    stype = "gauss_markov" if s.id == "gauss_markov" else "random_walk"
+    after = sto.fit_stochastic(d.resid_full - d.resid_full.mean(), rec.dt_s, stype, known=known, bootstrap=False)
+    if not (after.p_value < SURVIVE_P and after.lr >= SURVIVE_FRACTION * s.lr):
+        return d
+    if det_p_under is not None and det_p_under(s, d) < alpha:
+        return d
+    return s
 
 
 def _parsimonious(best: Candidate | None, named: list[Candidate], blocks: np.ndarray, n_blocks: int,

@@ -2,10 +2,9 @@
 
 :func:`discover` runs, on a :class:`~bench.discovery.data.Record` and a starting model:
 
-a. :func:`calibrate` — least squares of the model's linear parameters (bias, scale factor when
-   the input is logged, and every ``Param.linear`` parameter of the effects already in it),
-   Gauss–Newton on the model's own prediction (exact in two steps for an affine model); the
-   white-noise sd is re-estimated from the residual's high-frequency floor (median of the
+a. :func:`calibrate` — bounded least squares of all the model's parameters (bias, scale factor
+   when the input is logged and varies, and every parameter of the deterministic effects
+   already in it, from their current values); the white-noise sd is re-estimated from the residual's high-frequency floor (median of the
    Welch PSD over the upper half of the band, median-bias corrected), so the floor is the
    data's, not a default's;
 b. :func:`bench.discovery.localize.localize` of the residual;
@@ -23,6 +22,7 @@ Pure: record and model in, a :class:`Discovery` out (no files; the CLI writes th
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 from scipy import signal, stats
@@ -39,50 +39,82 @@ def _effect(eid: str):
     return CATALOGUE[eid]
 
 
-def _linear_slots(model, rec: Record) -> list[tuple[str, int | None, str]]:
-    """(what, effect index or None, name) of every linear parameter to calibrate."""
+#: Effects whose parameters calibrate leaves as named: stochastic ones have no waveform, and a
+#: quantizer's prediction is piecewise constant in its step (judged on the histogram instead).
+_HISTOGRAM_JUDGED = ("quantization",)
+
+
+def _sf_free(rec: Record) -> bool:
+    """Scale factor is fitted only when the input is logged and varies: with a constant input
+    bias and scale factor are one offset (not separable)."""
+    return rec.logged("input") and float(np.ptp(rec.input)) > 0
+
+
+def _slots(model, rec: Record) -> list[tuple[str, int | None, object]]:
+    """(what, effect index or None, Param or base name) of every parameter calibrate fits."""
     slots = [("base", None, "bias")]
-    if rec.logged("input"):
+    if _sf_free(rec):
         slots.append(("base", None, "scale_factor"))
-    for i, (eid, p) in enumerate(model.effects):
+    for i, (eid, _) in enumerate(model.effects):
         eff = _effect(eid)
-        if eff.stochastic:
+        if eff.stochastic or eid in _HISTOGRAM_JUDGED:
             continue
         for q in eff.params_for(model.base.kind):
-            if q.linear:
-                slots.append(("effect", i, q.name))
+            slots.append(("effect", i, q))
     return slots
 
 
-def _get(model, slot) -> float:
-    what, i, name = slot
-    return float(getattr(model.base, name)) if what == "base" else float(model.effects[i][1][name])
+def _periodic(q) -> bool:
+    return q.unit == "rad" and "phase" in q.name and q.high - q.low >= 2 * np.pi - 1e-9
 
 
-def _set(model, slot, value: float):
-    what, i, name = slot
-    if what == "base":
-        from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
-
-        lo, hi = BASE_RANGES[model.base.kind][name]
-        return replace(model, base=replace(model.base, **{name: float(np.clip(value, lo, hi))}))
-    effects = list(model.effects)
-    eid, p = effects[i]
-    q = _effect(eid).param(name, model.base.kind)
-    p = dict(p)
-    p[name] = float(np.clip(value, q.low, q.high))
-    effects[i] = (eid, p)
-    return replace(model, effects=tuple(effects))
-
-
-def _range(model, slot) -> tuple[float, float]:
+def _coords(model, slots) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(x, lower, upper, scale): optimiser coordinates (log parameters in log) and bounds."""
     from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
 
-    what, i, name = slot
-    if what == "base":
-        return BASE_RANGES[model.base.kind][name]
-    q = _effect(model.effects[i][0]).param(name, model.base.kind)
-    return q.low, q.high
+    x, lo, hi, sc = [], [], [], []
+    for what, i, q in slots:
+        if what == "base":
+            a, b = BASE_RANGES[model.base.kind][q]
+            x.append(float(getattr(model.base, q)))
+            lo.append(a)
+            hi.append(b)
+            sc.append(max(float(model.base.noise_sd), 1e-12) if q == "bias" else 1e-4)
+            continue
+        v = float(model.effects[i][1][q.name])
+        if q.log:
+            x.append(np.log(v))
+            lo.append(np.log(q.low))
+            hi.append(np.log(q.high))
+            sc.append(0.3)
+        elif _periodic(q):  # a phase wraps: no wall at ±π for the optimiser
+            x.append(v)
+            lo.append(-8 * np.pi)
+            hi.append(8 * np.pi)
+            sc.append(0.1)
+        else:
+            x.append(v)
+            lo.append(q.low)
+            hi.append(q.high)
+            sc.append(max(abs(v), (q.high - q.low) * 1e-4, 1e-300))
+    return np.array(x), np.array(lo), np.array(hi), np.array(sc)
+
+
+def _at(model, slots, x: np.ndarray):
+    """The model with the optimiser coordinates ``x`` (effect values clipped to their ranges)."""
+    base = {}
+    effects = [(eid, dict(p)) for eid, p in model.effects]
+    for (what, i, q), v in zip(slots, x):
+        if what == "base":
+            base[q] = float(v)
+            continue
+        val = float(np.exp(v)) if q.log else float(v)
+        if _periodic(q):
+            val = (val + np.pi) % (2 * np.pi) - np.pi
+        effects[i][1][q.name] = float(np.clip(val, q.low, q.high))
+    from bench.discovery.model import Model  # noqa: PLC0415
+
+    return Model(replace(model.base, **base), tuple(effects))
 
 
 def white_floor_sd(residual: np.ndarray, rate_hz: float) -> float:
@@ -98,32 +130,61 @@ def white_floor_sd(residual: np.ndarray, rate_hz: float) -> float:
     return float(np.sqrt(np.median(upper) / med_bias * rate_hz / 2.0))
 
 
-def calibrate(model, rec: Record, *, noise: bool = True, iterations: int = 3):
-    """The model with its linear parameters fitted to ``rec`` by least squares (and, with
-    ``noise``, the white-noise sd set to the residual's high-frequency floor)."""
-    slots = _linear_slots(model, rec)
-    for _ in range(iterations):
-        f0 = model.predict(rec)
-        r = rec.y - f0
-        cols = []
-        for s in slots:
-            v = _get(model, s)
-            lo, hi = _range(model, s)
-            h = 1e-3 * (hi - lo)
-            moved = _set(model, s, v + h if v + h <= hi else v - h)
-            cols.append((moved.predict(rec) - f0) / (_get(moved, s) - v))
-        jac = np.column_stack(cols)
-        scale = np.where(np.linalg.norm(jac, axis=0) > 0, np.linalg.norm(jac, axis=0), 1.0)
-        step, *_ = np.linalg.lstsq(jac / scale, r, rcond=None)
-        step = step / scale
-        for s, d in zip(slots, step):
-            model = _set(model, s, _get(model, s) + d)
-        if np.all(np.abs(step) <= 1e-10 * (np.abs([_get(model, s) for s in slots]) + 1e-300)):
-            break
+def _check_base(model, rec: Record, bias: float, sf: float) -> None:
+    """ValueError when an unconstrained base fit lands outside its range (never a silent clip)."""
+    from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
+
+    rng = BASE_RANGES[model.base.kind]
+    for name, v in (("bias", bias), ("scale_factor", sf)):
+        lo, hi = rng[name]
+        if not (lo <= v <= hi) or not np.isfinite(v):
+            raise ValueError(f"calibrated {name} = {v:.6g} outside the allowed range [{lo}, {hi}] for a "
+                             f"{model.base.kind}: wrong unit or missing input column?")
+
+
+def calibrate(model, rec: Record, *, noise: bool = True, max_nfev: int = 200):
+    """The model with ALL its parameters fitted to ``rec`` by bounded least squares (issue 7,
+    step a: bias, scale factor when the input is logged and varies, and every parameter of the
+    deterministic effects already in it — time constants, frequencies, delays too, so a frozen
+    shape misfit does not linger in the residual as colour), starting from the current values,
+    each bounded by its range; with ``noise``, the white-noise sd is set to the residual's
+    high-frequency floor. Stochastic effects and the quantization step keep their values.
+
+    Bias and scale factor are first solved linearly (unconstrained); outside the kind's range
+    that is a ValueError naming the value (a wrong unit or a missing input column), never a clip."""
+    from scipy import optimize  # noqa: PLC0415
+
+    from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
+
+    sf_free = _sf_free(rec)
+    rest = model.predict(rec) - model.base.bias - (model.base.scale_factor * rec.input if sf_free else 0.0)
+    cols = [np.ones(rec.n)] + ([rec.input] if sf_free else [])
+    coef, *_ = np.linalg.lstsq(np.column_stack(cols), rec.y - rest, rcond=None)
+    bias = float(coef[0])
+    sf = float(coef[1]) if sf_free else float(model.base.scale_factor)
+    _check_base(model, rec, bias, sf)
+    model = model.with_base(bias=bias, scale_factor=sf)
+    slots = _slots(model, rec)
+    if len(slots) > (2 if sf_free else 1):  # effects with parameters: the joint nonlinear fit
+        x0, lo, hi, sc = _coords(model, slots)
+        x0 = np.clip(x0, lo, hi)
+        y = rec.y
+        fun = lambda x: y - _at(model, slots, x).predict(rec)  # noqa: E731
+        try:
+            res = optimize.least_squares(fun, x0, bounds=(lo, hi), x_scale=sc, max_nfev=max_nfev, method="trf")
+            if np.sum(res.fun ** 2) < np.sum(fun(x0) ** 2):
+                model = _at(model, slots, res.x)
+        except (ValueError, np.linalg.LinAlgError):
+            pass  # keep the linear calibration
+        b = model.base
+        for name in ("bias", "scale_factor"):
+            lo_b, hi_b = BASE_RANGES[b.kind][name]
+            v = getattr(b, name)
+            if min(v - lo_b, hi_b - v) <= 1e-9 * (hi_b - lo_b):
+                raise ValueError(f"calibrated {name} = {v:.6g} at the edge of the allowed range [{lo_b}, {hi_b}] "
+                                 f"for a {b.kind}: wrong unit or missing input column?")
     if noise:
         sd = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz)
-        from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
-
         sd = float(min(sd, BASE_RANGES[model.base.kind]["noise_sd"][1]))
         if sd > 0 and np.isfinite(sd):
             model = replace(model, base=replace(model.base, noise_sd=sd))
@@ -225,13 +286,36 @@ def _unexplained(model, loc: Localization) -> tuple[str, ...]:
     return tuple(loc.descriptions())
 
 
+def _step_std(model, rec: Record, naming_std: dict) -> dict:
+    """Std of the last effect's parameters at the re-calibrated model (the naming fit's std
+    belonged to other values of the other parameters); the naming's for stochastic and
+    histogram-judged effects."""
+    from bench.discovery.fitting import CandidateFitter  # noqa: PLC0415
+    from bench.discovery.model import Model  # noqa: PLC0415
+
+    eid, p = model.effects[-1]
+    eff = _effect(eid)
+    if eff.stochastic or eid in _HISTOGRAM_JUDGED:
+        return dict(naming_std)
+    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, eid)
+    x = f.pack(p, model.base.bias, model.base.scale_factor)
+    return dict(f.fit([x], max_nfev=1).params_std)
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.3g}"
+
+
 def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, seed: int = 0,
-             n_rep: int = 999, only: tuple[str, ...] | None = None) -> Discovery:
-    """Run the loop a..e on ``rec`` from ``model``; see the module docstring."""
+             n_rep: int = 999, only: tuple[str, ...] | None = None,
+             progress: Callable[[str], None] | None = None) -> Discovery:
+    """Run the loop a..e on ``rec`` from ``model``; see the module docstring. ``progress``:
+    called with a short human message before each candidate fit and after each step."""
     if not isinstance(max_effects, int) or not 0 <= max_effects <= 19:
         raise ValueError(f"max_effects = {max_effects!r}; allowed: an integer in [0, 19]")
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
+    say = progress or (lambda _msg: None)
     model = calibrate(model, rec)
     initial = model
     g0, rms0, _, r0 = gap_of(model, rec, seed)
@@ -241,8 +325,11 @@ def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, s
     naming = None
     for it in range(max_effects + 1):
         loc = _structure(model, rec, r_cur)
-        naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only)
+        step_say = (lambda msg, _it=it: say(f"step {_it + 1}: {msg}"))
+        naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
+                             progress=step_say)
         if naming.best is None:
+            say(f"step {it + 1}: nothing significant; stopping")
             break
         if it == max_effects:
             notes.append(f"stopped after max_effects = {max_effects}; {naming.best.id} was still significant")
@@ -250,8 +337,9 @@ def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, s
         best = naming.best
         new = calibrate(model.with_effect(best.id, best.params), rec)
         g1, rms1, _, r1 = gap_of(new, rec, seed)
-        steps.append(Step(best.id, dict(new.effects[-1][1]), best.params_std, best.p_value,
+        steps.append(Step(best.id, dict(new.effects[-1][1]), _step_std(new, rec, best.params_std), best.p_value,
                           gap_cur, g1, rms_cur, rms1, naming, loc, r_cur, r1))
+        say(f"step {it + 1}: named {best.id}, rms {_fmt(rms_cur)} → {_fmt(rms1)}")
         model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
     loc = _structure(model, rec, r_cur)
     unexplained = _unexplained(model, loc) if naming is None or naming.best is None or notes else ()
