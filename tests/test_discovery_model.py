@@ -158,8 +158,10 @@ def test_noise_floor_with_quantization_gives_the_noise_before_the_quantizer(tau)
     m = (Model(BaseModel("accelerometer", 1e-3, 1.0, tau * step)).with_effect("linear_drift", {"slope_per_s": 3e-9})
          .with_effect("quantization", {"step": step}))
     floor = float(np.std(m.simulate(rec, 4) - m.predict(rec)))
-    back = m.with_base(noise_sd=1e-6).with_noise_floor(floor).base.noise_sd
-    assert back == pytest.approx(tau * step, rel=0.05)
+    back = m.with_base(noise_sd=1e-6).with_noise_floor(floor)
+    assert back.base.noise_sd == pytest.approx(tau * step, rel=0.05)
+    assert back.residual_sd() == pytest.approx(floor, rel=1e-9)  # the floor the model expects
+    assert m.residual_sd() == pytest.approx(floor, rel=0.03)
     assert Model(base_model("gyro")).with_noise_floor(0.01).base.noise_sd == 0.01
     with pytest.raises(ValueError, match="floor_sd = nan"):
         m.with_noise_floor(float("nan"))

@@ -140,6 +140,16 @@ class Model:
         sd = b.noise_sd * math.sqrt(new.rate_hz / b.rate_hz)
         return Model(replace(new, noise_sd=sd), self.effects)
 
+    def residual_sd(self) -> float:
+        """White sd of ``y − predict`` this model expects (its noise floor, sensor unit):
+        ``noise_sd`` passed through the output transforms' ``residual_var`` (quantization adds
+        its rounding share); the inverse of ``with_noise_floor``."""
+        v = self.base.noise_sd ** 2
+        for eid, p in self.effects:
+            if CATALOGUE[eid].stage == "output":
+                v = CATALOGUE[eid].residual_var(p, math.sqrt(v))
+        return math.sqrt(v)
+
     def with_noise_floor(self, floor_sd: float) -> "Model":
         """This model with ``noise_sd`` set so that its residual ``y − predict`` has white sd
         ``floor_sd`` (what a calibration measures): equal without output transforms; with
@@ -147,20 +157,12 @@ class Model:
         quantizer solves ``Effect.residual_var(σ) = floor_sd²`` (bisection; σ ≤ floor_sd)."""
         if not (floor_sd >= 0 and math.isfinite(floor_sd)):
             raise ValueError(f"floor_sd = {floor_sd!r}; allowed: a finite value >= 0")
-        target = float(floor_sd) ** 2
-        outs = [(CATALOGUE[eid], p) for eid, p in self.effects if CATALOGUE[eid].stage == "output"]
-
-        def var(sd: float) -> float:
-            v = sd * sd
-            for e, p in outs:
-                v = e.residual_var(p, math.sqrt(v))
-            return v
-
-        lo, hi = 0.0, float(floor_sd)
-        if outs and var(hi) > target:
+        target = float(floor_sd)
+        lo, hi = 0.0, target
+        if self.with_base(noise_sd=hi).residual_sd() > target:
             for _ in range(60):
                 mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if var(mid) < target else (lo, mid)
+                lo, hi = (mid, hi) if self.with_base(noise_sd=mid).residual_sd() < target else (lo, mid)
         return self.with_base(noise_sd=hi)
 
     def predict(self, rec: Record) -> np.ndarray:
