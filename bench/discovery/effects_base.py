@@ -211,19 +211,16 @@ class Effect:
         raise NotImplementedError
 
     def expected_transform(self, p: dict, rec: Record, y: np.ndarray, noise_sd: float) -> np.ndarray:
-        """Output-stage effects: the mean of ``_transform(y + n)`` over white Gaussian ``n`` of sd
-        ``noise_sd`` (``Model.predict``'s output, since readings are transformed *noisy* signals).
-        Default: ``_transform(y)``, exact for a transform linear in its input."""
+        """Output stage: mean of ``_transform(y + n)``, n white Gaussian of sd ``noise_sd`` (what
+        ``Model.predict`` returns; readings are transformed noisy signals). Default: ``_transform(y)``."""
         return self._transform(p, rec, y)
 
     def pre_transform_sd(self, p: dict, floor_sd: float) -> float:
-        """Output-stage effects: the white sd before this transform, given the residual floor
-        ``floor_sd`` measured by a model without it (default: the same)."""
+        """Output stage: white sd before this transform given the floor of a model without it."""
         return floor_sd
 
     def residual_var(self, p: dict, noise_sd: float) -> float:
-        """Output-stage effects: variance of a reading about the model's mean when the white sd
-        before the transform is ``noise_sd`` (default: noise_sd²)."""
+        """Output stage: variance of a reading about the model's mean (default noise_sd²)."""
         return noise_sd ** 2
 
     # ---- detectability ----------------------------------------------------------------

@@ -13,9 +13,9 @@ noise). They come instead from a HAC sandwich ``(JᵀJ)⁻¹ S (JᵀJ)⁻¹ · n
 weights (``hac_covariance(..., stationary=True)``: S from the residual's autocovariance, which
 suits transient regressors better than Newey–West's score products) at the bandwidth of
 ``hac_bandwidth`` (4 × the residual's correlation length), mapped from log coordinates by the
-delta method. Measured 2σ coverage: ≈ 95 % on white noise, ≈ 87-89 % on white + Gauss–Markov
-(τ = 20 samples) — the taper and the fit's projection still shorten the long-lag correlation a
-little. With ``stationary=False`` ``hac_covariance`` equals statsmodels'
+delta method. Measured 2σ coverage (200 seeds, 1800 samples): 95-96 % on white noise, 88-90 % on
+white + Gauss–Markov (τ = 20 samples; the white formula gave 30 %) — the taper and the fit's
+projection still shorten the long-lag correlation a little. With ``stationary=False`` ``hac_covariance`` equals statsmodels'
 ``OLS(...).fit(cov_type="HAC", cov_kwds={"maxlags": L, "use_correction": True})``.
 """
 
