@@ -91,7 +91,7 @@ def discover_command(args) -> int:
             raise ValueError("--stream applies to --run only")
         rec, run_kind, label = read_measured(args.measured), None, args.measured
     if args.model is not None:
-        model = read_model(args.model)
+        model = read_model(args.model, rate_hz=rec.rate_hz)  # noise_sd carried to this record's rate
         if args.sensor is not None and args.sensor != model.base.kind:
             raise ValueError(f"--sensor {args.sensor} contradicts the model file's kind {model.base.kind!r}")
     else:
@@ -106,7 +106,7 @@ def discover_command(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model_file = out / "discovered_model.toml"
-    write_model(result.final_model, model_file)
+    write_model(result.final_model, model_file, rate_hz=rec.rate_hz)
     report = write_discovery_report(result, rec, out, label)
     doc = result.to_dict(str(model_file))
     doc["report"] = str(report)
