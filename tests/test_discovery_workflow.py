@@ -167,7 +167,7 @@ def test_calibrate_recovers_bias_scale_factor_and_noise():
                                            ("accelerometer", "rate_random_walk", 0)])
 def test_discover_names_the_hidden_effect_and_closes_the_gap(kind, eid, seed):
     rec, truth = _hidden(kind, (eid,), seed, 1500)
-    d = discover(rec, Model(base_model(kind)), max_effects=2, seed=seed)
+    d = discover(rec, Model(base_model(kind)), max_effects=2, seed=seed, n_rep=399)
     assert [s.effect_id for s in d.steps] == [eid]  # the hidden one and nothing else
     main = CATALOGUE[eid].main_param
     got, sd = d.steps[0].params[main], d.steps[0].params_std[main]
@@ -179,7 +179,7 @@ def test_discover_names_the_hidden_effect_and_closes_the_gap(kind, eid, seed):
 
 def test_discover_names_nothing_on_clean_data():
     rec, _ = _hidden("accelerometer", (), 7, 1500)
-    d = discover(rec, Model(base_model("accelerometer")), max_effects=2, seed=7)
+    d = discover(rec, Model(base_model("accelerometer")), max_effects=2, seed=7, n_rep=399)
     assert d.steps == () and d.unexplained == ()
     assert d.to_dict()["effects"] == []
 
@@ -256,7 +256,8 @@ def test_step_std_is_recomputed_at_the_recalibrated_model():
     from bench.discovery.fitting import CandidateFitter
 
     rec, _ = _hidden("accelerometer", ("linear_drift",), 0, 1500)
-    d = discover(rec, Model(base_model("accelerometer")), max_effects=1, seed=0, n_rep=99)
+    d = discover(rec, Model(base_model("accelerometer")), max_effects=1, seed=0, n_rep=99,
+                 only=("linear_drift", "warmup_exponential", "temperature_bias"))
     (step,) = d.steps
     m = d.final_model
     f = CandidateFitter(Model(m.base), rec, CATALOGUE["linear_drift"], "linear_drift")
