@@ -133,6 +133,31 @@ def test_white_floor_dof_matches_its_spread():
     assert 0.6 < var_ratio < 1.1 and abs(np.mean(est[:, 0] ** 2) - 1) < 0.02
 
 
+def test_short_tau_gm_with_a_white_level_that_counted_it_gives_few_false_alarms():
+    # the workflow's white level comes from the upper-half PSD, where a τ = 0.5 s GM at 10 Hz
+    # adds ~40 % power: innovations with that level would be coloured (60 % false alarms)
+    m = _model(("gauss_markov", {"sigma": 1e-5, "tau_s": 0.5}))
+    rec = _record(3000)
+    hits = 0
+    for s in range(40):
+        r = _noise(m, rec, 300 + s)
+        biased = m.with_base(noise_sd=white_floor(r, RATE_HZ)[0])
+        hits += bool(loc.unexplained_structure(rec, r, biased))
+    assert hits <= stats.binom.ppf(0.95, 40, 0.05)
+
+
+@pytest.mark.parametrize("eff", [("gauss_markov", {"sigma": 1e-5, "tau_s": 0.5}), RW])
+def test_white_floor_beside_stochastic_effects_recovers_the_white_level(eff):
+    m = _model(eff)
+    rec = _record(20000)
+    r = _noise(m, rec, 9)
+    plain, _ = white_floor(r, RATE_HZ)
+    aware, _ = white_floor(r, RATE_HZ, [eff])
+    assert abs(aware / SD - 1) < 0.05
+    if eff[0] == "gauss_markov":
+        assert plain / SD > 1.1  # the plain median counts the GM's upper-half power as white
+
+
 # --- whiten.innovations ---------------------------------------------------------------------
 
 @pytest.mark.parametrize("effects", [(GM,), (RW,), (GM, RW)], ids=["gm", "rw", "gm+rw"])

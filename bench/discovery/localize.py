@@ -371,7 +371,9 @@ def unexplained_structure(rec: Record, residual, model, *, alpha: float = 0.05) 
     Without stochastic effects in ``model`` the residual itself is tested against white noise;
     with them (gauss_markov, rate_random_walk) its standardized Kalman innovations
     (:func:`bench.discovery.whiten.innovations`), which are white when the model is right —
-    logged inputs go through the same filter before correlating. The white level is estimated
+    logged inputs go through the same filter before correlating (the filter's white level is
+    re-estimated beside the stochastic spectrum, :func:`significance.white_floor`, rather than
+    taken from ``model.base.noise_sd``, which may count a short-τ GM as white). The level is estimated
     from the tested series itself (:func:`significance.white_floor`, dof ≈ 0.35·n), and every
     test allows for that (F / Student / averaged tails instead of χ² / normal); only excess
     structure counts; the six test families share ``alpha`` (Bonferroni), so on a series that
@@ -387,8 +389,13 @@ def unexplained_structure(rec: Record, residual, model, *, alpha: float = 0.05) 
         return ()
     r = r - r.mean()
     sto = [(eid, p) for eid, p in model.effects if CATALOGUE[eid].stochastic]
-    rate, white = rec.rate_hz, float(model.base.noise_sd)
+    rate = rec.rate_hz
     if sto:
+        # the white level is re-estimated beside the model's stochastic spectrum: a level that
+        # counted a short-τ GM's high-frequency power as white would colour the innovations
+        white = white_floor(r, rate, sto)[0]
+        if not white > 0:
+            white = float(model.base.noise_sd)
         x = innovations(r, rate, white, sto)
 
         def transform(v):

@@ -27,7 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal, stats
+from scipy import optimize, signal, stats
 
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.timeseries_diag import default_lb_lags, ljung_box
@@ -235,17 +235,38 @@ def welch_dof(n: int, nperseg: int) -> float:
 FLOOR_DOF_PER_SAMPLE = 0.35
 
 
-def white_floor(x: np.ndarray, rate_hz: float) -> tuple[float, float]:
+def white_floor(x: np.ndarray, rate_hz: float, stochastic_effects=()) -> tuple[float, float]:
     """(white-noise sd, dof of its variance) from the upper half of the Welch PSD of ``x``
     (median, bias-corrected): immune to slow structure and to a few spectral lines. The dof
-    ν (σ̂²/σ² ~ χ²_ν/ν on white noise) lets a test allow for the floor being estimated."""
+    ν (σ̂²/σ² ~ χ²_ν/ν on white noise) lets a test allow for the floor being estimated.
+
+    ``stochastic_effects`` ((id, params) as in ``Model.effects``, GM / random walk): their PSD
+    is part of the model's spectrum, so the white level is the one at which the median of
+    PSD/(white + theirs) over those bins is the χ² median — a short-τ Gauss–Markov puts power
+    in the upper half that a plain median would count as white."""
+    from bench.discovery.whiten import noise_psd  # noqa: PLC0415
+
     x = np.asarray(x, float)
     nperseg = welch_nperseg(x.size)
     f, p = signal.welch(x, fs=rate_hz, window="hann", nperseg=nperseg, detrend="constant")
-    upper = p[f >= 0.5 * f[-1]][:-1] if f.size > 4 else p
+    sel = (f >= 0.5 * f[-1]) & (np.arange(f.size) < f.size - 1) if f.size > 4 else np.ones(f.size, bool)
+    upper, fu = p[sel], f[sel]
     nu = welch_dof(x.size, nperseg)
-    sd = float(np.sqrt(np.median(upper) / (stats.chi2.median(nu) / nu) * rate_hz / 2.0))
-    return sd, max(FLOOR_DOF_PER_SAMPLE * x.size, 1.0)
+    med = stats.chi2.median(nu) / nu
+    dof = max(FLOOR_DOF_PER_SAMPLE * x.size, 1.0)
+    plain = float(np.median(upper) / med * rate_hz / 2.0)
+    effects = list(stochastic_effects)
+    if not effects or plain <= 0:
+        return float(np.sqrt(plain)), dof
+    known = noise_psd(fu, rate_hz, effects)
+
+    def excess(log_var):  # median ratio − χ² median: decreasing in the white variance
+        return float(np.median(upper / (2.0 * np.exp(log_var) / rate_hz + known))) - med
+
+    lo, hi = np.log(plain) - 40.0, np.log(plain) + 1.0
+    if excess(lo) <= 0:  # the stochastic effects alone already reach the measured level
+        return float(np.sqrt(np.exp(lo))), dof
+    return float(np.sqrt(np.exp(optimize.brentq(excess, lo, hi, xtol=1e-10)))), dof
 
 
 def _welch(x: np.ndarray, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:

@@ -88,6 +88,20 @@ def _states(rate_hz: float, n: int, effects) -> tuple[np.ndarray, np.ndarray, np
     return np.array(phi, float), np.array(q, float), np.array(p0, float)
 
 
+def noise_psd(f_hz, rate_hz: float, stochastic_effects=()) -> np.ndarray:
+    """One-sided PSD (unit²/Hz) at ``f_hz`` of the sampled stochastic effects (no white part):
+    GM σ²(1−φ²)/|1−φe^{−iω}|², random walk K²·dt/|1−e^{−iω}|², ω = 2πf/fs, times 2/fs —
+    on the scale where white noise of sd σ has 2σ²/fs."""
+    f = np.asarray(f_hz, float)
+    phi, q, _ = _states(float(rate_hz), 1, list(stochastic_effects))
+    w = 2 * np.pi * f / rate_hz
+    out = np.zeros_like(f)
+    for ph, qq in zip(phi, q):
+        with np.errstate(divide="ignore"):
+            out = out + qq / (1 - 2 * ph * np.cos(w) + ph * ph)
+    return out * 2.0 / rate_hz
+
+
 def innovations(residual, rate_hz: float, white_sd: float, stochastic_effects=()) -> np.ndarray:
     """Standardized one-step innovations of ``residual`` (sensor unit, uniform samples at
     ``rate_hz``) under white noise of sd ``white_sd`` plus ``stochastic_effects`` — (id, params)
