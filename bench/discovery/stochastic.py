@@ -72,7 +72,8 @@ def _spectrum(kind: str, th: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def _nll(th, kind, w, i, known=0.0, diff=False):
-    s = _spectrum(kind, th, w) + known
+    with np.errstate(over="ignore", invalid="ignore"):  # a wild trial step gives inf, not a warning
+        s = _spectrum(kind, th, w) + known
     if diff:  # periodogram of first differences: every level spectrum times |1 − e^{−iω}|²
         s = s * (2 - 2 * np.cos(w))
     return float(np.sum(np.log(s) + i / s))
@@ -80,7 +81,11 @@ def _nll(th, kind, w, i, known=0.0, diff=False):
 
 def _nll_grad(th, kind, w, i, known=0.0, diff=False):
     """(_nll, its gradient in ``th``): Σ (1/S − I/S²)·∂S/∂θ (the optimiser's hot loop)."""
-    th = np.asarray(th, float)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # a wild trial step: inf
+        return _nll_grad_raw(np.asarray(th, float), kind, w, i, known, diff)
+
+
+def _nll_grad_raw(th, kind, w, i, known, diff):
     c = np.cos(w)
     g = (2 - 2 * c) if diff else 1.0
     white = np.exp(th[0])
