@@ -128,3 +128,21 @@ def test_block_bootstrap_equals_reference(seed, n, block_len, n_rep):
     a = sig.block_bootstrap(r, block_len, n_rep, np.random.default_rng(seed))
     b = block_bootstrap_reference(r, block_len, n_rep, np.random.default_rng(seed))
     assert a.shape == (n, n_rep) and np.array_equal(a, b)
+
+
+def acf_reference(x, max_lag):
+    """The original: FFT of length exactly 2n (slow when 2n has a large prime factor)."""
+    x = x - x.mean()
+    spec = np.fft.rfft(x, 2 * x.size)
+    c = np.fft.irfft(spec * np.conj(spec))[:max_lag + 1]
+    return c / c[0] if c[0] > 0 else np.zeros(max_lag + 1)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2 ** 31), n=st.integers(2, 5000), frac=st.floats(0.0, 1.0))
+def test_acf_equals_reference(seed, n, frac):
+    from bench.discovery.localize import _acf
+
+    x = np.cumsum(np.random.default_rng(seed).standard_normal(n))
+    lag = int(frac * (n - 1))
+    assert np.allclose(_acf(x, lag), acf_reference(x, lag), rtol=0, atol=1e-12)

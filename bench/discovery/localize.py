@@ -36,6 +36,7 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import fft as sp_fft
 from scipy import signal, special, stats
 
 from bench.analysis.allan import averaging_factors
@@ -288,8 +289,9 @@ def jumps(r: np.ndarray, t_s: np.ndarray, noise_sd: float, alpha: float = 0.01, 
 def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
     x = x - x.mean()
     n = x.size
-    spec = np.fft.rfft(x, 2 * n)
-    c = np.fft.irfft(spec * np.conj(spec))[:max_lag + 1]
+    size = sp_fft.next_fast_len(2 * n, real=True)  # ≥ 2n: linear, not circular; 2n may be prime-heavy
+    spec = np.fft.rfft(x, size)
+    c = np.fft.irfft(spec * np.conj(spec), size)[:max_lag + 1]
     return c / c[0] if c[0] > 0 else np.zeros(max_lag + 1)
 
 
