@@ -134,6 +134,19 @@ def _stochastic_in(model) -> list[tuple[str, dict]]:
     return [(e, p) for e, p in model.effects if CATALOGUE[e].stochastic]
 
 
+#: A quantizer step above this many white-noise sd makes the residual's colour follow the signal.
+COARSE_STEP_SD = 2.0
+
+
+def _coarse_quantizer(model) -> bool:
+    """The model quantizes with a step well above its white noise: readings then are Q(signal +
+    noise) with little dither, the residual around E[Q] is a deterministic function of the
+    signal (its colour follows the input's), and a spectral-shape test of a stochastic
+    candidate has no valid null on it — stochastic candidates are not tried."""
+    return any(eid == "quantization" and p["step"] > COARSE_STEP_SD * float(model.base.noise_sd)
+               for eid, p in model.effects)
+
+
 def _nuisance(rec: Record) -> np.ndarray:
     cols = [np.ones(rec.n)]
     if rec.logged("input"):
@@ -259,6 +272,8 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
     x_nuis = _nuisance(rec)
     err_b = _base_errors(r, x_nuis, folds)
     ids = applicable(model, rec, catalogue)
+    if _coarse_quantizer(model):
+        ids = [i for i in ids if not catalogue[i].stochastic]
     if only is not None:
         ids = [i for i in ids if i in only]
     kind = model.base.kind
