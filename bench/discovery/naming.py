@@ -23,7 +23,7 @@ For the current (calibrated) model and its residual ``r = y − predict``:
    (a simpler candidate within one standard error is preferred); a named stochastic candidate
    replaces it only when it explains more on a common (Whittle) likelihood, survives the
    deterministic fit, and the deterministic one is not significant against a null that includes
-   the stochastic process (:func:`_choose`); close competitors = other candidates whose
+   the stochastic process (:func:`choose`); close competitors = other candidates whose
    score is within two jackknife standard errors (over held-out blocks) of the best's; for each
    a separating experiment.
 """
@@ -40,12 +40,10 @@ from bench.discovery import lattice as lat
 from bench.discovery import significance as sig
 from bench.discovery import stochastic as sto
 from bench.discovery.data import Record
+from bench.discovery.choosing import choose, jackknife_ratio, parsimonious, stochastic_in
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.separating import separating_experiment
 
-# A stochastic candidate must survive the best deterministic one (see _choose).
-SURVIVE_P = 1e-6
-SURVIVE_FRACTION = 0.1
 #: Smallest p-value reported: a χ² or Rayleigh tail below it underflows to 0.0 in floating point;
 #: "p < 1e-300" is what such a value means.
 P_FLOOR = 1e-300
@@ -118,22 +116,6 @@ def _block_ids(n: int, n_blocks: int) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(np.diff(folds) != 0)]).astype(int)
 
 
-def _jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
-    """Std error of Σnum/Σden by deleting one block at a time (num, den per block)."""
-    k = num.size
-    if k < 3:
-        return float("nan")
-    loo = (num.sum() - num) / np.where(den.sum() - den > 0, den.sum() - den, np.nan)
-    return float(np.sqrt((k - 1) / k * np.nansum((loo - np.nanmean(loo)) ** 2)))
-
-
-def _stochastic_in(model) -> list[tuple[str, dict]]:
-    """The model's stochastic effects (``Effect.stochastic`` in the catalogue) with their params."""
-    from bench.discovery.effects import CATALOGUE  # noqa: PLC0415
-
-    return [(e, p) for e, p in model.effects if CATALOGUE[e].stochastic]
-
-
 #: A quantizer step above this many white-noise sd makes the residual's colour follow the signal.
 COARSE_STEP_SD = 2.0
 
@@ -189,7 +171,7 @@ def fit_deterministic(model, rec: Record, effect, eid: str, r: np.ndarray, folds
     if score > 0:
         lin = float(sig.heldout_linear_scores(r, x_nuis, cols, folds)[0])
         draw = None
-        if _stochastic_in(model):
+        if stochastic_in(model):
             def draw(m):  # the model's own noise: white + its stochastic effects
                 base = model.predict(rec)
                 return np.column_stack([model.simulate(rec, rng) - base for _ in range(m)])
@@ -224,7 +206,7 @@ def fit_stochastic_candidate(model, rec: Record, effect, eid: str, r: np.ndarray
     model's own noise (white + its stochastic effects, their spectrum fixed) referred to χ²."""
     kind = "gauss_markov" if eid == "gauss_markov" else "random_walk"
     dt = rec.dt_s
-    known = _stochastic_in(model)
+    known = stochastic_in(model)
     full = sto.fit_stochastic(r - r.mean(), dt, kind, known=known)
     score, err_c, err_b = sto.heldout_score(r, dt, kind, folds, np.array(full.theta))
     params, std = _to_effect_params(effect, model.base.kind, full, dt)
@@ -310,13 +292,13 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
             big = False  # a correlation time beyond a fifth of the record is not identifiable on it
         se = float("nan")
         if c.err_c is not None:
-            se = _jackknife_ratio(np.bincount(blocks, c.err_c, n_blocks), np.bincount(blocks, c.err_b, n_blocks))
+            se = jackknife_ratio(np.bincount(blocks, c.err_c, n_blocks), np.bincount(blocks, c.err_b, n_blocks))
         out.append(Candidate(c.id, c.stochastic, c.params, c.params_std, c.score, se, c.p_value, float(qv),
                              big, thr, bool(rej and c.score > 0 and big), c.err_c, c.err_b, c.aic_gain,
                              c.lr, c.resid_full, c.cols, c.lin))
     out.sort(key=lambda c: -c.score)
     named = [c for c in out if c.named]
-    det_pick = _parsimonious(next((c for c in named if not c.stochastic), None), named, blocks, n_blocks,
+    det_pick = parsimonious(next((c for c in named if not c.stochastic), None), named, blocks, n_blocks,
                              catalogue, kind)
     named = ([det_pick] if det_pick is not None else []) + [c for c in named if c is not det_pick]
 
@@ -331,7 +313,7 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
             return np.column_stack([m_s.simulate(rec, rng) - base for _ in range(m)])
         return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw)
 
-    best = _choose(named, model, rec, catalogue, kind, det_p_under, alpha)
+    best = choose(named, model, rec, catalogue, kind, det_p_under, alpha)
     if best is None:
         return Naming(tuple(out), None, (), ())
     comps, seps = [], []
@@ -343,79 +325,8 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
         d_num = np.bincount(blocks, c.err_c - best.err_c, n_blocks)
         den = np.bincount(blocks, best.err_b, n_blocks)
         diff = d_num.sum() / den.sum()
-        se = _jackknife_ratio(d_num, den)
+        se = jackknife_ratio(d_num, den)
         if np.isfinite(se) and diff <= 2 * se:
             comps.append(c.id)
             seps.append(separating_experiment(best.id, c.id, catalogue))
     return Naming(tuple(out), best, tuple(comps), tuple(seps))
-
-
-def _choose(named: list[Candidate], model, rec: Record, catalogue: dict, kind: str,
-            det_p_under=None, alpha: float = 0.05) -> Candidate | None:
-    """Deterministic first: the highest held-out score among the named deterministic candidates
-    (then :func:`_parsimonious`). A named stochastic candidate (best BIC gain of its spectral fit)
-    replaces it only if all hold:
-
-    * it explains more: its BIC gain over the model's noise (Whittle likelihood ratio −
-      ln(n/2)·parameters) exceeds the deterministic one's on the same likelihood (the white +
-      known-stochastic Whittle likelihood of the residual before and after the deterministic
-      fit, less ln(n/2) per parameter). A missing waveform that leaves the residual
-      coloured (a delay, a saturation) explains far more as itself than as noise colour;
-    * the deterministic candidate is NOT significant (p ≥ ``alpha``, ``det_p_under``) when the
-      null is the model's noise plus the stochastic candidate: a drift that a random walk
-      produces anyway is not evidence of a drift, whereas a temperature or input term stays
-      significant against any noise that ignores temperature and input — the colour then came
-      from the waveform (two missing terms colour the residual more than one removes);
-    * it survives the deterministic fit: refitted to the residual that fit leaves it stays
-      clearly significant (p < ``SURVIVE_P``) and keeps a tenth of its likelihood-ratio
-      statistic (a random walk stays a random walk once a straight line is removed).
-
-    Without a named deterministic candidate, the best stochastic one."""
-    if not named:
-        return None
-    det = [c for c in named if not c.stochastic]
-    # between stochastic shapes the spectrum decides (BIC on the Whittle likelihood: a
-    # Gauss–Markov needs a clearly better fit than a random walk for its extra parameter)
-    sto_ = sorted((c for c in named if c.stochastic), key=lambda c: -c.aic_gain)
-    if len(sto_) > 1 and sto_[0].id == "gauss_markov" and sto_[1].id == "rate_random_walk" \
-            and sto_[0].params.get("tau_s", 0.0) >= rec.duration_s / 5:
-        sto_ = [sto_[1], sto_[0]]  # a correlation time beyond the record is a random walk on it
-    if not det:
-        return sto_[0] if sto_ else None
-    d = det[0]
-    if not sto_ or d.resid_full is None:
-        return d
-    s = sto_[0]
-    known = _stochastic_in(model)
-    r0 = rec.y - model.predict(rec)
-    lr_d = 2.0 * (sto.white_nll(r0, rec.dt_s, known) - sto.white_nll(d.resid_full, rec.dt_s, known))
-    bic_d = lr_d - math.log(rec.n / 2) * len(catalogue[d.id].params_for(kind))
-    if s.aic_gain <= bic_d:
-        return d
-    stype = "gauss_markov" if s.id == "gauss_markov" else "random_walk"
-    after = sto.fit_stochastic(d.resid_full - d.resid_full.mean(), rec.dt_s, stype, known=known, bootstrap=False)
-    if not (after.p_value < SURVIVE_P and after.lr >= SURVIVE_FRACTION * s.lr):
-        return d
-    if det_p_under is not None and det_p_under(s, d) < alpha:
-        return d
-    return s
-
-
-def _parsimonious(best: Candidate | None, named: list[Candidate], blocks: np.ndarray, n_blocks: int,
-                  catalogue: dict, kind: str) -> Candidate | None:
-    """Among deterministic named candidates whose held-out score is within one (paired, block
-    jackknife) standard error of the best's, the one with the fewest parameters (Occam: a long
-    warm-up time constant is a drift on a short record)."""
-    if best is None or best.stochastic or best.err_c is None:
-        return best
-    n_par = lambda c: len(catalogue[c.id].params_for(kind))  # noqa: E731
-    pick = best
-    for c in named:
-        if c.stochastic or c.err_c is None or c.id == best.id or n_par(c) >= n_par(pick):
-            continue
-        d_num = np.bincount(blocks, c.err_c - best.err_c, n_blocks)
-        den = np.bincount(blocks, best.err_b, n_blocks)
-        se = _jackknife_ratio(d_num, den)
-        if np.isfinite(se) and d_num.sum() / den.sum() <= se:
-            pick = c
-    return pick
