@@ -48,7 +48,8 @@ def choose(named: list[Candidate], model, rec: Record, catalogue: dict, kind: st
       known-stochastic Whittle likelihood of the residual before and after the deterministic
       fit, less ln(n/2) per parameter). A missing waveform that leaves the residual
       coloured (a delay, a saturation) explains far more as itself than as noise colour;
-    * the deterministic candidate is NOT significant (p ≥ ``alpha``, ``det_p_under``) when the
+    * the deterministic candidate is NOT significant (p ≥ ``alpha``, ``det_p_under``; the
+      caller passes alpha / number of candidates) when the
       null is the model's noise plus the stochastic candidate: a drift that a random walk
       produces anyway is not evidence of a drift, whereas a temperature or input term stays
       significant against any noise that ignores temperature and input — the colour then came

@@ -313,7 +313,9 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
             return np.column_stack([m_s.simulate(rec, rng) - base for _ in range(m)])
         return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw)
 
-    best = choose(named, model, rec, catalogue, kind, det_p_under, alpha)
+    # the deterministic term's significance against the process: Bonferroni over the catalogue
+    # (a realisation of a walk is as trendy as 1 % of walks about 1 % of the time)
+    best = choose(named, model, rec, catalogue, kind, det_p_under, alpha / max(len(cands), 1))
     if best is None:
         return Naming(tuple(out), None, (), ())
     comps, seps = [], []
