@@ -17,8 +17,10 @@ LookupError / OSError are turned into that by :mod:`bench.cli`).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +47,7 @@ def register(sub) -> None:
     p.add_argument("--alpha", type=float, default=0.05, help="false-discovery rate [0.05]")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap null [0]")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
     p.set_defaults(func=discover_command)
 
 
@@ -102,7 +105,10 @@ def discover_command(args) -> int:
         raise ValueError(f"{label}: {rec.n} samples; discover needs at least 64")
     if not rec.is_uniform(rtol=0.05):
         raise ValueError(f"{label}: sample intervals vary by more than 5 %; discover needs a uniform record")
-    result = discover(rec, model, max_effects=args.max_effects, alpha=args.alpha, seed=args.seed)
+    with status_line(not args.no_progress and not args.json) as say:
+        say(f"{label}: {rec.n} samples at {rec.rate_hz:.6g} Hz; calibrating the {model.base.kind} model")
+        result = discover(rec, model, max_effects=args.max_effects, alpha=args.alpha, seed=args.seed,
+                          progress=say)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model_file = out / "discovered_model.toml"
@@ -116,6 +122,26 @@ def discover_command(args) -> int:
     else:
         print(summary(result, label, model_file, report))
     return 0
+
+
+@contextlib.contextmanager
+def status_line(enabled: bool):
+    """A spinner with the workflow's current step on stderr (rich); each finished step's message
+    stays printed. Yields ``say(message)``."""
+    if not enabled:
+        yield lambda _msg: None
+        return
+    from rich.console import Console
+    from rich.markup import escape
+
+    console = Console(file=sys.stderr)
+    with console.status("discover: starting") as status:
+        def say(msg: str) -> None:
+            if ": named " in msg or "stopping" in msg or "unexplained" in msg:
+                console.print(escape(msg))
+            status.update(escape(f"discover — {msg}"))
+
+        yield say
 
 
 def clean_json(x):
@@ -140,7 +166,8 @@ def summary(result, label: str, model_file: Path, report: Path) -> str:
         lines.append("nothing named: no catalogue effect is significant")
     for i, s in enumerate(result.steps, 1):
         ps = ", ".join(f"{k} = {v:.4g} ± {s.params_std.get(k, float('nan')):.2g}" for k, v in s.params.items())
-        lines.append(f"{i}. {s.effect_id} ({ps}); p = {s.p_value:.3g}; rms {s.rms_before:.4g} → {s.rms_after:.4g}")
+        pv = f"p ≤ {s.p_value:.0e}" if s.p_value <= 1e-300 else f"p = {s.p_value:.3g}"  # floored, no underflow
+        lines.append(f"{i}. {s.effect_id} ({ps}); {pv}; rms {s.rms_before:.4g} → {s.rms_after:.4g}")
         for sep in s.naming.separating:
             lines.append(f"   close competitor — {sep}")
     for u in result.unexplained:

@@ -172,8 +172,9 @@ def fit_deterministic(model, rec: Record, effect, eid: str, r: np.ndarray, folds
         lin = float(sig.heldout_linear_scores(r, x_nuis, cols, folds)[0])
         draw = None
         if stochastic_in(model):
+            base = model.predict(rec)  # once: each draw is only the model's noise around it
+
             def draw(m):  # the model's own noise: white + its stochastic effects
-                base = model.predict(rec)
                 return np.column_stack([model.simulate(rec, rng) - base for _ in range(m)])
         p = sig.bootstrap_p_value(r, x_nuis, cols, folds, lin, n_rep=n_rep, rng=rng, draw=draw)
     else:

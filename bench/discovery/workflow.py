@@ -13,8 +13,10 @@ d. add the named effect with its fitted parameters, re-calibrate, and measure th
    and after (:class:`bench.discovery.significance.Gap`: rms / model-noise rms, Allan distance,
    spectral distance, Ljung–Box whiteness p) against a simulation of the model's own noise;
 e. repeat until nothing is named (or ``max_effects``). Structure left that no candidate
-   explains is reported as "unexplained structure" with where it is; nothing significant
-   names nothing.
+   explains is reported as "unexplained structure" with where it is
+   (:func:`bench.discovery.localize.unexplained_structure`: the residual, or its Kalman
+   innovations when the model has stochastic effects, against the model's own noise,
+   family-wise at ``alpha``); nothing significant names nothing.
 
 Pure: record and model in, a :class:`Discovery` out (no files; the CLI writes the model file).
 """
@@ -25,12 +27,12 @@ from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
-from scipy import signal, stats
+
 
 from bench.discovery.data import Record
-from bench.discovery.localize import Localization, localize
+from bench.discovery.localize import Localization, localize, unexplained_structure
 from bench.discovery.naming import Naming, name_effect
-from bench.discovery.significance import Gap, gap_metrics
+from bench.discovery.significance import Gap, gap_metrics, white_floor
 
 
 def _effect(eid: str):
@@ -119,15 +121,9 @@ def _at(model, slots, x: np.ndarray):
 
 def white_floor_sd(residual: np.ndarray, rate_hz: float) -> float:
     """White-noise sd from the upper half of the residual's Welch PSD (median, bias-corrected):
-    immune to slow structure (drift, warm-up, temperature) and to a few spectral lines."""
-    r = np.asarray(residual, float)
-    nperseg = min(r.size, max(64, 2 ** int(np.log2(max(r.size // 16, 64)))))
-    f, p = signal.welch(r, fs=rate_hz, window="hann", nperseg=nperseg, detrend="constant")
-    upper = p[f >= 0.5 * f[-1]][:-1] if f.size > 4 else p
-    k = max(1, 2 * (r.size - nperseg) // nperseg + 1)
-    nu = 2.0 * k * 0.9
-    med_bias = stats.chi2.median(nu) / nu
-    return float(np.sqrt(np.median(upper) / med_bias * rate_hz / 2.0))
+    immune to slow structure (drift, warm-up, temperature) and to a few spectral lines
+    (:func:`bench.discovery.significance.white_floor`)."""
+    return float(white_floor(np.asarray(residual, float), rate_hz)[0])
 
 
 def _check_base(model, rec: Record, bias: float, sf: float) -> None:
@@ -187,7 +183,8 @@ def calibrate(model, rec: Record, *, noise: bool = True, max_nfev: int = 200):
         sd = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz)
         sd = float(min(sd, BASE_RANGES[model.base.kind]["noise_sd"][1]))
         if sd > 0 and np.isfinite(sd):
-            model = replace(model, base=replace(model.base, noise_sd=sd))
+            # the measured floor holds a quantizer's rounding too: the noise before it is less
+            model = model.with_noise_floor(sd)
     return model
 
 
@@ -266,24 +263,15 @@ def gap_of(model, rec: Record, seed: int) -> tuple[Gap, float, float, np.ndarray
     if stoch:  # a random process's rms varies between realisations: average several
         noises = [model_noise(model, rec, seed + k) for k in range(8)]
         floor = float(np.sqrt(np.mean([np.mean(x ** 2) for x in noises])))
-        g = gap_metrics(r, model.base.noise_sd, rec.rate_hz, noises[0], floor)
+        g = gap_metrics(r, model.residual_sd(), rec.rate_hz, noises[0], floor)
     else:
-        floor = float(model.base.noise_sd)
-        g = gap_metrics(r, model.base.noise_sd, rec.rate_hz)
+        floor = float(model.residual_sd())
+        g = gap_metrics(r, floor, rec.rate_hz)
     return g, float(np.sqrt(np.mean(r ** 2))), floor, r
 
 
 def _structure(model, rec: Record, r: np.ndarray) -> Localization:
-    return localize(rec, r - r.mean(), model.base.noise_sd)
-
-
-def _unexplained(model, loc: Localization) -> tuple[str, ...]:
-    # with stochastic effects in the model its residual is coloured by design: every
-    # localization test is calibrated on white noise and would flag the model's own noise
-    # (a random walk correlates with any slow input); the workflow notes it instead
-    if any(_effect(eid).stochastic for eid, _ in model.effects):
-        return ()
-    return tuple(loc.descriptions())
+    return localize(rec, r - r.mean(), model.residual_sd())
 
 
 def _step_std(model, rec: Record, naming_std: dict) -> dict:
@@ -297,7 +285,8 @@ def _step_std(model, rec: Record, naming_std: dict) -> dict:
     eff = _effect(eid)
     if eff.stochastic or eid in _HISTOGRAM_JUDGED:
         return dict(naming_std)
-    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, eid)
+    # the model's noise_sd is already the noise before any quantizer (with_noise_floor)
+    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, eid, noise_is_floor=False)
     x = f.pack(p, model.base.bias, model.base.scale_factor)
     return dict(f.fit([x], max_nfev=1).params_std)
 
@@ -342,10 +331,11 @@ def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, s
         say(f"step {it + 1}: named {best.id}, rms {_fmt(rms_cur)} → {_fmt(rms1)}")
         model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
     loc = _structure(model, rec, r_cur)
-    unexplained = _unexplained(model, loc) if naming is None or naming.best is None or notes else ()
-    if any(_effect(eid).stochastic for eid, _ in model.effects):
-        notes.append("the model has stochastic effects: the white-noise localization tests do not apply "
-                     "to its residual, so unexplained structure is not assessed")
+    # what no catalogue effect explained: the residual (white model) or its Kalman innovations
+    # (stochastic model) against the model's own noise, family-wise at alpha
+    unexplained = unexplained_structure(rec, r_cur, model, alpha=alpha)
+    if unexplained:
+        say(f"unexplained structure: {len(unexplained)} finding(s)")
     _, _, floor, _ = gap_of(model, rec, seed)
     return Discovery(initial, model, tuple(steps), unexplained, g0, gap_cur, rms0, rms_cur, floor, loc,
                      naming, r0, r_cur, tuple(notes))
