@@ -129,3 +129,20 @@ def test_discover_a_stored_startup_run(tmp_path, capsys):
     assert doc["source"].startswith("run ")
     # the simulated unit warms up after power-on: the first effect named is the start-up transient
     assert doc["effects"] and doc["effects"][0]["id"] == "warmup_exponential"
+
+
+def test_a_jittered_record_runs_without_the_sampled_filters(tmp_path, capsys):
+    """1 % interval jitter: the filters (which need 0.1 %) are left out and the output says so,
+    instead of failing mid-workflow."""
+    rng = np.random.default_rng(5)
+    n = 600
+    t = np.cumsum(np.full(n, 0.1) * (1 + 0.01 * rng.uniform(-1, 1, n)))
+    u = np.repeat(rng.uniform(-1, 1, n // 50), 50)
+    y = 1e-3 + u + 5e-6 * rng.standard_normal(n)
+    f = tmp_path / "jitter.csv"
+    f.write_text("t,y,input\n" + "".join(f"{a:.17g},{b:.17g},{c:.17g}\n" for a, b, c in zip(t, y, u)))
+    rc = main(["discover", "--measured", str(f), "--out", str(tmp_path / "o"), "--json", "--max-effects", "1"])
+    assert rc == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert any("lowpass_bandwidth" in n and "not tried" in n for n in doc["notes"])
+    assert all(c["id"] not in ("lowpass_bandwidth", "highpass_rolloff") for c in doc["last_naming"]["candidates"])

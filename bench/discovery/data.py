@@ -124,6 +124,11 @@ class Record:
             return True
         return getattr(self, _field(name)) is not None
 
+    def varies(self, name: str) -> bool:
+        """True when column ``name`` was logged and is not constant (a constant input is one
+        with the bias: bias and scale factor are not separable on it)."""
+        return self.logged(name) and float(np.ptp(self.column(name))) > 0
+
     def has(self, name: str) -> bool:
         """True when ``column(name)`` is available ("t_on" always is: fallback t - t[0])."""
         return _field(name) == "t_on_s" or self.logged(name)

@@ -100,7 +100,8 @@ class Effect:
     applies to), ``identity`` (main-parameter value that leaves the output unchanged),
     ``increasing`` (a larger main parameter is a larger effect; False for a bandwidth or a
     saturation limit), ``ranges`` (kind -> tuple of Param), ``competitors`` (effects whose
-    signature this one resembles on typical records: its snr counts only what they cannot absorb)."""
+    signature this one resembles on typical records: its snr counts only what they cannot absorb),
+    ``needs_uniform`` (a sampled filter: the record must be uniform to 0.1 %)."""
 
     id: str = ""
     description: str = ""
@@ -116,6 +117,7 @@ class Effect:
     ranges: dict[str, tuple[Param, ...]] = {}
     competitors: tuple[str, ...] = ()
     draw_span_main: float = DRAW_SPAN
+    needs_uniform: bool = False  # a sampled filter: every interval within 0.1 % of the median
 
     # ---- parameters -------------------------------------------------------------------
     @property

@@ -16,9 +16,9 @@ from bench.discovery.data import Record
 
 
 def base_regressors(rec: Record) -> np.ndarray:
-    """Columns a base-model calibration fits: 1 and (when logged) the input."""
+    """Columns a base-model calibration fits: 1 and (when logged and varying) the input."""
     cols = [np.ones(rec.n)]
-    if rec.logged("input"):
+    if rec.varies("input"):
         cols.append(rec.input)
     return np.column_stack(cols)
 

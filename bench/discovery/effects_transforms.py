@@ -91,6 +91,7 @@ class LowpassBandwidth(Effect):
     description = "finite bandwidth of the sensor or its read-out: a single-pole low-pass on the input path"
     form = "input → u0 + LP[input − u0], LP: y_k = a·y_{k−1} + (1 − a)·x_k, a = exp(−2π·bandwidth_hz·dt)"
     inputs = ("input",)
+    needs_uniform = True
     main_param = "bandwidth_hz"
     signature = "time: exponential tails after input steps; frequency: response rolls off above bandwidth_hz"
     stage = "input"
@@ -120,6 +121,7 @@ class HighpassRolloff(Effect):
     description = "AC coupling: a single-pole high-pass on the input path (the MHD sensor senses no DC rate)"
     form = "input → u0 + HP[input − u0], HP: y_k = a·(y_{k−1} + x_k − x_{k−1}), a = exp(−2π·corner_hz·dt)"
     inputs = ("input",)
+    needs_uniform = True
     main_param = "corner_hz"
     signature = "time: droop after input steps (output returns to bias); frequency: loss below corner_hz, phase lead"
     stage = "input"

@@ -164,7 +164,7 @@ class CandidateFitter:
         self.noise_is_floor = noise_is_floor
         self.kind = model.base.kind
         self.qs = effect.params_for(self.kind)
-        self.with_sf = rec.logged("input")
+        self.with_sf = rec.varies("input")  # a constant input leaves the scale factor out
         self.n_base = 2 if self.with_sf else 1
         sd = max(float(model.base.noise_sd), 1e-300)
         sf = float(model.base.scale_factor)

@@ -40,6 +40,7 @@ from bench.discovery import lattice as lat
 from bench.discovery import significance as sig
 from bench.discovery import stochastic as sto
 from bench.discovery.data import Record
+from bench.discovery.effects_linalg import base_regressors
 from bench.discovery.choosing import choose, jackknife_ratio, parsimonious, stochastic_in
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.separating import separating_experiment
@@ -98,11 +99,12 @@ class Naming:
 
 
 def applicable(model, rec: Record, catalogue: dict) -> list[str]:
-    """Catalogue ids that apply to the model's kind and record and are not in the model yet."""
+    """Catalogue ids that apply to the model's kind and record and are not in the model yet (a
+    sampled filter only on a record uniform to 0.1 %: :attr:`Effect.needs_uniform`)."""
     have = {eid for eid, _ in model.effects}
     out = []
     for eid, eff in catalogue.items():
-        if eid in have or model.base.kind not in eff.kinds:
+        if eid in have or model.base.kind not in eff.kinds or (eff.needs_uniform and not rec.is_uniform()):
             continue
         # an input held constant cannot show an effect of it (it is one with the bias)
         if all(n in ("t", "t_on") or (rec.logged(n) and np.ptp(rec.column(n)) > 0) for n in eff.inputs):
@@ -130,10 +132,7 @@ def _coarse_quantizer(model) -> bool:
 
 
 def _nuisance(rec: Record) -> np.ndarray:
-    cols = [np.ones(rec.n)]
-    if rec.logged("input"):
-        cols.append(rec.input)
-    return np.column_stack(cols)
+    return base_regressors(rec)
 
 
 def _base_errors(r: np.ndarray, x_nuis: np.ndarray, folds: np.ndarray) -> np.ndarray:

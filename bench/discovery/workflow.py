@@ -49,7 +49,7 @@ _HISTOGRAM_JUDGED = ("quantization",)
 def _sf_free(rec: Record) -> bool:
     """Scale factor is fitted only when the input is logged and varies: with a constant input
     bias and scale factor are one offset (not separable)."""
-    return rec.logged("input") and float(np.ptp(rec.input)) > 0
+    return rec.varies("input")
 
 
 def _slots(model, rec: Record) -> list[tuple[str, int | None, object]]:
@@ -305,11 +305,18 @@ def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, s
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
     say = progress or (lambda _msg: None)
+    from bench.discovery.effects import CATALOGUE  # noqa: PLC0415
+
+    skipped = [eid for eid, e in CATALOGUE.items() if e.needs_uniform and model.base.kind in e.kinds]
+    if skipped and not rec.is_uniform():
+        notes = [f"{', '.join(skipped)} not tried: the sample intervals vary by more than 0.1 % of the median "
+                 "(a sampled filter needs a uniform record; resample to try them)"]
+    else:
+        notes = []
     model = calibrate(model, rec)
     initial = model
     g0, rms0, _, r0 = gap_of(model, rec, seed)
     steps = []
-    notes = []
     gap_cur, rms_cur, r_cur = g0, rms0, r0
     naming = None
     for it in range(max_effects + 1):
