@@ -121,7 +121,8 @@ def visibility(y: np.ndarray, s: np.ndarray | float, *, cf: CharFun | None = Non
 def fit_lattice(y: np.ndarray, noise_sd: float, low: float, high: float, n_grid: int = 300) -> LatticeFit:
     """Scan steps in [max(low, σ/4), min(high, √12·σ·1.2)] (a larger step would make the white
     level larger than measured) and return the fitted lattice with its p-value."""
-    d = np.diff(np.asarray(y, float))
+    readings = np.asarray(y, float)
+    d = np.diff(readings)
     y = d[(d != 0) & (np.abs(d) <= MAX_DIFF_SD * noise_sd)]
     n = y.size
     if n < 16:
@@ -149,7 +150,66 @@ def fit_lattice(y: np.ndarray, noise_sd: float, low: float, high: float, n_grid:
     ex = max(vs - bs, float(excess[k]), 0.0)
     p = min(1.0, math.exp(-n * ex ** 2) * n_grid)
     std = s * s / (2 * math.pi * max(float(np.sqrt(np.mean(y ** 2))), 1e-300) * math.sqrt(n))
+    s, std = refine_step(readings, s, std)
     return LatticeFit(s, std, vs, bs, p)
+
+
+def refine_step(readings: np.ndarray, step: float, step_std: float, *,
+                max_rounds: int = 60, consistent: float = 0.95) -> tuple[float, float]:
+    """(step, its std) refined on the distinct reading levels, not on small differences.
+
+    The differences pin the step to ~s²/(2π·rms(d)·√n), but a prediction over a large input
+    range needs it to ~s/(max|y|/s): reading m·s misplaces the lattice by m·δs. Distinct levels
+    of a quantized output are integer multiples of the step apart, so (:func:`_lattice_slope`)
+    gaps whose multiple is unambiguous at the current precision join levels into clusters, the
+    step is the least-squares slope of level against integer index, and a better step makes
+    larger gaps unambiguous, until nothing more joins. Started from the histogram's step and
+    from the smallest gap (exactly one step when neighbouring levels occur); a start is kept
+    only if at least ``consistent`` of the gaps are whole multiples of its result, and the
+    larger such step wins (the fundamental, not a sub-multiple). The unrefined pair comes back
+    when the levels do not lie on a lattice."""
+    v = np.unique(np.asarray(readings, float))
+    if v.size < 3 or not (np.isfinite(step) and step > 0):
+        return step, step_std
+    gaps = np.diff(v)
+    best = None
+    for s0, rel0 in ((float(step), max(float(step_std) / float(step), 1e-15)), (float(gaps.min()), 1e-3)):
+        out = _lattice_slope(v, gaps, s0, rel0, max_rounds)
+        if out is None:
+            continue
+        s_fit, rel, share = out
+        if share >= consistent and (best is None or s_fit > best[0] * (1 + 1e-9)):
+            best = (s_fit, s_fit * rel)
+    return best if best is not None else (step, step_std)
+
+
+def _lattice_slope(v: np.ndarray, gaps: np.ndarray, s: float, rel: float,
+                   max_rounds: int) -> tuple[float, float, float] | None:
+    """(step, relative std, share of gaps that are whole multiples of it) from start ``s``."""
+    joined = -1
+    ok = np.zeros(gaps.size, bool)
+    for _ in range(max_rounds):
+        k = gaps / s
+        kr = np.round(k)
+        ok = (kr >= 1) & (np.abs(k - kr) < 0.25) & (kr * rel < 0.25)
+        if not ok.any():
+            return None
+        cluster = np.concatenate([[0], np.cumsum(~ok)])
+        index = np.concatenate([[0.0], np.cumsum(np.where(ok, kr, 0.0))])
+        dm_i = index - (np.bincount(cluster, index) / np.bincount(cluster))[cluster]
+        dm_v = v - (np.bincount(cluster, v) / np.bincount(cluster))[cluster]
+        ss = float(dm_i @ dm_i)
+        if ss <= 0:
+            return None
+        s = float(dm_i @ dm_v) / ss
+        res = dm_v - s * dm_i
+        rel = max(math.sqrt(float(res @ res) / max(v.size - int(cluster[-1]) - 2, 1) / ss) / s, 1e-15)
+        if int(ok.sum()) == joined:
+            break
+        joined = int(ok.sum())
+    k = gaps / s
+    share = float(np.mean((np.round(k) >= 1) & (np.abs(k - np.round(k)) < 0.25)))
+    return s, rel, share
 
 
 def heldout_score(y: np.ndarray, noise_sd: float, folds: np.ndarray, low: float, high: float) -> float:

@@ -53,7 +53,8 @@ def _sf_free(rec: Record) -> bool:
 
 
 def _slots(model, rec: Record) -> list[tuple[str, int | None, object]]:
-    """(what, effect index or None, Param or base name) of every parameter calibrate fits."""
+    """(what, effect index or None, Param or base name) of every parameter calibrate fits
+    (calibrate appends ("noise", measured floor, "noise_sd") for a quantized model)."""
     slots = [("base", None, "bias")]
     if _sf_free(rec):
         slots.append(("base", None, "scale_factor"))
@@ -76,6 +77,12 @@ def _coords(model, slots) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
 
     x, lo, hi, sc = [], [], [], []
     for what, i, q in slots:
+        if what == "noise":  # log sd, from a thousandth of the measured floor ``i`` up to it
+            x.append(np.log(max(float(model.base.noise_sd), 1e-3 * i)))
+            lo.append(np.log(1e-3 * i))
+            hi.append(np.log(i))
+            sc.append(0.3)
+            continue
         if what == "base":
             a, b = BASE_RANGES[model.base.kind][q]
             x.append(float(getattr(model.base, q)))
@@ -107,6 +114,9 @@ def _at(model, slots, x: np.ndarray):
     base = {}
     effects = [(eid, dict(p)) for eid, p in model.effects]
     for (what, i, q), v in zip(slots, x):
+        if what == "noise":
+            base[q] = float(np.exp(v))
+            continue
         if what == "base":
             base[q] = float(v)
             continue
@@ -161,6 +171,16 @@ def calibrate(model, rec: Record, *, noise: bool = True, max_nfev: int = 200):
     _check_base(model, rec, bias, sf)
     model = model.with_base(bias=bias, scale_factor=sf)
     slots = _slots(model, rec)
+    # through a quantizer the prediction E[Q(x + n)] depends on the noise before it: that sd is
+    # a parameter of the prediction, fitted with the rest (the conditional mean minimises the
+    # squared error, so least squares finds it), starting from the measured floor's inversion
+    quantized = noise and any(eid in _HISTOGRAM_JUDGED for eid, _ in model.effects)
+    if quantized:
+        floor = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz)
+        floor = float(min(floor, BASE_RANGES[model.base.kind]["noise_sd"][1]))
+        if floor > 0 and np.isfinite(floor):
+            model = model.with_noise_floor(floor)
+            slots.append(("noise", floor, "noise_sd"))
     if len(slots) > (2 if sf_free else 1):  # effects with parameters: the joint nonlinear fit
         x0, lo, hi, sc = _coords(model, slots)
         x0 = np.clip(x0, lo, hi)
@@ -179,7 +199,7 @@ def calibrate(model, rec: Record, *, noise: bool = True, max_nfev: int = 200):
             if min(v - lo_b, hi_b - v) <= 1e-9 * (hi_b - lo_b):
                 raise ValueError(f"calibrated {name} = {v:.6g} at the edge of the allowed range [{lo_b}, {hi_b}] "
                                  f"for a {b.kind}: wrong unit or missing input column?")
-    if noise:
+    if noise and not any(w == "noise" for w, _, _ in slots):
         sd = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz)
         sd = float(min(sd, BASE_RANGES[model.base.kind]["noise_sd"][1]))
         if sd > 0 and np.isfinite(sd):
@@ -259,8 +279,11 @@ def model_noise(model, rec: Record, seed: int) -> np.ndarray:
 def gap_of(model, rec: Record, seed: int) -> tuple[Gap, float, float, np.ndarray]:
     """(gap table, residual rms, model-noise rms, residual) of ``model`` on ``rec``."""
     r = rec.y - model.predict(rec)
-    stoch = any(_effect(eid).stochastic for eid, _ in model.effects)
-    if stoch:  # a random process's rms varies between realisations: average several
+    # a random process's rms varies between realisations, and a quantizer's rounding error
+    # depends on where the signal sits between levels: both floors come from simulating the
+    # model on this stimulus (several realisations), not from a formula
+    stoch = any(_effect(eid).stochastic or eid in _HISTOGRAM_JUDGED for eid, _ in model.effects)
+    if stoch:
         noises = [model_noise(model, rec, seed + k) for k in range(8)]
         floor = float(np.sqrt(np.mean([np.mean(x ** 2) for x in noises])))
         g = gap_metrics(r, model.residual_sd(), rec.rate_hz, noises[0], floor)

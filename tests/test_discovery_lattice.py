@@ -1,0 +1,56 @@
+"""Quantization's step to the precision a wide input range needs (lattice.refine_step), and a
+quantized record named alone with its step, noise and floor (workflow)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bench.discovery.lattice import fit_lattice, refine_step
+from bench.discovery.model import BaseModel, Model, base_model
+from bench.discovery.workflow import discover
+
+
+@settings(max_examples=30, deadline=None)
+@given(step=st.floats(1e-6, 1e-3), span_steps=st.floats(1e2, 1e6), rel_err=st.floats(-3e-3, 3e-3),
+       seed=st.integers(0, 2 ** 16))
+def test_refined_step_places_the_farthest_level(step, span_steps, rel_err, seed):
+    """From a step 0.3 % off (what small differences give), the refined step puts a level
+    span_steps away within a hundredth of a step."""
+    rng = np.random.default_rng(seed)
+    x = np.repeat(rng.uniform(-0.5, 0.5, 30), 40) * span_steps * step + step * rng.normal(0, 0.7, 1200)
+    y = step * np.round(x / step)
+    s, sd = refine_step(y, step * (1 + rel_err), abs(rel_err) * step / 3 + 1e-3 * step)
+    assert abs(s - step) * np.max(np.abs(y)) / step < 0.01 * step
+    assert sd < step
+
+
+def test_a_sub_multiple_is_raised_to_the_fundamental_and_noise_is_left_alone():
+    rng = np.random.default_rng(1)
+    y = 1e-4 * np.round(rng.uniform(-1, 1, 3000) / 1e-4)
+    s, _ = refine_step(y, 5e-5, 1e-7)
+    assert s == pytest.approx(1e-4, rel=1e-9)
+    white = rng.normal(0, 1e-4, 3000)  # not on a lattice: the coarse pair comes back
+    assert refine_step(white, 3e-5, 1e-7) == (3e-5, 1e-7)
+
+
+@pytest.mark.parametrize("kind,step_over_sd", [("accelerometer", 19.0), ("gyro", 4.0)])
+def test_a_coarse_quantizer_is_named_alone_with_its_step_and_noise(kind, step_over_sd):
+    from bench.discovery.effects import DEFAULT_NOISE_SD
+    from bench.discovery.experiments import make_experiment
+
+    rng = np.random.default_rng(7)
+    rec = make_experiment(kind, rng, n=3000)
+    sd = DEFAULT_NOISE_SD[kind]
+    truth = Model(BaseModel(kind, 0.3 * sd, 1.001, sd)).with_effect("quantization", {"step": step_over_sd * sd})
+    rec = rec.replace(y=truth.simulate(rec, rng))
+    d = discover(rec, Model(base_model(kind)), max_effects=2, seed=3, n_rep=199)
+    assert [s.effect_id for s in d.steps] == ["quantization"]
+    assert d.steps[0].params["step"] == pytest.approx(step_over_sd * sd, rel=1e-6)
+    assert d.final_model.base.noise_sd == pytest.approx(sd, rel=0.15)
+    assert abs(d.gap_final.rms_ratio - 1) < 0.05
+    floor = np.sqrt(sd ** 2 + (step_over_sd * sd) ** 2 / 12)  # what a model without the quantizer sees
+    fit = fit_lattice(rec.y, floor, 1e-9, 1.0)
+    assert fit.p_value < 1e-6 and fit.step == pytest.approx(step_over_sd * sd, rel=1e-6)
