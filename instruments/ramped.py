@@ -1,11 +1,16 @@
 """What the shaker controller and the angular vibration table share: ``:STAR``, ``:STOP``,
 ``:ABOR``, the interlock commands, a ``:STAT?`` of IDLE | RAMP | RUN | ABORT, and waiting
-for RUN or IDLE on the bench clock (never sleeping)."""
+for RUN or IDLE on the bench clock (never sleeping) — :func:`poll_until`, the polling loop the
+turntable's axes wait with too."""
 
 from __future__ import annotations
 
+from typing import Callable, TypeVar
+
 from .protocols import Wait
 from .validate import in_range
+
+T = TypeVar("T")
 
 
 class Interlocked:
@@ -43,7 +48,6 @@ class RampedController(Interlocked):
         """``:ABOR``: cut the drive now; the controller latches ABORT."""
         self.configure_command(":ABOR")
 
-
     def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = 0.1) -> str:
         """Poll ``:STAT?`` until RUN; :attr:`aborted_error` on ABORT, RuntimeError on IDLE
         (nothing is starting), TimeoutError after ``timeout_s``."""
@@ -54,21 +58,36 @@ class RampedController(Interlocked):
         return self._wait_for("IDLE", wait, timeout_s, poll_s)
 
     def _wait_for(self, goal: str, wait: Wait, timeout_s: float, poll_s: float) -> str:
-        timeout = in_range("timeout_s", timeout_s, (0.0, float("inf")))
-        poll = in_range("poll_s", poll_s, (1e-6, float("inf")))
-        if not callable(wait):
-            raise ValueError(f"wait={wait!r} is not callable; pass the bench clock's wait")
-        waited = 0.0
-        while True:
-            state = self.state
+        def reached(state: str) -> bool:
             if state == goal:
-                return state
+                return True
             if state == "ABORT":
                 raise self.aborted_error(f"{self.name}: ABORT while waiting for {goal}")
             if goal == "RUN" and state == "IDLE":
                 raise RuntimeError(f"{self.name}: IDLE while waiting for RUN (not started?)")
-            if timeout - waited <= 1e-9:
-                raise TimeoutError(f"{self.name}: not {goal} after {waited:g} s (state {state})")
-            step = min(poll, timeout - waited)
-            wait(step)
-            waited += step
+            return False
+
+        return poll_until(lambda: self.state, reached, wait, timeout_s, poll_s,
+                          lambda state, waited: f"{self.name}: not {goal} after {waited:g} s (state {state})")
+
+
+def poll_until(read: Callable[[], T], reached: Callable[[T], bool], wait: Wait, timeout_s: float,
+               poll_s: float, timed_out: Callable[[T, float], str]) -> T:
+    """Read until ``reached(value)`` (which may raise on a fault), letting ``poll_s`` of bench
+    time pass between reads through ``wait``; ``TimeoutError(timed_out(value, waited_s))``
+    once ``timeout_s`` has passed. The shared loop of every driver's wait-for-state."""
+    timeout = in_range("timeout_s", timeout_s, (0.0, float("inf")))
+    poll = in_range("poll_s", poll_s, (1e-6, float("inf")))
+    if not callable(wait):
+        raise ValueError(f"wait={wait!r} is not callable; pass the bench clock's wait")
+    waited = 0.0
+    while True:
+        value = read()
+        if reached(value):
+            return value
+        remaining = timeout - waited
+        if remaining <= 1e-9:  # tolerance: summed float steps fall just short of timeout
+            raise TimeoutError(timed_out(value, waited))
+        step = min(poll, remaining)
+        wait(step)
+        waited += step

@@ -28,7 +28,7 @@ from .base import (
     read_settings,
 )
 from .protocols import Wait
-from .ramped import Interlocked
+from .ramped import Interlocked, poll_until
 
 log = logging.getLogger(__name__)
 
@@ -181,28 +181,17 @@ class TableAxis(InstrumentChannel):
         self, done: Callable[[AxisStatus], bool], what: str, wait: Wait,
         timeout_s: float, poll_s: float,
     ) -> AxisStatus:
-        timeout = in_range("timeout_s", timeout_s, (0.0, float("inf")))
-        poll = in_range("poll_s", poll_s, (1e-6, float("inf")))
-        if not callable(wait):
-            raise ValueError(f"wait={wait!r} is not callable; pass the bench clock's wait")
-        waited = 0.0
-        while True:
-            status = self.status
+        def reached(status: AxisStatus) -> bool:
             if status.fault:
-                what = "fault, interlock tripped" if status.interlock_open else "fault"
-                raise AxisFaultError(self.number, status, what, self.parent.name)
+                what_fault = "fault, interlock tripped" if status.interlock_open else "fault"
+                raise AxisFaultError(self.number, status, what_fault, self.parent.name)
             if status.interlock_open:
                 raise AxisFaultError(self.number, status, "interlock open", self.parent.name)
-            if done(status):
-                return status
-            remaining = timeout - waited
-            if remaining <= 1e-9:  # tolerance: summed float steps fall just short of timeout
-                raise TimeoutError(
-                    f"axis {self.number} not {what} after {waited:g} s (status {status.raw})"
-                )
-            step = min(poll, remaining)
-            wait(step)
-            waited += step
+            return done(status)
+
+        return poll_until(lambda: self.status, reached, wait, timeout_s, poll_s,
+                          lambda status, waited: f"axis {self.number} not {what} after {waited:g} s "
+                                                 f"(status {status.raw})")
 
 
 @dataclass(frozen=True)
