@@ -338,11 +338,11 @@ def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, s
         notes = []
     model = calibrate(model, rec)
     initial = model
-    g0, rms0, _, r0 = gap_of(model, rec, seed)
+    g0, rms0, floor, r0 = gap_of(model, rec, seed)
     steps = []
     gap_cur, rms_cur, r_cur = g0, rms0, r0
     naming = None
-    for it in range(max_effects + 1):
+    for it in range(max_effects + 1):  # always ends by a break, loc describing r_cur
         loc = _structure(model, rec, r_cur)
         step_say = (lambda msg, _it=it: say(f"step {_it + 1}: {msg}"))
         naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
@@ -355,17 +355,15 @@ def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, s
             break
         best = naming.best
         new = calibrate(model.with_effect(best.id, best.params), rec)
-        g1, rms1, _, r1 = gap_of(new, rec, seed)
+        g1, rms1, floor, r1 = gap_of(new, rec, seed)
         steps.append(Step(best.id, dict(new.effects[-1][1]), _step_std(new, rec, best.params_std), best.p_value,
                           gap_cur, g1, rms_cur, rms1, naming, loc, r_cur, r1))
         say(f"step {it + 1}: named {best.id}, rms {_fmt(rms_cur)} → {_fmt(rms1)}")
         model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
-    loc = _structure(model, rec, r_cur)
     # what no catalogue effect explained: the residual (white model) or its Kalman innovations
     # (stochastic model) against the model's own noise, family-wise at alpha
     unexplained = unexplained_structure(rec, r_cur, model, alpha=alpha)
     if unexplained:
         say(f"unexplained structure: {len(unexplained)} finding(s)")
-    _, _, floor, _ = gap_of(model, rec, seed)
     return Discovery(initial, model, tuple(steps), unexplained, g0, gap_cur, rms0, rms_cur, floor, loc,
                      naming, r0, r_cur, tuple(notes))
