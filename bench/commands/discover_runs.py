@@ -115,8 +115,8 @@ def longest_stretch(t: np.ndarray, rtol: float = 0.05) -> tuple[int, int]:
     return best
 
 
-def record_of(store, run_id: str, m: StreamMap) -> tuple[Record, str]:
-    """(record, what was done to it) of stream ``m`` of a stored run."""
+def record_of(store, run_id: str, m: StreamMap, streams: dict) -> tuple[Record, str]:
+    """(record, what was done to it) of stream ``m`` of a stored run holding ``streams``."""
     data = store.load(run_id, m.stream)
     t = np.asarray(data["t_s"], float)
     y = np.asarray(data[m.y], float)
@@ -134,7 +134,7 @@ def record_of(store, run_id: str, m: StreamMap) -> tuple[Record, str]:
         cols["input"] = np.full(cols["t"].size, m.applied_input)
     if m.vib is not None:
         cols["vib"] = np.asarray(data[m.vib], float)[keep]
-    if m.temp is not None and m.temp[0] in store.streams(run_id):
+    if m.temp is not None and m.temp[0] in streams:
         td = data if m.temp[0] == m.stream else store.load(run_id, m.temp[0])
         if m.temp[1] in td and "t_s" in td:
             tt, vv = np.asarray(td["t_s"], float), np.asarray(td[m.temp[1]], float)
@@ -174,7 +174,8 @@ def read_run(store_path, run_id: str, stream: str | None = None) -> tuple[Record
     with RunStore(store_path) as store:
         run_id = resolve_run_id(store, run_id)
         info = store.get_run(run_id)
-        maps = mappable(store.streams(run_id))
+        streams = store.streams(run_id)
+        maps = mappable(streams)
         if not maps:
             known = "; ".join(f"{m.stream} ({m.procedures})" for m in STREAM_MAPS)
             raise ValueError(f"run {run_id} ({info.procedure}) has no stream discover can map; "
@@ -186,7 +187,7 @@ def read_run(store_path, run_id: str, stream: str | None = None) -> tuple[Record
                                  f"it has: {', '.join(m.stream for m in maps)}")
             maps = pick
         m = maps[0]
-        rec, done = record_of(store, run_id, m)
+        rec, done = record_of(store, run_id, m, streams)
     others = [x.stream for x in maps[1:]]
     label = f"run {run_id} ({info.procedure}, stream {m.stream}{done})"
     if others:
