@@ -32,6 +32,7 @@ LINE_BITS_PER_BYTE = 10  # 8N1
 STOP_ACK = b"$OK,STOP\r\n"
 #: longest wait for the frames in flight after a ``wait`` (wall seconds)
 SETTLE_S = 0.25
+LATE_REPLY_EXCHANGES = 3  # exchanges after a query timed out during which its answer is expected
 #: frames let pass per ``wait`` step (328 kB of line data): reading keeps pace with time,
 #: so a long read never overruns the unit's line buffer
 WAIT_STEP_FRAMES = 16384
@@ -68,6 +69,9 @@ class SerialGyro:
         self.streaming = False
         self.counters = LineCounters()
         self._stale = False  # the line broke: reopen the port before the next transfer
+        # reply prefix of a query that timed out -> exchanges during which its answer may still
+        # arrive (a slow unit answers the first ask after the driver asked again)
+        self._late: dict[str, int] = {}
 
     # -- ASCII commands ---------------------------------------------------------------------
     def _read_line(self, command: str) -> bytes:
@@ -77,6 +81,19 @@ class SerialGyro:
             raise GyroTimeout(f"{self.name}: no reply to {command!r} within "
                               f"{self.reply_timeout_s:g} s (got {line[:40]!r}; unit unpowered?)")
         return line
+
+    def _read_reply(self, command: str, expect: str) -> str:
+        """The reply to ``command``; a late answer to a query that timed out (and was asked
+        again) is recognised by its prefix and passed over once."""
+        while True:
+            reply = self._read_line(command).decode("ascii", errors="replace").strip()
+            late = (None if reply.startswith(expect) else
+                    next((p for p in self._late if reply.startswith(p)), None))
+            if late is None:
+                return reply
+            del self._late[late]
+            log.info("%s: passed over a late reply %r while waiting for the answer to %r",
+                     self.name, reply[:40], command)
 
     def _command(self, command: str, expect: str, *, retry: bool = False) -> str:
         """Send one line while stopped; return the reply after ``expect`` (a prefix).
@@ -90,6 +107,8 @@ class SerialGyro:
             try:
                 return self._command_once(command, expect)
             except (GyroTimeout, GyroLineError, InstrumentReplyError) as exc:
+                if isinstance(exc, GyroTimeout):
+                    self._late[expect] = LATE_REPLY_EXCHANGES
                 if attempt == attempts:
                     raise
                 log.warning("%s; asking again", exc)
@@ -101,12 +120,14 @@ class SerialGyro:
             self.port.reset_input_buffer()  # stale bytes (a stream cut by power loss) are not a reply
             log.debug("%s <- %s", self.name, command)
             self.port.write(command.encode("ascii") + b"\r\n")
-            reply = self._read_line(command).decode("ascii", errors="replace").strip()
+            reply = self._read_reply(command, expect)
         except Exception as exc:
             if _line_broken(exc):
                 self._stale = True
                 raise GyroLineError(self.name, command, exc) from exc
             raise
+        finally:
+            self._late = {k: n - 1 for k, n in self._late.items() if n > 1}
         log.debug("%s -> %s", self.name, reply)
         if reply.startswith("$ERR,"):
             _, code, message = (reply.split(",", 2) + ["", ""])[:3]

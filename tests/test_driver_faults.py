@@ -257,7 +257,7 @@ def test_garbling_changes_one_byte_and_keeps_the_terminator(body, seed):
 
 # -- the gyro line ------------------------------------------------------------------------------
 
-def _gyro(rig: Rig, timeout_s: float = 0.3) -> SerialGyro:
+def _gyro(rig: Rig, timeout_s: float = 2.0) -> SerialGyro:
     rig.supply.ch[1].apply(5.0, 1.0)
     rig.supply.set_outputs([1], True)
     rig.wait(10.0)
@@ -295,7 +295,7 @@ def test_a_gyro_line_drop_mid_stream_keeps_the_frames_and_stop_reopens(rig):
 
 
 def test_a_stalled_gyro_times_out_naming_the_command_and_recovers(rig):
-    gyro = _gyro(rig)
+    gyro = _gyro(rig, timeout_s=0.3)  # short: the stalled queries are asked four times
     rig.fault('SIM:FAUL:STAL "gyro"')
     with pytest.raises(GyroTimeout, match=r"gyro: no reply to '\$ID\?'"):
         gyro.identify()
