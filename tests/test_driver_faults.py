@@ -23,7 +23,7 @@ from instruments.turntable import AxisFaultError, DualAxisTurntable
 from sim.faults import _garble
 from sim.station import SimStationConfig, SimulatedStation
 
-TIMEOUT_MS = 300
+TIMEOUT_MS = 1000  # short enough for the stall tests, long enough for a loaded CI machine
 
 
 class Rig:
@@ -98,7 +98,7 @@ def test_a_refused_command_is_reported_as_the_instruments_error(rig):
 
 
 def test_a_late_reply_is_never_taken_for_the_next_one(rig):
-    rig.fault('SIM:FAUL:SLOW "dmm",600')
+    rig.fault('SIM:FAUL:SLOW "dmm",2500')
     with pytest.raises(InstrumentTimeout, match=r"\*OPC\?.*1 attempt"):
         rig.dmm.query("*OPC?")  # not idempotent: asked once; its "1" arrives late
     rig.fault('SIM:FAUL:CLE "dmm"')
