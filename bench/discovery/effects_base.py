@@ -117,6 +117,7 @@ class Effect:
     ranges: dict[str, tuple[Param, ...]] = {}
     competitors: tuple[str, ...] = ()
     draw_span_main: float = DRAW_SPAN
+    threshold_log_tol: float = 1e-3  # bisection width (log of the main parameter) of a threshold
     needs_uniform: bool = False  # a sampled filter: every interval within 0.1 % of the median
 
     # ---- parameters -------------------------------------------------------------------
@@ -285,13 +286,13 @@ class Effect:
                 return 0.0
             if fb >= 0:
                 return hi_mag
-        for _ in range(50):
+        for _ in range(64):
             m = 0.5 * (a + b)
             if (f(math.exp(m)) >= 0) == self.increasing:
                 b = m
             else:
                 a = m
-            if b - a < 1e-3:
+            if b - a < self.threshold_log_tol:
                 break
         return math.exp(b if self.increasing else a)
 
@@ -317,23 +318,29 @@ class Effect:
 
     # ---- drawing ----------------------------------------------------------------------
     def draw(self, rng: np.random.Generator, rec: Record, *, kind: str | None = None,
-             noise_sd: float | None = None) -> dict:
+             noise_sd: float | None = None, at_snr: float | None = None) -> dict:
         """Parameters inside the kind's physical ranges, resolvable on rec, with the main
         parameter log-uniform between the values giving ``snr = DRAW_SNR_FACTOR·MIN_SNR`` (15)
-        and ``DRAW_SPAN`` times that snr (450); random sign for signed parameters. ValueError when the physical
-        range cannot reach that on this record (the record is too short/quiet for it)."""
+        and ``DRAW_SPAN`` times that snr (450) — or, with ``at_snr``, exactly at that snr (a
+        power curve); random sign for signed parameters. ValueError when the physical range
+        cannot reach that on this record (the record is too short/quiet for it)."""
         kind = kind or guess_kind(rec)
         self.params_for(kind)
         self.check_inputs(rec)
         sd = noise_sd if noise_sd is not None else noise_sd_of(rec, kind)
         others = self.draw_others(rng, rec, kind)
         q = self.param(self.main_param, kind)
-        lo_snr = DRAW_SNR_FACTOR * MIN_SNR
-        thr = self._threshold(others, rec, sd, lo_snr, kind)
-        far = self._threshold(others, rec, sd, lo_snr * DRAW_SPAN, kind)
-        # never more than draw_span_main times the threshold in the parameter itself (an snr that
-        # saturates, as quantization's does, would otherwise open the whole range)
-        far = min(far, thr * self.draw_span_main) if self.increasing else max(far, thr / self.draw_span_main)
+        if at_snr is not None:
+            if not (math.isfinite(at_snr) and at_snr > 0):
+                raise ValueError(f"at_snr = {at_snr!r}; allowed: > 0")
+            thr = far = self._threshold(others, rec, sd, at_snr, kind)
+        else:
+            lo_snr = DRAW_SNR_FACTOR * MIN_SNR
+            thr = self._threshold(others, rec, sd, lo_snr, kind)
+            far = self._threshold(others, rec, sd, lo_snr * DRAW_SPAN, kind)
+            # never more than draw_span_main times the threshold in the parameter itself (an snr
+            # that saturates, as quantization's does, would otherwise open the whole range)
+            far = min(far, thr * self.draw_span_main) if self.increasing else max(far, thr / self.draw_span_main)
         hi_mag = max(abs(q.low), abs(q.high))
         lo_mag = q.low if q.log else max(q.floor, 0.0)
         if self.increasing:
@@ -347,7 +354,13 @@ class Effect:
                              f"detectable on this record (needs {'>=' if self.increasing else '<='} {thr:.3g})")
         mag = math.exp(rng.uniform(math.log(a), math.log(b)))
         sign = 1.0 if (q.low >= 0 or rng.random() < 0.5) else -1.0
-        return self.finish_draw(rng, rec, kind, self._with_main(others, sign * mag))
+        p = self._with_main(others, sign * mag)
+        if at_snr is not None:  # the threshold stops at the range's end: was the snr reached?
+            got = self.snr(p, rec, sd)
+            if not abs(got / at_snr - 1) <= 0.02:
+                raise ValueError(f"{self.id}: no {self.main_param} inside [{q.low}, {q.high}] {q.unit} "
+                                 f"gives snr {at_snr:.3g} on this record (the range ends at snr {got:.3g})")
+        return self.finish_draw(rng, rec, kind, p)
 
     def draw_others(self, rng: np.random.Generator, rec: Record, kind: str) -> dict:
         """Non-main parameters: uniform (log-uniform for log params) over the drawable range."""
@@ -370,41 +383,11 @@ class Effect:
 
     # ---- fit starts -------------------------------------------------------------------
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[dict]:
-        """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first):
-        a grid over the nonlinear parameters (their resolvable ranges) with the linear ones
-        solved by least squares at each grid point after projecting out the base regressors;
-        the 3 lowest residual sums of squares are returned."""
-        kind = kind or guess_kind(rec)
-        r = np.asarray(residual, dtype=float)
-        qs = self.params_for(kind)
-        lin = [q for q in qs if q.linear]
-        grids = []
-        for q in qs:
-            if q.linear:
-                continue
-            lo, hi = self.drawable_range(q, rec, kind) if q.name != self.main_param else self.main_grid_range(rec, kind)
-            pts = np.geomspace(lo, hi, 9) if q.log else np.linspace(lo, hi, 5)
-            grids.append((q.name, pts))
-        a = base_regressors(rec)
-        r_perp = project_out(r, a)
-        y0 = self.reference_output(rec)
-        cands = []
-        for combo in product_grid(grids):
-            p = {q.name: 0.0 for q in lin} | combo
-            if lin:
-                cols = []
-                for q in lin:
-                    pu = dict(p)
-                    pu[q.name] = 1.0
-                    cols.append(project_out(self.apply(pu, rec, y0) - y0, a))
-                m = np.column_stack(cols)
-                coef, *_ = np.linalg.lstsq(m, r_perp, rcond=None)
-                for q, c in zip(lin, coef):
-                    p[q.name] = float(np.clip(c, q.low, q.high))
-            d = project_out(self.apply(p, rec, y0) - y0, a)
-            cands.append((float(np.sum((r_perp - d) ** 2)), p))
-        cands.sort(key=lambda c: c[0])
-        return [c[1] for c in cands[:3]]
+        """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first): the
+        3 best points of a grid over its nonlinear parameters (:func:`.effects_starts.grid_starts`)."""
+        from bench.discovery.effects_starts import grid_starts  # noqa: PLC0415
+
+        return grid_starts(self, rec, residual, kind or guess_kind(rec))
 
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
         q = self.param(self.main_param, kind)
