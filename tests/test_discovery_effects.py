@@ -329,3 +329,21 @@ def test_short_experiments_move_within_their_dwells():
     assert np.all(np.abs(rec.input) <= 1.0)
     # every dwell reaches its position: the angles visited include the 15° grid
     assert {round(a) % 360 for a in theta} >= set(range(0, 360, 15)) - {90, 270}
+
+
+@pytest.mark.parametrize("kind,eid", _pairs())
+def test_a_draw_at_an_snr_has_that_snr(records, kind, eid):
+    """The power curve's draws (benchmarks/discovery_scorecard.py --power): the main parameter
+    where the signature's snr is the one asked for, the other parameters drawn as usual."""
+    e, rec, sd = CATALOGUE[eid], records[kind], NOISE[kind]
+    for ratio in (1.0, 2.0):
+        try:
+            p = e.draw(np.random.default_rng(9), rec, kind=kind, noise_sd=sd, at_snr=ratio * MIN_SNR)
+        except ValueError as exc:  # that snr lies outside the physical range on this record
+            assert "on this record" in str(exc)
+            continue
+        assert e.check_params(p, kind) == p
+        main_only = p | ({"coef_per_c2": 0.0} if eid == "temperature_bias" else {})  # its drawn ΔT² share
+        assert e.snr(main_only, rec, sd) == pytest.approx(ratio * MIN_SNR, rel=0.02)
+    with pytest.raises(ValueError, match="at_snr = -1.0; allowed: > 0"):
+        e.draw(np.random.default_rng(9), rec, kind=kind, noise_sd=sd, at_snr=-1.0)

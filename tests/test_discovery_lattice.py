@@ -54,3 +54,27 @@ def test_a_coarse_quantizer_is_named_alone_with_its_step_and_noise(kind, step_ov
     floor = np.sqrt(sd ** 2 + (step_over_sd * sd) ** 2 / 12)  # what a model without the quantizer sees
     fit = fit_lattice(rec.y, floor, 1e-9, 1.0)
     assert fit.p_value < 1e-6 and fit.step == pytest.approx(step_over_sd * sd, rel=1e-6)
+
+
+@settings(max_examples=25, deadline=None)
+@given(sd=st.floats(1e-7, 1e-2), inflation=st.floats(3.0, 30.0), seed=st.integers(0, 2 ** 16))
+def test_unquantized_readings_are_no_lattice_against_an_inflated_floor(sd, inflation, seed):
+    """A misfit the model cannot follow lifts the calibrated floor (a clipped dwell's edges lifted
+    it 12× in the power curve): readings whose noise is far below that floor were called a
+    lattice of steps ≈ the floor (p = 0). The lattice is judged on the readings' own spread."""
+    rng = np.random.default_rng(seed)
+    levels = np.repeat(rng.uniform(-1, 1, 30), 100)
+    y = levels + rng.normal(0, sd, levels.size)
+    y[:40] = 0.9 * np.max(np.abs(levels))  # a clipped plateau: one reading repeated
+    fit = fit_lattice(y, inflation * sd, 1e-12, 1.0)
+    assert fit.p_value > 1e-3
+
+
+def test_a_fine_quantizer_is_still_found_through_an_inflated_floor():
+    rng = np.random.default_rng(4)
+    sd, step = 1e-4, 2e-4
+    y = step * np.round((np.repeat(rng.uniform(-1, 1, 30), 100) + rng.normal(0, sd, 3000)) / step)
+    floor = np.sqrt(sd ** 2 + step ** 2 / 12)
+    for inflation in (1.0, 5.0):
+        fit = fit_lattice(y, inflation * floor, 1e-9, 1.0)
+        assert fit.p_value < 1e-6 and fit.step == pytest.approx(step, rel=1e-6)

@@ -299,3 +299,21 @@ def test_p_value_never_underflows_to_zero():
     rng = np.random.default_rng(2)
     r = np.cumsum(rng.normal(0, 1.0, 4000)) + rng.normal(0, 0.01, 4000)
     assert fit_stochastic(r - r.mean(), 1.0, "random_walk").p_value == 1e-300
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_limit_just_under_the_input_peak_clips_a_biased_unit_and_is_named_saturation(seed):
+    """Found by the power curve: with a +2 mg bias, a limit 1.3 µg under the 1 g input peak clips
+    the whole 0° dwell by ≈ 2 mg. Its size was judged on the unit-gain reference (a 1.3 µg clip,
+    snr 2.5: too small) and the plateau's edges lifted the floor 12×, against which the readings
+    looked like a lattice: 'quantization' was named, then k3 or asymmetry. The size of an
+    output-stage effect is now judged on bias + SF·input, the lattice on the readings' spread."""
+    rng = np.random.default_rng(seed)
+    rec = make_experiment("accelerometer", rng, n=3000)
+    sd = DEFAULT_NOISE_SD["accelerometer"]
+    truth = Model(BaseModel("accelerometer", 2e-3, 1.001, sd)).with_effect("saturation", {"limit": 0.9999987})
+    rec = rec.replace(y=truth.simulate(rec, rng))
+    d = discover(rec, Model(base_model("accelerometer")), max_effects=2, seed=seed, n_rep=199)
+    assert [s.effect_id for s in d.steps] == ["saturation"]
+    assert d.steps[0].params["limit"] == pytest.approx(0.9999987, abs=3 * sd)
+    assert abs(d.gap_final.rms_ratio - 1) < 0.1

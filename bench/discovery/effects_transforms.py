@@ -173,6 +173,9 @@ class Saturation(Effect):
     stage = "output"
     identity = math.inf
     increasing = False
+    # clipping's snr rises steeply below the largest excursion: 0.1 % of a 1 g peak is 200 σ of
+    # an accelerometer's noise, so its threshold is resolved to 1e-12 in log(limit)
+    threshold_log_tol = 1e-12
     ranges = {  # QA-2000 ±60 g but a tumble's read-out range can be ±1.2 g; FOG ±490 deg/s
         "accelerometer": (_p("limit", "g", 0.05, 100.0, log=True),),
         "gyro": (_p("limit", "deg/s", 1.0, 2000.0, log=True),),
@@ -182,11 +185,14 @@ class Saturation(Effect):
     def _transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])
 
-    def draw(self, rng, rec, *, kind=None, noise_sd=None):
+    def draw(self, rng, rec, *, kind=None, noise_sd=None, at_snr=None):
         """limit log-uniform in [0.6, 0.95] × the largest |reference output| (inside the kind's
         range): a part of the excursions clips, never most of the signal — the snr of clipping
-        rises too steeply with depth for the generic snr-band rule to leave a usable interval."""
+        rises too steeply with depth for the generic snr-band rule to leave a usable interval.
+        ``at_snr``: the limit where clipping has exactly that snr (the generic rule)."""
         from bench.discovery.effects_base import guess_kind, noise_sd_of, MIN_SNR, DRAW_SNR_FACTOR
+        if at_snr is not None:
+            return super().draw(rng, rec, kind=kind, noise_sd=noise_sd, at_snr=at_snr)
         kind = kind or guess_kind(rec)
         q = self.params_for(kind)[0]
         top = float(np.max(np.abs(self.reference_output(rec))))

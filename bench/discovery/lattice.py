@@ -123,6 +123,7 @@ def fit_lattice(y: np.ndarray, noise_sd: float, low: float, high: float, n_grid:
     level larger than measured) and return the fitted lattice with its p-value."""
     readings = np.asarray(y, float)
     d = np.diff(readings)
+    noise_sd = difference_sd(d, noise_sd)
     y = d[(d != 0) & (np.abs(d) <= MAX_DIFF_SD * noise_sd)]
     n = y.size
     if n < 16:
@@ -152,6 +153,29 @@ def fit_lattice(y: np.ndarray, noise_sd: float, low: float, high: float, n_grid:
     std = s * s / (2 * math.pi * max(float(np.sqrt(np.mean(y ** 2))), 1e-300) * math.sqrt(n))
     s, std = refine_step(readings, s, std)
     return LatticeFit(s, std, vs, bs, p)
+
+
+def difference_sd(d: np.ndarray, noise_sd: float, clip: float = 4.0) -> float:
+    """The white sd the lattice is judged against: the calibrated floor ``noise_sd``, or less
+    when the readings' own successive differences say so — rms/√2 of the non-zero ones within
+    ``clip`` times their own sd (iterated from the floor; a Gaussian's sd is biased by < 0.1 %
+    at 4). Zeros are left out: a clipped plateau repeats one reading, and a coarse quantizer's
+    non-zero differences (±s, ±2s …) give rms/√2 ≥ s/√2, above its floor s/√12, so the floor
+    stays. A misfit the model cannot follow (a clipped plateau's edges, a step) lifts the
+    residual's high-frequency floor; judged against that, readings whose noise is far below it
+    look like a lattice of steps much coarser than their differences."""
+    d = np.abs(np.asarray(d, float))
+    d = d[d > 0]
+    sd = float(noise_sd)
+    for _ in range(30):
+        kept = d[d <= clip * math.sqrt(2) * sd]
+        if kept.size < 16:
+            return float(noise_sd)
+        new = math.sqrt(float(np.mean(kept * kept)) / 2)
+        if abs(new - sd) <= 1e-6 * sd:
+            break
+        sd = new
+    return float(min(noise_sd, sd))
 
 
 def refine_step(readings: np.ndarray, step: float, step_std: float, *,
@@ -215,6 +239,7 @@ def _lattice_slope(v: np.ndarray, gaps: np.ndarray, s: float, rel: float,
 def heldout_score(y: np.ndarray, noise_sd: float, folds: np.ndarray, low: float, high: float) -> float:
     """Held-out visibility excess × (s²/12)/σ², both folds averaged."""
     scores = []
+    noise_sd = difference_sd(np.diff(np.asarray(y, float)), noise_sd)
     for k in (0, 1):
         te = folds == k
         fit = fit_lattice(np.cumsum(np.concatenate([[0.0], _test_diffs(y, ~te)])), noise_sd, low, high)

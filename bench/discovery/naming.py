@@ -228,7 +228,14 @@ def fit_lattice_candidate(model, rec: Record, effect, eid: str, folds: np.ndarra
                      score, float("nan"), max(float(fit.p_value), P_FLOOR))
 
 
-def _big_enough(effect, kind: str, params: dict, rec: Record, noise_sd: float) -> tuple[bool, float]:
+def _big_enough(effect, kind: str, params: dict, rec: Record, noise_sd: float,
+                base=None) -> tuple[bool, float]:
+    """(main parameter beyond the minimum size?, that size). An output-stage effect (clipping,
+    rounding) acts on the output itself: its size is judged on ``bias + SF·input`` of ``base``
+    (the calibrated base model), not on the unit-gain reference — a limit just under the input's
+    peak clips every reading of a unit with a positive bias."""
+    if base is not None and effect.stage == "output" and rec.logged("input"):
+        rec = rec.replace(input=base.bias + base.scale_factor * rec.input)
     try:
         thr = effect.min_effect(rec, noise_sd, kind=kind, params=params)
     except (ValueError, ZeroDivisionError, FloatingPointError):
@@ -286,7 +293,7 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
             # a strong effect inflates the floor calibrated before it was known: judge its size
             # against the held-out residual once it is explained
             sd = min(sd, float(np.sqrt(np.mean(c.err_c))))
-        big, thr = (_big_enough(eff, kind, c.params, rec, sd) if rej and c.score > 0
+        big, thr = (_big_enough(eff, kind, c.params, rec, sd, model.base) if rej and c.score > 0
                     else (False, float("nan")))
         if c.id == "gauss_markov" and c.params.get("tau_s", 0.0) >= rec.duration_s / 5:
             big = False  # a correlation time beyond a fifth of the record is not identifiable on it
