@@ -15,6 +15,12 @@ starts from the bare base model. Reported:
 * clean: no effect hidden, nothing named (target ≥ 95 %);
 * the confusion matrix (hidden → first named).
 
+``--power 0.5,1,2``: instead, the power curve of the naming near its minimum effect size — each
+effect drawn with its main parameter exactly at snr = ratio × MIN_SNR (``Effect.draw(at_snr=)``;
+the normal draw starts at 3 × MIN_SNR) and the rate at which it is named first, per effect and
+ratio.  The workflow's size gate is snr ≥ MIN_SNR on the *fitted* parameters, so ≈ 50 % is
+expected at ratio 1; below it the effect is, by design, too small to name.
+
 Run: ``.venv/bin/python benchmarks/discovery_scorecard.py [--kinds accelerometer,gyro,mhd]
 [--seeds 5] [--pairs 10] [--clean 20] [--n 3000] [--json FILE]``. There is no peer library
 that names effects, so the figures stand alone (targets from the issue beside them).
@@ -39,7 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD  # noqa: E402
+from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD, MIN_SNR  # noqa: E402
 from bench.discovery.experiments import make_experiment  # noqa: E402
 from bench.discovery.model import BaseModel, Model, base_model  # noqa: E402
 from bench.discovery.workflow import discover  # noqa: E402
@@ -47,33 +53,43 @@ from bench.discovery.workflow import discover  # noqa: E402
 BASE_BIAS = {"accelerometer": 2e-3, "gyro": 0.05, "mhd": 0.5}
 
 
-def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int):
-    """(record, truth model) or None when an effect is not detectable on this record."""
-    rng = np.random.default_rng([seed, len(effects), *[list(CATALOGUE).index(e) for e in effects]])
+def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None = None):
+    """(record, truth model, snr of each effect) or None when an effect cannot be drawn on
+    this record (not detectable; with ``at_snr``: that snr outside its physical range)."""
+    salt = [] if at_snr is None else [int(round(1000 * at_snr))]
+    rng = np.random.default_rng([seed, len(effects), *[list(CATALOGUE).index(e) for e in effects], *salt])
     rec = make_experiment(kind, rng, n=n)
     sd = DEFAULT_NOISE_SD[kind]
     truth = Model(BaseModel(kind=kind, bias=BASE_BIAS[kind] * rng.uniform(-1, 1),
                             scale_factor=1.0 + rng.normal(0, 2e-3), noise_sd=sd))
+    snrs = []
+    # an output-stage effect (clipping, rounding) acts on bias + SF·input: drawn and sized there
+    on_output = rec.replace(input=truth.base.bias + truth.base.scale_factor * rec.input)
     for eid in effects:
+        eff = CATALOGUE[eid]
+        where = on_output if eff.stage == "output" else rec
         try:
-            p = CATALOGUE[eid].draw(rng, rec, kind=kind, noise_sd=sd)
+            p = eff.draw(rng, where, kind=kind, noise_sd=sd, at_snr=at_snr)
         except ValueError:
             return None
+        snrs.append(float(eff.snr(p, where, sd)))
         truth = truth.with_effect(eid, p)
-    return rec.replace(y=truth.simulate(rec, rng)), truth
+    return rec.replace(y=truth.simulate(rec, rng)), truth, snrs
 
 
-def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int) -> dict | None:
-    case = hidden_case(kind, effects, seed, n)
+def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int,
+             at_snr: float | None = None) -> dict | None:
+    case = hidden_case(kind, effects, seed, n, at_snr)
     if case is None:
         return None
-    rec, truth = case
+    rec, truth, snrs = case
     t0 = time.perf_counter()
     d = discover(rec, Model(base_model(kind)), max_effects=max(2, len(effects) + 1), seed=seed)
     named = [s.effect_id for s in d.steps]
     out = {"kind": kind, "hidden": list(effects), "seed": seed, "named": named,
            "first": named[0] if named else None, "gap_final": d.gap_final.rms_ratio,
-           "unexplained": list(d.unexplained), "seconds": time.perf_counter() - t0, "recovered": None}
+           "unexplained": list(d.unexplained), "seconds": time.perf_counter() - t0, "recovered": None,
+           "snr_ratio": [x / MIN_SNR for x in snrs]}
     if effects and named and named[0] == effects[0]:
         main = CATALOGUE[effects[0]].main_param
         true_v = truth.effects[0][1][main]
@@ -96,9 +112,24 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=3000, help="samples per record")
     ap.add_argument("--effects", default=None, help="comma-separated subset of effect ids")
     ap.add_argument("--json", default=None, help="write every case's outcome here")
+    ap.add_argument("--power", default=None,
+                    help="comma-separated snr ratios (× MIN_SNR): the power curve instead of the scorecard")
     args = ap.parse_args(argv)
     cases = []
     t_start = time.perf_counter()
+    if args.power is not None:
+        try:
+            ratios = [float(v) for v in args.power.split(",")]
+        except ValueError:
+            ap.error(f"--power {args.power!r}: expected comma-separated positive numbers, e.g. 0.5,1,2")
+        if not all(np.isfinite(r) and r > 0 for r in ratios):
+            ap.error(f"--power {args.power!r}: every ratio must be > 0")
+        cases = power_curve(args, ratios)
+        report_power(cases, ratios)
+        print(f"total {time.perf_counter() - t_start:.0f} s; records of {args.n} samples")
+        if args.json:
+            Path(args.json).write_text(json.dumps(cases, indent=1, default=float))
+        return 0
     for kind in args.kinds.split(","):
         ids = [e for e, eff in CATALOGUE.items() if kind in eff.kinds
                and (args.effects is None or e in args.effects.split(","))]
@@ -132,6 +163,53 @@ def main(argv=None) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(cases, indent=1, default=float))
     return 0
+
+
+def power_curve(args, ratios: list[float]) -> list[dict]:
+    cases = []
+    for kind in args.kinds.split(","):
+        ids = [e for e, eff in CATALOGUE.items() if kind in eff.kinds
+               and (args.effects is None or e in args.effects.split(","))]
+        for eid in ids:
+            for ratio in ratios:
+                for seed in range(args.seeds):
+                    c = run_case(kind, (eid,), seed, args.n, at_snr=ratio * MIN_SNR)
+                    if c is None:
+                        print(f"{kind:13s} {eid:26s} × {ratio:g} seed {seed}: outside the physical range "
+                              "(skipped)", flush=True)
+                        continue
+                    c["ratio"] = ratio
+                    cases.append(c)
+                    print(f"{kind:13s} {eid:26s} × {ratio:g} (snr {c['snr_ratio'][0]:.2f}×) seed {seed}: "
+                          f"named {c['named']} ({c['seconds']:.1f} s)", flush=True)
+    return cases
+
+
+def report_power(cases: list[dict], ratios: list[float]) -> None:
+    """Named-first rate per effect and snr ratio; a wrong first name counted apart."""
+    print("\npower curve: hidden effect named first (wrong first name in brackets), by snr / MIN_SNR")
+    print(f"  {'':13s} {'effect':26s} " + " ".join(f"{'× ' + format(r, 'g'):>14s}" for r in ratios))
+    by = defaultdict(list)
+    for c in cases:
+        by[(c["kind"], c["hidden"][0])].append(c)
+
+    def cell(cs):
+        if not cs:
+            return f"{'—':>14s}"
+        eid = cs[0]["hidden"][0]
+        k = sum(c["first"] == eid for c in cs)
+        wrong = sum(c["first"] not in (None, eid) for c in cs)
+        return f"{f'{k}/{len(cs)} [{wrong}]':>14s}"
+    for (kind, eid), cs in by.items():
+        print(f"  {kind:13s} {eid:26s} " + " ".join(cell([c for c in cs if c["ratio"] == r]) for r in ratios))
+    print(f"  {'all':13s} {'':26s} " + " ".join(
+        f"{_pct(sum(c['first'] == c['hidden'][0] for c in cases if c['ratio'] == r), sum(c['ratio'] == r for c in cases)):>14s}"
+        for r in ratios))
+    for r in ratios:
+        sel = [c for c in cases if c["ratio"] == r]
+        wrong = sum(c["first"] not in (None, c["hidden"][0]) for c in sel)
+        print(f"  × {r:g}: named first {_pct(sum(c['first'] == c['hidden'][0] for c in sel), len(sel))}, "
+              f"a wrong first name {_pct(wrong, len(sel))}")
 
 
 def report(cases: list[dict]) -> None:
