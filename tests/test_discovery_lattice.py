@@ -78,3 +78,30 @@ def test_a_fine_quantizer_is_still_found_through_an_inflated_floor():
     for inflation in (1.0, 5.0):
         fit = fit_lattice(y, inflation * floor, 1e-9, 1.0)
         assert fit.p_value < 1e-6 and fit.step == pytest.approx(step, rel=1e-6)
+
+
+def test_a_coarse_step_on_a_dwelling_input_lies_inside_the_scan():
+    """A coarse quantizer (step 15 σ) behind a clip, on the tumble's dwelling input (the
+    scorecard pair that found it): readings sit still between steps, the floor calibrated with
+    the clip (≈ 1.6e-5) is below s/√12 (2.1e-5), and a scan capped at √12·floor·1.2 stopped
+    short of the step and returned 2/3 of it (d/s' = ±1.5 puts every ±s difference at phase π).
+    The typical non-zero difference (one step) bounds the scan too."""
+    step, limit = 7.3130742e-05, 0.79063294
+    for seed in (3, 16, 17):  # of 30 seeds, those where the old cap returned 2/3 of the step
+        _coarse_step_behind_a_clip(seed, step, limit)
+
+
+def _coarse_step_behind_a_clip(seed, step, limit):
+    from bench.discovery.experiments import make_experiment
+    from bench.discovery.workflow import calibrate
+
+    rng = np.random.default_rng(seed)
+    rec = make_experiment("accelerometer", rng, n=3000)
+    truth = (Model(BaseModel("accelerometer", -7.846e-4, 1.00047889, 5e-6))
+             .with_effect("quantization", {"step": step}).with_effect("saturation", {"limit": limit}))
+    rec = rec.replace(y=truth.simulate(rec, rng))
+    floor = calibrate(Model(base_model("accelerometer")).with_effect("saturation", {"limit": limit}),
+                      rec).base.noise_sd
+    assert floor < 0.85 * step / np.sqrt(12)
+    fit = fit_lattice(rec.y, floor, 1e-9, 1e-3)
+    assert fit.p_value < 1e-6 and fit.step == pytest.approx(step, rel=1e-6)

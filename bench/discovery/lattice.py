@@ -119,8 +119,8 @@ def visibility(y: np.ndarray, s: np.ndarray | float, *, cf: CharFun | None = Non
 
 
 def fit_lattice(y: np.ndarray, noise_sd: float, low: float, high: float, n_grid: int = 300) -> LatticeFit:
-    """Scan steps in [max(low, σ/4), min(high, √12·σ·1.2)] (a larger step would make the white
-    level larger than measured) and return the fitted lattice with its p-value."""
+    """Scan steps in [max(low, σ/4), min(high, 1.2·max(√12·σ, median non-zero |difference|))]
+    and return the fitted lattice with its p-value."""
     readings = np.asarray(y, float)
     d = np.diff(readings)
     noise_sd = difference_sd(d, noise_sd)
@@ -129,7 +129,10 @@ def fit_lattice(y: np.ndarray, noise_sd: float, low: float, high: float, n_grid:
     if n < 16:
         return LatticeFit(float("nan"), float("nan"), 0.0, 1.0, 1.0)
     lo = max(low, noise_sd / 4)
-    hi = min(high, math.sqrt(12) * noise_sd * 1.2)
+    # a larger step than √12·σ would make the white level larger than measured — unless the
+    # input dwells: a coarse quantizer's readings then sit still between steps and its floor is
+    # below s/√12, so the typical non-zero difference (one step) bounds the scan as well
+    hi = min(high, max(math.sqrt(12) * noise_sd, float(np.median(np.abs(y)))) * 1.2)
     if not lo < hi:
         return LatticeFit(float("nan"), float("nan"), 0.0, 1.0, 1.0)
     grid = np.geomspace(lo, hi, n_grid)
