@@ -234,8 +234,18 @@ class Effect:
         """The output the detectability rule perturbs: ``input`` (unit SF, zero bias) or 0."""
         return rec.input.copy() if rec.logged("input") else np.zeros(rec.n)
 
+    def plain_snr(self, p: dict, rec: Record, noise_sd: float) -> float:
+        """The signature's snr without taking out what its competitors could absorb: the size
+        of the effect, not how well it can be told from them (the naming's size gate)."""
+        if not self.competitors:
+            return self.snr(p, rec, noise_sd)
+        y0 = self.reference_output(rec)
+        delta = project_q(self.apply(p, rec, y0) - y0, orthonormal(base_regressors(rec)))
+        return math.sqrt(vdot(delta, delta)) / noise_sd
+
     def snr(self, p: dict, rec: Record, noise_sd: float) -> float:
-        """Signal-to-noise ratio of the effect's signature on rec (see module docstring)."""
+        """Signal-to-noise ratio of the effect's signature on rec (see module docstring): the
+        part its competitors cannot absorb, i.e. how well it can be told from them."""
         y0 = self.reference_output(rec)
         q = orthonormal(base_regressors(rec))
         delta = project_q(self.apply(p, rec, y0) - y0, q)
@@ -267,13 +277,16 @@ class Effect:
         d[self.main_param] = value
         return d
 
-    def _threshold(self, others: dict, rec: Record, noise_sd: float, target: float, kind: str) -> float:
-        """Main-parameter magnitude where snr == target (bisection on a log scale)."""
+    def _threshold(self, others: dict, rec: Record, noise_sd: float, target: float, kind: str,
+                   distinct: bool = True) -> float:
+        """Main-parameter magnitude where snr == target (bisection on a log scale); ``distinct``
+        False: the plain snr (:meth:`plain_snr`)."""
         q = self.param(self.main_param, kind)
         hi_mag = max(abs(q.low), abs(q.high))
         lo_mag = max(q.floor, hi_mag * 1e-12, 1e-300) if not q.log else q.low
         sgn = 1.0 if q.high > 0 else -1.0
-        f = lambda m: self.snr(self._with_main(others, sgn * m), rec, noise_sd) - target  # noqa: E731
+        snr = self.snr if distinct else self.plain_snr
+        f = lambda m: snr(self._with_main(others, sgn * m), rec, noise_sd) - target  # noqa: E731
         a, b = math.log(lo_mag), math.log(hi_mag)
         fa, fb = f(lo_mag), f(hi_mag)
         if self.increasing:
@@ -297,18 +310,21 @@ class Effect:
         return math.exp(b if self.increasing else a)
 
     def min_effect(self, rec: Record, noise_sd: float, *, kind: str | None = None,
-                   params: dict | None = None) -> float:
+                   params: dict | None = None, distinct: bool = True) -> float:
         """Smallest main-parameter magnitude that matters on rec with white noise ``noise_sd``
         (the largest for a decreasing effect, e.g. a bandwidth): ``snr = MIN_SNR`` with the other
         parameters at ``params`` (default: reference values), and never finer than the physical
-        floor. ``math.inf`` (0 for decreasing) when even the range's end is undetectable."""
+        floor. ``math.inf`` (0 for decreasing) when even the range's end is undetectable.
+        ``distinct`` (default): the snr of what tells it from its competitors (the scorecard's
+        draws); False: the plain snr — the naming's size gate, which asks whether the effect
+        matters, not whether it can be told from a look-alike (that is the competitors' report)."""
         if not noise_sd > 0:
             raise ValueError(f"noise_sd = {noise_sd!r}; allowed: > 0")
         kind = kind or guess_kind(rec)
         others = self.reference_params(rec, kind)
         if params:
             others.update({k: v for k, v in params.items() if k in others})
-        thr = self._threshold(others, rec, noise_sd, MIN_SNR, kind)
+        thr = self._threshold(others, rec, noise_sd, MIN_SNR, kind, distinct)
         floor = self.param(self.main_param, kind).floor
         return max(thr, floor) if self.increasing else thr
 

@@ -237,7 +237,7 @@ def _big_enough(effect, kind: str, params: dict, rec: Record, noise_sd: float,
     if base is not None and effect.stage == "output" and rec.logged("input"):
         rec = rec.replace(input=base.bias + base.scale_factor * rec.input)
     try:
-        thr = effect.min_effect(rec, noise_sd, kind=kind, params=params)
+        thr = effect.min_effect(rec, noise_sd, kind=kind, params=params, distinct=False)
     except (ValueError, ZeroDivisionError, FloatingPointError):
         return False, float("nan")  # fail closed: a size that cannot be judged is not big enough
     v = abs(float(params[effect.main_param]))
