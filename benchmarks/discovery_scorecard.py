@@ -18,8 +18,13 @@ starts from the bare base model. Reported:
 ``--power 0.5,1,2``: instead, the power curve of the naming near its minimum effect size — each
 effect drawn with its main parameter exactly at snr = ratio × MIN_SNR (``Effect.draw(at_snr=)``;
 the normal draw starts at 3 × MIN_SNR) and the rate at which it is named first, per effect and
-ratio.  The workflow's size gate is snr ≥ MIN_SNR on the *fitted* parameters, so ≈ 50 % is
-expected at ratio 1; below it the effect is, by design, too small to name.
+ratio, with wrong first names counted apart (and among them its look-alike, ``competitors``).
+The workflow's size gate is snr ≥ MIN_SNR on the *fitted* parameters, so ≈ 50 % is expected at
+ratio 1; below it the effect is, by design, too small to name. For an effect with a look-alike
+(time_delay ↔ lowpass_bandwidth, k2_nonlinearity ↔ scale_factor_asymmetry) the snr is that of
+what tells the two apart: the effect itself can be far larger, so at low ratios it is named —
+often as its look-alike, which the report then gives as a close competitor.
+``--report-power FILE``: print the power-curve table again from a ``--json`` file.
 
 Run: ``.venv/bin/python benchmarks/discovery_scorecard.py [--kinds accelerometer,gyro,mhd]
 [--seeds 5] [--pairs 10] [--clean 20] [--n 3000] [--json FILE]``. There is no peer library
@@ -114,7 +119,13 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None, help="write every case's outcome here")
     ap.add_argument("--power", default=None,
                     help="comma-separated snr ratios (× MIN_SNR): the power curve instead of the scorecard")
+    ap.add_argument("--report-power", default=None, metavar="FILE",
+                    help="print the power-curve table from a --power --json file and stop")
     args = ap.parse_args(argv)
+    if args.report_power is not None:
+        cases = json.loads(Path(args.report_power).read_text())
+        report_power(cases, sorted({c["ratio"] for c in cases}))
+        return 0
     cases = []
     t_start = time.perf_counter()
     if args.power is not None:
@@ -187,7 +198,8 @@ def power_curve(args, ratios: list[float]) -> list[dict]:
 
 def report_power(cases: list[dict], ratios: list[float]) -> None:
     """Named-first rate per effect and snr ratio; a wrong first name counted apart."""
-    print("\npower curve: hidden effect named first (wrong first name in brackets), by snr / MIN_SNR")
+    print("\npower curve: hidden effect named first [another effect named first, + nL: its look-alike], "
+          "by snr / MIN_SNR")
     print(f"  {'':13s} {'effect':26s} " + " ".join(f"{'× ' + format(r, 'g'):>14s}" for r in ratios))
     by = defaultdict(list)
     for c in cases:
@@ -198,8 +210,9 @@ def report_power(cases: list[dict], ratios: list[float]) -> None:
             return f"{'—':>14s}"
         eid = cs[0]["hidden"][0]
         k = sum(c["first"] == eid for c in cs)
-        wrong = sum(c["first"] not in (None, eid) for c in cs)
-        return f"{f'{k}/{len(cs)} [{wrong}]':>14s}"
+        look = sum(c["first"] in CATALOGUE[eid].competitors for c in cs)
+        wrong = sum(c["first"] not in (None, eid) for c in cs) - look
+        return f"{f'{k}/{len(cs)} [{wrong}' + (f'+{look}L' if look else '') + ']':>14s}"
     for (kind, eid), cs in by.items():
         print(f"  {kind:13s} {eid:26s} " + " ".join(cell([c for c in cs if c["ratio"] == r]) for r in ratios))
     print(f"  {'all':13s} {'':26s} " + " ".join(
@@ -207,9 +220,10 @@ def report_power(cases: list[dict], ratios: list[float]) -> None:
         for r in ratios))
     for r in ratios:
         sel = [c for c in cases if c["ratio"] == r]
-        wrong = sum(c["first"] not in (None, c["hidden"][0]) for c in sel)
+        wrong = [c for c in sel if c["first"] not in (None, c["hidden"][0])]
+        look = sum(c["first"] in CATALOGUE[c["hidden"][0]].competitors for c in wrong)
         print(f"  × {r:g}: named first {_pct(sum(c['first'] == c['hidden'][0] for c in sel), len(sel))}, "
-              f"a wrong first name {_pct(wrong, len(sel))}")
+              f"a wrong first name {_pct(len(wrong), len(sel))} (its look-alike in {look})")
 
 
 def report(cases: list[dict]) -> None:
