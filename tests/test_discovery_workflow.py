@@ -380,3 +380,23 @@ def test_a_large_effect_that_looks_like_its_competitor_is_still_named(kind, eid,
     main = CATALOGUE[eid].main_param
     assert abs(d.steps[0].params[main] - params[main]) <= 3 * d.steps[0].params_std[main]
     assert abs(d.gap_final.rms_ratio - 1) < 0.05
+
+
+@pytest.mark.xfail(strict=True, reason="known defect: the bootstrap null of a deterministic candidate "
+                   "does not hold the calibration's own error through a coarse quantizer")
+def test_after_a_coarse_quantizer_the_calibrations_own_error_is_not_named_k2():
+    """The scorecard's accelerometer quantization case, seed 1 (step 13.8 σ on the tumble's
+    dwells): once the quantizer is in the model, the calibration's small bias/SF error leaves
+    dwell-constant structure that a 3.7 ± 0.5 µg/g² k2 explains (0.9 % of the residual's
+    power; p = 0.001 against the model's own noise, which is simulated around the *fitted*
+    calibration and so lacks that error). Named since the size gate uses the plain snr (it was
+    held back by k2's look-alike, asymmetry, before). Strict: passes → remove the mark."""
+    kind, sd = "accelerometer", DEFAULT_NOISE_SD["accelerometer"]
+    rng = np.random.default_rng([1, 1, list(CATALOGUE).index("quantization")])  # the scorecard's draw
+    rec = make_experiment(kind, rng, n=3000)
+    truth = Model(BaseModel(kind, 2e-3 * rng.uniform(-1, 1), 1.0 + rng.normal(0, 2e-3), sd))
+    on_output = rec.replace(input=truth.base.bias + truth.base.scale_factor * rec.input)
+    truth = truth.with_effect("quantization", CATALOGUE["quantization"].draw(rng, on_output, kind=kind, noise_sd=sd))
+    rec = rec.replace(y=truth.simulate(rec, rng))
+    d = discover(rec, Model(base_model(kind)), max_effects=3, seed=1)
+    assert [s.effect_id for s in d.steps] == ["quantization"]
