@@ -142,8 +142,7 @@ def main(argv=None) -> int:
             Path(args.json).write_text(json.dumps(cases, indent=1, default=float))
         return 0
     for kind in args.kinds.split(","):
-        ids = [e for e, eff in CATALOGUE.items() if kind in eff.kinds
-               and (args.effects is None or e in args.effects.split(","))]
+        ids = effect_ids(kind, args.effects)
         for eid in ids:
             for seed in range(args.seeds):
                 c = run_case(kind, (eid,), seed, args.n)
@@ -176,11 +175,16 @@ def main(argv=None) -> int:
     return 0
 
 
+def effect_ids(kind: str, subset: str | None) -> list[str]:
+    """Catalogue effects of ``kind``, restricted to the comma-separated ``subset`` if given."""
+    return [e for e, eff in CATALOGUE.items() if kind in eff.kinds
+            and (subset is None or e in subset.split(","))]
+
+
 def power_curve(args, ratios: list[float]) -> list[dict]:
     cases = []
     for kind in args.kinds.split(","):
-        ids = [e for e, eff in CATALOGUE.items() if kind in eff.kinds
-               and (args.effects is None or e in args.effects.split(","))]
+        ids = effect_ids(kind, args.effects)
         for eid in ids:
             for ratio in ratios:
                 for seed in range(args.seeds):
