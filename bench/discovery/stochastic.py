@@ -68,45 +68,52 @@ def _periodogram(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 N_PARAMS = {"gauss_markov": 2, "random_walk": 1}
 
 
-def _pieces(kinds: tuple[str, ...], th: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, list]:
-    """The level spectrum of white + ``kinds`` at log coordinates ``th`` and its derivative in
-    each coordinate (``c`` = cos ω)."""
+def _pieces(kinds: tuple[str, ...], th: np.ndarray, c: np.ndarray,
+            grad: bool = True) -> tuple[np.ndarray, list]:
+    """The level spectrum of white + ``kinds`` at log coordinates ``th`` and (``grad``) its
+    derivative in each coordinate (``c`` = cos ω)."""
     white = np.exp(th[0])
     lev = np.full_like(c, white)
-    parts = [lev.copy()]
+    parts = [lev.copy()] if grad else []
     j = 1
     for kind in kinds:
         if kind == "gauss_markov":
             s2, phi = np.exp(th[j]), 1.0 / (1.0 + np.exp(-th[j + 1]))
             den = 1 - 2 * phi * c + phi ** 2
             shape = (1 - phi ** 2) / den
-            d_phi = (-2 * phi * den - (1 - phi ** 2) * (2 * phi - 2 * c)) / den ** 2
             lev = lev + s2 * shape
-            parts += [s2 * shape, s2 * d_phi * phi * (1 - phi)]
+            if grad:
+                d_phi = (-2 * phi * den - (1 - phi ** 2) * (2 * phi - 2 * c)) / den ** 2
+                parts += [s2 * shape, s2 * d_phi * phi * (1 - phi)]
         else:
             rw = np.exp(th[j]) / (2 - 2 * c)
             lev = lev + rw
-            parts.append(rw)
+            if grad:
+                parts.append(rw)
         j += N_PARAMS[kind]
     return lev, parts
 
 
 def _nll(th, kinds, w, i, diff=False):
-    return _nll_grad(th, kinds, w, i, diff)[0]
+    """The Whittle NLL alone (the Hessian's and the null's scalar search's evaluations)."""
+    return _nll_grad(th, kinds, w, i, diff, grad=False)[0]
 
 
-def _nll_grad(th, kinds, w, i, diff=False):
+def _nll_grad(th, kinds, w, i, diff=False, grad=True):
     """(Whittle NLL of white + ``kinds``, its gradient in ``th``): Σ (1/S − I/S²)·∂S/∂θ (the
     optimiser's hot loop). ``diff``: ``i`` is the periodogram of the first differences, so
-    every level spectrum is multiplied by |1 − e^{−iω}|²."""
+    every level spectrum is multiplied by |1 − e^{−iω}|². ``grad`` False: the gradient is not
+    computed (None)."""
     th = np.asarray(th, float)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # a wild trial step: inf
         c = np.cos(w)
         g = (2 - 2 * c) if diff else 1.0
-        lev, parts = _pieces(tuple(kinds), th, c)
+        lev, parts = _pieces(tuple(kinds), th, c, grad)
         s = lev * g
         if not np.all(np.isfinite(s)) or np.any(s <= 0):
-            return np.inf, np.zeros_like(th)
+            return np.inf, (np.zeros_like(th) if grad else None)
+        if not grad:
+            return float(np.sum(np.log(s) + i / s)), None
         k = (1.0 / s - i / s ** 2) * g
         return float(np.sum(np.log(s) + i / s)), np.array([float(np.sum(k * d)) for d in parts])
 
