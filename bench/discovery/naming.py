@@ -283,10 +283,11 @@ def name_effect(model, rec: Record, *, catalogue: dict | None = None, alpha: flo
     reject, q = sig.benjamini_hochberg([c.p_value for c in cands], alpha)
     blocks = _block_ids(rec.n, n_blocks)
     out = []
+    reading_sd = float(model.residual_sd())  # a reading's sd: the noise through the model's quantizer, if any
     for c, rej, qv in zip(cands, reject, q):
         eff = catalogue[c.id]
         # the minimum effect size only matters for a candidate that could be named (and costs)
-        sd = float(model.residual_sd())  # a reading's sd: the noise through the model's quantizer, if any
+        sd = reading_sd
         if c.id == "quantization":  # the calibrated white level includes the steps' own s²/12
             sd = math.sqrt(max(sd ** 2 - c.params["step"] ** 2 / 12, (0.05 * sd) ** 2))
         elif c.err_c is not None and not c.stochastic:

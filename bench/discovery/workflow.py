@@ -28,7 +28,6 @@ from typing import Callable
 
 import numpy as np
 
-
 from bench.discovery.data import Record
 from bench.discovery.localize import Localization, localize, unexplained_structure
 from bench.discovery.naming import Naming, name_effect
