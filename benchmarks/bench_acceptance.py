@@ -26,14 +26,14 @@ SERIALS = {"QA-SIM": "QA-SIM-{:04d}", "FOG-SIM": "FOG-SIM-{:04d}"}
 
 def run(unit: str, tmp: Path) -> tuple[float, float, str]:
     t0 = time.perf_counter()
-    out = subprocess.run([sys.executable, "-m", "bench.cli", "--store", str(tmp / "b.sqlite"),
+    out = subprocess.run([sys.executable, "-m", "bench.app.cli", "--store", str(tmp / "b.sqlite"),
                           "acceptance", "--unit", unit, "--seed", "1", "--json", "--no-progress",
                           "--report", str(tmp / "reports")], capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if out.returncode not in (0, 1):
         raise SystemExit(f"{unit}: exit {out.returncode}: {out.stderr.strip()}")
     doc = json.loads(out.stdout)
-    show = subprocess.run([sys.executable, "-m", "bench.cli", "--store", str(tmp / "b.sqlite"),
+    show = subprocess.run([sys.executable, "-m", "bench.app.cli", "--store", str(tmp / "b.sqlite"),
                            "runs", "show", doc["run_id"], "--json"], capture_output=True, text=True)
     events = json.loads(show.stdout)["events"]
     times = [e[0] for e in events]  # (t_s, kind, message, data) rows

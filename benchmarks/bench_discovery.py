@@ -8,7 +8,7 @@ block_bootstrap 9 s in the bootstrap p-values. This times, on a record of that s
 ``lattice.fit_lattice`` + ``lattice.heldout_score`` (the quantization candidate) and
 ``significance.bootstrap_p_value`` (one deterministic candidate's null, up to ``--reps``
 replicates) with the current code and with the straightforward implementations they replaced
-(kept in tests/test_discovery_fastpaths.py as the references), checks both give the same
+(kept in tests/discovery/test_discovery_fastpaths.py as the references), checks both give the same
 numbers, and prints the times and the ratio. The reference "peer" here is our own old code.
 """
 

@@ -18,7 +18,7 @@ Printed (goal: fusion of 10⁶ samples < 1 s):
 * the peer, the same recursion written as the plain Python loop people write (lists and
   floats, no numpy in the loop), timed on ``--python-samples`` and **extrapolated**
   linearly to ``--samples`` (it is O(N)); its output is checked against ours on that part;
-* optionally the former per-sample numpy loop (the oracle of ``tests/test_fusion_kernel.py``)
+* optionally the former per-sample numpy loop (the oracle of ``tests/analysis/test_fusion_kernel.py``)
   on ``--numpy-samples``, extrapolated the same way;
 * ``fixed_r_kalman`` and the whole ``analyze_fusion`` (FRF fit, both filters, the
   complementary filter, metrics) on ``--samples``.
@@ -180,7 +180,7 @@ def main() -> None:
 
     if args.numpy_samples > 0:
         sys.path.insert(0, str(ROOT))  # the former numpy loop is the test oracle; borrowed, not copied
-        from tests.test_fusion_kernel import reference_sequential  # noqa: PLC0415
+        from tests.analysis.test_fusion_kernel import reference_sequential  # noqa: PLC0415
 
         k = min(args.numpy_samples, n)
         t0 = time.perf_counter()

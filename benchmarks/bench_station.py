@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import pyvisa
 
-from bench.procedure import execute
-from bench.station import Station, builtin_sim_config
-from bench.store import RunStore
+from bench.core.procedure import execute
+from bench.app.station import Station, builtin_sim_config
+from bench.core.store import RunStore
 from procedures.startup import StartupAcquisition, StartupParameters
 from sim.station import SimStationConfig, SimulatedStation
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.store import RunStore
+from bench.core.store import RunStore
 
 
 def main() -> None:

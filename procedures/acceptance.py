@@ -1,6 +1,6 @@
 """Factory acceptance: run what a unit spec needs, judge every measurement, one record.
 
-The spec (``bench.spec``) lists procedures in run order with their parameters, and the
+The spec (``bench.core.spec``) lists procedures in run order with their parameters, and the
 measurements with limits.  Each procedure is a step (``procedures.steps``); its produced
 values are converted to the spec's unit and judged pass / marginal / fail.  Everything the
 steps acquire streams into the one run; each step's fit or analysis is kept in the run's
@@ -13,8 +13,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from bench.procedure import Context, Limit
-from bench.spec import CatalogueEntry, UnitSpec, convert
+from bench.core.procedure import Context, Limit
+from bench.core.spec import CatalogueEntry, UnitSpec, convert
 from procedures.common import level_table, make_safe
 from procedures.steps import Step, scaled_progress
 from procedures.noise import AccelerometerNoise, GyroNoise
@@ -71,7 +71,7 @@ def make_step(name: str, params: dict[str, Any]) -> Step:
 
 
 class AcceptanceTest:
-    """A procedure for ``bench.procedure.execute``: the spec's steps in order."""
+    """A procedure for ``bench.core.procedure.execute``: the spec's steps in order."""
 
     name = "acceptance"
 

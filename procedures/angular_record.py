@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.procedure import Context
+from bench.core.procedure import Context
 from instruments.angular_table import AngularTableAbortedError
 
 log = logging.getLogger(__name__)

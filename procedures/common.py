@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from bench.analysis.trend import Estimate  # the steps' value ± standard uncertainty
-from bench.procedure import Context, each_safely
+from bench.core.procedure import Context, each_safely
 
 #: fastest integration that fits a reading interval, per mains frequency (NPLC values)
 NPLC_CHOICES = (100.0, 10.0, 1.0, 0.2, 0.06, 0.02)

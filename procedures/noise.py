@@ -19,7 +19,7 @@ import numpy as np
 
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.allan_stats import adev_interval, edf_greenhall
-from bench.procedure import Context
+from bench.core.procedure import Context
 from procedures.steps import ParameterizedStep
 from procedures.common import (Estimate, check_ranges, level_table, power_accelerometer, power_gyro,
                                read_gyro_frames)

@@ -21,8 +21,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.analysis.ratetable import fit_rate_table, rate_plan, whole_revolution_duration_s
-from bench.procedure import Context
-from bench.site import earth_rate_vertical_dph
+from bench.core.procedure import Context
+from bench.core.site import earth_rate_vertical_dph
 from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 

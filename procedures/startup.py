@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.procedure import Context, Limit
+from bench.core.procedure import Context, Limit
 from procedures.common import choose_nplc, make_safe, power_accelerometer
 
 @dataclass

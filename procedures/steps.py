@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any, Mapping, Protocol
 
-from bench.procedure import Context, Limit
+from bench.core.procedure import Context, Limit
 from procedures.common import Estimate, level_table, make_safe
 
 

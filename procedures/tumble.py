@@ -21,8 +21,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.analysis.tumble import fit_tumble, specific_force_iapo_g, tumble_positions
-from bench.procedure import Context
-from bench.site import STANDARD_GRAVITY_MPS2, site_gravity_mps2
+from bench.core.procedure import Context
+from bench.core.site import STANDARD_GRAVITY_MPS2, site_gravity_mps2
 from procedures.steps import ParameterizedStep
 from procedures.common import (Estimate, averaged_voltage, check_ranges, move_table,
                                power_accelerometer)

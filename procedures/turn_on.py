@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.analysis.turn_on import turn_on_metrics
-from bench.procedure import Context
+from bench.core.procedure import Context
 from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 from procedures.startup import StartupAcquisition, StartupParameters

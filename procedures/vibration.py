@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.procedure import Context
+from bench.core.procedure import Context
 from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges, power_gyro
 

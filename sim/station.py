@@ -16,7 +16,7 @@ Wiring (what a lab would do with cables):
   it still while shaking).  The vibration drives the gyro's vibration terms; the
   accelerometer does not see it.
 
-Only this module (and ``bench.station`` which starts it) knows both the physics and the
+Only this module (and ``bench.app.station`` which starts it) knows both the physics and the
 instruments; procedures see TCP addresses.
 """
 

@@ -20,7 +20,7 @@ fixed by the stop criterion, so only the cost of one sifting can be cut):
   call pays reference counting each time (measured 5× slower).
 
 The arithmetic repeats the previous numpy implementation's operation by operation, so
-the IMFs are the same bit for bit (``tests/test_analysis_emd_compiled.py``); only the
+the IMFs are the same bit for bit (``tests/analysis/test_analysis_emd_compiled.py``); only the
 order of the two energy sums differs, which moves the SD ratio by rounding.
 
 numba's on-disk cache does not notice a change in another module: after editing

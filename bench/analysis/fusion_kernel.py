@@ -23,7 +23,7 @@ samples of the bench's model, so this is cheap insurance, not a fix).  The Josep
 ``(I − KH) P (I − KH)ᵀ + K R Kᵀ``, which also guards positive definiteness, was not adopted:
 on the bench's data (scalar updates, ``R ≥ r_lower > 0``) the symmetric plain form stays
 positive definite over 10⁶ samples and matches the textbook filter to 1e-12 (both checked in
-``tests/test_fusion_kernel.py``), while the Joseph form costs an extra O(n³) per update.
+``tests/analysis/test_fusion_kernel.py``), while the Joseph form costs an extra O(n³) per update.
 """
 
 from __future__ import annotations

@@ -127,7 +127,7 @@ def _known_coords(known: list[tuple[str, dict]], dt_s: float) -> tuple[tuple[str
     step's estimates, their error was colour a new candidate could claim: a Gauss–Markov on a
     model holding a (bias-corrected) walk came out p < 0.05 on 9 of 40 records of the model's
     own noise, and a real one on top of the walk was missed half the time
-    (tests/test_discovery_workflow.py)."""
+    (tests/discovery/test_discovery_workflow.py)."""
     kinds, th = [], []
     for eid, p in known:
         if eid == "gauss_markov":

@@ -3,7 +3,7 @@
 Per sample: find nothing (the piece index is given), loop over the piece's components and
 accumulate rate, angle and acceleration together — one sine and one cosine per component,
 no (samples × components) temporaries.  The reference is :class:`MotionPiece`'s own numpy
-evaluation (``tests/test_angular_table.py`` compares them).
+evaluation (``tests/sim/test_angular_table.py`` compares them).
 """
 
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""The application: the command line, reports, exports and opening a station."""

@@ -1,0 +1,107 @@
+"""``bench analyze fusion --input FILE.csv --rate-hz FS``: Document B's sequential Kalman fusion.
+
+Reads columns ``t`` (s), ``hf``, ``lf`` (same rate unit) and optionally ``ref`` from a CSV
+with a header row; runs :func:`bench.analysis.fusion.analyze_fusion`; prints a summary
+(or ``--json``: ``FusionAnalysis.to_dict()`` plus ``source``) and with ``--output`` writes
+``t,fused``.  The time column must step by ``1/FS`` (within 1 %).  Bad input raises
+``ValueError``; ``bench`` prints it as one line ``bench: error: …`` and exits 2.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from bench.app.commands.analyze import read_csv_table
+
+SAMPLING_TOLERANCE = 0.01
+
+
+def register_analysis(kinds) -> None:
+    """Add ``fusion`` to the ``bench analyze`` subparsers."""
+    p = kinds.add_parser("fusion", help="sequential Kalman fusion of an HF (MHD) and an LF rate sensor (Document B)")
+    p.add_argument("--input", required=True, metavar="FILE.csv", help="CSV with columns t, hf, lf [, ref]")
+    p.add_argument("--rate-hz", required=True, type=float, help="sample rate of the record (Hz)")
+    p.add_argument("--tones-hz", default=None, help="comma-separated tone frequencies of ref (Hz) [detected]")
+    p.add_argument("--hf-corner-hz", type=float, default=None, help="HF first-order high-pass corner [fit/2 Hz]")
+    p.add_argument("--lf-corner-hz", type=float, default=None, help="LF first-order low-pass corner [fit/30 Hz]")
+    p.add_argument("--crossover-hz", type=float, default=None, help="complementary-filter crossover [√(fh·fl)]")
+    p.add_argument("--settle-s", type=float, default=0.0, help="seconds left out of the metrics [0]")
+    p.add_argument("--json", action="store_true", help="print the results as JSON")
+    p.add_argument("--output", metavar="FUSED.csv", default=None, help="write t,fused here")
+    p.set_defaults(func=analyze_fusion_csv)
+
+
+def _check_time(t: np.ndarray, rate_hz: float) -> None:
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"--rate-hz {rate_hz} must be a finite value > 0")
+    if t.size < 16:
+        raise ValueError(f"{t.size} rows; at least 16 are needed")
+    dt = np.diff(t) * rate_hz
+    k = int(np.argmax(np.abs(dt - 1)))
+    if abs(dt[k] - 1) > SAMPLING_TOLERANCE:
+        raise ValueError(f"the time step after row {k + 2} is {dt[k] / rate_hz:.6g} s, "
+                         f"not 1/rate = {1 / rate_hz:.6g} s "
+                         f"(allowed ±{SAMPLING_TOLERANCE:.0%}); the record must be uniform at --rate-hz")
+
+
+def _floats(text: str | None, what: str):
+    if text is None:
+        return None
+    try:
+        return np.array([float(v) for v in text.split(",") if v.strip()])
+    except ValueError:
+        raise ValueError(f"{what} {text!r} must be comma-separated numbers (Hz)") from None
+
+
+def analyze_fusion_csv(args) -> int:
+    """Handler of ``bench analyze fusion``."""
+    from bench.analysis.fusion import analyze_fusion
+    from bench.analysis.fusion_models import SensorModel
+
+    data = read_csv_table(args.input, ("t", "hf", "lf"), ("ref",))
+    _check_time(data["t"], args.rate_hz)
+    hf_model = None if args.hf_corner_hz is None else SensorModel("highpass", 1, args.hf_corner_hz)
+    lf_model = None if args.lf_corner_hz is None else SensorModel("lowpass", 1, args.lf_corner_hz)
+    analysis = analyze_fusion(data["t"], data["hf"], data["lf"], data.get("ref"), args.rate_hz, hf_model=hf_model,
+                              lf_model=lf_model, tones_hz=_floats(args.tones_hz, "--tones-hz"),
+                              crossover_hz=args.crossover_hz, settle_s=args.settle_s)
+    if args.output is not None:
+        out = Path(args.output)
+        try:
+            with out.open("w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(["t", "fused"])
+                w.writerows((f"{a:.9g}", f"{b:.10g}") for a, b in zip(data["t"], analysis.fused))
+        except OSError as exc:
+            raise ValueError(f"cannot write {out}: {exc}") from None
+    if args.json:
+        doc = analysis.to_dict()
+        doc["source"] = args.input
+        if args.output is not None:
+            doc["output"] = args.output
+        print(json.dumps(doc, indent=2, allow_nan=False))
+        return 0
+    m = analysis.model
+    print(f"fusion of {args.input}: {analysis.n_samples} samples at {args.rate_hz:.6g} Hz; "
+          f"models {analysis.model_source}")
+    print(f"  HF {m.hf.kind} order {m.hf.order} corner {m.hf.corner_hz:.4g} Hz gain {m.hf.gain:.5g}; "
+          f"LF {m.lf.kind} order {m.lf.order} corner {m.lf.corner_hz:.4g} Hz gain {m.lf.gain:.5g}; q {m.q:.4g}")
+    for name, s in analysis.nis.items():
+        print(f"  NIS {name}: mean {s.mean:.4g} (χ² bounds {s.lower:.4g}–{s.upper:.4g}, dof {s.dof}); "
+              f"{'consistent' if s.consistent else 'inconsistent'}{', DIVERGED' if s.diverged else ''}")
+    if analysis.rms_error is not None:
+        print("  RMS error: " + ", ".join(f"{k} {v:.4g}" for k, v in analysis.rms_error.items()))
+        print(f"  {'f (Hz)':>10} " + " ".join(f"{k:>22}" for k in analysis.amplitude_error_pct))
+        for i, f in enumerate(analysis.tones_hz):
+            cells = [f"{analysis.amplitude_error_pct[k][i]:+8.2f}% {analysis.phase_error_deg[k][i]:+8.2f}°"
+                     for k in analysis.amplitude_error_pct]
+            print(f"  {f:10.4g} " + " ".join(f"{c:>22}" for c in cells))
+    for note in analysis.notes:
+        print(f"note: {note}")
+    if args.output is not None:
+        print(f"fused rate: {args.output}")
+    return 0

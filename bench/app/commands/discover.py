@@ -1,0 +1,177 @@
+"""``bench discover``: find where the model and a measurement disagree, name the missing effect.
+
+``bench discover (--run ID | --measured FILE.csv) [--sensor accelerometer|gyro|mhd]
+[--model FILE.toml] [--out DIR] [--json]``
+
+CSV columns (header row): ``t`` (s) and ``y`` (g or deg/s) required; optional ``input``,
+``cross_input``, ``temp`` (degC), ``t_on`` (s since power-on), ``vib`` (g rms), ``accel`` (g)
+— see :mod:`bench.discovery.data`.
+
+Stored runs: the streams :mod:`bench.app.commands.discover_runs` maps (start-up, static noise
+and vibration records of both sensors; ``--stream`` picks one when a run holds several).
+
+Writes ``discovered_model.toml`` and ``discovery_report.html`` into ``--out`` (default
+``bench-data/discover``). Bad input: one line ``bench: error: …`` and exit 2 (ValueError /
+LookupError / OSError are turned into that by :mod:`bench.app.cli`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from bench.app.commands.discover_runs import read_run
+from bench.discovery.data import CSV_COLUMNS, Record
+
+SENSORS = ("accelerometer", "gyro", "mhd")
+DEFAULT_OUT = "bench-data/discover"
+
+def register(sub) -> None:
+    p = sub.add_parser("discover", help="name the effect the model lacks (discrepancy workflow)")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--run", metavar="ID", help="stored run id or 'latest' (start-up, noise and vibration runs)")
+    src.add_argument("--measured", metavar="FILE.csv",
+                     help=f"CSV with a header row; columns {', '.join(CSV_COLUMNS)} (t, y required)")
+    p.add_argument("--stream", metavar="NAME", default=None,
+                   help="which stream of the run (default: the first mappable; see discover_runs)")
+    p.add_argument("--sensor", choices=SENSORS, default=None,
+                   help="base model kind when no --model (default: from the run, else accelerometer)")
+    p.add_argument("--model", metavar="FILE.toml", default=None, help="starting model file")
+    p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder [{DEFAULT_OUT}]")
+    p.add_argument("--max-effects", type=int, default=4, help="most effects to add [4]")
+    p.add_argument("--alpha", type=float, default=0.05, help="false-discovery rate [0.05]")
+    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap null [0]")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
+    p.set_defaults(func=discover_command)
+
+
+def read_measured(path: str) -> Record:
+    """A CSV with a header into a Record (ValueError naming the file and the fault). Header
+    names are matched case-insensitively after stripping blanks; a repeated or unknown name
+    is refused."""
+    from bench.app.commands.analyze import read_csv_table
+
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            raw = next(csv.reader(fh), [])
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise ValueError(f"cannot read {path}: {exc}") from None
+    header = [h.strip().lower() for h in raw]
+    unknown = [h for h, r in zip(header, raw) if h and h not in CSV_COLUMNS]
+    if unknown:
+        raise ValueError(f"{path}: unknown column(s) {unknown}; allowed: {list(CSV_COLUMNS)}")
+    repeated = sorted({h for h in header if h and header.count(h) > 1})
+    if repeated:
+        raise ValueError(f"{path}: column(s) {repeated} appear more than once in the header")
+    original = {h: r.strip() for h, r in zip(header, raw) if h}
+    for name in ("t", "y"):
+        if name not in original:
+            raise ValueError(f"{path}: no column {name!r}; columns are {', '.join(original.values()) or '(none)'}")
+    optional = tuple(original[c] for c in CSV_COLUMNS if c not in ("t", "y") and c in original)
+    table = read_csv_table(path, (original["t"], original["y"]), optional)
+    lower = {v: k for k, v in original.items()}
+    try:
+        return Record.from_columns({lower[k]: v for k, v in table.items()})
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def discover_command(args) -> int:
+    from bench.discovery.model import Model, base_model, read_model, write_model
+    from bench.discovery.workflow import discover
+    from bench.app.reports.discovery_report import write_discovery_report
+
+    if args.run is not None:
+        rec, run_kind, label = read_run(args.store, args.run, args.stream)
+    else:
+        if args.stream is not None:
+            raise ValueError("--stream applies to --run only")
+        rec, run_kind, label = read_measured(args.measured), None, args.measured
+    if args.model is not None:
+        model = read_model(args.model, rate_hz=rec.rate_hz)  # noise_sd carried to this record's rate
+        if args.sensor is not None and args.sensor != model.base.kind:
+            raise ValueError(f"--sensor {args.sensor} contradicts the model file's kind {model.base.kind!r}")
+    else:
+        model = Model(base_model(args.sensor or run_kind or "accelerometer"))
+    if not 0 <= args.max_effects <= 19:
+        raise ValueError(f"--max-effects {args.max_effects}; allowed: 0..19")
+    if rec.n < 64:
+        raise ValueError(f"{label}: {rec.n} samples; discover needs at least 64")
+    if not rec.is_uniform(rtol=0.05):
+        raise ValueError(f"{label}: sample intervals vary by more than 5 %; discover needs a uniform record")
+    with status_line(not args.no_progress and not args.json) as say:
+        say(f"{label}: {rec.n} samples at {rec.rate_hz:.6g} Hz; calibrating the {model.base.kind} model")
+        result = discover(rec, model, max_effects=args.max_effects, alpha=args.alpha, seed=args.seed,
+                          progress=say)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    model_file = out / "discovered_model.toml"
+    write_model(result.final_model, model_file, rate_hz=rec.rate_hz)
+    report = write_discovery_report(result, rec, out, label)
+    doc = result.to_dict(str(model_file))
+    doc["report"] = str(report)
+    doc["source"] = label
+    if args.json:
+        print(json.dumps(clean_json(doc), indent=2, allow_nan=False))
+    else:
+        print(summary(result, label, model_file, report))
+    return 0
+
+
+@contextlib.contextmanager
+def status_line(enabled: bool):
+    """A spinner with the workflow's current step on stderr (rich); each finished step's message
+    stays printed. Yields ``say(message)``."""
+    if not enabled:
+        yield lambda _msg: None
+        return
+    from rich.console import Console
+    from rich.markup import escape
+
+    console = Console(file=sys.stderr)
+    with console.status("discover: starting") as status:
+        def say(msg: str) -> None:
+            if ": named " in msg or "stopping" in msg or "unexplained" in msg:
+                console.print(escape(msg))
+            status.update(escape(f"discover — {msg}"))
+
+        yield say
+
+
+def clean_json(x):
+    """numpy scalars to Python, NaN/inf to None, recursively (JSON without NaN)."""
+    if isinstance(x, dict):
+        return {str(k): clean_json(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [clean_json(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if np.isfinite(x) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def summary(result, label: str, model_file: Path, report: Path) -> str:
+    lines = [f"discrepancy workflow on {label}: residual rms {result.rms_initial:.4g} → {result.rms_final:.4g} "
+             f"(noise floor {result.noise_floor:.4g})"]
+    if not result.steps:
+        lines.append("nothing named: no catalogue effect is significant")
+    for i, s in enumerate(result.steps, 1):
+        ps = ", ".join(f"{k} = {v:.4g} ± {s.params_std.get(k, float('nan')):.2g}" for k, v in s.params.items())
+        pv = f"p ≤ {s.p_value:.0e}" if s.p_value <= 1e-300 else f"p = {s.p_value:.3g}"  # floored, no underflow
+        lines.append(f"{i}. {s.effect_id} ({ps}); {pv}; rms {s.rms_before:.4g} → {s.rms_after:.4g}")
+        for sep in s.naming.separating:
+            lines.append(f"   close competitor — {sep}")
+    for u in result.unexplained:
+        lines.append(f"unexplained structure: {u}")
+    lines += [f"note: {n}" for n in result.notes]
+    lines += [f"model: {model_file}", f"report: {report}"]
+    return "\n".join(lines)

@@ -1,0 +1,226 @@
+"""``bench doctor``: is every configured instrument there, healthy and as expected?
+
+For each instrument of the station, one at a time (so one unreachable instrument does
+not hide the others): open it with its driver, ask its identity (``*IDN?``; the gyro
+line's ``$ID?``), read its error queue (``SYST:ERR?`` until ``+0``), compare ``*OPT?``
+with the ``options = [...]`` the station file states for it, and time one identity
+round trip.  The sim-control clock of a simulated station is checked the same way.
+
+Status per instrument: ``OK``; ``FAIL`` with the reason (cannot open, no or malformed
+identity, errors queued, options missing); ``OFF`` for the gyro when the supply output
+that powers it (``[wiring] gyro_supply_channel``) reads off — an unpowered unit is
+silent by design, so it is reported and not asked.
+
+Exit codes: 0 every instrument OK (or OFF), 1 at least one FAIL, 2 the station cannot
+be opened at all (a bad station file, an embedded simulation that does not start, no
+instruments configured).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from contextlib import ExitStack
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from bench.app.station import (SERIAL_DRIVERS, InstrumentConfig, Station, StationConfig,
+                           StationError, resolve_station)
+
+#: at most this many ``SYST:ERR?`` reads (an error queue is 20..100 deep on real meters)
+MAX_ERROR_READS = 200
+
+
+@dataclass
+class Health:
+    """One instrument's check: what it said and whether it passed."""
+
+    name: str
+    driver: str
+    address: str
+    status: str = "FAIL"          # OK | FAIL | OFF
+    reason: str = ""
+    identity: str = ""
+    errors: list[str] = field(default_factory=list)
+    options: list[str] | None = None           # *OPT? as read (None: not asked)
+    expected_options: list[str] | None = None  # from the station file
+    round_trip_ms: float | None = None
+
+
+def register(sub) -> None:
+    p = sub.add_parser("doctor", help="check every instrument of a station: identity, error "
+                       "queue, options, round trip")
+    p.add_argument("--station", default="sim", help="'sim' (built-in simulated station) or a "
+                   "station TOML file [sim]")
+    p.add_argument("--json", action="store_true", help="print the results as JSON")
+    p.set_defaults(func=run_doctor)
+
+
+def run_doctor(args) -> int:
+    config = resolve_station(args.station)  # StationError (ValueError) → exit 2 in the CLI
+    results = diagnose(config)
+    healthy = all(r.status != "FAIL" for r in results)
+    if args.json:
+        json.dump({"station": config.name, "healthy": healthy,
+                   "instruments": [asdict(r) for r in results]}, sys.stdout, indent=2)
+        print()
+    else:
+        print_table(config.name, results)
+    return 0 if healthy else 1
+
+
+def expected_options(inst: InstrumentConfig) -> list[str] | None:
+    """The ``options = [...]`` list of an instrument's station table, upper-cased."""
+    wanted = inst.options.get("options")
+    if wanted is None:
+        return None
+    if not isinstance(wanted, list) or not all(isinstance(o, str) and o for o in wanted):
+        raise StationError(f"[instruments.{inst.name}] options = {wanted!r} must be a list of "
+                           "option codes, e.g. [\"DIG\", \"MEM\"]")
+    return [o.upper() for o in wanted]
+
+
+def diagnose(config: StationConfig) -> list[Health]:
+    """Check every instrument of ``config`` (starting its embedded simulation if any)."""
+    for inst in config.instruments.values():
+        expected_options(inst)  # a malformed expectation is a station-file error: exit 2
+    with ExitStack() as stack:
+        if config.simulation is not None:
+            holder = Station(config)
+            stack.callback(holder.__exit__, None, None, None)
+            try:
+                config = holder._start_embedded(config)
+            except (StationError, ValueError):
+                raise
+            except Exception as exc:
+                raise StationError(f"the embedded simulation did not start: {exc}") from exc
+        if not config.instruments:
+            raise StationError(f"station {config.name!r} configures no instruments")
+        scpi = [i for i in config.instruments.values() if i.driver not in SERIAL_DRIVERS]
+        serial = [i for i in config.instruments.values() if i.driver in SERIAL_DRIVERS]
+        powered: dict[int, bool] = {}  # supply channel -> output on, read from the supply
+        results = [_check_scpi(inst, config, powered) for inst in scpi]
+        results += [_check_serial(inst, config, powered) for inst in serial]
+        if config.clock != "wall":
+            results.append(_check_clock(config))
+        order = list(config.instruments) + ["clock"]
+        return sorted(results, key=lambda r: order.index(r.name) if r.name in order else 0)
+
+
+def _single(config: StationConfig, inst: InstrumentConfig) -> StationConfig:
+    return StationConfig(config.name, {inst.name: inst}, "wall", "@py", config.wiring, None)
+
+
+def _read_errors(query) -> tuple[list[str], str]:
+    """Drain ``SYST:ERR?``; returns the entries and a reason if the queue never emptied."""
+    from instruments.base import parse_error_reply  # noqa: PLC0415
+
+    errors: list[str] = []
+    for _ in range(MAX_ERROR_READS):
+        reply = query("SYST:ERR?")
+        code, _message = parse_error_reply(reply)
+        if code == 0:
+            return errors, ""
+        errors.append(reply.strip())
+    return errors, f"SYST:ERR? still not +0 after {MAX_ERROR_READS} reads"
+
+
+def _timed(fn) -> tuple[Any, float]:
+    t0 = time.perf_counter()
+    value = fn()
+    return value, (time.perf_counter() - t0) * 1e3
+
+
+def _check_scpi(inst: InstrumentConfig, config: StationConfig, powered: dict) -> Health:
+    h = Health(inst.name, inst.driver, inst.address, expected_options=expected_options(inst))
+    try:
+        with Station(_single(config, inst)) as station:
+            driver = station.instruments[inst.name]
+            h.identity = ",".join(asdict(driver.idn).values())
+            _, h.round_trip_ms = _timed(lambda: driver.query("*IDN?"))
+            h.errors, overflow = _read_errors(driver.query)
+            if h.expected_options is not None:
+                h.options = list(driver.options)
+            if inst.driver == "keysight_e36312a":
+                for n, out in driver.ch.items():
+                    powered[n] = bool(out.output_enabled)
+                _read_errors(driver.query)  # output reads must not leave errors behind
+    except Exception as exc:  # any failure to open or talk is this instrument's FAIL
+        h.reason = _short(exc)
+        return h
+    problems = []
+    if h.errors:
+        problems.append(f"{len(h.errors)} error(s) queued: {h.errors[0]}")
+    if overflow:
+        problems.append(overflow)
+    if h.expected_options is not None:
+        missing = [o for o in h.expected_options if o not in h.options]
+        if missing:
+            problems.append(f"options {missing} missing (has {h.options or 'none'})")
+    h.status, h.reason = ("FAIL", "; ".join(problems)) if problems else ("OK", "")
+    return h
+
+
+def _check_serial(inst: InstrumentConfig, config: StationConfig, powered: dict) -> Health:
+    h = Health(inst.name, inst.driver, inst.address)
+    channel = config.wiring.get("gyro_supply_channel")
+    try:
+        with Station(_single(config, inst)) as station:
+            driver = station.instruments[inst.name]
+            # only the gyro is fed by the station's supply ([wiring] gyro_supply_channel); other
+            # serial units (the angular rig's LF sensor) have their own power: always asked
+            if inst.name == "gyro" and powered.get(channel) is False:
+                h.status = "OFF"
+                h.reason = f"unpowered: supply output CH{channel} is off (line opened, not asked)"
+                return h
+            identity, h.round_trip_ms = _timed(driver.identify)
+            h.identity = ",".join(asdict(identity).values())
+    except Exception as exc:
+        h.reason = _short(exc)
+        return h
+    h.status = "OK"
+    return h
+
+
+def _check_clock(config: StationConfig) -> Health:
+    """The sim-control endpoint that serves a simulated station's clock."""
+    from instruments.base import Identity, open_resource  # noqa: PLC0415
+
+    h = Health("clock", "sim_control", config.clock)
+    try:
+        res = open_resource(config.clock, backend=config.clock_backend, timeout_ms=10000)
+        try:
+            reply, h.round_trip_ms = _timed(lambda: res.query("*IDN?"))
+            h.identity = ",".join(asdict(Identity.parse(reply)).values())
+            h.errors, overflow = _read_errors(res.query)
+        finally:
+            res.close()
+    except Exception as exc:
+        h.reason = _short(exc)
+        return h
+    problems = ([f"{len(h.errors)} error(s) queued: {h.errors[0]}"] if h.errors else []) \
+        + ([overflow] if overflow else [])
+    h.status, h.reason = ("FAIL", "; ".join(problems)) if problems else ("OK", "")
+    return h
+
+
+def _short(exc: BaseException) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+def print_table(station: str, results: list[Health]) -> None:
+    print(f"station {station}: {len(results)} instrument(s)")
+    wn = max([len("instrument")] + [len(r.name) for r in results])
+    wd = max([len("driver")] + [len(r.driver) for r in results])
+    print(f"{'instrument':<{wn}} {'driver':<{wd}} {'address':<34} {'identity':<48} "
+          f"{'errors':>6} {'rtt ms':>7}  status")
+    for r in results:
+        rtt = "-" if r.round_trip_ms is None else f"{r.round_trip_ms:.1f}"
+        errors = "-" if r.status == "FAIL" and not r.identity else str(len(r.errors))
+        status = r.status + (f" ({r.reason})" if r.reason else "")
+        print(f"{r.name:<{wn}} {r.driver:<{wd}} {r.address[:34]:<34} {r.identity[:48] or '-':<48} "
+              f"{errors:>6} {rtt:>7}  {status}")
+    bad = sum(r.status == "FAIL" for r in results)
+    print("all healthy" if not bad else f"{bad} unhealthy")

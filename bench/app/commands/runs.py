@@ -1,0 +1,122 @@
+"""``bench runs list | show ID | export ID --format csv|hdf5``."""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import asdict
+from pathlib import Path
+
+from bench.app.commands.common import open_store, resolve_run_id
+
+
+def register(sub) -> None:
+    runs = sub.add_parser("runs", help="list, show and export stored runs")
+    cmds = runs.add_subparsers(dest="runs_command", metavar="SUBCOMMAND")
+    cmds.required = True
+    ls = cmds.add_parser("list", help="stored runs, newest first")
+    ls.add_argument("--limit", type=int, default=20)
+    ls.add_argument("--json", action="store_true")
+    ls.set_defaults(func=list_runs)
+    show = cmds.add_parser("show", help="one run: metadata, streams, events, measurements")
+    show.add_argument("run_id", help="run id, or 'latest'")
+    show.add_argument("--json", action="store_true")
+    show.set_defaults(func=show_run)
+    exp = cmds.add_parser("export", help="export a run's data")
+    exp.add_argument("run_id")
+    exp.add_argument("--format", choices=("csv", "hdf5"), default="csv")
+    exp.add_argument("--out", default=None, help="output folder (csv) or file (hdf5)")
+    exp.set_defaults(func=export_run)
+
+
+def list_runs(args) -> int:
+    if args.limit < 1:
+        raise ValueError(f"--limit {args.limit} must be ≥ 1")
+    from pathlib import Path
+
+    runs = open_store(args).list_runs(limit=args.limit) if Path(args.store).is_file() else []
+    if args.json:
+        json.dump([_info(r) for r in runs], sys.stdout, indent=2, default=str)
+        print()
+        return 0
+    if not runs:
+        print("no runs stored yet (try: bench run startup)")
+        return 0
+    print(f"{'id':<22} {'procedure':<11} {'unit':<14} {'status':<9} {'started (UTC)':<20} reason")
+    for r in runs:
+        print(f"{r.id:<22} {r.procedure:<11} {str(r.unit_serial or '-'):<14} {r.status:<9} "
+              f"{str(r.started_utc)[:19]:<20} {r.reason or ''}")
+    return 0
+
+
+def _info(r) -> dict:
+    d = asdict(r)
+    return d
+
+
+def show_run(args) -> int:
+    store = open_store(args, create=False)
+    args.run_id = resolve_run_id(store, args.run_id)
+    info = store.get_run(args.run_id)
+    streams = store.streams(args.run_id)
+    events = store.events(args.run_id)
+    measurements = [v for k, v in (info.results or {}).items() if k.startswith("measurement.")]
+    verdict = None
+    if info.procedure == "acceptance" and info.status != "running":
+        from bench.app.reports.acceptance_report import verdict_of
+
+        verdict = verdict_of(info.status, measurements)
+    if args.json:
+        doc = _info(info)
+        doc["verdict"] = verdict
+        doc["measurements"] = measurements
+        doc["streams"] = {k: asdict(v) if hasattr(v, "__dataclass_fields__") else v
+                          for k, v in streams.items()}
+        doc["events"] = [asdict(e) if hasattr(e, "__dataclass_fields__") else e for e in events]
+        doc["attachments"] = [asdict(a) if hasattr(a, "__dataclass_fields__") else a
+                              for a in store.attachments(args.run_id)]
+        json.dump(doc, sys.stdout, indent=2, default=str)
+        print()
+        return 0
+    print(f"run        {info.id}\nprocedure  {info.procedure}\nunit       {info.unit_serial}\n"
+          f"status     {info.status}" + (f" — {info.reason}" if info.reason else "") +
+          (f"\nverdict    {verdict}" if verdict else "") +
+          f"\nstarted    {info.started_utc}\nended      {info.ended_utc}\nseed       {info.seed}\n"
+          f"code       {info.code_version}\nlast good sample at t = {info.last_sample_t_s} s")
+    print("streams:")
+    for name, s in streams.items():
+        print(f"  {name:<14} {getattr(s, 'n_rows', '?'):>10} rows  "
+              f"{', '.join(f'{c} [{u}]' for c, u in getattr(s, 'columns', {}).items())}")
+    if measurements:
+        print(f"measurements:\n  {'name':<22} {'value':>14} {'± unc.':>9} {'unit':<9} {'low':>10} "
+              f"{'high':>10}  outcome")
+        for m in measurements:
+            unc = "" if m.get("uncertainty") is None else f"{m['uncertainty']:.2g}"
+            low = "" if m.get("low") is None else f"{m['low']:g}"
+            high = "" if m.get("high") is None else f"{m['high']:g}"
+            value = "—" if m["value"] is None else f"{m['value']:.6g}"
+            print(f"  {m['name']:<22} {value:>14} {unc:>9} {m['unit']:<9} {low:>10} "
+                  f"{high:>10}  {m['outcome']}")
+    attachments = store.attachments(args.run_id)
+    if attachments:
+        print("attachments:")
+        for a in attachments:
+            print(f"  {a.name:<40} {a.mime:<18} {a.size_bytes:>9} bytes")
+    print(f"events: {len(events)}")
+    for e in events[:20]:
+        print(f"  t={e.t_s:>10.3f} s  {e.kind:<14} {e.message}")
+    return 0
+
+
+def export_run(args) -> int:
+    from bench.app.export import export_csv, export_hdf5
+
+    store = open_store(args, create=False)
+    args.run_id = resolve_run_id(store, args.run_id)
+    if args.format == "csv":
+        paths = export_csv(store, args.run_id, Path(args.out or f"export-{args.run_id}"))
+    else:
+        paths = [export_hdf5(store, args.run_id, Path(args.out or f"{args.run_id}.h5"))]
+    for p in paths:
+        print(p)
+    return 0

@@ -1,0 +1,50 @@
+"""``bench sim serve``: serve the simulated station's instruments until interrupted."""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+
+
+def register(sub) -> None:
+    sim = sub.add_parser("sim", help="the simulated station")
+    cmds = sim.add_subparsers(dest="sim_command", metavar="SUBCOMMAND")
+    cmds.required = True
+    serve = cmds.add_parser("serve", help="serve the simulated instruments on TCP and print "
+                            "one JSON line per instrument")
+    serve.add_argument("--station", default=None, help="station TOML with a [simulation] table")
+    serve.add_argument("--seed", type=int, default=None,
+                       help="seed of the world [the station file's, else 0]")
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="address to listen on [127.0.0.1]; anything else warns")
+    serve.set_defaults(func=serve_sim)
+
+
+def serve_sim(args) -> int:
+    from bench.app.station import load_station
+    from sim.station import SimStationConfig, SimulatedStation
+
+    options = {}
+    if args.station:
+        options = dict(load_station(args.station).simulation or {})
+    if args.seed is not None:
+        options["seed"] = args.seed
+    options["host"] = args.host
+    config = SimStationConfig(**options)
+    config.validate()
+    station = SimulatedStation(config)
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"bench: warning: listening on {args.host}: reachable from the network",
+              file=sys.stderr)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):  # before the addresses are announced
+        signal.signal(sig, lambda *_: stop.set())
+    station.start()
+    for e in station.endpoints:
+        print(json.dumps({"name": e.name, "kind": e.kind, "resource": e.resource}), flush=True)
+    while not stop.wait(0.5):
+        pass
+    station.stop()
+    return 0

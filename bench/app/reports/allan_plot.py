@@ -1,0 +1,136 @@
+"""Allan plot and report, built only from an :class:`~bench.analysis.allan.AllanResult`.
+
+* :func:`plot_allan` draws onto any matplotlib ``Axes`` (other reports — acceptance,
+  vibration — place it in their own figures): log-log ADEV with confidence bars, the
+  fitted model, one dashed line per fitted term (its slope), and the slope-line
+  read-offs — a dotted line through the curve point each was read from and a marker
+  where it is read (τ = √3, 1, 3, √2 s; B at the minimum).
+* :func:`write_allan_report` writes ``allan_report.html``, ``allan_plot.png`` and
+  ``allan_result.json`` into a directory.
+
+Figures use the object API (``Figure`` + Agg canvas): no pyplot state, no GUI backend.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from bench.analysis.allan import AllanResult
+from bench.analysis.allan_noise import B_FACTOR, term_adev
+from bench.app.reports.common import html_table as _table
+
+_COLOURS = {"Q": "C4", "N": "C2", "B": "C1", "K": "C5", "R": "C6"}
+_SLOPE_TEXT = {"Q": "−1", "N": "−1/2", "B": "0", "K": "+1/2", "R": "+1"}
+
+
+def _g(x: float | None, digits: int = 4) -> str:
+    return "—" if x is None else f"{x:.{digits}g}"
+
+
+def _span(result: AllanResult) -> np.ndarray:
+    """τ grid for lines: the data range widened to every read-off τ."""
+    taus = [float(result.tau_s[0]), float(result.tau_s[-1])]
+    for c in result.coefficients.values():
+        taus += [t for t in (c.read_at_tau_s, c.read_off_tau_s) if t is not None and c.read_off_input is not None]
+    return np.geomspace(min(taus), max(taus), 200)
+
+
+def plot_allan(ax: Axes, result: AllanResult, title: str | None = None) -> Axes:
+    """Draw the Allan plot of ``result`` onto ``ax`` and return it."""
+    unit = result.units["adev"]
+    ok = result.adev > 0
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set(xlabel="τ (s)", ylabel=f"Allan deviation ({unit})",
+           title=title or f"Overlapping Allan deviation ({result.confidence:.1%} intervals)")
+    if not np.any(ok):
+        ax.text(0.5, 0.5, "every ADEV is zero (constant record)", transform=ax.transAxes, ha="center")
+        return ax
+    tau, dev, ci = result.tau_s[ok], result.adev[ok], result.adev_ci[ok]
+    ax.errorbar(tau, dev, yerr=[dev - ci[:, 0], ci[:, 1] - dev], fmt="o", ms=4, color="C0",
+                ecolor="C0", elinewidth=0.8, capsize=2, label="ADEV", zorder=3)
+    grid = _span(result)
+    model = result.model_adev(grid)
+    if np.any(model > 0):
+        ax.plot(grid, model, color="C3", lw=1.4, label="fitted model", zorder=2)
+    for name, c in result.coefficients.items():
+        colour = _COLOURS[name]
+        if c.fit_input:  # the fitted term alone: a line of its slope
+            ax.plot(grid, term_adev(name, c.fit_input, grid), "--", color=colour, lw=1.0,
+                    label=f"{name} = {_g(c.fit)} {c.unit} (slope {_SLOPE_TEXT[name]})")
+        if c.read_off_input is None:
+            continue
+        if name == "B":
+            level = c.read_off_input * B_FACTOR
+            ax.axhline(level, ls=":", color=colour, lw=0.9)
+            ax.plot([c.read_off_tau_s], [level], "D", color=colour, ms=6, mfc="none",
+                    label=f"read-off B = {_g(c.read_off)} {c.unit} (minimum / 0.664)")
+            continue
+        through = dev[np.argmin(np.abs(np.log(tau / c.read_off_tau_s)))]
+        ax.plot(grid, through * (grid / c.read_off_tau_s) ** c.slope, ":", color=colour, lw=0.9)
+        ax.plot([c.read_at_tau_s], [c.read_off_input], "D", color=colour, ms=6, mfc="none",
+                label=f"read-off {name} = {_g(c.read_off)} {c.unit} at τ = {c.read_at_tau_s:.3g} s")
+    low, high = float(np.min(ci[:, 0][ci[:, 0] > 0], initial=dev.min())), float(dev.max())
+    ax.set_ylim(low / 3.0, high * 3.0)  # keep lines from stretching the axis by decades
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="best", fontsize=7)
+    return ax
+
+
+def write_allan_report(result: AllanResult, directory: str | Path, context: dict | None = None,
+                       title: str | None = None) -> Path:
+    """Write the report files into ``directory`` (created if missing); return the HTML path.
+
+    ``context`` (optional) is shown as a header table: where the record came from.
+    """
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    fig = Figure(figsize=(9, 6))
+    plot_allan(fig.add_subplot(), result, title)
+    fig.tight_layout()
+    fig.savefig(out / "allan_plot.png", dpi=110)
+    (out / "allan_result.json").write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False))
+
+    coef_rows = []
+    for name, c in result.coefficients.items():
+        d = c.to_dict()
+        fit = "not fitted" if c.fit_input is None else f"{_g(c.fit)} ± {_g(c.fit_std, 2)}"
+        coef_rows.append([name, c.label, fit, _g(c.read_off), c.unit,
+                          f"{_g(d['alt']['value'])} / {_g(d['alt']['read_off'])} {c.alt_unit}",
+                          _g(c.read_off_tau_s)])
+    curve_rows = [[_g(t, 6), _g(a), _g(lo), _g(hi), f"{e:.1f}", int(al), int(nt)]
+                  for t, a, (lo, hi), e, al, nt in zip(result.tau_s, result.adev, result.adev_ci, result.edf,
+                                                        result.noise_alpha, result.n_terms)]
+    notes = "".join(f"<li>{html.escape(n)}</li>" for n in result.notes) or "<li>none</li>"
+    duration = result.n_samples / result.sample_rate_hz
+    chi2 = result.fit_reduced_chi2
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>Allan deviation report</title>
+<style>body{{font-family:sans-serif;max-width:1000px;margin:auto}} table{{border-collapse:collapse;margin:0.5em 0}}
+td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}} img{{max-width:100%}}</style></head><body>
+<h1>{html.escape(title or "Allan deviation (IEEE Std 952)")}</h1>
+{_table(["source", "value"], [[k, v] for k, v in context.items()]) if context else ""}
+<p>{result.n_samples} {html.escape(result.data_type)} samples at {result.sample_rate_hz:g} Hz ({_g(duration, 6)} s),
+rate unit {html.escape(result.units["adev"])}; overlapping estimator, {len(result.tau_s)} values of τ;
+intervals at {result.confidence:.1%} from Greenhall's EDF and chi-squared.</p>
+<img src="allan_plot.png" alt="Allan plot">
+<h2>Noise terms</h2>
+<p>Fit: weighted non-negative least squares of σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)B² + K²τ/3 + R²τ²/2 over the
+terms {html.escape(", ".join(result.fit_terms))}; reduced χ² = {_g(chi2, 3)}, {result.fit_iterations} iterations.
+Read-off: slope lines through the curve (B: minimum / 0.664).</p>
+{_table(["term", "", "fit ± 1σ", "read-off", "unit", "alternative (fit / read-off)", "read from τ (s)"], coef_rows)}
+<h2>Notes</h2><ul>{notes}</ul>
+<h2>Allan deviation</h2>
+{_table(["τ (s)", f"ADEV ({result.units['adev']})", "CI low", "CI high", "EDF", "noise α", "differences"], curve_rows)}
+<p>Numbers: <a href="allan_result.json">allan_result.json</a></p>
+</body></html>
+"""
+    path = out / "allan_report.html"
+    path.write_text(page, encoding="utf-8")
+    return path

@@ -1,0 +1,269 @@
+"""HTML report of the angular rig (Document B): frequency response and fusion.
+
+:func:`write_angular_report` writes into one directory:
+
+* ``angular_report.html`` — the story: each sensor's FRF and fitted model, the alignment,
+  the metric table of every method (RMS error, worst amplitude/phase error, NIS), the
+  per-tone error table, and whether Document B's claims hold on this run;
+* ``angular_frf.png`` — FRF magnitude and phase of both sensors (points with ±2σ bars)
+  and the fitted models (with their delays);
+* ``angular_errors.png`` — amplitude error (%) and phase error (deg) against frequency for
+  every method on one plot;
+* ``angular_tuning.png`` — every tuning candidate's RMS error against its worst excess
+  amplitude error, fixed R and adaptive R at each process noise;
+* ``angular_time.png`` — a window of the record: reference, each sensor alone, the fused
+  rate, and every method's error;
+* ``angular_report.json`` — the results it was made from.
+
+It takes the run's stored results (``frf.points``, ``frf.fits``, ``fusion.analysis``,
+``fusion.alignment``) and, for the time plot, the ``fusion_aligned`` stream; a run with
+only an FRF gets the FRF part.  Figures use matplotlib's object API (no pyplot state).
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from bench.analysis.fusion_metrics import excess_over_best
+from bench.analysis.fusion_models import SensorModel
+from bench.app.reports.common import html_table, save_figure
+
+LABELS = {"fused": "sequential adaptive-R KF (Document B)", "fixed_r_kf": "fixed-R Kalman fusion",
+          "complementary": "complementary filter", "hf": "MHD sensor alone", "lf": "LF sensor alone"}
+STYLE = {"fused": ("C3", "o", 2.0), "fixed_r_kf": ("C0", "s", 1.2), "complementary": ("C2", "^", 1.2),
+         "hf": ("C1", "v", 1.0), "lf": ("C4", "D", 1.0)}
+SENSORS = {"hf": ("MHD (HF) sensor", "V/(deg/s)"), "lf": ("LF sensor", "(deg/s)/(deg/s)")}
+WINDOW_S = 2.0
+#: ``fusion_aligned`` columns of each method's estimate (procedures.fusion.estimate_column)
+COLUMNS = {"fused": "fused_dps", "fixed_r_kf": "fixed_r_kf_dps", "complementary": "complementary_dps",
+           "hf": "hf_alone_dps", "lf": "lf_alone_dps"}
+
+
+def _model_response(fit: dict, f: np.ndarray) -> np.ndarray:
+    m = SensorModel(**fit["model"])
+    return m.response(f) * np.exp(-2j * np.pi * f * fit.get("delay_s", 0.0))
+
+
+def frf_figure(points: dict, fits: dict, path: Path) -> str:
+    fig = Figure(figsize=(9, 6.5))
+    axes = fig.subplots(2, 2, sharex=True)
+    f = np.asarray(points["freq_hz"], dtype=float)
+    fine = np.logspace(math.log10(f.min()), math.log10(f.max()), 400)
+    for col, (sensor, (title, unit)) in enumerate(SENSORS.items()):
+        measured = [(fk, r) for fk, r in zip(f, points[sensor]) if r is not None]
+        fm = np.array([fk for fk, _ in measured])
+        mag = np.array([r["mag"] for _, r in measured])
+        mag_sd = np.array([r["mag_std"] for _, r in measured])
+        ph = np.array([r["phase_deg"] for _, r in measured])
+        ph_sd = np.array([r["phase_std_deg"] for _, r in measured])
+        ax_m, ax_p = axes[0, col], axes[1, col]
+        ax_m.errorbar(fm, mag, yerr=2 * mag_sd, fmt="o", ms=4, color="k", label="measured (±2σ)")
+        ax_p.errorbar(fm, ph, yerr=2 * ph_sd, fmt="o", ms=4, color="k")
+        if sensor in fits:
+            g = _model_response(fits[sensor], fine)
+            m = fits[sensor]["model"]
+            label = (f"fit: {m['kind']} order {m['order']}, {m['corner_hz']:.3g} Hz, "
+                     f"delay {1e6 * fits[sensor].get('delay_s', 0.0):.3g} µs")
+            ax_m.plot(fine, np.abs(g), color="C3", lw=1.2, label=label)
+            ax_p.plot(fine, np.degrees(np.angle(g)), color="C3", lw=1.2)
+        ax_m.set_xscale("log")
+        ax_m.set_yscale("log")
+        ax_m.set_title(title, fontsize=9)
+        ax_m.set_ylabel(f"|H| ({unit})", fontsize=8)
+        ax_p.set_ylabel("phase (deg)", fontsize=8)
+        ax_p.set_xlabel("frequency (Hz)", fontsize=8)
+        ax_m.legend(fontsize=7)
+        for ax in (ax_m, ax_p):
+            ax.grid(True, which="both", lw=0.3)
+            ax.tick_params(labelsize=7)
+    return save_figure(fig, path)
+
+
+def errors_figure(analysis: dict, path: Path) -> str:
+    f = np.asarray(analysis["tones_hz"], dtype=float)
+    fig = Figure(figsize=(9, 6))
+    ax_a, ax_p = fig.subplots(2, 1, sharex=True)
+    for method, label in LABELS.items():
+        colour, marker, lw = STYLE[method]
+        amp = np.abs(np.asarray(analysis["amplitude_error_pct"][method], dtype=float))
+        ph = np.asarray(analysis["phase_error_deg"][method], dtype=float)
+        ax_a.plot(f, np.maximum(amp, 1e-4), marker=marker, color=colour, lw=lw, ms=4, label=label)
+        ax_p.plot(f, ph, marker=marker, color=colour, lw=lw, ms=4, label=label)
+    ax_a.set_xscale("log")
+    ax_a.set_yscale("log")
+    ax_a.set_ylabel("|amplitude error| (%)")
+    ax_p.set_ylabel("phase error (deg)")
+    ax_p.set_yscale("symlog", linthresh=0.1)
+    ax_p.set_xlabel("tone frequency (Hz)")
+    ax_a.set_title("error against the table reference, every method on the same record")
+    ax_a.legend(fontsize=7)
+    for ax in (ax_a, ax_p):
+        ax.grid(True, which="both", lw=0.3)
+    return save_figure(fig, path)
+
+
+def time_figure(aligned: dict, path: Path) -> str:
+    t = np.asarray(aligned["t_s"], dtype=float)
+    mid = t[0] + 0.5 * (t[-1] - t[0])
+    sel = (t >= mid) & (t <= mid + WINDOW_S)
+    tt = t[sel] - t[sel][0]
+    ref = np.asarray(aligned["ref_dps"])[sel]
+    fig = Figure(figsize=(9, 6))
+    ax_s, ax_e = fig.subplots(2, 1, sharex=True)
+    ax_s.plot(tt, ref, color="k", lw=1.5, label="table reference")
+    for method in ("hf", "lf", "fused"):
+        colour, _, lw = STYLE[method]
+        ax_s.plot(tt, np.asarray(aligned[COLUMNS[method]])[sel], color=colour, lw=0.8, label=LABELS[method])
+    for method in ("fused", "fixed_r_kf", "complementary"):
+        colour, _, lw = STYLE[method]
+        ax_e.plot(tt, np.asarray(aligned[COLUMNS[method]])[sel] - ref, color=colour, lw=0.6, label=LABELS[method])
+    ax_s.set_ylabel("rate (deg/s)")
+    ax_e.set_ylabel("error (deg/s)")
+    ax_e.set_xlabel(f"time from {mid:.4g} s (s)")
+    ax_s.legend(fontsize=7, ncol=2)
+    ax_e.legend(fontsize=7)
+    for ax in (ax_s, ax_e):
+        ax.grid(True, lw=0.3)
+    return save_figure(fig, path)
+
+
+def tuning_figure(tuning: dict, path: Path) -> str:
+    """RMS error against worst excess amplitude error of every tuning candidate: fixed R
+    (``upper_factor`` 1) and adaptive R side by side at each process-noise factor."""
+    fig = Figure(figsize=(9, 4.5))
+    ax = fig.subplots()
+    cands = tuning["candidates"]
+    qs = sorted({c["q_factor"] for c in cands})
+    for i, qf in enumerate(qs):
+        for fixed in (True, False):
+            sel = [c for c in cands if c["q_factor"] == qf and (c["upper_factor"] == 1.0) == fixed]
+            if sel:
+                ax.scatter([c["rms_error"] for c in sel], [c["excess_pct"] for c in sel], color=f"C{i}",
+                           marker="s" if fixed else "o", s=40 if fixed else 18, facecolors="none" if fixed else None,
+                           label=f"q×{qf:g} {'fixed R' if fixed else 'adaptive R'}")
+    ch = tuning["chosen"]
+    ax.scatter([ch["rms_error"]], [ch["excess_pct"]], marker="*", s=200, color="k", label="chosen")
+    ax.set_xlabel("RMS error on the tuning stretch (deg/s)")
+    ax.set_ylabel("worst excess amplitude error (pp)")
+    ax.set_yscale("symlog", linthresh=0.1)
+    ax.set_title("tuning: Document B's adaptive R against a fixed R at each process noise")
+    ax.legend(fontsize=6, ncol=3)
+    ax.grid(True, which="both", lw=0.3)
+    return save_figure(fig, path)
+
+
+def _fmt(x, digits: int = 4) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "—"
+    return f"{x:.{digits}g}" if isinstance(x, (int, float)) else str(x)
+
+
+def claims(analysis: dict) -> list[tuple[str, bool, str]]:
+    """Document B's claims as checks on this run: (claim, holds, evidence).  "No worse"
+    allows two standard errors of the difference (the estimates are noisy)."""
+    worse, sd = excess_over_best(analysis)
+    rms = analysis["rms_error"]
+    f = np.asarray(analysis["tones_hz"], dtype=float)
+    worst = int(np.argmax(worse - 2 * sd))
+    diverged = any(v.get("diverged", False) for v in analysis["nis"].values())
+    return [
+        ("fused amplitude error no worse than the better single sensor at every tone (within 2σ)",
+         bool(np.all(worse <= 2 * sd)),
+         f"closest: {worse[worst]:+.3g} pp ± {sd[worst]:.2g} (1σ) at {f[worst]:.4g} Hz"),
+        ("fused RMS error below the fixed-R Kalman fusion's", bool(rms["fused"] < rms["fixed_r_kf"]),
+         f"{rms['fused']:.5g} vs {rms['fixed_r_kf']:.5g} deg/s "
+         f"({100 * (rms['fused'] / rms['fixed_r_kf'] - 1):+.3f} %)"),
+        ("the sequential filter does not diverge (NIS)", not diverged,
+         ", ".join(f"{k} mean NIS {v['mean']:.3g}" for k, v in analysis["nis"].items())),
+    ]
+
+
+def write_angular_report(results: dict, folder: Path, context: dict, aligned: dict | None = None) -> Path:
+    """Write the report (module docstring) from a run's results; returns the HTML path."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    parts = [f"<h1>Angular rig — Document B</h1><p>{html.escape(', '.join(f'{k}: {v}' for k, v in context.items()))}</p>"]
+    points, fits = results.get("frf.points"), results.get("frf.fits", {})
+    if points:
+        png = frf_figure(points, fits, folder / "angular_frf.png")
+        rows = []
+        for sensor, (title, unit) in SENSORS.items():
+            fit = fits.get(sensor)
+            if fit:
+                m = fit["model"]
+                rows.append([title, f"{m['kind']} order {m['order']}", _fmt(m["corner_hz"]), _fmt(m["gain"]),
+                             _fmt(m.get("zeta")), _fmt(1e6 * fit.get("delay_s", 0.0)), _fmt(fit["residual"], 3)])
+        parts.append("<h2>1. Frequency response (stepped sine against the table reference)</h2>"
+                     f"<img src='{png}'>" + html_table(
+                         ["sensor", "model", "corner (Hz)", "gain", "ζ", "delay (µs)", "relative misfit"], rows))
+    analysis = results.get("fusion.analysis")
+    if analysis and analysis.get("rms_error"):
+        align = results.get("fusion.alignment", {})
+        clock = align.get("clock", {})
+        parts.append("<h2>2. Alignment</h2><p>" + html.escape(
+            f"MHD offset {_fmt(align.get('hf_offset_v'))} V and LF bias {_fmt(align.get('lf_bias_dps'))} deg/s "
+            f"(static segment) removed; LF clock error {_fmt(clock.get('rate_error_ppm'))} ppm "
+            f"(± {_fmt(clock.get('rate_error_std_ppm'))}) estimated at {_fmt(clock.get('frequency_hz'))} Hz and "
+            f"removed; delays moved back: MHD {_fmt(1e6 * align.get('hf_delay_s', 0.0))} µs, "
+            f"LF {_fmt(1e6 * align.get('lf_delay_s', 0.0))} µs.") + "</p>")
+        tuning = results.get("fusion.tuning")
+        if tuning:
+            ch = tuning["chosen"]
+            fixed_same_q = [c for c in tuning["candidates"] if c["q_factor"] == ch["q_factor"] and c["upper_factor"] == 1]
+            same = (f"; a fixed R at the same q gives {fixed_same_q[0]['rms_error']:.5g} deg/s, excess "
+                    f"{fixed_same_q[0]['excess_pct']:.3g} pp") if fixed_same_q else ""
+            parts.append("<h2>3. Tuning (on the first part of the record; everything below is the rest)</h2>"
+                         f"<img src='{tuning_figure(tuning, folder / 'angular_tuning.png')}'><p>" + html.escape(
+                             f"Chosen: q × {ch['q_factor']:g} (q = {tuning['q']:.4g} (deg/s)²/s), r_upper = "
+                             f"{ch['upper_factor']:g} σ², disturbed R = {ch['inflate']:g} σ² — RMS "
+                             f"{ch['rms_error']:.5g} deg/s, excess {ch['excess_pct']:.3g} pp{same}. Rule: "
+                             f"{tuning['rule']}.") + "</p>")
+        png = errors_figure(analysis, folder / "angular_errors.png")
+        rms = analysis["rms_error"]
+        best = min(rms, key=rms.get)
+        rows = []
+        for i, (method, label) in enumerate(LABELS.items()):
+            amp = np.abs(np.asarray(analysis["amplitude_error_pct"][method], dtype=float))
+            ph = np.abs(np.asarray(analysis["phase_error_deg"][method], dtype=float))
+            rows.append([label, _fmt(rms[method]), _fmt(float(amp.max())), _fmt(float(ph.max()))])
+        order = list(LABELS)
+        parts.append("<h2>4. Every method against the reference</h2>"
+                     f"<img src='{png}'>" + html_table(
+                         ["method", "RMS error (deg/s)", "max |amplitude error| (%)", "max |phase error| (deg)"],
+                         rows, bold_rows={order.index(best)}))
+        f = analysis["tones_hz"]
+        tone_rows = [[_fmt(fk)] + [f"{analysis['amplitude_error_pct'][m][i]:+.3g} / "
+                                   f"{analysis['phase_error_deg'][m][i]:+.3g}" for m in LABELS]
+                     for i, fk in enumerate(f)]
+        parts.append("<h3>Per tone: amplitude error (%) / phase error (deg)</h3>"
+                     + html_table(["tone (Hz)"] + [LABELS[m] for m in LABELS], tone_rows))
+        nis_rows = [[k, _fmt(v["mean"]), f"{_fmt(v['lower'])}..{_fmt(v['upper'])}",
+                     "yes" if v.get("consistent") else "no", "yes" if v.get("diverged") else "no"]
+                    for k, v in analysis["nis"].items()]
+        parts.append("<h3>Consistency (normalised innovation squared)</h3>"
+                     + html_table(["filter/update", "mean NIS", "95 % band", "consistent", "diverged"], nis_rows))
+        check_rows = [[c, "holds" if ok else "does not hold", ev] for c, ok, ev in claims(analysis)]
+        parts.append("<h2>5. Document B's claims on this run</h2>"
+                     + html_table(["claim", "verdict", "evidence"], check_rows))
+        if aligned is not None:
+            parts.append(f"<h2>6. A window of the record</h2><img src='{time_figure(aligned, folder / 'angular_time.png')}'>")
+        notes = analysis.get("notes") or []
+        if notes:
+            parts.append("<h3>Notes</h3><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
+    style = ("<style>body{font-family:sans-serif;max-width:1000px;margin:auto}table{border-collapse:collapse;"
+             "margin:8px 0}td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}tr.best{font-weight:bold}"
+             "img{max-width:100%}</style>")
+    out = folder / "angular_report.html"
+    out.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>Angular rig report</title>{style}"
+                   f"</head><body>{''.join(parts)}</body></html>", encoding="utf-8")
+    (folder / "angular_report.json").write_text(json.dumps(
+        {k: results[k] for k in ("frf.points", "frf.fits", "fusion.tuning", "fusion.analysis", "fusion.alignment")
+         if k in results},
+        indent=1, allow_nan=False, default=float), encoding="utf-8")
+    return out

@@ -1,0 +1,1 @@
+"""The framework: bench clock, run store, unit specs, site, the procedure runner."""

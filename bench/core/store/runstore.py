@@ -1,0 +1,369 @@
+"""RunStore: the SQLite file that keeps every run's samples, events, attachments and results.
+
+Readers and the writer may be in different processes at once (WAL): a reader sees every
+chunk committed before its query began, never a half-written one.  Within one process a
+RunStore serialises its own connection with a lock, so it may be shared between threads.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import math
+import os
+import secrets
+import sqlite3
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import codec, liveness
+from .model import (
+    INTERRUPTED,
+    AttachmentInfo,
+    RunClosedError,
+    Event,
+    RunInfo,
+    StreamInfo,
+    UnknownAttachmentError,
+    UnknownRunError,
+    UnknownStreamError,
+    from_json,
+    to_json,
+    utc_now,
+)
+from .schema import connect
+from .writer import RunWriter
+
+DEFAULT_PATH = Path("bench-data/bench.sqlite")
+
+_RUN_COLUMNS = (
+    "id, procedure, parameters_json, station_json, unit_serial, seed, code_version, "
+    "started_utc, ended_utc, status, reason, last_sample_t_s"
+)
+
+
+class RunStore:
+    """The run store at ``path`` (folders created as needed; WAL journal).
+
+    ``synchronous``: "FULL" (default: a commit survives power loss) or "NORMAL" (survives a
+    killed process only); see ``bench.core.store.schema``.  ``busy_timeout_s``: how long a write
+    waits for another process's transaction.  Opening recovers runs left ``running`` by dead
+    writers (``recover_interrupted``).
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str] = DEFAULT_PATH,
+        *,
+        synchronous: str = "FULL",
+        busy_timeout_s: float = 30.0,
+    ) -> None:
+        self.path = Path(path)
+        self._lock = threading.RLock()
+        self._conn: sqlite3.Connection | None = connect(self.path, synchronous, busy_timeout_s)
+        # Strong references: a writer dropped unfinished is still aborted by close().
+        self._open_writers: dict[str, RunWriter] = {}
+        self.recover_interrupted()
+
+    def __repr__(self) -> str:
+        return f"RunStore({os.fspath(self.path)!r})"
+
+    def __enter__(self) -> RunStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Finish this store's unfinished writers as aborted ("store closed") and close."""
+        with self._lock:
+            if self._conn is None:
+                return
+            for writer in list(self._open_writers.values()):
+                with contextlib.suppress(RunClosedError):  # a run closed elsewhere stays as is
+                    writer.finish("aborted", "store closed before the run was finished")
+            self._conn.close()
+            self._conn = None
+
+    # -- writing -------------------------------------------------------------------------
+    def create_run(
+        self,
+        *,
+        procedure: str,
+        parameters: dict[str, Any],
+        station: dict[str, Any],
+        unit_serial: str | None,
+        seed: int | None,
+        code_version: str,
+    ) -> RunWriter:
+        """Start a run (status ``running``) and return its writer."""
+        if not isinstance(procedure, str) or not procedure:
+            raise ValueError(f"procedure must be a non-empty str, got {procedure!r}")
+        for name, value in (("parameters", parameters), ("station", station)):
+            if not isinstance(value, dict):
+                raise TypeError(f"{name} must be a dict, got {type(value).__name__}")
+        if unit_serial is not None and not isinstance(unit_serial, str):
+            raise TypeError(f"unit_serial must be str or None, got {unit_serial!r}")
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
+            raise TypeError(f"seed must be an int or None, got {seed!r}")
+        if not isinstance(code_version, str):
+            raise TypeError(f"code_version must be str, got {code_version!r}")
+        parameters_json = to_json(parameters, "parameters")
+        station_json = to_json(station, "station")
+        me = liveness.current_process()
+        for _ in range(100):  # a 16-bit suffix collides rarely; retry with a fresh one
+            now = time.time()
+            run_id = time.strftime("%Y%m%d-%H%M%S", time.gmtime(now)) + "-" + secrets.token_hex(2)
+            started = utc_now()
+            try:
+                with self._write_transaction() as conn:
+                    conn.execute(
+                        "INSERT INTO runs (id, procedure, parameters_json, station_json, "
+                        "unit_serial, seed, code_version, started_utc, last_write_utc, status, "
+                        "writer_host, writer_pid, writer_start) "
+                        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?, ?, ?)",
+                        (run_id, procedure, parameters_json, station_json, unit_serial,
+                         None if seed is None else str(int(seed)), code_version, started,
+                         started, me.host, me.pid, me.start_token),
+                    )
+            except sqlite3.IntegrityError:
+                continue
+            writer = RunWriter(self, run_id)
+            self._open_writers[run_id] = writer
+            return writer
+        raise RuntimeError(f"{self.path}: could not allocate a unique run id")  # pragma: no cover
+
+    @contextlib.contextmanager
+    def _write_transaction(self) -> Iterator[sqlite3.Connection]:
+        """One IMMEDIATE transaction: committed on success, rolled back on any exception."""
+        with self._lock:
+            conn = self._connection()
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield conn
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+            conn.execute("COMMIT")
+
+    @contextlib.contextmanager
+    def _read_snapshot(self) -> Iterator[sqlite3.Connection]:
+        """A read transaction: every query inside sees the same committed state."""
+        with self._lock:
+            conn = self._connection()
+            conn.execute("BEGIN")
+            try:
+                yield conn
+            finally:
+                conn.execute("COMMIT")
+
+    def _connection(self) -> sqlite3.Connection:
+        if self._conn is None:
+            raise RuntimeError(f"{self!r} is closed")
+        return self._conn
+
+    # -- recovery ------------------------------------------------------------------------
+    def recover_interrupted(self, *, include_other_hosts: bool = False) -> list[str]:
+        """Mark runs left ``running`` by a writer process that no longer exists as
+        ``aborted`` with reason ``"interrupted"``; ``ended_utc`` becomes the time of the
+        run's last commit.  A writer is judged by host, pid and process start time (see
+        ``liveness``); runs written from another host or pid namespace are left alone unless
+        ``include_other_hosts``.  Returns the recovered run ids, oldest first."""
+        with self._lock:
+            conn = self._connection()
+            rows = conn.execute(
+                "SELECT id, writer_host, writer_pid, writer_start FROM runs "
+                "WHERE status = 'running' ORDER BY started_utc, rowid"
+            ).fetchall()
+            recovered = []
+            for run_id, host, pid, start in rows:
+                state = liveness.liveness(liveness.ProcessIdentity(host, pid, start))
+                if state is liveness.Liveness.DEAD or (
+                    include_other_hosts and state is liveness.Liveness.UNKNOWN
+                ):
+                    with self._write_transaction() as tx:
+                        cursor = tx.execute(
+                            "UPDATE runs SET status = 'aborted', reason = ?, "
+                            "ended_utc = last_write_utc WHERE id = ? AND status = 'running'",
+                            (INTERRUPTED, run_id),
+                        )
+                    if cursor.rowcount == 1:  # another process may have recovered it first
+                        recovered.append(run_id)
+            return recovered
+
+    # -- reading -------------------------------------------------------------------------
+    def list_runs(self, limit: int | None = None) -> list[RunInfo]:
+        """Runs, newest first; at most ``limit`` (>= 1) of them if given."""
+        if limit is not None and (
+            isinstance(limit, bool) or not isinstance(limit, int) or limit < 1
+        ):
+            raise ValueError(f"limit must be None or an int >= 1, got {limit!r}")
+        with self._read_snapshot() as conn:
+            rows = conn.execute(
+                f"SELECT {_RUN_COLUMNS} FROM runs ORDER BY started_utc DESC, rowid DESC LIMIT ?",
+                (-1 if limit is None else limit,),
+            ).fetchall()
+            return [self._run_info(conn, row) for row in rows]
+
+    def get_run(self, run_id: str) -> RunInfo:
+        """The run ``run_id``; UnknownRunError (a LookupError) if there is none."""
+        with self._read_snapshot() as conn:
+            return self._run_info(conn, self._run_row(conn, run_id))
+
+    def streams(self, run_id: str) -> dict[str, StreamInfo]:
+        """The run's streams by name, in declaration order, with row and chunk counts."""
+        with self._read_snapshot() as conn:
+            self._run_row(conn, run_id)
+            rows = conn.execute(
+                "SELECT s.name, s.columns_json, s.description, "
+                "(SELECT COALESCE(SUM(n_rows), 0) FROM chunks c "
+                " WHERE c.run_id = s.run_id AND c.stream = s.name), "
+                "(SELECT COUNT(*) FROM chunks c WHERE c.run_id = s.run_id AND c.stream = s.name) "
+                "FROM streams s WHERE s.run_id = ? ORDER BY s.position",
+                (run_id,),
+            ).fetchall()
+        result = {}
+        for name, columns_json, description, n_rows, n_chunks in rows:
+            layout = from_json(columns_json)
+            result[name] = StreamInfo(
+                name=name,
+                columns={c: unit for c, unit, _ in layout},
+                dtypes={c: dt for c, _, dt in layout},
+                description=description,
+                n_rows=int(n_rows),
+                n_chunks=int(n_chunks),
+            )
+        return result
+
+    def load(self, run_id: str, stream: str) -> dict[str, np.ndarray]:
+        """Every committed sample of ``stream``: column name -> 1-D array of its stored
+        dtype (float64 unless declared otherwise), in column order."""
+        with self._read_snapshot() as conn:
+            self._run_row(conn, run_id)
+            row = conn.execute(
+                "SELECT columns_json FROM streams WHERE run_id = ? AND name = ?", (run_id, stream)
+            ).fetchone()
+            if row is None:
+                known = [r[0] for r in conn.execute(
+                    "SELECT name FROM streams WHERE run_id = ? ORDER BY position", (run_id,))]
+                raise UnknownStreamError(f"run {run_id} has no stream {stream!r}; it has {known}")
+            dtypes = {c: np.dtype(dt) for c, _, dt in from_json(row[0])}
+            (total,) = conn.execute(
+                "SELECT COALESCE(SUM(n_rows), 0) FROM chunks WHERE run_id = ? AND stream = ?",
+                (run_id, stream),
+            ).fetchone()
+            cursor = conn.execute(
+                "SELECT n_rows, dtypes, data FROM chunks WHERE run_id = ? AND stream = ? "
+                "ORDER BY seq",
+                (run_id, stream),
+            )
+            return codec.decode_chunks(dtypes, int(total), cursor)
+
+    def events(self, run_id: str) -> list[Event]:
+        """The run's events in the order they were logged."""
+        with self._read_snapshot() as conn:
+            self._run_row(conn, run_id)
+            rows = conn.execute(
+                "SELECT t_s, kind, message, data_json FROM events WHERE run_id = ? ORDER BY seq",
+                (run_id,),
+            ).fetchall()
+        return [Event(math.nan if t is None else t, kind, message, from_json(data))
+                for t, kind, message, data in rows]
+
+    def attachments(self, run_id: str) -> list[AttachmentInfo]:
+        """Descriptions of the run's attachments, by name."""
+        with self._read_snapshot() as conn:
+            self._run_row(conn, run_id)
+            rows = conn.execute(
+                "SELECT name, mime, length(data), sha256, created_utc FROM attachments "
+                "WHERE run_id = ? ORDER BY name",
+                (run_id,),
+            ).fetchall()
+        return [AttachmentInfo(n, m, int(size), h, c) for n, m, size, h, c in rows]
+
+    def attachment(self, run_id: str, name: str) -> bytes:
+        """The bytes of attachment ``name``; UnknownAttachmentError if absent."""
+        with self._read_snapshot() as conn:
+            self._run_row(conn, run_id)
+            row = conn.execute(
+                "SELECT data FROM attachments WHERE run_id = ? AND name = ?", (run_id, name)
+            ).fetchone()
+            if row is None:
+                known = [r[0] for r in conn.execute(
+                    "SELECT name FROM attachments WHERE run_id = ? ORDER BY name", (run_id,))]
+                raise UnknownAttachmentError(
+                    f"run {run_id} has no attachment {name!r}; it has {known}")
+        return bytes(row[0])
+
+    def attach_analysis(self, run_id: str, name: str, data: bytes, mime: str) -> None:
+        """Attach an analysis product (report, model file) to a run, finished or not.
+
+        Acquired data stay immutable: analysis products live under the ``analysis/`` name
+        prefix, and re-analysing a run replaces its earlier product of the same name.
+        """
+        if (not isinstance(name, str) or not name.startswith("analysis/") or len(name) > 200
+                or any(part in ("", ".", "..") for part in name.split("/")[1:])):
+            raise ValueError(f"analysis attachment name {name!r} must be 'analysis/<path>' "
+                             "without empty, '.' or '..' parts")
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise TypeError(f"attachment {name!r}: data must be bytes-like")
+        if not isinstance(mime, str) or "/" not in mime:
+            raise ValueError(f"attachment {name!r}: mime must look like 'type/subtype', got {mime!r}")
+        payload = bytes(data)
+        with self._write_transaction() as conn:
+            self._run_row(conn, run_id)
+            conn.execute("DELETE FROM attachments WHERE run_id = ? AND name = ?", (run_id, name))
+            conn.execute(
+                "INSERT INTO attachments (run_id, name, mime, sha256, created_utc, data) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
+                (run_id, name, mime, hashlib.sha256(payload).hexdigest(), utc_now(), payload))
+
+    def results(self, run_id: str) -> dict[str, Any]:
+        """The run's results, key -> JSON value."""
+        with self._read_snapshot() as conn:
+            self._run_row(conn, run_id)
+            return self._results(conn, run_id)
+
+    def schema_version(self) -> int:
+        with self._lock:
+            (value,) = self._connection().execute(
+                "SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+        return int(value)
+
+    # -- row helpers ---------------------------------------------------------------------
+    def _run_row(self, conn: sqlite3.Connection, run_id: str) -> tuple[Any, ...]:
+        row = conn.execute(f"SELECT {_RUN_COLUMNS} FROM runs WHERE id = ?", (run_id,)).fetchone()
+        if row is None:
+            raise UnknownRunError(f"no run with id {run_id!r} in {self.path}")
+        return row
+
+    @staticmethod
+    def _results(conn: sqlite3.Connection, run_id: str) -> dict[str, Any]:
+        rows = conn.execute(
+            "SELECT key, value_json FROM results WHERE run_id = ? ORDER BY rowid", (run_id,)
+        ).fetchall()
+        return {key: from_json(value) for key, value in rows}
+
+    def _run_info(self, conn: sqlite3.Connection, row: tuple[Any, ...]) -> RunInfo:
+        (run_id, procedure, parameters, station, unit_serial, seed, code_version, started,
+         ended, status, reason, last_t) = row
+        return RunInfo(
+            id=run_id,
+            procedure=procedure,
+            parameters=from_json(parameters),
+            station=from_json(station),
+            unit_serial=unit_serial,
+            seed=None if seed is None else int(seed),
+            code_version=code_version,
+            started_utc=started,
+            ended_utc=ended,
+            status=status,
+            reason=reason,
+            last_sample_t_s=last_t,
+            results=self._results(conn, run_id),
+        )

@@ -1,5 +1,0 @@
-"""Reports built from analysis results (HTML + PNG); never computed inside the analysis."""
-
-from bench.reports.startup_report import write_startup_report
-
-__all__ = ["write_startup_report"]
