@@ -26,8 +26,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.discovery import lattice as lat  # noqa: E402
-from bench.discovery import significance as sig  # noqa: E402
+from bench.discovery import lattice as lat
+from bench.discovery import significance as sig
 
 
 def _reference():

@@ -53,7 +53,7 @@ def time_ours(x: np.ndarray, repeats: int, stop: str):
 
 
 def time_pyemd(x: np.ndarray):
-    from PyEMD import EMD  # noqa: PLC0415 (benchmark-only peer)
+    from PyEMD import EMD
 
     ref = EMD()
     sifts = 0

@@ -180,7 +180,7 @@ def main() -> None:
 
     if args.numpy_samples > 0:
         sys.path.insert(0, str(ROOT))  # the former numpy loop is the test oracle; borrowed, not copied
-        from tests.analysis.test_fusion_kernel import reference_sequential  # noqa: PLC0415
+        from tests.analysis.test_fusion_kernel import reference_sequential
 
         k = min(args.numpy_samples, n)
         t0 = time.perf_counter()

@@ -31,10 +31,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.sim.fuzz_wire import (GyroFuzzClient, Hang, ScpiFuzzClient, Tally,  # noqa: E402
-                       gyro_line, scpi_message)
-
-from sim.station import SimulatedStation  # noqa: E402
+from sim.station import SimulatedStation
+from tests.sim.fuzz_wire import GyroFuzzClient, Hang, ScpiFuzzClient, Tally, gyro_line, scpi_message
 
 VALID = {  # messages each server must take without an error
     "dmm": ["VOLT:NPLC 1", "VOLT:NPLC?", "TRIG:COUN 3", "TRIG:COUN?", "SAMP:COUN 5",

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import pyvisa
 
-from bench.core.procedure import execute
 from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.startup import StartupAcquisition, StartupParameters
 from sim.station import SimStationConfig, SimulatedStation

@@ -22,9 +22,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.discovery.data import Record  # noqa: E402
-from bench.discovery.localize import unexplained_structure  # noqa: E402
-from bench.discovery.model import Model, base_model  # noqa: E402
+from bench.discovery.data import Record
+from bench.discovery.localize import unexplained_structure
+from bench.discovery.model import Model, base_model
 
 SD = 5e-6
 MODELS = {"white": (), "gauss_markov": (("gauss_markov", {"sigma": 1e-5, "tau_s": 3.0}),),

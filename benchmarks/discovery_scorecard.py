@@ -50,10 +50,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD, MIN_SNR  # noqa: E402
-from bench.discovery.experiments import make_experiment  # noqa: E402
-from bench.discovery.model import BaseModel, Model, base_model  # noqa: E402
-from bench.discovery.workflow import discover  # noqa: E402
+from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD, MIN_SNR
+from bench.discovery.experiments import make_experiment
+from bench.discovery.model import BaseModel, Model, base_model
+from bench.discovery.workflow import discover
 
 BASE_BIAS = {"accelerometer": 2e-3, "gyro": 0.05, "mhd": 0.5}
 

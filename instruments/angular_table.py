@@ -21,8 +21,9 @@ The driver never sleeps: :meth:`AngularVibrationTable.wait_running` takes the ca
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 

@@ -33,15 +33,34 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
-from typing import Any, Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
 
 import numpy as np
 
 from .properties import Setting, Validator, control, measurement, read_settings
-from .validate import (boolean, channel_list, format_number, in_range, in_set, int_in_range, parse_bool,
-                       parse_error_reply, parse_float, parse_int, quote_string, unquote_string)
-from .wire import (QUERY_RETRIES, InstrumentConnectionError, InstrumentReplyError,
-                   InstrumentTimeout, WireFaults, safe_to_resend)
+from .validate import (
+    boolean,
+    channel_list,
+    format_number,
+    in_range,
+    in_set,
+    int_in_range,
+    parse_bool,
+    parse_error_reply,
+    parse_float,
+    parse_int,
+    quote_string,
+    unquote_string,
+)
+from .wire import (
+    QUERY_RETRIES,
+    InstrumentConnectionError,
+    InstrumentReplyError,
+    InstrumentTimeout,
+    WireFaults,
+    safe_to_resend,
+)
 
 __all__ = [
     "BINARY_CHUNK_SIZE", "DEFAULT_TIMEOUT_MS", "MAX_ERROR_READS", "QUERY_RETRIES", "Identity",
@@ -103,7 +122,7 @@ class Identity:
     firmware: str
 
     @classmethod
-    def parse(cls, reply: str) -> "Identity":
+    def parse(cls, reply: str) -> Identity:
         fields = [f.strip() for f in reply.strip().split(",")]
         if len(fields) != 4:
             raise InstrumentReplyError(f"*IDN? reply {reply!r} does not have four fields")
@@ -219,7 +238,7 @@ class SCPIInstrument(WireFaults):
             self.check_errors(command)
 
     @contextlib.contextmanager
-    def configuring(self) -> Iterator["SCPIInstrument"]:
+    def configuring(self) -> Iterator[SCPIInstrument]:
         """Group settings so that ``SYST:ERR?`` is drained once, when the group ends.
 
         If the block raises, the queue is still drained (and logged) so stale errors are

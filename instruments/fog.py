@@ -16,12 +16,12 @@ import contextlib
 import dataclasses
 import logging
 import time
-from typing import Any, Iterator, Sequence
+from collections.abc import Iterator, Sequence
+from typing import Any
 
 from .base import QUERY_RETRIES, Identity, InstrumentReplyError, in_range, in_set, int_in_range
 from .fog_decode import FRAME_BYTES, Decoded, FrameDecoder
-from .fog_types import (GyroCommandError, GyroConfig, GyroFrames, GyroLineError,  # noqa: F401
-                        GyroTimeout, LineCounters, _line_broken)
+from .fog_types import GyroCommandError, GyroConfig, GyroFrames, GyroLineError, GyroTimeout, LineCounters, _line_broken
 from .protocols import Wait
 
 log = logging.getLogger(__name__)

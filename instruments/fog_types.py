@@ -3,8 +3,8 @@ counters and the line's errors (docs/FOG_SERIAL.md)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -20,7 +20,7 @@ class GyroCommandError(RuntimeError):
 class GyroTimeout(TimeoutError):
     """No (complete) answer in time; ``frames`` holds what arrived before the timeout."""
 
-    def __init__(self, message: str, frames: "GyroFrames | None" = None) -> None:
+    def __init__(self, message: str, frames: GyroFrames | None = None) -> None:
         super().__init__(message)
         self.frames = frames
 
@@ -30,7 +30,7 @@ class GyroLineError(ConnectionError):
     ``frames`` holds what arrived before.  The port is reopened before the next command."""
 
     def __init__(self, name: str, command: str, cause: BaseException,
-                 frames: "GyroFrames | None" = None) -> None:
+                 frames: GyroFrames | None = None) -> None:
         self.name, self.command, self.frames = name, command, frames
         text = " ".join(str(cause).split()) or type(cause).__name__
         super().__init__(f"{name}: line lost at {command!r} ({type(cause).__name__}: {text[:120]})")
@@ -85,7 +85,7 @@ class GyroFrames:
         return (self.index + 1) / self.rate_hz
 
     @staticmethod
-    def concat(blocks: Sequence["GyroFrames"], rate_hz: int) -> "GyroFrames":
+    def concat(blocks: Sequence[GyroFrames], rate_hz: int) -> GyroFrames:
         arrays = {f: np.concatenate([getattr(b, f) for b in blocks]) if blocks else np.zeros(0)
                   for f in ("sequence", "index", "counts", "rate_dps", "temperature_c", "status")}
         if not blocks:

@@ -15,8 +15,9 @@ E36313A    0-6 V, 0-10 A   0-25 V, 0-2 A   0-25 V, 0-2 A
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 from .base import (
     InstrumentChannel,
@@ -59,7 +60,7 @@ class SupplyOutput(InstrumentChannel):
 
     field_name = "ch"
 
-    def __init__(self, parent: "KeysightE36312A", number: int, rating: ChannelRating) -> None:
+    def __init__(self, parent: KeysightE36312A, number: int, rating: ChannelRating) -> None:
         super().__init__(parent, number)
         self.rating = rating
 

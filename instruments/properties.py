@@ -11,7 +11,8 @@ one failed read lose the others.  :mod:`instruments.base` re-exports every name 
 
 from __future__ import annotations
 
-from typing import Any, Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
 
 from .validate import format_number, parse_float
 

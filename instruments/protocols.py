@@ -13,7 +13,8 @@ The Protocols are deliberately not ``runtime_checkable``: on Python 3.11 an
 
 from __future__ import annotations
 
-from typing import Any, Callable, Iterator, Mapping, Protocol
+from collections.abc import Callable, Iterator, Mapping
+from typing import Any, Protocol
 
 import numpy as np
 

@@ -5,7 +5,8 @@ turntable's axes wait with too."""
 
 from __future__ import annotations
 
-from typing import Callable, TypeVar
+from collections.abc import Callable
+from typing import TypeVar
 
 from .protocols import Wait
 from .validate import in_range

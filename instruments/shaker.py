@@ -17,8 +17,9 @@ The driver never sleeps: :meth:`VibrationTable.wait_running` takes the caller's
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 from .base import SCPIInstrument, control, in_range, measurement, parse_bool
 from .ramped import RampedController

@@ -13,8 +13,9 @@ The driver never sleeps: :meth:`TableAxis.wait_in_position` takes the caller's
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any
 
 from .base import (
     InstrumentChannel,
@@ -72,7 +73,7 @@ class AxisStatus:
     FAULT = 32
 
     @classmethod
-    def from_bits(cls, raw: int) -> "AxisStatus":
+    def from_bits(cls, raw: int) -> AxisStatus:
         return cls(
             raw=raw,
             in_position=bool(raw & cls.IN_POSITION),
@@ -98,7 +99,7 @@ class TableAxis(InstrumentChannel):
 
     field_name = "axis"
 
-    def __init__(self, parent: "DualAxisTurntable", number: int, limits: AxisLimits) -> None:
+    def __init__(self, parent: DualAxisTurntable, number: int, limits: AxisLimits) -> None:
         super().__init__(parent, number)
         self.limits = limits
 

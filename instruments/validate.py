@@ -16,7 +16,8 @@ from __future__ import annotations
 import math
 import numbers
 import re
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from .wire import InstrumentReplyError
 

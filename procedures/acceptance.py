@@ -16,9 +16,9 @@ from typing import Any
 from bench.core.procedure import Context, Limit
 from bench.core.spec import CatalogueEntry, UnitSpec, convert
 from procedures.common import level_table, make_safe
-from procedures.steps import Step, scaled_progress
 from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.ratetable import RateTableCalibration
+from procedures.steps import Step, scaled_progress
 from procedures.tumble import TumbleCalibration
 from procedures.turn_on import GyroTurnOnTest, TurnOnTest
 from procedures.vibration import VibrationTest

@@ -182,14 +182,14 @@ def record(ctx: Context, duration_s: float, rate_hz: float, frame_rate_hz: int, 
     except BaseException as exc:
         try:  # keep what the instruments still hold: the run says why it stopped, with its data
             drain()
-        except Exception as drain_exc:  # noqa: BLE001 - the original error is the one to report
+        except Exception as drain_exc:
             exc.add_note(f"(could not read the remaining MHD/reference samples: {drain_exc})")
         raise
     finally:
         if lf.streaming:
             try:
                 lf.stop()
-            except Exception as stop_exc:  # noqa: BLE001 - never mask the error being raised
+            except Exception as stop_exc:
                 if sys.exc_info()[0] is None:
                     raise
                 log.warning("lf_gyro stop failed after an error: %s", stop_exc)

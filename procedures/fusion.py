@@ -39,7 +39,7 @@ from bench.analysis.fusion_tuning import tune_fusion
 from bench.core.procedure import Context
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
 from procedures.common import Estimate, check_ranges
-from procedures.frf import FrfParameters, LIMIT_USE, RUN_TIMEOUT_MARGIN_S, measure_frf
+from procedures.frf import LIMIT_USE, RUN_TIMEOUT_MARGIN_S, FrfParameters, measure_frf
 from procedures.steps import ParameterizedStep
 
 CLOCK_BLOCK_S = 5.0       # block length of the clock estimates

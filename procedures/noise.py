@@ -20,9 +20,8 @@ import numpy as np
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.allan_stats import adev_interval, edf_greenhall
 from bench.core.procedure import Context
+from procedures.common import Estimate, check_ranges, level_table, power_accelerometer, power_gyro, read_gyro_frames
 from procedures.steps import ParameterizedStep
-from procedures.common import (Estimate, check_ranges, level_table, power_accelerometer, power_gyro,
-                               read_gyro_frames)
 
 ACCEL_NOISE_PRODUCES = {
     "noise_density": ("g/rtHz", "white-noise density, one-sided (√2 × IEEE 952 N)"),

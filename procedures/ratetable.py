@@ -23,8 +23,8 @@ import numpy as np
 from bench.analysis.ratetable import fit_rate_table, rate_plan, whole_revolution_duration_s
 from bench.core.procedure import Context
 from bench.core.site import earth_rate_vertical_dph
-from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
+from procedures.steps import ParameterizedStep
 
 RATETABLE_PRODUCES = {
     "scale_factor_error": ("ppm", "scale factor relative to nominal, minus 1"),

@@ -22,6 +22,7 @@ import numpy as np
 from bench.core.procedure import Context, Limit
 from procedures.common import choose_nplc, make_safe, power_accelerometer
 
+
 @dataclass
 class StartupParameters:
     duration_s: float = 1800.0

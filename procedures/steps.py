@@ -16,8 +16,9 @@ A step declares what it needs and what it produces::
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict
-from typing import Any, Mapping, Protocol
+from typing import Any, Protocol
 
 from bench.core.procedure import Context, Limit
 from procedures.common import Estimate, level_table, make_safe

@@ -14,9 +14,9 @@ import numpy as np
 
 from bench.analysis.turn_on import turn_on_metrics
 from bench.core.procedure import Context
-from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 from procedures.startup import StartupAcquisition, StartupParameters
+from procedures.steps import ParameterizedStep
 
 TURN_ON_PRODUCES = {
     "turn_on_time": ("s", "time from power-on to within the band of the settled output"),

@@ -28,8 +28,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.core.procedure import Context
-from procedures.steps import ParameterizedStep
 from procedures.common import Estimate, check_ranges, power_gyro
+from procedures.steps import ParameterizedStep
 
 VIBRATION_PRODUCES = {
     "static_noise": ("deg/s", "rms rate at the frame rate, static segments (each segment's mean removed)"),

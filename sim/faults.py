@@ -41,8 +41,9 @@ overload   dmm, dmm_temp, dmm_mhd          the input is forced to ``volts`` (def
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -97,7 +98,7 @@ def _number(name: str, value: Any, lo: float, hi: float) -> float:
 class Gate:
     """What the server asks about one instrument's connections and messages."""
 
-    def __init__(self, injector: "FaultInjector", name: str) -> None:
+    def __init__(self, injector: FaultInjector, name: str) -> None:
         self.injector, self.name = injector, name
         self.state = _State()
         self.writers: set[Any] = set()
@@ -294,13 +295,13 @@ class FaultInjector:
                 gate.drop()
         elif kind == "stall":
             dur = _number("duration_s", p["duration_s"], 0.0, math.inf)
-            act = lambda: setattr(s, "stall_until_s", self.world.now + dur)  # noqa: E731
+            act = lambda: setattr(s, "stall_until_s", self.world.now + dur)
         elif kind == "slow":
             delay = _number("delay_ms", p["delay_ms"], 0.0, MAX_DELAY_MS) / 1000.0
-            act = lambda: setattr(s, "delay_s", delay)  # noqa: E731
+            act = lambda: setattr(s, "delay_s", delay)
         elif kind == "garble":
             prob = _number("probability", p["probability"], 0.0, 1.0)
-            act = lambda: setattr(s, "garble_p", prob)  # noqa: E731
+            act = lambda: setattr(s, "garble_p", prob)
         elif kind == "error":
             count = _number("count", p["count"], 1, 1e6)
             code = _number("code", p["code"], -999, 32767)
@@ -317,9 +318,9 @@ class FaultInjector:
             def act() -> None:
                 s.frame_corrupt_p, s.frame_loss_p = corrupt, loss
         elif kind == "power":
-            act = lambda: self._power_off(name, dev)  # noqa: E731
+            act = lambda: self._power_off(name, dev)
         elif kind == "interlock":
-            act = lambda: self._trip(dev)  # noqa: E731
+            act = lambda: self._trip(dev)
         else:
             volts = _number("volts", p["volts"], -1e6, 1e6)
 

@@ -28,9 +28,9 @@ import numpy as np
 
 from sim.devices.dmm import Multimeter
 from sim.devices.dmm_model import LinePickup
+from sim.devices.shaker import ShakerController
 from sim.devices.sim_control import SimControl
 from sim.devices.supply import PowerSupply
-from sim.devices.shaker import ShakerController
 from sim.devices.turntable import TurntableController
 from sim.faults import FaultInjector
 from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
@@ -231,7 +231,7 @@ class SimulatedStation:
     def stop(self) -> None:
         self.server.stop()
 
-    def __enter__(self) -> "SimulatedStation":
+    def __enter__(self) -> SimulatedStation:
         self.start()
         return self
 

@@ -17,8 +17,9 @@ from __future__ import annotations
 import heapq
 import itertools
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 

@@ -29,8 +29,7 @@ from typing import Literal
 import numpy as np
 
 from bench.analysis import allan_core as core
-from bench.analysis.allan_noise import (READ_TAU_S, SLOPE, TERMS, design_matrix, fit_noise_terms,
-                                        read_off)
+from bench.analysis.allan_noise import READ_TAU_S, SLOPE, TERMS, design_matrix, fit_noise_terms, read_off
 from bench.analysis.allan_stats import ONE_SIGMA, adev_interval
 from bench.analysis.allan_units import check_unit, rate_unit_name, term_units
 

@@ -150,7 +150,7 @@ def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase:
     a = design_matrix(tau_s, terms)
     if not np.any(avar > 0):  # a constant record: nothing to fit
         zero_alpha = np.zeros(len(tau_s), dtype=int)
-        return NoiseFit(terms, {t: 0.0 for t in terms}, {t: None for t in terms}, zero_alpha,
+        return NoiseFit(terms, dict.fromkeys(terms, 0.0), dict.fromkeys(terms), zero_alpha,
                         edf_greenhall(zero_alpha, m, n_phase), None, 0)
     table: dict[int, np.ndarray] = {}
 
@@ -185,7 +185,7 @@ def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase:
         if converged:
             break
     values = {t: math.sqrt(max(c, 0.0) * scale) for t, c in zip(terms, coef2)}
-    stds: dict[str, float | None] = {t: None for t in terms}
+    stds: dict[str, float | None] = dict.fromkeys(terms)
     reduced = None
     if support:
         sub = a[:, support]

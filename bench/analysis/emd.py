@@ -52,8 +52,7 @@ from typing import Literal
 
 import numpy as np
 
-from bench.analysis.emd_kernel import (CONVERGED, DEGENERATE, STOP_CODES, count_zero_crossings, find_extrema,
-                                       sift_imf)
+from bench.analysis.emd_kernel import CONVERGED, DEGENERATE, STOP_CODES, count_zero_crossings, find_extrema, sift_imf
 from bench.analysis.nonrandom import Component, NonRandomTerms, nonrandom_terms
 
 StopRule = Literal["sd", "rilling", "s-number"]

@@ -34,8 +34,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from bench.analysis.emd_extrema import (_extrema_into, count_zero_crossings, count_zero_crossings_kernel,
-                                        find_extrema)
+from bench.analysis.emd_extrema import _extrema_into, count_zero_crossings, count_zero_crossings_kernel, find_extrema
 from bench.analysis.emd_spline import Spline, evaluate, not_a_knot_slopes, spline_pair
 
 __all__ = ["SiftStats", "Spline", "count_zero_crossings", "envelope_knots", "evaluate", "find_extrema",
@@ -176,7 +175,7 @@ def envelope_knots(h: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: int
 
 
 @numba.njit(cache=True)
-def _envelope_mean(out, px, vx, mx, u1, u2, u3, pn, vn, mn, l1, l2, l3, rilling, th1, th2):  # noqa: PLR0913
+def _envelope_mean(out, px, vx, mx, u1, u2, u3, pn, vn, mn, l1, l2, l3, rilling, th1, th2):
     """``out = (upper + lower)/2`` at every sample; with ``rilling``, the counts of samples
     where ``|mean| > θ1·a`` and ``> θ2·a`` (``a = |lower − mean|``, the envelope half-range).
 
@@ -262,7 +261,7 @@ def _subtract_scan(h, out, imax, imin, vmax, vmin):
 
 
 @numba.njit(cache=True)
-def _sift_pass(h, out, px, vx, mx, u1, u2, u3, pn, vn, mn, l1, l2, l3, rilling, th1, th2,  # noqa: PLR0913
+def _sift_pass(h, out, px, vx, mx, u1, u2, u3, pn, vn, mn, l1, l2, l3, rilling, th1, th2,
                imax, imin, vmax, vmin):
     """``out = h − (upper + lower)/2`` with ``(Σ mean², Σ h², n_max, n_min, zero crossings,
     Rilling's counts over θ1 and θ2)`` of the result; its extrema go to ``imax``/``imin``,
@@ -307,7 +306,7 @@ def sift(h: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: int = 2,
 
 
 @numba.njit(cache=True)
-def sift_imf(r, buf0, buf1, imax0, imin0, stop_code, max_sifts, sd_threshold, th1, th2, alpha,  # noqa: PLR0913
+def sift_imf(r, buf0, buf1, imax0, imin0, stop_code, max_sifts, sd_threshold, th1, th2, alpha,
              s_number, nbsym):
     """Sift one IMF out of ``r`` (extrema ``imax0``, ``imin0``), ping-ponging between
     ``buf0`` and ``buf1``: ``(how, siftings, where)`` with ``how`` one of DEGENERATE,

@@ -78,7 +78,7 @@ def spline_coefficients(pos, val, m, c1, c2, c3):
 
 
 @numba.njit(cache=True)
-def spline_pair(pu, vu, mu, u1, u2, u3, pl, vl, ml, l1, l2, l3):  # noqa: PLR0913
+def spline_pair(pu, vu, mu, u1, u2, u3, pl, vl, ml, l1, l2, l3):
     """:func:`spline_coefficients` of both envelopes: 0 or the first failing spline's code.
 
     The two recurrences run interleaved in one loop: each LDLᵀ step waits on a division,
@@ -146,7 +146,7 @@ def _ends(pos, val, m):
 
 
 @numba.njit(cache=True, inline="always")
-def _row(j, k, h, dy, inv_a, ra, y, lw, r0, r1):  # noqa: PLR0913
+def _row(j, k, h, dy, inv_a, ra, y, lw, r0, r1):
     """Row ``j`` (slope ``s_{j+1}``) of the slope system divided by ``h_j h_{j+1}``, its LDLᵀ
     step (dpttrf) and forward substitution (dptts2), by the same operations as the LAPACK
     route.  ``h, dy``: interval ``j+1``; ``inv_a, ra``: ``1/h_j`` and ``δ_j/h_j``; ``y, lw``:

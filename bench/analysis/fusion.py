@@ -75,7 +75,7 @@ class AdaptiveNoise:
 
     @classmethod
     def from_noise(cls, noise_var: float, model_error: float = 0.0, upper_factor: float = UPPER_FACTOR,
-                   inflate: float = INFLATE) -> "AdaptiveNoise":
+                   inflate: float = INFLATE) -> AdaptiveNoise:
         """The documented defaults from a white-noise variance σ² and a relative model error ε."""
         if not (math.isfinite(upper_factor) and upper_factor >= 1):
             raise ValueError(f"upper_factor {upper_factor} must be ≥ 1")
@@ -84,7 +84,7 @@ class AdaptiveNoise:
                    (noise_var, noise_var, inflate * noise_var), (e2, e2, e2))
 
     @classmethod
-    def fixed(cls, r: float) -> "AdaptiveNoise":
+    def fixed(cls, r: float) -> AdaptiveNoise:
         """A constant ``R = r`` (both thresholds at ``r``)."""
         return cls(r, r, r, (r, r, r), (0.0, 0.0, 0.0))
 

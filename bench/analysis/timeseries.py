@@ -34,10 +34,29 @@ from typing import Literal
 import numpy as np
 from scipy.signal import lfilter
 
-from bench.analysis.timeseries_acf import (Correlogram, Identification, _check_order, _series, correlogram,
-                                           cutoff_lag, identify, levinson_durbin, sample_acf, sample_pacf)
-from bench.analysis.timeseries_ar import (AR_METHODS, ArMethod, _ar_path, _burg_path, _lag_sums,
-                                          ar_interpolate, burg, ulrych_clayton, yule_walker)
+from bench.analysis.timeseries_acf import (
+    Correlogram,
+    Identification,
+    _check_order,
+    _series,
+    correlogram,
+    cutoff_lag,
+    identify,
+    levinson_durbin,
+    sample_acf,
+    sample_pacf,
+)
+from bench.analysis.timeseries_ar import (
+    AR_METHODS,
+    ArMethod,
+    _ar_path,
+    _burg_path,
+    _lag_sums,
+    ar_interpolate,
+    burg,
+    ulrych_clayton,
+    yule_walker,
+)
 from bench.analysis.timeseries_diag import LjungBox, default_lb_lags, ljung_box
 
 __all__ = [

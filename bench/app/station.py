@@ -245,9 +245,8 @@ def _open_serial(inst: InstrumentConfig):
 
 def check_simulation(options: dict, source: str = "<station>") -> None:
     """Validate a [simulation] table now, before any run is created."""
-    from sim.station import SimStationConfig  # noqa: PLC0415
-
-    from sim.physics.accelerometer import AccelerometerParams  # noqa: PLC0415
+    from sim.physics.accelerometer import AccelerometerParams
+    from sim.station import SimStationConfig
 
     try:
         SimStationConfig(**options).validate()
@@ -294,7 +293,7 @@ class Station:
         self.sim = None  # the embedded simulated station, if any
         self._stack = ExitStack()
 
-    def __enter__(self) -> "Station":
+    def __enter__(self) -> Station:
         try:
             self._open()
         except BaseException:
@@ -319,7 +318,7 @@ class Station:
                 self._stack.callback(managers[backend].close)
             return managers[backend]
 
-        from instruments.base import open_resource  # noqa: PLC0415
+        from instruments.base import open_resource
 
         for name, inst in cfg.instruments.items():
             if inst.driver in SERIAL_DRIVERS:
@@ -350,7 +349,7 @@ class Station:
         self.config = cfg
 
     def _start_embedded(self, cfg: StationConfig) -> StationConfig:
-        from sim.station import SimStationConfig, SimulatedStation  # noqa: PLC0415
+        from sim.station import SimStationConfig, SimulatedStation
 
         sim_opts = dict(cfg.simulation or {})
         if self.seed is not None:

@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import math
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 from bench.core.clock import Clock
 from bench.core.site import DEFAULT_SITE

@@ -30,9 +30,10 @@ from __future__ import annotations
 import fnmatch
 import math
 import tomllib
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
 
 #: unit → (dimension, value of one unit in the dimension's base unit)
 _ARCSEC_RAD = math.pi / 180 / 3600

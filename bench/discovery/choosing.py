@@ -96,7 +96,7 @@ def parsimonious(best: Candidate | None, named: list[Candidate], blocks: np.ndar
     warm-up time constant is a drift on a short record)."""
     if best is None or best.stochastic or best.err_c is None:
         return best
-    n_par = lambda c: len(catalogue[c.id].params_for(kind))  # noqa: E731
+    n_par = lambda c: len(catalogue[c.id].params_for(kind))
     pick = best
     for c in named:
         if c.stochastic or c.err_c is None or c.id == best.id or n_par(c) >= n_par(pick):

@@ -146,7 +146,7 @@ class Record:
             raise ValueError(f"column {name!r} was not logged in this record; logged: {have}")
         return v
 
-    def slice(self, idx) -> "Record":
+    def slice(self, idx) -> Record:
         """The rows ``idx`` (a slice, an integer index array or a boolean mask) of every column.
 
         ``t_on`` is materialised first so a slice keeps the time since power-on."""
@@ -158,7 +158,7 @@ class Record:
             kw[f.name] = None if v is None else np.asarray(v)[idx]
         return Record(**kw)
 
-    def replace(self, **changes) -> "Record":
+    def replace(self, **changes) -> Record:
         """A copy with some fields replaced (e.g. ``y=``), validated again."""
         kw = {f.name: getattr(self, f.name) for f in fields(self)}
         unknown = set(changes) - set(kw)
@@ -172,7 +172,7 @@ class Record:
         return {k: getattr(self, f) for k, f in CSV_COLUMNS.items() if getattr(self, f) is not None}
 
     @classmethod
-    def from_columns(cls, columns: dict) -> "Record":
+    def from_columns(cls, columns: dict) -> Record:
         """Build from CSV-style columns ``{"t": ..., "y": ..., "input": ..., ...}``.
 
         Header names are matched case-insensitively after stripping blanks; field names

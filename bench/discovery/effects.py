@@ -17,15 +17,42 @@ Which effects apply to which kind:
 
 from __future__ import annotations
 
-from bench.discovery.effects_base import (DEFAULT_NOISE_SD, DRAW_SNR_FACTOR, DRAW_SPAN, KINDS, MIN_SNR, REGISTRY,
-                                          UNIT, Effect, Param, guess_kind, noise_sd_of)
+from bench.discovery.effects_base import (
+    DEFAULT_NOISE_SD,
+    DRAW_SNR_FACTOR,
+    DRAW_SPAN,
+    KINDS,
+    MIN_SNR,
+    REGISTRY,
+    UNIT,
+    Effect,
+    Param,
+    guess_kind,
+    noise_sd_of,
+)
 from bench.discovery.effects_noise import GaussMarkov, RateRandomWalk
-from bench.discovery.effects_terms import (T_REF_C, GSensitivity, K2Nonlinearity, K3Nonlinearity, LinearDrift,
-                                           Misalignment, ScaleFactorAsymmetry, SinusoidalInterference,
-                                           TemperatureBias, TemperatureScaleFactor, VibrationRectification,
-                                           WarmupExponential)
-from bench.discovery.effects_transforms import (DeadZone, HighpassRolloff, LowpassBandwidth, Quantization,
-                                                Saturation, TimeDelay)
+from bench.discovery.effects_terms import (
+    T_REF_C,
+    GSensitivity,
+    K2Nonlinearity,
+    K3Nonlinearity,
+    LinearDrift,
+    Misalignment,
+    ScaleFactorAsymmetry,
+    SinusoidalInterference,
+    TemperatureBias,
+    TemperatureScaleFactor,
+    VibrationRectification,
+    WarmupExponential,
+)
+from bench.discovery.effects_transforms import (
+    DeadZone,
+    HighpassRolloff,
+    LowpassBandwidth,
+    Quantization,
+    Saturation,
+    TimeDelay,
+)
 
 _ORDER = (WarmupExponential, LinearDrift, TemperatureBias, TemperatureScaleFactor, K2Nonlinearity,
           K3Nonlinearity, ScaleFactorAsymmetry, Misalignment, GSensitivity, Quantization, DeadZone,

@@ -31,8 +31,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bench.discovery.data import Record
-from bench.discovery.effects_linalg import (base_regressors, competitor_direction, orthonormal, product_grid,  # noqa: F401
-                                            project_out, project_q, vdot)
+from bench.discovery.effects_linalg import (  # noqa: F401
+    base_regressors,
+    competitor_direction,
+    orthonormal,
+    product_grid,
+    project_out,
+    project_q,
+    vdot,
+)
 
 KINDS = ("accelerometer", "gyro", "mhd")
 UNIT = {"accelerometer": "g", "gyro": "deg/s", "mhd": "deg/s"}
@@ -40,7 +47,7 @@ UNIT = {"accelerometer": "g", "gyro": "deg/s", "mhd": "deg/s"}
 DEFAULT_NOISE_SD = {"accelerometer": 5e-6, "gyro": 3e-3, "mhd": 0.06}
 MIN_SNR = 5.0
 #: id -> Effect, filled by bench.discovery.effects (competitor look-ups without an import cycle).
-REGISTRY: dict[str, "Effect"] = {}
+REGISTRY: dict[str, Effect] = {}
 DRAW_SNR_FACTOR = 3.0
 DRAW_SPAN = 30.0
 
@@ -227,7 +234,7 @@ class Effect:
         return noise_sd ** 2
 
     # ---- detectability ----------------------------------------------------------------
-    def _competitor_direction(self, comp: "Effect", rec: Record, delta: np.ndarray, q: np.ndarray) -> np.ndarray:
+    def _competitor_direction(self, comp: Effect, rec: Record, delta: np.ndarray, q: np.ndarray) -> np.ndarray:
         return competitor_direction(comp, rec, delta, q, guess_kind(rec))
 
     def reference_output(self, rec: Record) -> np.ndarray:
@@ -286,7 +293,7 @@ class Effect:
         lo_mag = max(q.floor, hi_mag * 1e-12, 1e-300) if not q.log else q.low
         sgn = 1.0 if q.high > 0 else -1.0
         snr = self.snr if distinct else self.plain_snr
-        f = lambda m: snr(self._with_main(others, sgn * m), rec, noise_sd) - target  # noqa: E731
+        f = lambda m: snr(self._with_main(others, sgn * m), rec, noise_sd) - target
         a, b = math.log(lo_mag), math.log(hi_mag)
         fa, fb = f(lo_mag), f(hi_mag)
         if self.increasing:

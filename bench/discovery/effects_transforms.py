@@ -190,7 +190,7 @@ class Saturation(Effect):
         range): a part of the excursions clips, never most of the signal — the snr of clipping
         rises too steeply with depth for the generic snr-band rule to leave a usable interval.
         ``at_snr``: the limit where clipping has exactly that snr (the generic rule)."""
-        from bench.discovery.effects_base import guess_kind, noise_sd_of, MIN_SNR, DRAW_SNR_FACTOR
+        from bench.discovery.effects_base import DRAW_SNR_FACTOR, MIN_SNR, guess_kind, noise_sd_of
         if at_snr is not None:
             return super().draw(rng, rec, kind=kind, noise_sd=noise_sd, at_snr=at_snr)
         kind = kind or guess_kind(rec)

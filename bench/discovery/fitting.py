@@ -243,7 +243,7 @@ class CandidateFitter:
         rows = np.ones(self.rec.n, bool) if rows is None else rows
         lo, hi = self.bounds()
         best_x, best_cost = None, np.inf
-        fun = lambda x: (y - self.predict(x))[rows]  # noqa: E731
+        fun = lambda x: (y - self.predict(x))[rows]
         for x0 in starts:
             x0 = np.clip(x0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
             c0 = float(np.sum(fun(x0) ** 2))

@@ -28,7 +28,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-
 #: only differences within this many white sds: the input's moves would make V a narrow comb
 MAX_DIFF_SD = 8.0
 

@@ -41,8 +41,7 @@ from scipy import signal, special, stats
 from bench.analysis.allan import averaging_factors
 from bench.analysis.allan_stats import edf_greenhall
 from bench.discovery.data import Record
-from bench.discovery.findings import (  # noqa: F401 (INPUT_COLUMNS and the findings are this module's API too)
-    INPUT_COLUMNS, Band, InputCorrelation, Jump, Localization, Segment, TauRange)
+from bench.discovery.findings import INPUT_COLUMNS, Band, InputCorrelation, Jump, Localization, Segment, TauRange
 from bench.discovery.significance import welch_dof, welch_nperseg, white_floor
 
 

@@ -113,11 +113,11 @@ class Model:
     def effect_ids(self) -> tuple[str, ...]:
         return tuple(eid for eid, _ in self.effects)
 
-    def with_effect(self, effect_id: str, params: dict) -> "Model":
+    def with_effect(self, effect_id: str, params: dict) -> Model:
         """This model with one more effect (validated against the kind's ranges)."""
         return Model(self.base, self.effects + ((effect_id, dict(params)),))
 
-    def with_params(self, index: int, params: dict) -> "Model":
+    def with_params(self, index: int, params: dict) -> Model:
         """This model with effect ``index``'s parameters replaced."""
         if not 0 <= index < len(self.effects):
             raise ValueError(f"effect index {index!r}; allowed: 0..{len(self.effects) - 1}")
@@ -125,11 +125,11 @@ class Model:
         eff[index] = (eff[index][0], dict(params))
         return Model(self.base, tuple(eff))
 
-    def with_base(self, **changes) -> "Model":
+    def with_base(self, **changes) -> Model:
         """This model with base fields replaced (e.g. ``bias=``, ``scale_factor=``)."""
         return Model(replace(self.base, **changes), self.effects)
 
-    def at_rate(self, rate_hz: float) -> "Model":
+    def at_rate(self, rate_hz: float) -> Model:
         """This model for records sampled at ``rate_hz``: the white-noise sd per sample scaled by
         ``√(rate_hz / base.rate_hz)`` (constant density); with no recorded rate, the rate is
         recorded and noise_sd kept (it is taken to be per sample at ``rate_hz``)."""
@@ -150,7 +150,7 @@ class Model:
                 v = CATALOGUE[eid].residual_var(p, math.sqrt(v))
         return math.sqrt(v)
 
-    def with_noise_floor(self, floor_sd: float) -> "Model":
+    def with_noise_floor(self, floor_sd: float) -> Model:
         """This model with ``noise_sd`` set so that its residual ``y − predict`` has white sd
         ``floor_sd`` (what a calibration measures): equal without output transforms; with
         quantization the floor holds the rounding error too, and the noise sd before the

@@ -31,17 +31,17 @@ For the current (calibrated) model and its residual ``r = y − predict``:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
 from bench.discovery import lattice as lat
 from bench.discovery import significance as sig
 from bench.discovery import stochastic as sto
+from bench.discovery.choosing import choose, jackknife_ratio, parsimonious, stochastic_in
 from bench.discovery.data import Record
 from bench.discovery.effects_linalg import base_regressors
-from bench.discovery.choosing import choose, jackknife_ratio, parsimonious, stochastic_in
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.separating import separating_experiment
 

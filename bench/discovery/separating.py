@@ -7,7 +7,6 @@ against a random process, from repeating the record.
 
 from __future__ import annotations
 
-
 # Experiments that separate pairs the catalogue can confuse on a given record.
 SEPARATING = {
     frozenset({"warmup_exponential", "temperature_bias"}):

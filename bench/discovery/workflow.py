@@ -23,8 +23,8 @@ Pure: record and model in, a :class:`Discovery` out (no files; the CLI writes th
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable
 
 import numpy as np
 
@@ -184,7 +184,7 @@ def calibrate(model, rec: Record, *, noise: bool = True, max_nfev: int = 200):
         x0, lo, hi, sc = _coords(model, slots)
         x0 = np.clip(x0, lo, hi)
         y = rec.y
-        fun = lambda x: y - _at(model, slots, x).predict(rec)  # noqa: E731
+        fun = lambda x: y - _at(model, slots, x).predict(rec)
         try:
             res = optimize.least_squares(fun, x0, bounds=(lo, hi), x_scale=sc, max_nfev=max_nfev, method="trf")
             if np.sum(res.fun ** 2) < np.sum(fun(x0) ** 2):

@@ -22,11 +22,18 @@ alike: a power loss calls :meth:`AngularTableController.cut_drive`, an interlock
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
-from sim.devices.angular_reference import (COUNT_RANGE, DEFAULT_REF_COUNT, DEFAULT_REF_RATE_HZ, ENCODER_COUNTS,
-                                           RATE_NOISE_DPS, RATE_RANGE_HZ, ReferenceCapture)
+from sim.devices.angular_reference import (
+    COUNT_RANGE,
+    DEFAULT_REF_COUNT,
+    DEFAULT_REF_RATE_HZ,
+    ENCODER_COUNTS,
+    RATE_NOISE_DPS,
+    RATE_RANGE_HZ,
+    ReferenceCapture,
+)
 from sim.physics.angular_demand import SWEEP_TIME_RANGE_S, Sweep, Tone, describe
 from sim.physics.angular_table import DEFAULT_RAMP_S, RAMP_RANGE_S, AngularMotion
 from sim.scpi import Args, ScpiDevice, ScpiError, format_block, format_int, format_number
@@ -128,11 +135,11 @@ class AngularTableController(ScpiDevice):
         self.world.note(f"angular table start {self.mode} {n} tone(s)")
 
     # -- vocabulary ----------------------------------------------------------------------
-    def _register(self) -> None:  # noqa: C901 - one declaration per command, read top to bottom
+    def _register(self) -> None:
         c, lim = self.command, self.motion.limits
         n_osc = lim.max_tones
         rate_max_dps = lim.max_rate_rad_s * DEG
-        now = lambda: self.world.now  # noqa: E731
+        now = lambda: self.world.now
 
         def osc(a: Args) -> Oscillator:
             return self.oscillators[a.suffixes[0] - 1]
@@ -230,7 +237,7 @@ class AngularTableController(ScpiDevice):
 
     def _register_reference(self) -> None:
         c = self.command
-        now = lambda: self.world.now  # noqa: E731
+        now = lambda: self.world.now
 
         def rate(a: Args) -> None:
             a.require_count(1, 1)

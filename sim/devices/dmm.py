@@ -18,7 +18,7 @@ that can never end (bus trigger pending, infinite trigger count) is answered wit
 from __future__ import annotations
 
 from collections import deque
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

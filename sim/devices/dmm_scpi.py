@@ -46,9 +46,9 @@ class Keysight34465AVocabulary:
         return format_block(text.encode()) if block else text
 
     # -- SCPI vocabulary -------------------------------------------------------------------
-    def _register(self) -> None:  # noqa: C901 - one declaration per command, read top to bottom
+    def _register(self) -> None:
         c = self.command
-        fe = lambda: self.fe  # noqa: E731 - the front end object is replaced on *RST
+        fe = lambda: self.fe
 
         def conf_volt(args: Args) -> None:
             self.abort()

@@ -12,7 +12,7 @@ tells whether the table is still, and ``:STARt`` is refused (-221) while it move
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from sim.physics.shaker import DEFAULT_RAMP_S, LEVEL_RANGE_DB, RAMP_RANGE_S, Shaker
 from sim.physics.shaker_profile import MAX_BREAKPOINTS, RandomProfile, SineProfile
@@ -159,7 +159,7 @@ class ShakerController(ScpiDevice):
         def limit_q(value: float) -> Callable[[Args], str]:
             return lambda a: format_number(value)
 
-        now = lambda: self.world.now  # noqa: E731
+        now = lambda: self.world.now
         c(":PROFile:RANDom", set=random)
         c(":PROFile:RANDom:FLAT", set=flat)
         c(":PROFile:SINE", set=sine)

@@ -10,8 +10,8 @@ uses that to know when it was powered (t = 0 of a start-up test).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from sim.scpi import Args, ScpiDevice, ScpiError, format_number
 from sim.world import World
@@ -133,10 +133,10 @@ class PowerSupply(ScpiDevice):
             return ",".join(format_number(getattr(self.channels[c], attr))
                             for c in self._channels_from(args, 0))
 
-        set_volt = lambda a: setpoints(a, "voltage_v", 0.0, "v_max")  # noqa: E731
-        get_volt = lambda a: readback(a, "voltage_v", "v_max")  # noqa: E731
-        set_curr = lambda a: setpoints(a, "current_limit_a", 0.0, "i_max")  # noqa: E731
-        get_curr = lambda a: readback(a, "current_limit_a", "i_max")  # noqa: E731
+        set_volt = lambda a: setpoints(a, "voltage_v", 0.0, "v_max")
+        get_volt = lambda a: readback(a, "voltage_v", "v_max")
+        set_curr = lambda a: setpoints(a, "current_limit_a", 0.0, "i_max")
+        get_curr = lambda a: readback(a, "current_limit_a", "i_max")
 
         def set_outp(args: Args) -> None:
             state = args.boolean(0)

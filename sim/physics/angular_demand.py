@@ -17,8 +17,8 @@ controller language converts to degrees.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 TWO_PI = 2.0 * math.pi
 SWEEP_SPACINGS = ("LIN", "LOG")

@@ -47,8 +47,15 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from sim.physics.gyro_noise import KNOT_STEPS_PER_TAU, KnotBias
-from sim.physics.gyro_params import (FLICKER_ADEV_FACTOR, GRADES, NAVIGATION, TACTICAL, GyroParams,
-                                     adev_model_dph, flicker_terms)
+from sim.physics.gyro_params import (
+    FLICKER_ADEV_FACTOR,
+    GRADES,
+    NAVIGATION,
+    TACTICAL,
+    GyroParams,
+    adev_model_dph,
+    flicker_terms,
+)
 from sim.physics.gyro_population import LIMITS, draw_gyro, out_of_limits
 from sim.physics.noise import GaussMarkov
 from sim.physics.thermal import ThermalNode

@@ -24,8 +24,8 @@ table-angle increment, also in closed form: no time stepping anywhere.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numba
 import numpy as np

@@ -58,12 +58,12 @@ class RandomProfile:
         object.__setattr__(self, "psd_g2hz", p)
 
     @classmethod
-    def flat(cls, psd_g2hz: float, f_lo_hz: float, f_hi_hz: float) -> "RandomProfile":
+    def flat(cls, psd_g2hz: float, f_lo_hz: float, f_hi_hz: float) -> RandomProfile:
         """A flat ASD between two frequencies."""
         return cls((f_lo_hz, f_hi_hz), (psd_g2hz, psd_g2hz))
 
     @classmethod
-    def flat_grms(cls, grms: float, f_lo_hz: float, f_hi_hz: float) -> "RandomProfile":
+    def flat_grms(cls, grms: float, f_lo_hz: float, f_hi_hz: float) -> RandomProfile:
         """The flat ASD whose g rms is ``grms`` (g²/Hz = grms² / bandwidth)."""
         g = _number("grms", grms, 0.0, 1e4, open_lo=True)
         lo = _number("f_lo_hz", f_lo_hz, 0.0, 1e6, open_lo=True)
@@ -118,7 +118,7 @@ class RandomProfile:
     def displacement_rms_m(self) -> float:
         return STANDARD_GRAVITY_MPS2 * math.sqrt(self.moment(2))
 
-    def scaled_db(self, level_db: float) -> "RandomProfile":
+    def scaled_db(self, level_db: float) -> RandomProfile:
         """The profile at ``level_db`` (ASD × 10^(level/10))."""
         factor = 10.0 ** (level_db / 10.0)
         return RandomProfile(self.freqs_hz, tuple(p * factor for p in self.psd_g2hz))
@@ -155,7 +155,7 @@ class SineProfile:
     def displacement_rms_m(self) -> float:
         return self.grms * STANDARD_GRAVITY_MPS2 / (2 * math.pi * self.freq_hz) ** 2
 
-    def scaled_db(self, level_db: float) -> "SineProfile":
+    def scaled_db(self, level_db: float) -> SineProfile:
         return SineProfile(self.freq_hz, self.peak_g * 10.0 ** (level_db / 20.0))
 
 

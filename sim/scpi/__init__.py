@@ -14,8 +14,7 @@ for parameter parsing and :mod:`sim.scpi.framing` for stream framing.
 
 from .engine import ScpiDevice
 from .errors import ERROR_MESSAGES, ScpiError, error_text, format_error_entry
-from .formatting import (format_block, format_bool, format_int, format_number,
-                         format_numbers, format_string)
+from .formatting import format_block, format_bool, format_int, format_number, format_numbers, format_string
 from .framing import MessageFramer, Oversize
 from .params import Args
 

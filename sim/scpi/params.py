@@ -134,7 +134,7 @@ class Args:
         return len(self._params)
 
     @property
-    def raw(self) -> "_RawParams":
+    def raw(self) -> _RawParams:
         """Parameters as sent (white space trimmed; blocks decoded as Latin-1).  Indexing
         past the last one raises ScpiError -109 "Missing parameter", so a handler that
         reads ``args.raw[0]`` answers a bare header with the standard error."""

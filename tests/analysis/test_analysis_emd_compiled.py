@@ -12,9 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.analysis.emd_numpy_ref import kernel as ref_kernel
-from tests.analysis.emd_numpy_ref import reference
-from tests.analysis.emd_numpy_ref.spline import Spline as RefSpline
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import CubicSpline
@@ -22,6 +19,9 @@ from scipy.interpolate import CubicSpline
 from bench.analysis.emd import count_zero_crossings, emd, find_extrema
 from bench.analysis.emd_kernel import envelope_knots
 from bench.analysis.emd_spline import Spline, not_a_knot_slopes
+from tests.analysis.emd_numpy_ref import kernel as ref_kernel
+from tests.analysis.emd_numpy_ref import reference
+from tests.analysis.emd_numpy_ref.spline import Spline as RefSpline
 
 
 def _signal(n: int, seed: int, quant: bool, tone: float = 1.0) -> np.ndarray:

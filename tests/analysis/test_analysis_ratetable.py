@@ -12,7 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.analysis.ratetable import (
-    EARTH_RATE_DPS, earth_rate_vertical_dps, fit_rate_table, rate_plan, whole_revolution_duration_s,
+    EARTH_RATE_DPS,
+    earth_rate_vertical_dps,
+    fit_rate_table,
+    rate_plan,
+    whole_revolution_duration_s,
 )
 
 

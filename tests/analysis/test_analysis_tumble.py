@@ -12,7 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.analysis.tumble import (
-    DEFAULT_MOUNT, PARAM_NAMES, fit_tumble, specific_force_iapo_g, tumble_positions,
+    DEFAULT_MOUNT,
+    PARAM_NAMES,
+    fit_tumble,
+    specific_force_iapo_g,
+    tumble_positions,
 )
 from sim.physics.accelerometer import AccelerometerParams, indicated_acceleration_g
 

@@ -112,8 +112,8 @@ def test_missing_file_store_and_contradicting_sensor_exit_2(tmp_path, capsys, hi
 
 
 def test_discover_a_stored_startup_run(tmp_path, capsys):
-    from bench.core.procedure import execute
     from bench.app.station import Station, builtin_sim_config
+    from bench.core.procedure import execute
     from bench.core.store import RunStore
     from procedures.startup import StartupAcquisition, StartupParameters
 

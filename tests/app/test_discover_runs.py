@@ -11,8 +11,8 @@ import pytest
 
 from bench.app.cli import main
 from bench.app.commands.discover_runs import longest_stretch, power_on_time, read_run
-from bench.core.procedure import execute
 from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.steps import StepProcedure
 
@@ -109,7 +109,7 @@ def test_every_run_kind_runs_through_discover(store, tmp_path, capsys, which):
 
 
 def test_power_on_time_is_the_switch_on_not_followed_by_a_switch_off():
-    ev = lambda t, k: SimpleNamespace(t_s=t, kind=k)  # noqa: E731
+    ev = lambda t, k: SimpleNamespace(t_s=t, kind=k)
     on_off = ("gyro_supply_on", "gyro_supply_off")
     events = [ev(0.0, "gyro_supply_on"), ev(5.0, "gyro_supply_on"), ev(10.0, "gyro_supply_off"),
               ev(20.0, "gyro_supply_on"), ev(30.0, "gyro_supply_on")]

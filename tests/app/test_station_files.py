@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.core.procedure import execute
 from bench.app.station import Station, load_station
+from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.startup import StartupAcquisition, StartupParameters
 

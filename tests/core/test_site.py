@@ -3,7 +3,8 @@
 import math
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from bench.core.site import earth_rate_vertical_dph, normal_gravity_mps2
 from sim.physics.gravity import earth_rate_enu_rps, local_gravity_mps2

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
-from bench.core.spec import UNITS, SpecError, convert, parse_spec
+from bench.core.spec import UNITS, SpecError, convert, load_spec, parse_spec
 from bench.specs import builtin_specs
-from bench.core.spec import load_spec
 from procedures.acceptance import CATALOGUE
 
 GOOD = {

@@ -20,7 +20,6 @@ import textwrap
 import time
 
 import numpy as np
-import pytest
 
 from bench.core.store import RunStore
 

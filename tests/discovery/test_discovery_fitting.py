@@ -13,7 +13,7 @@ from scipy.linalg import toeplitz
 
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
-from bench.discovery.fitting import (CandidateFitter, finite_difference_jacobian, hac_bandwidth, hac_covariance)
+from bench.discovery.fitting import CandidateFitter, finite_difference_jacobian, hac_bandwidth, hac_covariance
 from bench.discovery.model import BaseModel, Model
 
 
@@ -29,7 +29,7 @@ def _gm(rng, n, sigma, tau_samples):
 
 def test_finite_difference_jacobian_matches_the_derivative_and_steps_back_at_the_bound():
     t = np.linspace(0, 1, 50)
-    f = lambda x: x[0] * np.exp(-t / x[1])  # noqa: E731
+    f = lambda x: x[0] * np.exp(-t / x[1])
     x = np.array([2.0, 0.5])
     exact = np.column_stack([np.exp(-t / x[1]), x[0] * t / x[1] ** 2 * np.exp(-t / x[1])])
     j = finite_difference_jacobian(f, x, np.array([1e-6, 1e-7]))

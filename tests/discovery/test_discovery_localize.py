@@ -6,9 +6,9 @@ import re
 
 import numpy as np
 import pytest
-from scipy import stats
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy import stats
 
 from bench.discovery import localize as loc
 from bench.discovery.data import Record

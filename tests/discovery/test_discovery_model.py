@@ -13,10 +13,9 @@ from scipy.special import ndtr
 
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE, KINDS, effects_for
-from bench.discovery.experiments import make_experiment
 from bench.discovery.effects_transforms import expected_quantized
-from bench.discovery.model import (BaseModel, Model, base_model, model_from_toml, model_to_toml, read_model,
-                                   write_model)
+from bench.discovery.experiments import make_experiment
+from bench.discovery.model import BaseModel, Model, base_model, model_from_toml, model_to_toml, read_model, write_model
 
 
 def _rec(n=1000, rate=10.0, **cols):

@@ -233,7 +233,7 @@ def test_calibrate_refits_nonlinear_parameters_of_effects_in_the_model():
     wrong = calibrate(Model(truth.base).with_effect("warmup_exponential", dict(p, tau_s=p["tau_s"] * 1.6)), rec)
     right = calibrate(Model(truth.base).with_effect("warmup_exponential", p), rec)
     assert wrong.effects[0][1]["tau_s"] == pytest.approx(right.effects[0][1]["tau_s"], rel=0.01)
-    sse = lambda m: float(np.sum((rec.y - m.predict(rec)) ** 2))  # noqa: E731
+    sse = lambda m: float(np.sum((rec.y - m.predict(rec)) ** 2))
     assert sse(wrong) <= sse(right) * 1.001
 
 

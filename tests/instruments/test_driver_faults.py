@@ -13,8 +13,14 @@ import serial
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from instruments.base import (InstrumentConnectionError, InstrumentError, InstrumentReplyError,
-                              InstrumentTimeout, open_resource, parse_float)
+from instruments.base import (
+    InstrumentConnectionError,
+    InstrumentError,
+    InstrumentReplyError,
+    InstrumentTimeout,
+    open_resource,
+    parse_float,
+)
 from instruments.fog import GyroLineError, GyroTimeout, SerialGyro
 from instruments.multimeter import Keysight34465A
 from instruments.power_supply import KeysightE36312A

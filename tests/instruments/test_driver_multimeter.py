@@ -14,7 +14,6 @@ from hypothesis import strategies as st
 from instruments import InstrumentError, InstrumentReplyError, Keysight34465A, TimedTraceMultimeter
 from instruments.base import UnsupportedInstrumentError, open_resource
 from instruments.multimeter import NPLC_DIG, NPLC_STANDARD, SAMPLE_OVERHEAD_S
-
 from tests.instruments.test_driver_base import YAML_DIR, FakeResource, assert_conforms, pack_real64_block
 
 IDN = "Keysight Technologies,34465A,MY60000001,A.03.02"

@@ -18,7 +18,6 @@ from instruments import (
     SupplyChannel,
 )
 from instruments.base import UnsupportedInstrumentError, open_resource
-
 from tests.instruments.test_driver_base import YAML_DIR, FakeResource, assert_conforms
 
 

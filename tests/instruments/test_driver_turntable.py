@@ -19,7 +19,6 @@ from instruments import (
     RateTableAxis,
 )
 from instruments.base import open_resource
-
 from tests.instruments.test_driver_base import YAML_DIR, FakeResource, assert_conforms
 
 

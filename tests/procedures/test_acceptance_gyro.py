@@ -7,13 +7,14 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import Phase, given, settings, strategies as st
+from hypothesis import Phase, given, settings
+from hypothesis import strategies as st
 
 from bench.analysis.ratetable import fit_rate_table
 from bench.app.cli import main
+from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.spec import parse_spec
-from bench.app.station import Station, builtin_sim_config
 from bench.core.store import RunStore
 from procedures.acceptance import CATALOGUE, AcceptanceTest
 from sim.physics.gyro import indicated_rate_dps

@@ -8,11 +8,12 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.app.cli import main
-from bench.core.procedure import execute
 from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.frf import FrfParameters, FrfTest, safe_amplitude_dps
 from procedures.fusion import FusionParameters, FusionTest, tone_demand
@@ -60,8 +61,8 @@ def test_frf_recovers_the_drawn_sensors(frf_run):
 
 
 def test_frf_points_carry_uncertainties_that_cover_the_true_response(frf_run):
-    from sim.physics.rate_sensor_lti import Section, cascade  # noqa: F401 - the sim's own model
     from bench.analysis.fusion_models import SensorModel
+    from sim.physics.rate_sensor_lti import Section, cascade  # noqa: F401 - the sim's own model
 
     outcome, truth, store = frf_run
     points = store.results(outcome.run_id)["frf.points"]

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.core.procedure import execute
 from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
 from bench.core.store import RunStore
 from instruments.base import open_resource
 from procedures.ratetable import RateTableCalibration

@@ -7,8 +7,8 @@ import math
 
 import pytest
 
-from bench.core.procedure import execute
 from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.steps import StepProcedure

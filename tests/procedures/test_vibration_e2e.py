@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from bench.app.cli import main
-from bench.core.procedure import execute
 from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.steps import StepProcedure
 from procedures.vibration import VibrationParameters, VibrationTest

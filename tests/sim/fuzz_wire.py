@@ -44,7 +44,7 @@ class Tally:
     invalid_standard_error: int = 0  # ... and did (code in the expected class)
     wrong: list = field(default_factory=list)  # (message head, what came back)
 
-    def add(self, other: "Tally") -> None:
+    def add(self, other: Tally) -> None:
         for name in ("sent", "answered", "silent", "invalid", "invalid_standard_error"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.wrong += other.wrong
@@ -77,7 +77,7 @@ class _Line:
         while b"\n" not in self.buf:
             try:
                 chunk = self.sock.recv(1 << 16)
-            except socket.timeout:
+            except TimeoutError:
                 raise Hang(f"no reply within {self.timeout_s} s to {what}") from None
             if not chunk:
                 raise Hang(f"connection closed by the server while waiting for {what}")

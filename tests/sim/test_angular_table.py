@@ -94,7 +94,7 @@ def test_limit_messages_and_counts():
 
 
 # ---- the timeline -------------------------------------------------------------------------
-@functools.lru_cache(maxsize=None)  # read-only afterwards: queries never change the motion
+@functools.cache  # read-only afterwards: queries never change the motion
 def busy_motion(distortion=(0.003, 0.001)):
     """Start, change demand while running, stop mid-ramp, sweep, stop mid-sweep, start, abort."""
     m = AngularMotion(rng=np.random.default_rng(4), distortion=distortion)

@@ -12,8 +12,14 @@ import pyvisa
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from instruments.angular_table import (AngularLimits, AngularTableAbortedError, AngularVibrationTable, SweepSpec,
-                                       ToneSpec, check_tones)
+from instruments.angular_table import (
+    AngularLimits,
+    AngularTableAbortedError,
+    AngularVibrationTable,
+    SweepSpec,
+    ToneSpec,
+    check_tones,
+)
 from instruments.base import InstrumentError
 from sim.devices.angular_reference import ENCODER_COUNTS
 from sim.devices.angular_table import AngularTableController

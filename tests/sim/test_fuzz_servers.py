@@ -218,9 +218,8 @@ import socket  # noqa: E402
 import threading  # noqa: E402
 import time  # noqa: E402
 
-from tests.sim.fuzz_wire import GyroFuzzClient, ScpiFuzzClient, Tally, gyro_line, scpi_message  # noqa: E402
-
 from sim.station import SimulatedStation  # noqa: E402
+from tests.sim.fuzz_wire import GyroFuzzClient, ScpiFuzzClient, Tally, gyro_line, scpi_message  # noqa: E402
 
 COMMON_VALID = [("*IDN?", 1), ("*ESR?", 1), ("*STB?", 1), ("*OPC?", 1), ("*ESE 4", 0),
                 ("*SRE?", 1), ("SYST:ERR?", 1)]
@@ -340,7 +339,7 @@ def test_second_client_is_served_while_the_first_misbehaves(station):
             while not stop.is_set():
                 message, expect, replies = scpi_message(rng, wire_valid("dmm"))
                 client.send(message, expect, replies)
-        except BaseException as exc:  # noqa: BLE001 - reported to the main thread
+        except BaseException as exc:
             failures.append(exc)
         finally:
             client.close()

@@ -8,10 +8,23 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from sim.physics.gyro import (
+    LIMITS,
+    NAVIGATION,
+    STATUS_BOOTING,
+    STATUS_OVER_RANGE,
+    STATUS_READY,
+    STATUS_TEMPERATURE,
+    STATUS_WARMING_UP,
+    TACTICAL,
+    FiberOpticGyro,
+    GyroParams,
+    adev_model_dph,
+    draw_gyro,
+    indicated_rate_dps,
+    out_of_limits,
+)
 from sim.physics.gyro_noise import KnotBias
-from sim.physics.gyro import (LIMITS, NAVIGATION, STATUS_BOOTING, STATUS_OVER_RANGE, STATUS_READY,
-                              STATUS_TEMPERATURE, STATUS_WARMING_UP, TACTICAL, FiberOpticGyro, GyroParams,
-                              adev_model_dph, draw_gyro, indicated_rate_dps, out_of_limits)
 
 QUIET = dict(arw_deg_per_rh=0.0, bias_instability_dph=0.0, rrw_dph_per_rh=0.0, warmup_amplitude_dph=0.0,
              bias_tc_dph_per_c=0.0, g_sensitivity_dph_per_g=(0.0, 0.0, 0.0), bias_repeatability_dph=0.0,
@@ -129,7 +142,7 @@ def test_asymmetry_is_the_difference_of_the_positive_and_negative_scale_factors(
 def test_nonlinearity_is_an_odd_cubic_in_units_of_full_scale(nl, x):
     p = quiet(scale_factor_error_ppm=0.0, asymmetry_ppm=0.0, nonlinearity_ppm=nl)
     fs = p.full_scale_dps
-    dev = lambda w: float(indicated_rate_dps(p, w)) - w  # noqa: E731
+    dev = lambda w: float(indicated_rate_dps(p, w)) - w
     assert dev(fs) == pytest.approx(nl * 1e-6 * fs, rel=1e-9)
     assert dev(2 * x * fs) == pytest.approx(8 * dev(x * fs), rel=1e-6)
     assert dev(-x * fs) == pytest.approx(-dev(x * fs), rel=1e-9)

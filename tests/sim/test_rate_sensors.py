@@ -15,8 +15,17 @@ from sim.devices import fog_frames as ff
 from sim.devices.fog_serial import FogSerialDevice, GyroInputs
 from sim.physics.angular_piece import MotionPiece, at_rest
 from sim.physics.rate_sensor_lti import LinearRateSensor, Section
-from sim.physics.rate_sensors import (LF_PRESET, MHD_PRESET, STATUS_OVER_RANGE, STATUS_READY, LfGyroUnit,
-                                      LfRateParams, MhdParams, lf_sensor, mhd_sensor)
+from sim.physics.rate_sensors import (
+    LF_PRESET,
+    MHD_PRESET,
+    STATUS_OVER_RANGE,
+    STATUS_READY,
+    LfGyroUnit,
+    LfRateParams,
+    MhdParams,
+    lf_sensor,
+    mhd_sensor,
+)
 from sim.world import World
 
 

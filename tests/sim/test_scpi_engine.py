@@ -4,8 +4,19 @@ from __future__ import annotations
 
 import pytest
 
-from sim.scpi import (Args, MessageFramer, Oversize, ScpiDevice, ScpiError, format_block,
-                      format_bool, format_int, format_number, format_numbers, format_string)
+from sim.scpi import (
+    Args,
+    MessageFramer,
+    Oversize,
+    ScpiDevice,
+    ScpiError,
+    format_block,
+    format_bool,
+    format_int,
+    format_number,
+    format_numbers,
+    format_string,
+)
 from sim.scpi.errors import ERROR_MESSAGES, error_text
 
 IDN = ("Keysight Technologies", "34465A", "MY59000001", "A.03.01-03.15-03.01-00.52-03-02")

@@ -14,8 +14,13 @@ from scipy.integrate import quad
 from scipy.signal import welch
 
 from instruments.base import InstrumentError
-from instruments.shaker import (RandomProfileSpec, SineProfileSpec, VibrationAbortedError,
-                                VibrationTable, random_profile_grms)
+from instruments.shaker import (
+    RandomProfileSpec,
+    SineProfileSpec,
+    VibrationAbortedError,
+    VibrationTable,
+    random_profile_grms,
+)
 from sim.devices.shaker import ShakerController
 from sim.devices.sim_control import SimControl
 from sim.physics.gravity import STANDARD_GRAVITY_MPS2 as G0

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from sim.devices.dmm import Multimeter
 from sim.world import World
@@ -94,7 +95,7 @@ def test_init_during_a_measurement_is_refused():
 
 
 def test_reading_memory_overflow_keeps_the_newest_and_sets_questionable_bit_14():
-    ramp = lambda t, ap: t.copy()  # noqa: E731 - reading value = its start time
+    ramp = lambda t, ap: t.copy()
     world, dmm = make(options=(), signal=ramp)
     ask(dmm, "CONF:VOLT:DC 100;:VOLT:NPLC 0.02;:VOLT:ZERO:AUTO OFF;:TRIG:DEL 0;"
              ":SAMP:SOUR TIM;:SAMP:TIM 0.001;:SAMP:COUN 60000")
@@ -139,7 +140,7 @@ def test_how_the_trace_is_polled_never_changes_its_bytes(steps, seed, range_word
                  ":SAMP:COUN 500;:FORM REAL,64;:FORM:BORD SWAP")
         ask(dev, "INIT")
 
-    noisy = lambda t, ap: 1.05 * np.sin(3 * t)  # noqa: E731 - crosses the 1 V range
+    noisy = lambda t, ap: 1.05 * np.sin(3 * t)
     world_a, a = make(seed, signal=noisy)
     world_b, b = make(seed, signal=noisy)
     configure(a)

@@ -2,10 +2,16 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from sim.devices.dmm_model import (
-    NOISE_PPM_OF_RANGE, OVERLOAD, DmmConverter, DmmFrontEnd, LinePickup, range_for,
+    NOISE_PPM_OF_RANGE,
+    OVERLOAD,
+    DmmConverter,
+    DmmFrontEnd,
+    LinePickup,
+    range_for,
     round_up_nplc,
 )
 

@@ -47,9 +47,9 @@ def choose_spec(spec_path: str | None, unit: str | None):
 
 
 def run_acceptance(args) -> int:
-    from bench.core.procedure import execute
     from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
     from bench.app.station import Station, resolve_station
+    from bench.core.procedure import execute
     from procedures.acceptance import AcceptanceTest
 
     started = time.perf_counter()

@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 import csv
 import importlib
-import pkgutil
 import json
+import pkgutil
 import sys
 from pathlib import Path
 
@@ -25,7 +25,7 @@ RUN_STREAM, RUN_TIME_COL, RUN_VALUE_COL = "output", "t_s", "voltage_v"
 
 def _analysis_modules() -> list[str]:
     """``bench.app.commands.analyze_<kind>`` modules; each adds ``bench analyze <kind>``."""
-    import bench.app.commands as pkg  # noqa: PLC0415
+    import bench.app.commands as pkg
 
     return sorted(f"bench.app.commands.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)
                   if m.name.startswith("analyze_"))

@@ -83,9 +83,9 @@ def read_measured(path: str) -> Record:
 
 
 def discover_command(args) -> int:
+    from bench.app.reports.discovery_report import write_discovery_report
     from bench.discovery.model import Model, base_model, read_model, write_model
     from bench.discovery.workflow import discover
-    from bench.app.reports.discovery_report import write_discovery_report
 
     if args.run is not None:
         rec, run_kind, label = read_run(args.store, args.run, args.stream)

@@ -25,8 +25,7 @@ from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from bench.app.station import (SERIAL_DRIVERS, InstrumentConfig, Station, StationConfig,
-                           StationError, resolve_station)
+from bench.app.station import SERIAL_DRIVERS, InstrumentConfig, Station, StationConfig, StationError, resolve_station
 
 #: at most this many ``SYST:ERR?`` reads (an error queue is 20..100 deep on real meters)
 MAX_ERROR_READS = 200
@@ -114,7 +113,7 @@ def _single(config: StationConfig, inst: InstrumentConfig) -> StationConfig:
 
 def _read_errors(query) -> tuple[list[str], str]:
     """Drain ``SYST:ERR?``; returns the entries and a reason if the queue never emptied."""
-    from instruments.base import parse_error_reply  # noqa: PLC0415
+    from instruments.base import parse_error_reply
 
     errors: list[str] = []
     for _ in range(MAX_ERROR_READS):
@@ -185,7 +184,7 @@ def _check_serial(inst: InstrumentConfig, config: StationConfig, powered: dict) 
 
 def _check_clock(config: StationConfig) -> Health:
     """The sim-control endpoint that serves a simulated station's clock."""
-    from instruments.base import Identity, open_resource  # noqa: PLC0415
+    from instruments.base import Identity, open_resource
 
     h = Health("clock", "sim_control", config.clock)
     try:

@@ -8,8 +8,8 @@ import pkgutil
 import sys
 
 from bench.app.commands.common import open_store, print_outcome, progress_bar, seed_of, unit_of
-from bench.core.procedure import execute
 from bench.app.station import Station, resolve_station
+from bench.core.procedure import execute
 
 
 def register(sub) -> None:
@@ -35,7 +35,7 @@ def register(sub) -> None:
 
 def _procedure_modules() -> list[str]:
     """``bench.app.commands.run_<name>`` modules; each adds ``bench run <name>``."""
-    import bench.app.commands as pkg  # noqa: PLC0415
+    import bench.app.commands as pkg
 
     return sorted(f"bench.app.commands.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)
                   if m.name.startswith("run_"))

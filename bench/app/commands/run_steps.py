@@ -62,8 +62,8 @@ def register_procedure(procs, common) -> None:
 
 def execute_step(args, step):
     """Run one step as its own procedure on the station ``--station``; returns the outcome."""
-    from bench.core.procedure import execute
     from bench.app.station import Station, resolve_station
+    from bench.core.procedure import execute
     from procedures.steps import StepProcedure
 
     config = resolve_station(args.station)

@@ -74,8 +74,8 @@ def analyse_vibration_run(store_path, run_id: str, report_root: Path | None):
 
 
 def run_vibration(args) -> int:
-    from bench.core.procedure import execute
     from bench.app.station import Station, resolve_station
+    from bench.core.procedure import execute
     from procedures.steps import StepProcedure
     from procedures.vibration import VibrationParameters, VibrationTest
 

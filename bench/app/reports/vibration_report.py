@@ -30,8 +30,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.vibration import VibrationAnalysis
-from bench.app.reports.common import html_table as _table
 from bench.app.reports.common import MAX_POINTS, save_figure
+from bench.app.reports.common import html_table as _table
 from bench.app.reports.common import thin as _thin
 
 _ZOOM_SAMPLES = 400

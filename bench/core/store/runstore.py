@@ -25,8 +25,8 @@ from . import codec, liveness
 from .model import (
     INTERRUPTED,
     AttachmentInfo,
-    RunClosedError,
     Event,
+    RunClosedError,
     RunInfo,
     StreamInfo,
     UnknownAttachmentError,

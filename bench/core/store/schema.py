@@ -20,7 +20,7 @@ import os
 import sqlite3
 from pathlib import Path
 
-from .model import SchemaVersionError, STATUSES, utc_now
+from .model import STATUSES, SchemaVersionError, utc_now
 
 SCHEMA_VERSION = 1
 SYNCHRONOUS_MODES = ("NORMAL", "FULL", "EXTRA")

@@ -245,7 +245,7 @@ class RunWriter:
             raise RunClosedError(
                 f"run {self.id} is finished ({self.finished_status}); it takes no more data")
 
-    def _transaction(self):  # noqa: ANN202 - a context manager from the store
+    def _transaction(self):
         return self.store._write_transaction()
 
     def _touch(self, conn: sqlite3.Connection, **extra: Any) -> None:

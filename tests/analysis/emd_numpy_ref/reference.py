@@ -6,7 +6,14 @@ from __future__ import annotations
 import numpy as np
 
 from bench.analysis.emd import MIN_SAMPLES, STOP_RULES, EmdResult, _check
-from tests.analysis.emd_numpy_ref.kernel import Spline, Workspace, count_zero_crossings, envelope_knots, find_extrema, sift
+from tests.analysis.emd_numpy_ref.kernel import (
+    Spline,
+    Workspace,
+    count_zero_crossings,
+    envelope_knots,
+    find_extrema,
+    sift,
+)
 
 __all__ = ["emd", "find_extrema", "count_zero_crossings", "envelope_knots", "Spline", "Workspace", "sift"]
 
