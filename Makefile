@@ -5,12 +5,12 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 STORE  ?= bench-data/bench.sqlite
 
-.PHONY: demo test bench-speed clean
+.PHONY: demo test lint bench-speed clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,dev]'
 	touch $(STAMP)
 
 ## demo: factory acceptance of a simulated accelerometer and a simulated FOG on the simulated
@@ -24,6 +24,12 @@ demo: $(STAMP)
 ## test: the whole suite (hypothesis derandomised in CI), one worker per core (pytest-xdist)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
+
+## lint: the linter, the type checker and the import-layer contracts on the whole tree
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/mypy
+	$(BIN)/lint-imports
 
 ## bench-speed: the benchmark scripts, side by side with their peers
 bench-speed: $(STAMP)
