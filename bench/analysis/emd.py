@@ -83,7 +83,7 @@ class EmdResult:
         return self.imfs.sum(axis=0) + self.residue
 
 
-def _check(name: str, value, low, high=None, kind=float):
+def check_parameter(name: str, value, low, high=None, kind=float):
     if kind is int and (isinstance(value, bool) or int(value) != value):
         raise ValueError(f"{name} = {value!r} must be an integer")
     if not (low <= value and (high is None or value <= high)):
@@ -110,15 +110,15 @@ def emd(x: np.ndarray, *, max_imfs: int | None = None, max_sifts: int = 1000, st
         raise ValueError(f"x contains {int(np.sum(~np.isfinite(x)))} non-finite values; all must be finite")
     if stop not in STOP_RULES:
         raise ValueError(f"stop = {stop!r} is not one of {STOP_RULES}")
-    max_imfs = None if max_imfs is None else _check("max_imfs", max_imfs, 1, kind=int)
-    max_sifts = _check("max_sifts", max_sifts, 1, kind=int)
-    nbsym = _check("nbsym", nbsym, 1, 10, kind=int)
-    s_number = _check("s_number", s_number, 1, kind=int)
-    sd_threshold = _check("sd_threshold", sd_threshold, 0.0)
+    max_imfs = None if max_imfs is None else check_parameter("max_imfs", max_imfs, 1, kind=int)
+    max_sifts = check_parameter("max_sifts", max_sifts, 1, kind=int)
+    nbsym = check_parameter("nbsym", nbsym, 1, 10, kind=int)
+    s_number = check_parameter("s_number", s_number, 1, kind=int)
+    sd_threshold = check_parameter("sd_threshold", sd_threshold, 0.0)
     th1, th2, alpha = (float(v) for v in rilling_thresholds)
     if not (0 < th1 <= th2 and 0 < alpha < 1):
         raise ValueError(f"rilling_thresholds = {rilling_thresholds!r} must satisfy 0 < θ1 ≤ θ2 and 0 < α < 1")
-    range_tol = _check("range_tol", range_tol, 0.0)
+    range_tol = check_parameter("range_tol", range_tol, 0.0)
 
     n = x.size
     buffers = (np.empty(n), np.empty(n))  # sifting ping-pongs between these

@@ -5,7 +5,7 @@ equal samples between a rise and a fall (or a fall and a rise) counts once, at i
 middle rounded half to even; flat runs touching an end of the record are not extrema.
 Zero crossings are sign changes between consecutive samples, exact zeros skipped.  The
 sifting pass (:mod:`.emd_kernel`) finds the extrema of its result in its own loop and
-falls back on :func:`_extrema_into` when it meets flat runs or exact zeros.
+falls back on :func:`extrema_into` when it meets flat runs or exact zeros.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def _flat_middle(a, b):
 
 
 @numba.njit(cache=True)
-def _extrema_into(h, imax, imin):
+def extrema_into(h, imax, imin):
     """Maxima and minima of ``h`` into ``imax``/``imin``: ``(n_max, n_min)`` (rules of :func:`find_extrema`)."""
     nmax = nmin = 0
     last_dir = 0  # sign of the last nonzero difference
@@ -74,7 +74,7 @@ def find_extrema(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     h = np.ascontiguousarray(h, dtype=float)
     imax = np.empty(h.size // 2 + 1, dtype=np.int64)
     imin = np.empty(h.size // 2 + 1, dtype=np.int64)
-    nmax, nmin = _extrema_into(h, imax, imin)
+    nmax, nmin = extrema_into(h, imax, imin)
     return imax[:nmax].copy(), imin[:nmin].copy()
 
 

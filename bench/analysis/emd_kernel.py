@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from bench.analysis.emd_extrema import _extrema_into, count_zero_crossings, count_zero_crossings_kernel, find_extrema
+from bench.analysis.emd_extrema import count_zero_crossings, count_zero_crossings_kernel, extrema_into, find_extrema
 from bench.analysis.emd_spline import Spline, evaluate, not_a_knot_slopes, spline_pair
 
 __all__ = ["SiftStats", "Spline", "count_zero_crossings", "envelope_knots", "evaluate", "find_extrema",
@@ -214,7 +214,7 @@ def _subtract_scan(h, out, imax, imin, vmax, vmin):
     Without flat runs or exact zeros (the rule for every sifting of a noisy record) an
     extremum is a sign change of consecutive differences: branch-free, as the extrema of
     noise are unpredictable, every candidate is written and the counts decide.  Otherwise
-    the general rules of :func:`_extrema_into` and :func:`count_zero_crossings` decide."""
+    the general rules of :func:`extrema_into` and :func:`count_zero_crossings` decide."""
     e_mean = e_in = 0.0
     nmax = nmin = zc = 0
     flat = False
@@ -251,7 +251,7 @@ def _subtract_scan(h, out, imax, imin, vmax, vmin):
         dprev = d
         prev = v
     if flat:
-        nmax, nmin = _extrema_into(out, imax, imin)
+        nmax, nmin = extrema_into(out, imax, imin)
         zc = count_zero_crossings_kernel(out)
         for j in range(nmax):
             vmax[j] = out[imax[j]]

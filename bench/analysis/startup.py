@@ -62,12 +62,12 @@ MIN_SAMPLES = 64
 Source = Literal["raw", "denoised"]
 
 
-def _json_safe(obj):
+def json_safe(obj):
     """Plain Python types only, non-finite floats as None (strict JSON has no NaN/inf)."""
     if isinstance(obj, dict):
-        return {str(k): _json_safe(v) for k, v in obj.items()}
+        return {str(k): json_safe(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
+        return [json_safe(v) for v in obj]
     if isinstance(obj, (bool, np.bool_)):
         return bool(obj)
     if isinstance(obj, (int, np.integer)):
@@ -233,7 +233,7 @@ class StartupModel:
                  "aic": self.aic, "bic": self.bic, "method": self.method, "noise_mean": self.noise_mean,
                  "noise_std": self.noise_std, "noise_source": self.noise_source,
                  "sample_interval_s": self.sample_interval_s, "measurement_noise_std": self.measurement_noise_std}
-        return _json_safe({"trend": trend, "model": model, "equation": self.equation()})
+        return json_safe({"trend": trend, "model": model, "equation": self.equation()})
 
     @classmethod
     def from_dict(cls, d: dict) -> StartupModel:
@@ -291,7 +291,7 @@ class StartupAnalysis:
         d["n_samples"] = int(self.raw.size)
         d["settings"] = dict(self.settings)
         d["notes"] = list(self.notes)
-        return _json_safe(d)
+        return json_safe(d)
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:

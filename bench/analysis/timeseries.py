@@ -37,8 +37,8 @@ from scipy.signal import lfilter
 from bench.analysis.timeseries_acf import (
     Correlogram,
     Identification,
-    _check_order,
-    _series,
+    as_series,
+    check_order,
     correlogram,
     cutoff_lag,
     identify,
@@ -49,11 +49,11 @@ from bench.analysis.timeseries_acf import (
 from bench.analysis.timeseries_ar import (
     AR_METHODS,
     ArMethod,
-    _ar_path,
-    _burg_path,
-    _lag_sums,
     ar_interpolate,
+    ar_path,
     burg,
+    burg_path,
+    lag_sums,
     ulrych_clayton,
     yule_walker,
 )
@@ -101,9 +101,9 @@ def _conditional_ic(
 ) -> tuple[float, float, float, int]:
     """Conditional Gaussian (loglik, aic, bic, n) of an AR fit on samples ``n_condition..n-1``.
 
-    ``f`` may be a precomputed ``_lag_sums(xd, n_condition, size)`` with ``size > p``.
+    ``f`` may be a precomputed ``lag_sums(xd, n_condition, size)`` with ``size > p``.
     """
-    f = _lag_sums(xd, n_condition, phi.size + 1) if f is None else f[: phi.size + 1, : phi.size + 1]
+    f = lag_sums(xd, n_condition, phi.size + 1) if f is None else f[: phi.size + 1, : phi.size + 1]
     w = np.r_[1.0, -phi]
     n = xd.size - n_condition
     s2 = float(w @ f @ w) / n
@@ -120,12 +120,12 @@ def fit_ar(x: np.ndarray, p: int, method: ArMethod = "ulrych-clayton", n_conditi
     (default ``p``) sets the samples conditioned on in the likelihood, so a table of orders
     can use one common sample.
     """
-    xd = _series(x, 16)
-    p = _check_order(p, xd.size)
+    xd = as_series(x, 16)
+    p = check_order(p, xd.size)
     n_condition = p if n_condition is None else n_condition
     if not p <= n_condition < xd.size // 2:
         raise ValueError(f"n_condition = {n_condition} must be in [{p}, {xd.size // 2 - 1}]")
-    phi, sigma2 = _ar_path(xd, p, method)[-1] if method != "ulrych-clayton" else ulrych_clayton(xd, p)
+    phi, sigma2 = ar_path(xd, p, method)[-1] if method != "ulrych-clayton" else ulrych_clayton(xd, p)
     if p:
         r = np.array([xd[k:] @ xd[: xd.size - k] for k in range(p)]) / xd.size
         gamma = r[np.abs(np.subtract.outer(np.arange(p), np.arange(p)))]
@@ -145,8 +145,8 @@ def fit_arma_ml(x: np.ndarray, p: int, q: int) -> ArmaFit:
     """
     from statsmodels.tsa.arima.model import ARIMA  # heavy import, only needed here
 
-    xd = _series(x, 16)
-    p, q = _check_order(p, xd.size, "p"), _check_order(q, xd.size, "q")
+    xd = as_series(x, 16)
+    p, q = check_order(p, xd.size, "p"), check_order(q, xd.size, "q")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # convergence chatter; the fit is still the best found
         res = ARIMA(xd, order=(p, 0, q), trend="n").fit(method="innovations_mle")
@@ -224,8 +224,8 @@ def fit_arma_css(
     come from, :func:`_segment_long_ar`) and ``_start`` (admissible start values, e.g. a
     neighbouring fit) let a caller share work between fits.
     """
-    xd = _series(x, 16)
-    p, q = _check_order(p, xd.size, "p"), _check_order(q, xd.size, "q")
+    xd = as_series(x, 16)
+    p, q = check_order(p, xd.size, "p"), check_order(q, xd.size, "q")
     m = max(p, q) if n_condition is None else n_condition
     if not max(p, q) <= m < xd.size // 2:
         raise ValueError(f"n_condition = {n_condition} must be in [{max(p, q)}, {xd.size // 2 - 1}]")
@@ -321,13 +321,13 @@ def select_order(
     both by conditional least squares (:func:`fit_arma_css`), which is O(n) per cell.
     ``_fits``, if given, receives every MA/ARMA cell's :class:`ArmaFit` keyed by ``(p, q)``.
     """
-    xd = _series(x, 16)
-    max_p = _check_order(max_p, xd.size, "max_p")
-    max_q = _check_order(max_q, xd.size, "max_q")
+    xd = as_series(x, 16)
+    max_p = check_order(max_p, xd.size, "max_p")
+    max_q = check_order(max_q, xd.size, "max_q")
     cells: list[OrderCandidate] = []
     if kind == "AR":
-        f = _lag_sums(xd, max_p, max_p + 1)
-        for k, (phi, _) in enumerate(_ar_path(xd, max_p, ar_method)):
+        f = lag_sums(xd, max_p, max_p + 1)
+        for k, (phi, _) in enumerate(ar_path(xd, max_p, ar_method)):
             _, aic, bic, _ = _conditional_ic(xd, phi, max_p, f)
             cells.append(OrderCandidate(k, 0, aic, bic))
         method = ar_method
@@ -350,10 +350,10 @@ def select_order(
 def burg_bic(x: np.ndarray, max_p: int) -> tuple[np.ndarray, float]:
     """Burg AR model with the BIC order (p ≤ max_p), from one Burg recursion: a quick,
     always-stationary noise model for standard errors and interpolation."""
-    xd = _series(x, 16)
-    max_p = _check_order(max_p, xd.size, "max_p")
-    phis, sig = _burg_path(xd, max_p)
-    f = _lag_sums(xd, max_p, max_p + 1)
+    xd = as_series(x, 16)
+    max_p = check_order(max_p, xd.size, "max_p")
+    phis, sig = burg_path(xd, max_p)
+    f = lag_sums(xd, max_p, max_p + 1)
     bics = [_conditional_ic(xd, phi, max_p, f)[2] for phi in phis]
     best = int(np.argmin(bics))
     return phis[best], float(sig[best])

@@ -1,7 +1,7 @@
 """Input checks, sample correlation and model identification for :mod:`bench.analysis.timeseries`.
 
 This module holds the series/order validators shared by every time-series estimator
-(``_series`` demeans and checks a series, ``_check_order`` bounds a model order by the
+(``as_series`` demeans and checks a series, ``check_order`` bounds a model order by the
 series length), the FFT sample ACF, Levinson–Durbin and the PACF, the :class:`Correlogram`
 with its Bartlett / ``z/sqrt(n)`` confidence bands, and Document A's cut-off/tail-off rules
 that propose a model class and initial orders (:func:`cutoff_lag`, :func:`identify`).
@@ -19,7 +19,7 @@ from scipy import fft as sp_fft
 from scipy import stats
 
 
-def _series(x: np.ndarray, min_len: int, name: str = "x") -> np.ndarray:
+def as_series(x: np.ndarray, min_len: int, name: str = "x") -> np.ndarray:
     """Return ``x`` as a demeaned 1-D float array, after checking length and finiteness."""
     arr = np.asarray(x, dtype=float)
     if arr.ndim != 1:
@@ -34,7 +34,7 @@ def _series(x: np.ndarray, min_len: int, name: str = "x") -> np.ndarray:
     return out
 
 
-def _check_order(order: int, n: int, name: str = "p") -> int:
+def check_order(order: int, n: int, name: str = "p") -> int:
     if int(order) != order or order < 0:
         raise ValueError(f"{name} = {order!r} must be a non-negative integer")
     if order > max(0, n // 10):
@@ -47,7 +47,7 @@ def _check_order(order: int, n: int, name: str = "p") -> int:
 
 def sample_acf(x: np.ndarray, nlags: int) -> np.ndarray:
     """Biased sample autocorrelation ``r_0..r_nlags`` (``r_0 = 1``), computed by FFT."""
-    xd = _series(x, 2)
+    xd = as_series(x, 2)
     n = xd.size
     if not 0 <= nlags < n:
         raise ValueError(f"nlags = {nlags} must be in [0, {n - 1}]")

@@ -2,8 +2,8 @@
 
 This module holds the AR(p) coefficient estimators — Ulrych–Clayton (forward–backward
 least squares), Burg and Yule–Walker — with the helpers that compute every order
-``0..pmax`` of one estimator in a single pass (``_burg_path``, ``_ar_path``), the
-O(n·p) lag-product sums they share with the likelihood code (``_lag_sums``), and the
+``0..pmax`` of one estimator in a single pass (``burg_path``, ``ar_path``), the
+O(n·p) lag-product sums they share with the likelihood code (``lag_sums``), and the
 two-sided AR interpolator of missing samples (:func:`ar_interpolate`).  Each returns
 plain coefficient arrays and an innovation variance; model objects, likelihoods and
 order selection live in :mod:`bench.analysis.timeseries`, which re-exports every public
@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from bench.analysis.timeseries_acf import _check_order, _series, levinson_durbin
+from bench.analysis.timeseries_acf import as_series, check_order, levinson_durbin
 
 ArMethod = Literal["ulrych-clayton", "burg", "yule-walker"]
 AR_METHODS: tuple[str, ...] = ("ulrych-clayton", "burg", "yule-walker")
@@ -26,7 +26,7 @@ def _full_lag_sums(x: np.ndarray, size: int) -> np.ndarray:
     return np.array([x[d:] @ x[: x.size - d] for d in range(size)])
 
 
-def _lag_sums(x: np.ndarray, start: int, size: int, full: np.ndarray | None = None) -> np.ndarray:
+def lag_sums(x: np.ndarray, start: int, size: int, full: np.ndarray | None = None) -> np.ndarray:
     """``F[i, j] = sum_{t=start}^{n-1} x[t-i] x[t-j]`` for ``0 ≤ i, j < size ≤ start + 1``.
 
     One full-length dot product per lag difference (``full``, reusable across calls),
@@ -53,11 +53,11 @@ def ulrych_clayton(x: np.ndarray, p: int, _full: np.ndarray | None = None) -> tu
     coefficient vector.  Returns ``(phi, sigma2)`` with ``sigma2`` the mean of the ``2(n-p)``
     squared errors.  Stationarity is not guaranteed (unlike Burg/Yule–Walker).
     """
-    xd = _series(x, 2)
-    p = _check_order(p, xd.size)
+    xd = as_series(x, 2)
+    p = check_order(p, xd.size)
     if p == 0:
         return np.zeros(0), float(xd @ xd / xd.size)
-    f = _lag_sums(xd, p, p + 1, _full)
+    f = lag_sums(xd, p, p + 1, _full)
     c = f + f[::-1, ::-1]  # backward errors: indices mirrored, w_i x_{t-p+i}
     phi = np.linalg.solve(c[1:, 1:], c[1:, 0])
     w = np.concatenate([[1.0], -phi])
@@ -66,11 +66,11 @@ def ulrych_clayton(x: np.ndarray, p: int, _full: np.ndarray | None = None) -> tu
 
 def burg(x: np.ndarray, p: int) -> tuple[np.ndarray, float]:
     """AR(p) by Burg's method; ``sigma2`` is the mean squared forward–backward error."""
-    phi, sigma2 = _burg_path(_series(x, 2), _check_order(p, np.asarray(x).size))
+    phi, sigma2 = burg_path(as_series(x, 2), check_order(p, np.asarray(x).size))
     return phi[-1], float(sigma2[-1])
 
 
-def _burg_path(xd: np.ndarray, pmax: int) -> tuple[list[np.ndarray], np.ndarray]:
+def burg_path(xd: np.ndarray, pmax: int) -> tuple[list[np.ndarray], np.ndarray]:
     """Burg recursion returning the AR coefficients and ``sigma2`` of every order 0..pmax."""
     f, b, old_f, step = xd.copy(), xd.copy(), np.empty_like(xd), np.empty_like(xd)
     phis, sig = [np.zeros(0)], [xd @ xd / xd.size]
@@ -90,17 +90,17 @@ def _burg_path(xd: np.ndarray, pmax: int) -> tuple[list[np.ndarray], np.ndarray]
 
 def yule_walker(x: np.ndarray, p: int) -> tuple[np.ndarray, float]:
     """AR(p) by Yule–Walker (method of moments) on the biased autocovariances."""
-    xd = _series(x, 2)
-    p = _check_order(p, xd.size)
+    xd = as_series(x, 2)
+    p = check_order(p, xd.size)
     r = np.array([xd[k:] @ xd[: xd.size - k] for k in range(p + 1)]) / xd.size
     phi, _, sigma2 = levinson_durbin(r, p)
     return phi, float(sigma2[-1])
 
 
-def _ar_path(xd: np.ndarray, pmax: int, method: str) -> list[tuple[np.ndarray, float]]:
+def ar_path(xd: np.ndarray, pmax: int, method: str) -> list[tuple[np.ndarray, float]]:
     """Coefficients and ``sigma2`` for every order 0..pmax with one estimator."""
     if method == "burg":
-        phis, sig = _burg_path(xd, pmax)
+        phis, sig = burg_path(xd, pmax)
         return list(zip(phis, sig.tolist()))
     if method == "yule-walker":
         r = np.array([xd[k:] @ xd[: xd.size - k] for k in range(pmax + 1)]) / xd.size

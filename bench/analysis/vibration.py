@@ -27,7 +27,7 @@ from bench.analysis.ar_kalman import KalmanFit, ar_predict, kalman_ar_fit
 from bench.analysis.ar_models import ImfModel, model_imf
 from bench.analysis.emd import STOP_RULES, EmdResult, emd
 from bench.analysis.nonrandom import NonRandomTerms, nonrandom_terms
-from bench.analysis.startup import _json_safe, validate_trace
+from bench.analysis.startup import json_safe, validate_trace
 
 MIN_SAMPLES = 256
 
@@ -80,7 +80,7 @@ class VibrationAnalysis:
             d = m.to_dict()
             d["kalman"] = {"r": k.r, "q": k.q, "gain": k.gain.tolist(), "steady_from": k.steady_from}
             models.append(d)
-        return _json_safe({
+        return json_safe({
             "samples": int(self.y.size), "rate_hz": self.rate_hz,
             "duration_s": float(self.time_s[-1] - self.time_s[0]),
             "imfs": dec.n_imfs,

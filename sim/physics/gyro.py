@@ -68,7 +68,7 @@ STATUS_WARMING_UP, STATUS_BOOTING = 0x20, 0x40
 WARMUP_STATUS_TAUS = 3.0
 
 _FRAC_BITS = 24  # fixed-point fraction of a pulse in the carry accumulator
-_HALF_PULSE = 1 << (_FRAC_BITS - 1)
+HALF_PULSE = 1 << (_FRAC_BITS - 1)
 _FRAC_MASK = (1 << _FRAC_BITS) - 1
 _MAX_SPAN_PULSES = float(2**61 >> _FRAC_BITS)  # |accumulator| bound of one cumulative sum
 
@@ -133,7 +133,7 @@ class FiberOpticGyro:
         self._segments = [_Segment(-math.inf, False, math.nan, math.inf, copy.copy(self._thermal), 0.0)]
         self._supply_v = 0.0
         self._t_edge: float | None = None  # last interval edge processed
-        self._acc = _HALF_PULSE  # carry accumulator (fixed point), valid while _running
+        self._acc = HALF_PULSE  # carry accumulator (fixed point), valid while _running
         self._running = False
         self._last_edges = np.empty(0)
         self._last_over = np.empty(0, dtype=bool)
@@ -310,8 +310,8 @@ class FiberOpticGyro:
             rate *= dt[a:b]
             rate += arw_deg[a:b]
             rate *= 3600.0 * p.scale_factor_pulses_per_arcsec  # now the angle in pulses
-            start = self._acc if (carry_in and a == 0) else _HALF_PULSE
-            counts[a:b], self._acc = _quantise(rate, start)
+            start = self._acc if (carry_in and a == 0) else HALF_PULSE
+            counts[a:b], self._acc = quantise_pulses(rate, start)
             self._running = b == n
         self._t_edge = float(t[-1])
         self._last_edges, self._last_over = t.copy(), over & valid
@@ -392,7 +392,7 @@ def check_frame_edges(t_edges_s, last_edge_s: float | None) -> tuple[np.ndarray,
     return t, dt
 
 
-def _quantise(angle_pulses: np.ndarray, start: int) -> tuple[np.ndarray, int]:
+def quantise_pulses(angle_pulses: np.ndarray, start: int) -> tuple[np.ndarray, int]:
     """Counts = changes of the rounded fixed-point accumulator; returns (counts, end state)."""
     fixed = np.rint(angle_pulses * float(1 << _FRAC_BITS)).astype(np.int64)
     n = fixed.size

@@ -43,7 +43,7 @@ _MAX_MODE_COND = 1e4
 PiecesFn = Callable[[float, float], Sequence[MotionPiece]]
 
 
-def _check(name: str, value, lo: float, hi: float, *, lo_open: bool = False) -> float:
+def check_range(name: str, value, lo: float, hi: float, *, lo_open: bool = False) -> float:
     """``value`` as a float within ``[lo, hi]`` (``(lo, hi]`` if ``lo_open``) or ValueError."""
     v = float(value)
     ok = math.isfinite(v) and (v > lo if lo_open else v >= lo) and v <= hi
@@ -67,8 +67,8 @@ class Section:
             raise ValueError(f"section kind {self.kind!r} must be one of {', '.join(KINDS)}")
         if self.order not in (1, 2):
             raise ValueError(f"section order {self.order!r} must be 1 or 2")
-        _check("corner_hz", self.corner_hz, 0.0, 1e9, lo_open=True)
-        _check("zeta", self.zeta, 0.0, 100.0, lo_open=True)
+        check_range("corner_hz", self.corner_hz, 0.0, 1e9, lo_open=True)
+        check_range("zeta", self.zeta, 0.0, 100.0, lo_open=True)
 
     def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """``(a, b, c, d)`` of this section alone (same realisation as ``SensorModel``)."""
@@ -185,9 +185,9 @@ class LinearRateSensor:
             raise ValueError(f"sections {sections!r} must be 1 or more Section objects")
         if not (math.isfinite(gain) and gain != 0):
             raise ValueError(f"gain = {gain!r} must be finite and non-zero")
-        self.noise_density = _check("noise_density", noise_density, 0.0, 1e12)
-        self.bias = _check("bias", bias, -1e12, 1e12)
-        self.latency_s = _check("latency_s", latency_s, 0.0, 10.0)
+        self.noise_density = check_range("noise_density", noise_density, 0.0, 1e12)
+        self.bias = check_range("bias", bias, -1e12, 1e12)
+        self.latency_s = check_range("latency_s", latency_s, 0.0, 10.0)
         if self.noise_density > 0 and not isinstance(rng, np.random.Generator):
             raise ValueError("rng must be a numpy.random.Generator when noise_density > 0")
         if t_origin_s is not None and not math.isfinite(t_origin_s):

@@ -25,8 +25,8 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from sim.physics.gyro import _HALF_PULSE, STATUS_OVER_RANGE, STATUS_READY, _quantise, check_frame_edges
-from sim.physics.rate_sensor_lti import LinearRateSensor, PiecesFn, Section, _check
+from sim.physics.gyro import HALF_PULSE, STATUS_OVER_RANGE, STATUS_READY, check_frame_edges, quantise_pulses
+from sim.physics.rate_sensor_lti import LinearRateSensor, PiecesFn, Section, check_range
 
 __all__ = ["LF_PRESET", "MHD_PRESET", "STATUS_OVER_RANGE", "STATUS_READY", "LfGyroUnit", "LfRateParams", "MhdParams",
            "lf_sensor", "mhd_sensor"]
@@ -60,20 +60,20 @@ class MhdParams:
     latency_s: float = 0.0
 
     def __post_init__(self):
-        _check("highpass_corner_hz", self.highpass_corner_hz, 0.01, 100.0)
+        check_range("highpass_corner_hz", self.highpass_corner_hz, 0.01, 100.0)
         if self.highpass_order not in (1, 2):
             raise ValueError(f"highpass_order = {self.highpass_order!r} must be 1 or 2")
-        _check("highpass_zeta", self.highpass_zeta, 0.05, 10.0)
-        _check("lowpass_corner_hz", self.lowpass_corner_hz, 100.0, 1e6)
+        check_range("highpass_zeta", self.highpass_zeta, 0.05, 10.0)
+        check_range("lowpass_corner_hz", self.lowpass_corner_hz, 100.0, 1e6)
         if self.lowpass_corner_hz <= 10 * self.highpass_corner_hz:
             raise ValueError(f"lowpass_corner_hz = {self.lowpass_corner_hz!r} must be > 10 × "
                              f"highpass_corner_hz = {10 * self.highpass_corner_hz!r}")
         if not (math.isfinite(self.sensitivity_v_per_rad_s) and 1e-4 <= abs(self.sensitivity_v_per_rad_s) <= 100):
             raise ValueError(f"sensitivity_v_per_rad_s = {self.sensitivity_v_per_rad_s!r} must have a "
                              "magnitude in [0.0001, 100] (either sign)")
-        _check("noise_rad_s_per_rthz", self.noise_rad_s_per_rthz, 0.0, 1.0)
-        _check("offset_v", self.offset_v, -1.0, 1.0)
-        _check("latency_s", self.latency_s, 0.0, 0.1)
+        check_range("noise_rad_s_per_rthz", self.noise_rad_s_per_rthz, 0.0, 1.0)
+        check_range("offset_v", self.offset_v, -1.0, 1.0)
+        check_range("latency_s", self.latency_s, 0.0, 0.1)
 
     def sections(self) -> list[Section]:
         return [Section("highpass", self.highpass_order, self.highpass_corner_hz, self.highpass_zeta),
@@ -117,20 +117,20 @@ class LfRateParams:
     supply_max_v: float = 36.0
 
     def __post_init__(self):
-        _check("corner_hz", self.corner_hz, 0.1, 10000.0)
+        check_range("corner_hz", self.corner_hz, 0.1, 10000.0)
         if self.order not in (1, 2):
             raise ValueError(f"order = {self.order!r} must be 1 or 2")
-        _check("zeta", self.zeta, 0.05, 10.0)
-        _check("gain", self.gain, 0.1, 10.0)
-        _check("arw_deg_per_rh", self.arw_deg_per_rh, 0.0, 100.0)
-        _check("bias_dph", self.bias_dph, -1e5, 1e5)
-        _check("latency_s", self.latency_s, 0.0, 0.1)
-        _check("frame_clock_error_ppm", self.frame_clock_error_ppm, -1000.0, 1000.0)
-        _check("scale_factor_pulses_per_arcsec", self.scale_factor_pulses_per_arcsec, 0.01, 1000.0)
-        _check("full_scale_dps", self.full_scale_dps, 1.0, 10000.0)
-        _check("temperature_c", self.temperature_c, -55.0, 125.0)
-        _check("supply_min_v", self.supply_min_v, 0.0, 100.0, lo_open=True)
-        _check("supply_max_v", self.supply_max_v, self.supply_min_v, 100.0)
+        check_range("zeta", self.zeta, 0.05, 10.0)
+        check_range("gain", self.gain, 0.1, 10.0)
+        check_range("arw_deg_per_rh", self.arw_deg_per_rh, 0.0, 100.0)
+        check_range("bias_dph", self.bias_dph, -1e5, 1e5)
+        check_range("latency_s", self.latency_s, 0.0, 0.1)
+        check_range("frame_clock_error_ppm", self.frame_clock_error_ppm, -1000.0, 1000.0)
+        check_range("scale_factor_pulses_per_arcsec", self.scale_factor_pulses_per_arcsec, 0.01, 1000.0)
+        check_range("full_scale_dps", self.full_scale_dps, 1.0, 10000.0)
+        check_range("temperature_c", self.temperature_c, -55.0, 125.0)
+        check_range("supply_min_v", self.supply_min_v, 0.0, 100.0, lo_open=True)
+        check_range("supply_max_v", self.supply_max_v, self.supply_min_v, 100.0)
 
     @property
     def noise_density_dps_per_rthz(self) -> float:
@@ -199,7 +199,7 @@ class LfGyroUnit:
         self._switch_t = np.array([-math.inf])  # supply switch instants and states after them
         self._switch_on = np.array([True])
         self._supply_v = 0.5 * (params.supply_min_v + params.supply_max_v)
-        self._acc = _HALF_PULSE
+        self._acc = HALF_PULSE
         self._running = False
         self._t_edge: float | None = None
         self._last_edges, self._last_over = np.empty(0), np.empty(0, dtype=bool)
@@ -273,8 +273,8 @@ class LfGyroUnit:
         carry_in, self._running = self._running, False
         idx = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(np.int8), [0]])))
         for a, b in zip(idx[::2], idx[1::2]):  # runs of powered frames
-            start = self._acc if (carry_in and a == 0) else _HALF_PULSE
-            counts[a:b], self._acc = _quantise(angle_pulses[a:b], start)
+            start = self._acc if (carry_in and a == 0) else HALF_PULSE
+            counts[a:b], self._acc = quantise_pulses(angle_pulses[a:b], start)
             self._running = b == n
         self._last_edges, self._last_over = t.copy(), over & valid
         return counts

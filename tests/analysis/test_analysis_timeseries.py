@@ -277,7 +277,7 @@ def _burg_path_reference(xd, pmax):
 def test_in_place_burg_equals_the_textbook_recursion():
     x = simulate_arma([0.6, -0.3], [0.4], 3000, np.random.default_rng(21))
     xd = x - x.mean()
-    phis, sig = ts._burg_path(xd, 8)
+    phis, sig = ts.burg_path(xd, 8)
     ref_phis, ref_sig = _burg_path_reference(xd, 8)
     np.testing.assert_allclose(sig, ref_sig, rtol=1e-12)
     for a, b in zip(phis, ref_phis):
