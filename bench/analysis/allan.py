@@ -167,10 +167,11 @@ def _checked_record(y, data_type: str, rate_hz: float) -> np.ndarray:
     need = MIN_SAMPLES + (data_type == "phase")
     if arr.size < need:
         raise ValueError(f"the record has {arr.size} samples; at least {need} {data_type} samples are required")
-    bad = np.flatnonzero(~np.isfinite(arr)) if not math.isfinite(float(arr.sum())) else ()  # a finite sum: all finite
-    if len(bad):
-        raise ValueError(f"the record has {bad.size} non-finite values (first at sample index {bad[0]}); "
-                         "all must be finite")
+    if not math.isfinite(float(arr.sum())):  # a finite sum: all finite; an overflowed one: look
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise ValueError(f"the record has {bad.size} non-finite values (first at sample index {bad[0]}); "
+                             "all must be finite")
     return np.diff(arr) * rate_hz if data_type == "phase" else arr
 
 

@@ -112,8 +112,9 @@ def nnls_enumerated(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, tuple[int
                 except np.linalg.LinAlgError:
                     pass
     feasible = np.all(np.where(mask, xs > 0.0, True), axis=1) & np.all(np.isfinite(xs), axis=1)
-    best_x, best_support, best_res = np.zeros(n_cols), (), float(b @ b)
-    for i in np.flatnonzero(feasible):
+    best_x, best_res = np.zeros(n_cols), float(b @ b)
+    best_support: tuple[int, ...] = ()
+    for i in np.flatnonzero(feasible).tolist():
         res = float(np.sum((scaled @ xs[i] - b) ** 2))
         if res < best_res * (1.0 - 1e-12):
             best_x, best_support, best_res = xs[i], supports[i], res
@@ -171,7 +172,8 @@ def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase:
     coef2 = np.zeros(len(terms))
     support: tuple[int, ...] = ()
     iterations = 0
-    for iterations in range(1, _MAX_ITER + 1):
+    while iterations < _MAX_ITER:
+        iterations += 1
         new_coef2, support = _weighted_nnls(a, y, weight)
         model = a @ new_coef2
         contrib = a * new_coef2

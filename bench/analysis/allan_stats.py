@@ -34,28 +34,28 @@ _TABLE3_D2 = (15.23, 12.0)  # flicker PM normalisation b0 + b1·ln m
 _WH_ABOVE = 1e5
 
 
-def _sw(t: np.ndarray, alpha: int) -> np.ndarray:
+def _sw(t: np.ndarray | float, alpha: int) -> np.ndarray:
     """Greenhall's generalised autocovariance kernel ``sw(t)`` for noise exponent α."""
-    t = np.abs(np.asarray(t, dtype=float))
+    abs_t = np.abs(np.asarray(t, dtype=float))
     if alpha == 2:
-        return -t
+        return -abs_t
     if alpha == 0:
-        return t ** 3
+        return abs_t ** 3
     if alpha == -2:
-        return t ** 5
+        return abs_t ** 5
     power = {1: 2, -1: 4}[alpha]
     with np.errstate(divide="ignore", invalid="ignore"):
-        out = t ** power * np.log(t)
-    return np.where(t == 0.0, 0.0, out)
+        out = abs_t ** power * np.log(abs_t)
+    return np.where(abs_t == 0.0, 0.0, out)
 
 
-def _sx(t: np.ndarray, f: float, alpha: int) -> np.ndarray:
+def _sx(t: np.ndarray | float, f: float, alpha: int) -> np.ndarray:
     if math.isinf(f):
         return _sw(t, alpha + 2)
     return f * f * (2.0 * _sw(t, alpha) - _sw(t - 1.0 / f, alpha) - _sw(t + 1.0 / f, alpha))
 
 
-def _sz(t: np.ndarray, f: float, alpha: int) -> np.ndarray:
+def _sz(t: np.ndarray | float, f: float, alpha: int) -> np.ndarray:
     """Second-difference (d = 2) filter applied to ``sx``."""
     return (6.0 * _sx(t, f, alpha) - 4.0 * _sx(t - 1.0, f, alpha) - 4.0 * _sx(t + 1.0, f, alpha)
             + _sx(t - 2.0, f, alpha) + _sx(t + 2.0, f, alpha))

@@ -5,11 +5,13 @@ slope lines work in the input unit times a power of seconds (the *input form*, e
 ``deg/h*sqrt(s)`` for N of a °/h record); each term is then reported in the customary
 unit of its sensor kind and in one alternative:
 
-| input | Q | N | B | K | R |
-|---|---|---|---|---|---|
-| gyro (dps, dph, radps) | arcsec (deg) | deg/sqrt(h) (deg/sqrt(s)) | deg/h (deg/s) | deg/h/sqrt(h) (deg/s/sqrt(s)) | deg/h^2 (deg/s^2) |
-| accelerometer (g, mg, ug, mps2) | g*s (m/s) | g/sqrt(Hz) (m/s/sqrt(h)) | g (m/s^2) | g/sqrt(s) (m/s^2/sqrt(h)) | g/s (m/s^2/h) |
-| None (any) | u*s | u*sqrt(s) = u/sqrt(Hz) | u | u/sqrt(s) | u/s |
+| term | gyro (dps, dph, radps) | accelerometer (g, mg, ug, mps2) | None (any) |
+|---|---|---|---|
+| Q | arcsec (deg) | g*s (m/s) | u*s |
+| N | deg/sqrt(h) (deg/sqrt(s)) | g/sqrt(Hz) (m/s/sqrt(h)) | u*sqrt(s) = u/sqrt(Hz) |
+| B | deg/h (deg/s) | g (m/s^2) | u |
+| K | deg/h/sqrt(h) (deg/s/sqrt(s)) | g/sqrt(s) (m/s^2/sqrt(h)) | u/sqrt(s) |
+| R | deg/h^2 (deg/s^2) | g/s (m/s^2/h) | u/s |
 
 Conversions: 1 °/√h = 1/60 °/√s; 1 °/h/√h = 1/216 000 °/s/√s; standard gravity
 g = 9.80665 m/s² (ISO 80000-3).

@@ -42,6 +42,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy.signal import lfilter
 
 
@@ -55,7 +56,7 @@ def companion(ar: np.ndarray) -> np.ndarray:
     return phi
 
 
-def ar_predict(z: np.ndarray, ar: np.ndarray, mean: float = 0.0) -> np.ndarray:
+def ar_predict(z: np.ndarray, ar: npt.ArrayLike, mean: float = 0.0) -> np.ndarray:
     """One-step AR prediction ``mean + Σ φ_k (z_{n-k} − mean)``; samples ``n < p`` are returned as ``z``."""
     z = np.asarray(z, dtype=float)
     ar = np.asarray(ar, dtype=float)
@@ -77,7 +78,7 @@ class KalmanFit:
     p: int
 
 
-def kalman_ar_fit(z: np.ndarray, ar: np.ndarray, sigma2: float, *, r: float | None = None,
+def kalman_ar_fit(z: np.ndarray, ar: npt.ArrayLike, sigma2: float, *, r: float | None = None,
                   r_ratio: float = 1.0, mean: float | None = None, p0: float = 1.0, gain_tol: float = 1e-13,
                   max_transient: int = 200_000, steady_state: bool = True) -> KalmanFit:
     """Kalman-filter ``z`` with the AR(p) model ``ar``, ``sigma2`` (module docstring).

@@ -41,8 +41,8 @@ fastest first) and a residue.  Conventions and choices:
   ``Σ imfs + residue`` returns ``x`` up to one floating-point rounding.
 
 The sifting itself (compiled with numba: envelopes, extrema and sums in one pass per
-sifting, one call per IMF) lives in :mod:`.emd_kernel` and :mod:`.emd_spline`; the choice of the non-random components (:func:`nonrandom_terms`)
-in :mod:`.nonrandom`.
+sifting, one call per IMF) lives in :mod:`.emd_kernel` and :mod:`.emd_spline`; the choice of
+the non-random components (:func:`nonrandom_terms`) in :mod:`.nonrandom`.
 """
 
 from __future__ import annotations

@@ -163,7 +163,8 @@ def envelope_knots(h: np.ndarray, imax: np.ndarray, imin: np.ndarray, nbsym: int
     if imax.size < 1 or imin.size < 1:
         raise ValueError(f"envelopes need ≥ 1 maximum and ≥ 1 minimum, got {imax.size} and {imin.size}")
     off = nbsym + 2
-    px, pn = np.empty(off + imax.size + nbsym + 2, dtype=np.int64), np.empty(off + imin.size + nbsym + 2, dtype=np.int64)
+    px = np.empty(off + imax.size + nbsym + 2, dtype=np.int64)
+    pn = np.empty(off + imin.size + nbsym + 2, dtype=np.int64)
     vx, vn = np.empty(px.size), np.empty(pn.size)
     px[off : off + imax.size], vx[off : off + imax.size] = imax, h[imax]
     pn[off : off + imin.size], vn[off : off + imin.size] = imin, h[imin]

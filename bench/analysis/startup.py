@@ -91,11 +91,13 @@ def validate_trace(t_s: np.ndarray, y: np.ndarray, sampling_tolerance: float = 0
     for name, arr in (("time", t), ("value", v)):
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
-            raise ValueError(f"{name} has {bad.size} non-finite values (first at sample index {bad[0]}); all must be finite")
+            raise ValueError(f"{name} has {bad.size} non-finite values (first at sample index {bad[0]}); "
+                             "all must be finite")
     dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.flatnonzero(dt <= 0)[0])
-        raise ValueError(f"time is not strictly increasing at sample index {k + 1} ({t[k]:.9g} s then {t[k + 1]:.9g} s)")
+        raise ValueError(f"time is not strictly increasing at sample index {k + 1} "
+                         f"({t[k]:.9g} s then {t[k + 1]:.9g} s)")
     step = float(np.median(dt))
     worst = float(np.max(np.abs(dt / step - 1)))
     if worst > sampling_tolerance:
@@ -225,7 +227,7 @@ class StartupModel:
 
     def to_dict(self) -> dict:
         """JSON-ready ``{"trend": …, "model": …}`` with the keys of issue 3."""
-        trend = {k: v.to_dict() for k, v in self.trend.items()}
+        trend: dict[str, object] = {k: v.to_dict() for k, v in self.trend.items()}
         trend["kind"] = "exp2" if "exp2_tau_s" in self.trend else "exp1"
         trend["t0_s"] = self.t0_s
         model = {"kind": self.kind, "p": self.p, "q": self.q, "ar": list(self.ar), "ma": list(self.ma),
@@ -343,9 +345,9 @@ def analyze_startup(
                                  ("criterion", criterion, ("aic", "bic")), ("ar_method", ar_method, ts.AR_METHODS)):
         if value not in allowed:
             raise ValueError(f"{name} = {value!r} is not one of {allowed}")
-    for name, value in (("outlier_z", outlier_z), ("sampling_tolerance", sampling_tolerance)):
-        if not value > 0:
-            raise ValueError(f"{name} = {value!r} must be > 0")
+    for name, positive in (("outlier_z", outlier_z), ("sampling_tolerance", sampling_tolerance)):
+        if not positive > 0:
+            raise ValueError(f"{name} = {positive!r} must be > 0")
     if int(identification_max_order) != identification_max_order or identification_max_order < 0:
         raise ValueError(f"identification_max_order = {identification_max_order!r} must be an integer ≥ 0")
     dt = validate_trace(t_s, y, sampling_tolerance)
@@ -408,13 +410,15 @@ def analyze_startup(
         if p:
             ar_estimates = {m: tuple(ts.fit_ar(z, p, m).ar) for m in ts.AR_METHODS}
     else:
-        fit = None
+        ml_fit: ts.ArmaFit | None = None
         if n <= ml_max_samples:  # exact ML costs seconds per 10⁵ samples; CSS is asymptotically the same
             try:
-                fit = ts.fit_arma_ml(z, p, q)
+                ml_fit = ts.fit_arma_ml(z, p, q)
             except (np.linalg.LinAlgError, ValueError) as exc:
                 notes.append(f"exact ML failed ({exc}); the conditional-least-squares estimate is reported")
-        if fit is None:  # same orders as a grid cell, only the conditioning differs: start there
+        if ml_fit is not None:
+            fit = ml_fit
+        else:  # same orders as a grid cell, only the conditioning differs: start there
             cell = grid_fits.get((p, q))
             fit = ts.fit_arma_css(z, p, q, _start=None if cell is None else np.r_[cell.ar, cell.ma])
     lb_lags = ts.default_lb_lags(fit.residuals.size, p + q)
@@ -433,6 +437,8 @@ def analyze_startup(
     if trend.kind == "exp2":
         notes.append("the data demand a second exponential (BIC and 3-sigma amplitudes)")
     amp, tau = trend.exp_amplitude, trend.exp_tau_s
+    if amp.std is None:  # fit_trend always estimates it; the significance test below needs it
+        raise RuntimeError("the trend fit returned no standard error for exp_amplitude")
     record_s = float(t[-1] - t[0])
     if not abs(amp.value) > 3 * amp.std:
         notes.append(f"the exponential term is not significant (|a| = {abs(amp.value):.3g} < 3σ = "

@@ -33,6 +33,7 @@ from typing import Literal
 
 import numpy as np
 from scipy.signal import lfilter
+from statsmodels.tsa.arima.model import ARIMA
 
 from bench.analysis.timeseries_acf import (
     Correlogram,
@@ -143,8 +144,6 @@ def fit_arma_ml(x: np.ndarray, p: int, q: int) -> ArmaFit:
     Uses the innovations-algorithm likelihood (same optimum as the state-space one, several
     times faster); stationarity and invertibility are enforced by the parametrisation.
     """
-    from statsmodels.tsa.arima.model import ARIMA  # heavy import, only needed here
-
     xd = as_series(x, 16)
     p, q = check_order(p, xd.size, "p"), check_order(q, xd.size, "q")
     with warnings.catch_warnings():
@@ -325,6 +324,7 @@ def select_order(
     max_p = check_order(max_p, xd.size, "max_p")
     max_q = check_order(max_q, xd.size, "max_q")
     cells: list[OrderCandidate] = []
+    method: str
     if kind == "AR":
         f = lag_sums(xd, max_p, max_p + 1)
         for k, (phi, _) in enumerate(ar_path(xd, max_p, ar_method)):

@@ -166,10 +166,10 @@ def identify(corr: Correlogram, max_order: int = 8) -> Identification:
     the shorter of the two if both do (parsimony), ARMA(1, 1) to start with if neither."""
     a = cutoff_lag(corr.acf, corr.acf_band, max_order, corr.alpha)
     p = cutoff_lag(corr.pacf, corr.pacf_band, max_order, corr.alpha)
-    if a is None and p is None:
-        return Identification("ARMA", 1, 1, a, p, "ACF and PACF both tail off")
-    if a is None or (p is not None and p <= a):
+    if p is not None and (a is None or p <= a):
         why = "ACF tails off" if a is None else f"ACF cuts off only after lag {a}"
         return Identification("AR", p, 0, a, p, f"PACF cuts off after lag {p}; {why}")
-    why = "PACF tails off" if p is None else f"PACF cuts off only after lag {p}"
-    return Identification("MA", 0, a, a, p, f"ACF cuts off after lag {a}; {why}")
+    if a is not None:
+        why = "PACF tails off" if p is None else f"PACF cuts off only after lag {p}"
+        return Identification("MA", 0, a, a, p, f"ACF cuts off after lag {a}; {why}")
+    return Identification("ARMA", 1, 1, a, p, "ACF and PACF both tail off")

@@ -19,7 +19,7 @@ import numpy as np
 from bench.analysis.timeseries_acf import as_series, check_order, levinson_durbin
 
 ArMethod = Literal["ulrych-clayton", "burg", "yule-walker"]
-AR_METHODS: tuple[str, ...] = ("ulrych-clayton", "burg", "yule-walker")
+AR_METHODS: tuple[ArMethod, ...] = ("ulrych-clayton", "burg", "yule-walker")
 
 def _full_lag_sums(x: np.ndarray, size: int) -> np.ndarray:
     """``full[d] = sum_{s=d}^{n-1} x[s] x[s-d]`` for ``d = 0..size-1``."""

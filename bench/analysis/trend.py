@@ -82,16 +82,22 @@ class TrendFit:
     fitted: np.ndarray
     residual: np.ndarray
 
+    def __post_init__(self) -> None:
+        exp2 = self.kind == "exp2"
+        if (self.exp2_amplitude is not None) != exp2 or (self.exp2_tau_s is not None) != exp2:
+            raise ValueError(f"kind = {self.kind!r} needs exp2_amplitude and exp2_tau_s "
+                             f"{'both set' if exp2 else 'both None'}")
+
     def evaluate(self, t_s: np.ndarray) -> np.ndarray:
         """Trend value at absolute times ``t_s`` (same time base as the fitted trace)."""
         u = np.asarray(t_s, dtype=float) - self.t0_s
         out = self.offset.value + self.exp_amplitude.value * np.exp(-u / self.exp_tau_s.value)
-        if self.kind == "exp2":
+        if self.exp2_amplitude is not None and self.exp2_tau_s is not None:  # kind == "exp2"
             out = out + self.exp2_amplitude.value * np.exp(-u / self.exp2_tau_s.value)
         return out + self.linear_slope_per_s.value * u
 
     def to_dict(self) -> dict:
-        d = {"kind": self.kind, "t0_s": float(self.t0_s)}
+        d: dict[str, object] = {"kind": self.kind, "t0_s": float(self.t0_s)}
         for name in ("offset", "exp_amplitude", "exp_tau_s", "linear_slope_per_s", "exp2_amplitude", "exp2_tau_s"):
             est = getattr(self, name)
             if est is not None:
@@ -137,14 +143,17 @@ def _scan(u: np.ndarray, y: np.ndarray, taus: np.ndarray, fixed: tuple[float, ..
     """Variable projection: best τ on the grid with every linear coefficient solved exactly."""
     u, y = _block_means(u, y, _SCAN_POINTS)
     base = [np.ones_like(u), u] + [np.exp(-u / t) for t in fixed]
-    best = (np.inf, None)
+    best_sse, best = np.inf, None
     for tau in taus:
         a = np.column_stack(base + [np.exp(-u / tau)])
         coef, *_ = np.linalg.lstsq(a, y, rcond=None)
         sse = float(np.sum((a @ coef - y) ** 2))
-        if sse < best[0]:
-            best = (sse, (coef, tau))
-    coef, tau = best[1]
+        if sse < best_sse:
+            best_sse, best = sse, (coef, tau)
+    if best is None:
+        raise ValueError(f"no time constant of the scan gives a finite residual: values up to "
+                         f"{float(np.max(np.abs(y))):.3g} overflow the sum of squares; rescale the trace")
+    coef, tau = best
     c, b, amps = coef[0], coef[1], coef[2:]
     pairs = sorted(zip(list(fixed) + [tau], amps), key=lambda pair: pair[0])
     return np.array([c, *[v for t, a in pairs for v in (a, t)], b])
@@ -188,7 +197,8 @@ def _solve(u: np.ndarray, y: np.ndarray, z0: np.ndarray, log_bounds: tuple[float
     return sol.x
 
 
-def _fit_blocks(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[float, float]):
+def _fit_blocks(u: np.ndarray, y: np.ndarray, start: np.ndarray,
+                tau_bounds: tuple[float, float]) -> tuple[np.ndarray, float, int]:
     """First stage of :func:`_fit` for long traces: NLS on ≤ 16384 block means.
 
     Returns ``(z, sse, n_blocks)``: parameters with ln τ, the block-mean residual sum of
@@ -204,8 +214,12 @@ def _fit_blocks(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tup
     return z, float(np.sum((_value(theta, ub) - yb) ** 2)), ub.size
 
 
+# theta, covariance, noise AR coefficients, innovation variance, BIC, fitted values
+_Fit = tuple[np.ndarray, np.ndarray, np.ndarray, float, float, np.ndarray]
+
+
 def _fit(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[float, float],
-         z_blocks: np.ndarray | None = None):
+         z_blocks: np.ndarray | None = None) -> _Fit:
     """NLS from ``start``; returns (theta, cov, phi, sigma2, bic, fitted).
 
     Long traces are first fitted on ≤ 16384 block means (or ``z_blocks``, that stage's
@@ -230,11 +244,11 @@ def _fit(u: np.ndarray, y: np.ndarray, start: np.ndarray, tau_bounds: tuple[floa
     h_inv = scale[:, None] * np.linalg.pinv((jac * scale).T @ (jac * scale)) * scale[None, :]
     cov = h_inv @ (sigma2 * g.T @ g) @ h_inv
     k = theta.size + phi.size + 1
-    bic = y.size * np.log(sigma2) + k * np.log(y.size)
+    bic = float(y.size * np.log(sigma2) + k * np.log(y.size))
     return theta, cov, phi, sigma2, bic, fitted
 
 
-def _exp2_promising(blocks1: tuple, blocks2: tuple, n: int) -> bool:
+def _exp2_promising(blocks1: tuple[np.ndarray, float, int], blocks2: tuple[np.ndarray, float, int], n: int) -> bool:
     """Could two exponentials pass the full-length BIC test?  Judged on block means.
 
     Each block mean averages ≥ 61 samples, many noise correlation times, so block means
@@ -276,12 +290,14 @@ def fit_trend(t_s: np.ndarray, y: np.ndarray, *, allow_two_exponentials: bool = 
     start1 = _scan(u, y, taus)
     blocks1 = _fit_blocks(u, y, start1, bounds) if long else None
     fit1 = _fit(u, y, start1, bounds, None if blocks1 is None else blocks1[0])
-    best, kind, bic2 = fit1, "exp1", None
+    best, bic2 = fit1, None
+    kind: Literal["exp1", "exp2"] = "exp1"
+    fit2: _Fit | None
     if allow_two_exponentials:
         try:
             start2 = _scan(u, y, taus[np.abs(np.log(taus / fit1[0][2])) > np.log(2)], fixed=(fit1[0][2],))
             blocks2 = _fit_blocks(u, y, start2, bounds) if long else None
-            if long and not _exp2_promising(blocks1, blocks2, u.size):
+            if blocks1 is not None and blocks2 is not None and not _exp2_promising(blocks1, blocks2, u.size):
                 fit2 = None  # screened out on the block means (module docstring)
             else:
                 fit2 = _fit(u, y, start2, bounds, None if blocks2 is None else blocks2[0])

@@ -63,7 +63,8 @@ def turn_on_metrics(t_s, y, *, band: float, smooth_s: float = 10.0,
     if not (isinstance(band, (int, float)) and math.isfinite(band) and band > 0):
         raise ValueError(f"band = {band!r} must be a positive number (output units)")
     if not step <= smooth_s <= span / 4:
-        raise ValueError(f"smooth_s = {smooth_s!r} not in {step:g}..{span / 4:g} s (sample interval..a quarter of the record)")
+        raise ValueError(f"smooth_s = {smooth_s!r} not in {step:g}..{span / 4:g} s "
+                         "(sample interval..a quarter of the record)")
     if not smooth_s <= settled_window_s <= span / 2:
         raise ValueError(f"settled_window_s = {settled_window_s!r} not in {smooth_s:g}..{span / 2:g} s")
     settled = float(np.mean(y[t >= t[-1] - settled_window_s]))

@@ -25,7 +25,7 @@ import numpy as np
 
 from bench.analysis.ar_kalman import KalmanFit, ar_predict, kalman_ar_fit
 from bench.analysis.ar_models import ImfModel, model_imf
-from bench.analysis.emd import STOP_RULES, EmdResult, emd
+from bench.analysis.emd import STOP_RULES, EmdResult, StopRule, emd
 from bench.analysis.nonrandom import NonRandomTerms, nonrandom_terms
 from bench.analysis.startup import json_safe, validate_trace
 
@@ -98,7 +98,7 @@ class VibrationAnalysis:
         })
 
 
-def analyze_vibration(t_s: np.ndarray, y: np.ndarray, *, stop: str = "sd", max_imfs: int | None = None,
+def analyze_vibration(t_s: np.ndarray, y: np.ndarray, *, stop: StopRule = "sd", max_imfs: int | None = None,
                       max_sifts: int = 1000, p_max: int = 15, criterion: str = "bic", r_ratio: float = 1.0,
                       min_cycles: float = 8.0, line_alpha: float = 1e-3, line_dominance: float = 0.5,
                       lb_lags: int = 20, alpha: float = 0.05,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -119,11 +121,24 @@ def test_fitting_the_denoised_trace_biases_tau_which_is_why_raw_is_the_default()
         (np.arange(50.0), np.ones(49), "equal length"),
         (np.r_[np.arange(49.0), 10.0], np.ones(50), "strictly increasing"),
         (np.arange(50.0), np.r_[np.ones(49), np.nan], "finite"),
+        # squared residuals overflow at every τ of the scan: a clear error, not a TypeError
+        (np.arange(100.0), 1e200 * (1.0 + np.exp(-np.arange(100.0) / 10.0)), "rescale"),
     ],
 )
 def test_bad_input(t, y, match):
     with pytest.raises(ValueError, match=match):
         fit_trend(t, y)
+
+
+def test_kind_and_second_exponential_agree():
+    """A TrendFit whose ``kind`` disagrees with its exp2 fields is refused at construction."""
+    t = np.arange(200.0)
+    fit = fit_trend(t, 1.0 + np.exp(-t / 20.0) + 1e-3 * np.cos(t), allow_two_exponentials=False)
+    assert fit.kind == "exp1"
+    with pytest.raises(ValueError, match="both set"):
+        dataclasses.replace(fit, kind="exp2")
+    with pytest.raises(ValueError, match="both None"):
+        dataclasses.replace(fit, exp2_amplitude=fit.exp_amplitude, exp2_tau_s=fit.exp_tau_s)
 
 
 def test_long_trace_two_exponential_screen():
