@@ -114,13 +114,13 @@ def export_csv(store: RunStore, run_id: str, out_dir_or_file: str | os.PathLike[
         }
     attachment_dir = prefix.parent / f"{prefix.name}.attachments"
     attachment_meta, attachment_paths = [], []
-    for name, (info, payload) in snap.attachments.items():
+    for name, (attachment, payload) in snap.attachments.items():
         path = attachment_dir / name  # names may hold folders, e.g. analysis/startup/x.html
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(payload)
         attachment_paths.append(path)
         relative = f"{attachment_dir.name}/{name}"
-        attachment_meta.append({**dataclasses.asdict(info), "file": relative})
+        attachment_meta.append({**dataclasses.asdict(attachment), "file": relative})
     sidecar = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -212,10 +212,10 @@ def export_hdf5(
         data_json = [json.dumps(e.data) for e in snap.events]
         events.create_dataset("data_json", data=data_json, dtype=text)
         attachments = f.create_group("attachments")
-        for name, (info, payload) in snap.attachments.items():
+        for name, (attachment, payload) in snap.attachments.items():
             ds = attachments.create_dataset(name, data=np.frombuffer(payload, dtype=np.uint8))
             for key in ("mime", "sha256", "created_utc"):
-                ds.attrs[key] = getattr(info, key)
+                ds.attrs[key] = getattr(attachment, key)
     return path
 
 

@@ -64,9 +64,9 @@ def plot_allan(ax: Axes, result: AllanResult, title: str | None = None) -> Axes:
         if c.fit_input:  # the fitted term alone: a line of its slope
             ax.plot(grid, term_adev(name, c.fit_input, grid), "--", color=colour, lw=1.0,
                     label=f"{name} = {_g(c.fit)} {c.unit} (slope {_SLOPE_TEXT[name]})")
-        if c.read_off_input is None:
+        if c.read_off_input is None or c.read_off_tau_s is None:  # both None: no part of the curve has the slope
             continue
-        if name == "B":
+        if c.read_at_tau_s is None:  # B: read at the curve's minimum, not at a fixed τ
             level = c.read_off_input * B_FACTOR
             ax.axhline(level, ls=":", color=colour, lw=0.9)
             ax.plot([c.read_off_tau_s], [level], "D", color=colour, ms=6, mfc="none",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import html
+from collections.abc import Collection, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,8 @@ def save_figure(fig: Figure, path: Path, dpi: int = 110) -> str:
     return path.name
 
 
-def html_table(header: list[str], rows: list[list[object]], bold_rows=frozenset()) -> str:
+def html_table(header: Sequence[str], rows: Sequence[Sequence[object]],
+               bold_rows: Collection[int] = frozenset()) -> str:
     """An escaped HTML table; rows whose index is in ``bold_rows`` get class ``best``."""
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = []

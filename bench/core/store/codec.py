@@ -11,10 +11,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 
 def encode_chunk(
-    stream: str, dtypes: Mapping[str, np.dtype], columns: Mapping[str, object]
+    stream: str, dtypes: Mapping[str, np.dtype], columns: Mapping[str, npt.ArrayLike]
 ) -> tuple[int, str, bytes]:
     """Validate ``columns`` against the stream's ``dtypes`` (name -> storage dtype, in order)
     and return ``(n_rows, dtype string, blob)``.  Raises ValueError/TypeError naming the

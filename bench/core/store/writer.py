@@ -14,6 +14,7 @@ import sqlite3
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from . import codec
 from .model import (
@@ -121,7 +122,7 @@ class RunWriter:
             self._dtypes[name] = spec
             self._next_seq[name] = 0
 
-    def append(self, stream: str, /, **columns: Any) -> None:
+    def append(self, stream: str, /, **columns: npt.ArrayLike) -> None:
         """Append one chunk: every declared column of ``stream`` as an equal-length 1-D
         array, castable without loss to its dtype.  Committed before returning.  A chunk of
         length 0 is accepted and stores nothing."""
