@@ -67,7 +67,8 @@ class MotionPiece:
 
         def antiderivative(tt):
             arg = w * tt + self.phase_rad
-            return -(self.alpha_rad_s + self.beta_rad_s2 * tt) * np.cos(arg) / w + self.beta_rad_s2 * np.sin(arg) / w ** 2
+            return (-(self.alpha_rad_s + self.beta_rad_s2 * tt) * np.cos(arg) / w
+                    + self.beta_rad_s2 * np.sin(arg) / w ** 2)
 
         return self.angle0_rad + np.sum(antiderivative(tau) - antiderivative(np.zeros(1)), axis=-1)
 

@@ -362,7 +362,8 @@ class Axis:
         if len(ab) > 1:  # end exactly at the final rate and, for POS, exactly on target
             vb[-1] = vb[-1] if final_v is None else final_v
             pb[-1] = pb[-1] if final_p is None else final_p
-        plan = _Plan(mode, *(np.array(x, dtype=float) for x in (tb, pb, vb, ab)), servo=servo, demand=demand)
+        tb_a, pb_a, vb_a, ab_a = (np.array(x, dtype=float) for x in (tb, pb, vb, ab))
+        plan = _Plan(mode, tb_a, pb_a, vb_a, ab_a, servo=servo, demand=demand)
         if servo:
             # The error is -r̈/ωn² + Σ kicks; the first kick makes it continuous at t0,
             # each acceleration step Δa adds a kick (Δa/ωn², 0).
@@ -406,6 +407,7 @@ class Axis:
         for tk, coeffs, horizon in plan.kicks:
             if horizon < 0.0:
                 continue
+            sel: slice | np.ndarray
             if ordered:  # the usual case: slice the kick's window instead of masking
                 lo, hi = np.searchsorted(t, tk, side="left"), np.searchsorted(t, tk + horizon, side="right")
                 sel = slice(lo, hi)

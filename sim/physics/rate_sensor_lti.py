@@ -41,6 +41,8 @@ _MAX_MODE_COND = 1e4
 
 #: ``pieces(t0_s, t1_s) -> list[MotionPiece]``: time-ordered, covering [t0_s, t1_s]
 PiecesFn = Callable[[float, float], Sequence[MotionPiece]]
+# per-piece component arrays: counts (m,), ω, α, β, φ (m, K) and the vectors M B, M² B (m, K, n)
+_Components = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 def check_range(name: str, value, lo: float, hi: float, *, lo_open: bool = False) -> float:
@@ -199,14 +201,15 @@ class LinearRateSensor:
         if np.any(lam.real >= 0):
             raise ValueError(f"poles {lam} must lie in the left half-plane")
         # e^{Aτ} from the modes when they are well conditioned (the usual case); expm otherwise
-        self._modal = np.linalg.cond(vec) < _MAX_MODE_COND
-        self._lam, self._vec, self._vinv = lam, vec, (np.linalg.inv(vec) if self._modal else None)
+        modal = np.linalg.cond(vec) < _MAX_MODE_COND
+        self._lam, self._vec = lam, vec
+        self._vinv: np.ndarray | None = np.linalg.inv(vec) if modal else None  # None: use expm
         self._c_ainv = np.linalg.solve(self.a.T, self.c)  # C A⁻¹
         self._c_ainv_b = float(self._c_ainv @ self.b)
         # motion time of the carried state (the sensor at t sees the motion at t − latency)
-        self._t = None if t_origin_s is None else float(t_origin_s) - self.latency_s
-        self._x = None  # carried state; None = settled on the covering piece's forced response
-        self._comp_cache = None
+        self._t: float | None = None if t_origin_s is None else float(t_origin_s) - self.latency_s
+        self._x: np.ndarray | None = None  # carried state; None = settled on the covering piece's forced response
+        self._comp_cache: tuple[list[MotionPiece], _Components] | None = None
 
     # ---- the continuous model -------------------------------------------------------------
     def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -224,18 +227,18 @@ class LinearRateSensor:
     # ---- exact propagation ----------------------------------------------------------------
     def _homogeneous(self, seg: np.ndarray, tau: np.ndarray, h: np.ndarray) -> np.ndarray:
         """``e^{Aτ_p} h[seg_p]`` for τ (P,) ≥ 0, h (m, n) per segment."""
-        if self._modal:
+        if self._vinv is not None:
             return _modal_kernel(seg, tau, self._lam, self._vec, h @ self._vinv.T)
         return np.einsum("pij,pj->pi", expm(self.a[None] * tau[:, None, None]), h[seg])
 
     def _transitions(self, tau: np.ndarray) -> np.ndarray:
         """``e^{Aτ}`` (m, n, n) for τ (m,)."""
-        if self._modal:
+        if self._vinv is not None:
             e = np.exp(np.multiply.outer(tau, self._lam))
             return np.einsum("ij,mj,jk->mik", self._vec, e, self._vinv).real
         return expm(self.a[None] * tau[:, None, None])
 
-    def _components(self, pcs: Sequence[MotionPiece]):
+    def _components(self, pcs: Sequence[MotionPiece]) -> _Components:
         """Padded per-piece component arrays (m, K) and the vectors M B, M² B (m, K, n);
         the last result is reused when the same pieces come again (a dwell's calls)."""
         if self._comp_cache is not None and len(self._comp_cache[0]) == len(pcs) \
@@ -250,12 +253,12 @@ class LinearRateSensor:
         jw_a = 1j * w[..., None, None] * np.eye(self.n) - self.a  # (m, K, n, n)
         v1 = np.linalg.solve(jw_a, np.broadcast_to(self.b.astype(complex), (m, k, self.n))[..., None])
         v2 = np.linalg.solve(jw_a, v1)
-        comp = ncomp, w, alpha, beta, phase, v1[..., 0], v2[..., 0]
+        comp: _Components = ncomp, w, alpha, beta, phase, v1[..., 0], v2[..., 0]
         self._comp_cache = (list(pcs), comp)
         return comp
 
     @staticmethod
-    def _forced(comp, seg: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _forced(comp: _Components, seg: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Particular state (P, n) and rate antiderivative (P,) at τ (P,) into pieces ``seg``."""
         return _forced_kernel(seg.astype(np.int64), np.ascontiguousarray(tau, dtype=float), *comp)
 
@@ -269,10 +272,9 @@ class LinearRateSensor:
                                  f"the next starts at {q.t_start_s!r} s")
         return pcs
 
-    def _states(self, q: np.ndarray, keep: float) -> tuple[np.ndarray, np.ndarray]:
-        """State (P, n) and relative table angle (P,) at motion times q (all ≥ carried time);
-        then carry the state to ``keep`` (one of the q)."""
-        t_c = self._t
+    def _states(self, q: np.ndarray, keep: float, t_c: float) -> tuple[np.ndarray, np.ndarray]:
+        """State (P, n) and relative table angle (P,) at motion times q (all ≥ the carried
+        time ``t_c``); then carry the state to ``keep`` (one of the q)."""
         pcs = self._fetch(t_c, float(q.max()))
         starts = np.array([p.t_start_s for p in pcs])
         sigma = np.maximum(starts, t_c)  # where each segment's propagation starts
@@ -301,11 +303,12 @@ class LinearRateSensor:
         a = q[:n_win]
         if self._t is None:
             self._t = float(a.min())
-        if a.min() < self._t:
+        t_c = self._t
+        if a.min() < t_c:
             raise ValueError(f"window start {a.min() + self.latency_s!r} s precedes the latest window "
-                             f"start {self._t + self.latency_s!r} s of the previous requests "
+                             f"start {t_c + self.latency_s!r} s of the previous requests "
                              "(requests must come in non-decreasing time order)")
-        x, ang = self._states(q, float(a.max()))
+        x, ang = self._states(q, float(a.max()), t_c)
         if shared:
             dx, dth = np.diff(x, axis=0), np.diff(ang)
         else:
@@ -341,6 +344,8 @@ class LinearRateSensor:
     def _add_noise(self, integral: np.ndarray, d: np.ndarray) -> np.ndarray:
         out = integral / d + self.bias
         if self.noise_density > 0:
+            if self.rng is None:  # the constructor refuses this pair; noise_density set later must not either
+                raise ValueError(f"noise_density = {self.noise_density!r} > 0 needs rng, a numpy.random.Generator")
             out = out + self.noise_density / np.sqrt(2.0 * d) * self.rng.standard_normal(np.shape(out))
         return out
 

@@ -203,10 +203,12 @@ class Shaker:
         if self.profile is None or t.size == 0:
             return t, np.zeros(t.size)
         scale = self.envelope_grms(t) / self.profile.grms
-        if self._signal is not None:
-            return t, scale * self._signal.samples(k0, k1 - k0)
         p = self.profile
-        return t, scale * p.peak_g * np.sin(2 * math.pi * p.freq_hz * t + self._sine_phase)
+        if isinstance(p, SineProfile):
+            return t, scale * p.peak_g * np.sin(2 * math.pi * p.freq_hz * t + self._sine_phase)
+        if self._signal is None:  # set_profile builds the shaped noise with every random profile
+            raise RuntimeError(f"random profile {p!r} has no shaped-noise signal")
+        return t, scale * self._signal.samples(k0, k1 - k0)
 
     def measured_grms(self, t_s: float, window_s: float = 1.0) -> float:
         """What the controller reads back: rms of the control signal over the last

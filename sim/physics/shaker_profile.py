@@ -30,8 +30,10 @@ MAX_BREAKPOINTS = 32
 
 
 def _number(name: str, value: object, lo: float, hi: float, *, open_lo: bool = False) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.floating, np.integer))
-    x = float(value) if ok else math.nan
+    if isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool):
+        x = float(value)
+    else:
+        x = math.nan
     if not (math.isfinite(x) and (x > lo if open_lo else x >= lo) and x <= hi):
         raise ValueError(f"{name} = {value!r} not in {'(' if open_lo else '['}{lo:g}, {hi:g}]")
     return x

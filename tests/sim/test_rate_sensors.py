@@ -105,7 +105,7 @@ def test_defective_dynamics_stay_exact(sections):
     pcs = chain(0.0, [(0.2, np.array([3.0, 11.0]), np.array([1.0, -0.5]), np.array([2.0, 0.0]),
                        np.array([0.3, 2.0]))])
     sensor = LinearRateSensor(sections, 1.0, source(pcs), t_origin_s=-0.05)
-    assert not sensor._modal  # the expm path is the one under test
+    assert sensor._vinv is None  # no modal inverse: the expm path is the one under test
     starts = np.linspace(-0.02, 0.4, 30)
     np.testing.assert_allclose(sensor.mean_output(starts, 4e-3),
                                ode_window_means(sensor, pcs, -0.05, starts, 4e-3), atol=1e-9)
@@ -318,6 +318,15 @@ def test_requests_going_back_in_time_are_refused():
     with pytest.raises(ValueError, match="contiguous"):
         LinearRateSensor([Section("lowpass", 1, 1.0)], 1.0,
                          lambda t0, t1: [at_rest(-1.0, 0.2), at_rest(0.5)]).mean_output(np.array([0.0]), 1.0)
+
+
+def test_noise_switched_on_without_a_generator_is_refused_by_name():
+    """``noise_density`` is a plain attribute: raising it on a sensor built without ``rng``
+    must fail naming what is missing, not with an AttributeError on None."""
+    s = LinearRateSensor([Section("lowpass", 1, 1.0)], 1.0, source([at_rest(-1.0)]))
+    s.noise_density = 1.0
+    with pytest.raises(ValueError, match="noise_density = 1.0 > 0 needs rng"):
+        s.mean_output(np.array([0.0]), 0.1)
 
 
 @pytest.mark.parametrize("make,match", [
