@@ -121,8 +121,8 @@ def test_fits_match_statsmodels_wls():
     # Residual standard errors: σ_k²(1 − h_kk) with statsmodels' hat matrix of the whitened fit.
     whitened = sm.OLS(y / sigma, sm.add_constant(w) / sigma[:, None]).fit()
     hat = whitened.get_influence().hat_matrix_diag
-    np.testing.assert_allclose(r.residual_std_ppm_fs, 1e6 * sigma * np.sqrt(1 - hat) / abs(r.scale_factor.value * 300.0),
-                               rtol=1e-8)
+    np.testing.assert_allclose(r.residual_std_ppm_fs,
+                               1e6 * sigma * np.sqrt(1 - hat) / abs(r.scale_factor.value * 300.0), rtol=1e-8)
 
 
 def noisy_runs(g, sigma_dps, draws, seed):

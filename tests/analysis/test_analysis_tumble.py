@@ -99,7 +99,8 @@ def test_identifiability_lists():
             assert why in r.not_identifiable[name], (plan, r.not_identifiable[name])
         assert r.dof == y_dof[plan]
         assert set(r.param_names) | set(r.not_identifiable) == set(PARAM_NAMES)
-    assert "a_i^3 = 1·a_i" in fit_tumble(plan_force(4, 1), current_a(p, plan_force(4, 1))).not_identifiable["k3_g_per_g3"]
+    four = plan_force(4, 1)
+    assert "a_i^3 = 1·a_i" in fit_tumble(four, current_a(p, four)).not_identifiable["k3_g_per_g3"]
 
 
 def test_position_scatter_keeps_designed_aliases_out():
@@ -168,8 +169,11 @@ def coverage(p: AccelerometerParams, f: np.ndarray, sigma_g: float, draws: int, 
     inside = dict.fromkeys(PARAM_NAMES, 0)
     for _ in range(draws):
         r = fit_tumble(f, clean + rng.normal(0, sigma), sigma if stated else None)
+        k95 = r.coverage_factor_95
+        assert k95 is not None, "σ stated or residual degrees of freedom left: the intervals exist"
         for name, est in r.params.items():
-            inside[name] += abs(est.value - getattr(p, name)) <= r.coverage_factor_95 * est.std
+            assert est.std is not None
+            inside[name] += abs(est.value - getattr(p, name)) <= k95 * est.std
     return {name: k / draws for name, k in inside.items() if name in r.params}
 
 

@@ -9,6 +9,7 @@ import sqlite3
 import subprocess
 import sys
 import threading
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from bench.core.store import (
     SCHEMA_VERSION,
     RunClosedError,
     RunStore,
+    RunWriter,
     SchemaVersionError,
     UnknownAttachmentError,
     UnknownRunError,
@@ -31,8 +33,9 @@ from bench.core.store import (
 LINUX_PROC = os.path.exists("/proc/self/stat")
 
 
-def new_run(store: RunStore, **overrides):
-    kwargs = dict(procedure="tumble_calibration", parameters={"n_positions": 6},
+def new_run(store: RunStore, **overrides: Any) -> RunWriter:
+    """A run with plausible metadata; ``overrides`` may be invalid on purpose (validation tests)."""
+    kwargs: dict[str, Any] = dict(procedure="tumble_calibration", parameters={"n_positions": 6},
                   station={"name": "sim"}, unit_serial="SN-001", seed=7, code_version="0.1.0")
     kwargs.update(overrides)
     return store.create_run(**kwargs)
@@ -184,7 +187,7 @@ def test_exception_in_with_block_aborts_keeps_data_and_reraises(store):
         with new_run(store) as run:
             run.add_stream("dmm", {"t_s": "s", "voltage_v": "V"})
             run.append("dmm", t_s=[0.0, 0.5], voltage_v=[1.0, 2.0])
-            1 / 0
+            raise ZeroDivisionError("division by zero")
     info = store.get_run(run.id)
     assert (info.status, info.reason) == ("aborted", "ZeroDivisionError: division by zero")
     assert info.ended_utc is not None and info.last_sample_t_s == 0.5

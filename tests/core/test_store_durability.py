@@ -42,15 +42,17 @@ def _kill_writer_after(path, n_reported: int) -> tuple[str | None, int]:
     right after it opened the store).  Returns (run id, chunks it reported committed)."""
     child = subprocess.Popen([sys.executable, "-c", WRITER, str(path)], stdout=subprocess.PIPE,
                              text=True)
+    out = child.stdout
+    assert out is not None  # stdout=PIPE
     run_id, committed = None, 0
     try:
-        assert child.stdout.readline().strip() == "OPEN"
+        assert out.readline().strip() == "OPEN"
         if n_reported >= 0:
-            line = child.stdout.readline().split()
-            assert line[0] == "RUN", line
-            run_id = line[1]
+            words = out.readline().split()
+            assert words[0] == "RUN", words
+            run_id = words[1]
             while committed < n_reported:
-                committed = int(child.stdout.readline()) + 1
+                committed = int(out.readline()) + 1
             if n_reported > 0:
                 # While the writer lives, a second opener must not take its run for dead.
                 with RunStore(path) as reader:

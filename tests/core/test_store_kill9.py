@@ -61,8 +61,10 @@ def _kill_after(path, seed: int, delay_s: float) -> tuple[str | None, dict[str, 
     chunks reported committed per stream)."""
     child = subprocess.Popen([sys.executable, "-c", WRITER, str(path), str(seed)],
                              stdout=subprocess.PIPE, text=True)
+    out = child.stdout
+    assert out is not None  # stdout=PIPE
     try:
-        first = child.stdout.readline().split()
+        first = out.readline().split()
         assert first and first[0] == "RUN", first
         time.sleep(delay_s)  # the kill moment: wall time on purpose, it is what we randomise
     finally:

@@ -165,16 +165,18 @@ def sift(h: np.ndarray, out: np.ndarray, upper: Spline, lower: Spline | None, ws
     for k, (a, b) in enumerate(zip(ws.starts.tolist(), ws.stops.tolist())):
         m = b - a
         u, lo, t, tmp, flag = ws.u[:m], ws.lo[:m], ws.t[:m], ws.tmp[:m], ws.flag
-        uk, lk = (int(ulo[k]), int(uhi[k])), (int(llo[k]), int(lhi[k])) if lower is not None else None
-        if lower is not None and upper.short_intervals(a, b, *uk) and lower.short_intervals(a, b, *lk):
-            iu, il = interval_indices(a, m, upper.pos, uk, lower.pos, lk, ws)
-            upper.evaluate_block(a, b, *uk, ws, u, iu)
-            lower.evaluate_block(a, b, *lk, ws, lo, il)
-        else:
+        uk = (int(ulo[k]), int(uhi[k]))
+        if lower is None:
             upper.evaluate_block(a, b, *uk, ws, u)
-            if lower is not None:
+        else:
+            lk = (int(llo[k]), int(lhi[k]))
+            if upper.short_intervals(a, b, *uk) and lower.short_intervals(a, b, *lk):
+                iu, il = interval_indices(a, m, upper.pos, uk, lower.pos, lk, ws)
+                upper.evaluate_block(a, b, *uk, ws, u, iu)
+                lower.evaluate_block(a, b, *lk, ws, lo, il)
+            else:
+                upper.evaluate_block(a, b, *uk, ws, u)
                 lower.evaluate_block(a, b, *lk, ws, lo)
-        if lower is not None:
             u += lo
             u *= 0.5  # u is now the envelope mean
         if thetas is not None:

@@ -96,8 +96,9 @@ def _sift_one(r: np.ndarray, imax: np.ndarray, imin: np.ndarray, ws: Workspace,
         if MERGE_MEAN and not rilling and 10 * (px.size + pn.size) < h.size:
             # long knot intervals (over ~20 samples): one merged mean spline halves the
             # per-sample work; below that, merging costs more than it saves (measured)
-            upper, lower = Spline.average(upper, lower), None
-        st = sift(h, out, upper, lower, ws, thetas[:2] if rilling else None)
+            st = sift(h, out, Spline.average(upper, lower), None, ws)
+        else:
+            st = sift(h, out, upper, lower, ws, thetas[:2] if rilling else None)
         if rilling:
             if st.over_theta1 <= thetas[2] * h.size and st.over_theta2 == 0:
                 return h, k, True  # h's own envelopes are symmetric enough: h is the IMF

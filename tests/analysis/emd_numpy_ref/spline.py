@@ -18,6 +18,7 @@ Speed notes (see :mod:`.emd_kernel` for the sifting pass that calls these):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -42,6 +43,16 @@ def not_a_knot_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     (LDLᵀ, no pivoting) solves them — the same slopes as ``CubicSpline`` to rounding.
     """
     return _not_a_knot(x, y, coefficients=False)[0]
+
+
+@overload
+def _not_a_knot(x: np.ndarray, y: np.ndarray, coefficients: Literal[True] = True,
+                scratch: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+
+@overload
+def _not_a_knot(x: np.ndarray, y: np.ndarray, coefficients: Literal[False],
+                scratch: np.ndarray | None = None) -> tuple[np.ndarray, None, None]: ...
 
 
 def _not_a_knot(x: np.ndarray, y: np.ndarray, coefficients: bool = True, scratch: np.ndarray | None = None
@@ -77,9 +88,9 @@ def _not_a_knot(x: np.ndarray, y: np.ndarray, coefficients: bool = True, scratch
     diag[-1] *= 0.5
     h0, h1, hb, ha = dx[0], dx[1], dx[-2], dx[-1]
     d0, d1 = h0 + h1, hb + ha
-    delta = (dy[0] * inv[0], dy[1] * inv[1], dy[-2] * inv[-2], dy[-1] * inv[-1])
-    r0 = ((h0 + 2 * d0) * h1 * delta[0] + h0**2 * delta[1]) / d0  # s0 = (r0 - d0 s1) / h1
-    r1 = (ha**2 * delta[-2] + (2 * d1 + ha) * hb * delta[-1]) / d1  # s_end = (r1 - d1 s_{end-1}) / hb
+    end_delta = (dy[0] * inv[0], dy[1] * inv[1], dy[-2] * inv[-2], dy[-1] * inv[-1])
+    r0 = ((h0 + 2 * d0) * h1 * end_delta[0] + h0**2 * end_delta[1]) / d0  # s0 = (r0 - d0 s1) / h1
+    r1 = (ha**2 * end_delta[-2] + (2 * d1 + ha) * hb * end_delta[-1]) / d1  # s_end = (r1 - d1 s_{end-1}) / hb
     rhs[0] -= r0 * inv[0] * inv[1]
     rhs[-1] -= r1 * inv[-2] * inv[-1]
     # ptsv overwrites its inputs: none of them is needed afterwards
@@ -145,7 +156,7 @@ class Spline:
         order = np.argsort(pos, kind="stable")  # two sorted runs: a linear merge, a's knot first on ties
         pos = pos[order]
         # the interval of a (of b) holding each merged knot: a running count of its knots
-        ia = np.cumsum(order < a.pos.size)
+        ia = np.cumsum(order < a.pos.size, dtype=np.intp)
         ib = np.arange(1, pos.size + 1) - ia
         ia -= 1
         ib -= 1
