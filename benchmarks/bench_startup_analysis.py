@@ -130,7 +130,7 @@ def run_statsmodels(t_s: np.ndarray, y: np.ndarray, cells: list[tuple[int, int]]
             bics = {0: zc.size * (np.log(2 * np.pi * np.mean(zc**2)) + 1) + np.log(zc.size)}
             for p in range(1, max_p + 1):
                 bics[p] = AutoReg(z, lags=p, trend="n", hold_back=max_p).fit().bic
-            out["grid_best_bic"] = (min(bics, key=bics.get), 0)
+            out["grid_best_bic"] = (min(bics, key=bics.__getitem__), 0)
             lap(f"order grid ({len(cells)} cells, AutoReg, {z.size} samples)")
             res = AutoReg(z, lags=final[0], trend="n").fit()
             lap(f"final AutoReg({final[0]}) ({z.size} samples)")
@@ -215,8 +215,9 @@ def main() -> None:
         grid_n = next(v for k, v in sm["samples"].items() if k.startswith("order grid"))
         print(f"  grid best BIC on {grid_n} samples: {sm['grid_best_bic']}")
     prm = sm["params"]
-    print(f"  final ({m.p},0,{m.q}) on {sm['final_samples']} samples (no outlier replacement): ar = {np.round(prm[:m.p], 5).tolist()}, "
-          f"ma = {np.round(prm[m.p:m.p + m.q], 5).tolist()}, sigma2 = {prm[-1]:.6g}; "
+    print(f"  final ({m.p},0,{m.q}) on {sm['final_samples']} samples (no outlier replacement): "
+          f"ar = {np.round(prm[:m.p], 5).tolist()}, ma = {np.round(prm[m.p:m.p + m.q], 5).tolist()}, "
+          f"sigma2 = {prm[-1]:.6g}; "
           f"Ljung-Box p = {sm['ljung_box_p']:.3g}")
 
     print(f"\nratio statsmodels / ours: {sm_s / ours_s:.1f}x as run"

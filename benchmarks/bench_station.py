@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pyvisa
+from pyvisa.resources import MessageBasedResource
 
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
@@ -60,6 +61,7 @@ def dmm_throughput(points: int, repeats: int = 5) -> None:
         rm = pyvisa.ResourceManager("@py")
         dmm = rm.open_resource(station.resources()["dmm"], read_termination="\n",
                                write_termination="\n", timeout=60000)
+        assert isinstance(dmm, MessageBasedResource)  # a TCPIP socket: read and write by message
         dmm.chunk_size = 4 << 20
         dmm.write(f"CONF:VOLT:DC 10;:VOLT:NPLC 0.001;:VOLT:ZERO:AUTO OFF;:SAMP:SOUR TIM;"
                   f":SAMP:TIM 2E-5;:SAMP:COUN {points};:FORM REAL,64;:FORM:BORD SWAP")
@@ -82,7 +84,7 @@ def dmm_throughput(points: int, repeats: int = 5) -> None:
         transfer = best_rate(lambda: driver.query_real64("FETC?"))
         naive = best_rate(lambda: dmm.query_binary_values("FETC?", datatype="d",
                                                           is_big_endian=False,
-                                                          container=np.array))
+                                                          container=np.ndarray))
         err = dmm.query("SYST:ERR?").strip()
         dmm.close()
         rm.close()

@@ -56,7 +56,7 @@ from bench.analysis.emd_kernel import CONVERGED, DEGENERATE, STOP_CODES, count_z
 from bench.analysis.nonrandom import Component, NonRandomTerms, nonrandom_terms
 
 StopRule = Literal["sd", "rilling", "s-number"]
-STOP_RULES: tuple[str, ...] = ("sd", "rilling", "s-number")
+STOP_RULES: tuple[StopRule, ...] = ("sd", "rilling", "s-number")
 MIN_SAMPLES = 8
 
 __all__ = ["Component", "EmdResult", "NonRandomTerms", "STOP_RULES", "count_zero_crossings", "emd", "find_extrema",

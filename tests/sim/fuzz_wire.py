@@ -29,7 +29,7 @@ ERROR_LINE = re.compile(rb'^([+-]\d+),"')
 UNDEFINED = -113
 
 
-class Hang(AssertionError):
+class NoReplyError(AssertionError):
     """A reply that should have come did not come within the timeout."""
 
 
@@ -70,17 +70,22 @@ class _Line:
             self.sock.close()
             self.sock = None
 
+    def _open(self) -> socket.socket:
+        if self.sock is None:
+            raise ConnectionError(f"the connection to {self.addr} is closed; connect() first")
+        return self.sock
+
     def send(self, data: bytes) -> None:
-        self.sock.sendall(data)
+        self._open().sendall(data)
 
     def line(self, what: str) -> bytes:
         while b"\n" not in self.buf:
             try:
-                chunk = self.sock.recv(1 << 16)
+                chunk = self._open().recv(1 << 16)
             except TimeoutError:
-                raise Hang(f"no reply within {self.timeout_s} s to {what}") from None
+                raise NoReplyError(f"no reply within {self.timeout_s} s to {what}") from None
             if not chunk:
-                raise Hang(f"connection closed by the server while waiting for {what}")
+                raise NoReplyError(f"connection closed by the server while waiting for {what}")
             self.buf += chunk
         line, _, self.buf = self.buf.partition(b"\n")
         return line.rstrip(b"\r")
@@ -157,7 +162,7 @@ class GyroFuzzClient:
         tally = tally if tally is not None else Tally()
         tally.sent += 1
         self.conn.send(line + b"\r\n" + GYRO_PROBE + b"\r\n")
-        replies = []
+        replies: list[bytes] = []
         while True:
             reply = self.conn.line(f"$ID? after {line[:40]!r}")
             if reply.startswith(b"$ID,") and (expect == "any" or replies or not line.strip()):

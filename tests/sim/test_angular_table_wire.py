@@ -11,6 +11,7 @@ import pytest
 import pyvisa
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pyvisa.resources import MessageBasedResource
 
 from instruments.angular_table import (
     AngularLimits,
@@ -44,10 +45,14 @@ class Rig:
         self.server.start()
         self.endpoints = {e.name: e for e in self.server.endpoints}
         self.rm = pyvisa.ResourceManager("@py")
-        opts = dict(read_termination="\n", write_termination="\n", timeout=10000)
-        self.res = self.rm.open_resource(self.endpoints["table"].resource, **opts)
-        self.clock = self.rm.open_resource(self.endpoints["sim"].resource, **opts)
+        self.res = self._open(self.endpoints["table"].resource)
+        self.clock = self._open(self.endpoints["sim"].resource)
         self.tbl = AngularVibrationTable(self.res, name="table")
+
+    def _open(self, resource: str) -> MessageBasedResource:
+        inst = self.rm.open_resource(resource, read_termination="\n", write_termination="\n", timeout=10000)
+        assert isinstance(inst, MessageBasedResource)  # a TCPIP socket: read and write by message
+        return inst
 
     def wait(self, seconds: float) -> None:
         assert self.clock.query(f"SIM:TIME:ADV {seconds!r};*OPC?").strip() == "1"

@@ -10,6 +10,7 @@ import pytest
 import pyvisa
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pyvisa.resources import MessageBasedResource
 from scipy.integrate import quad
 from scipy.signal import welch
 
@@ -178,10 +179,14 @@ class Rig:
         self.server.start()
         res = {e.name: e.resource for e in self.server.endpoints}
         self.rm = pyvisa.ResourceManager("@py")
-        opts = dict(read_termination="\n", write_termination="\n", timeout=10000)
-        self.res = self.rm.open_resource(res["shaker"], **opts)
-        self.clock = self.rm.open_resource(res["sim"], **opts)
+        self.res = self._open(res["shaker"])
+        self.clock = self._open(res["sim"])
         self.vt = VibrationTable(self.res, name="shaker")
+
+    def _open(self, resource: str) -> MessageBasedResource:
+        inst = self.rm.open_resource(resource, read_termination="\n", write_termination="\n", timeout=10000)
+        assert isinstance(inst, MessageBasedResource)  # a TCPIP socket: read and write by message
+        return inst
 
     def wait(self, seconds: float) -> None:
         assert self.clock.query(f"SIM:TIME:ADV {seconds!r};*OPC?").strip() == "1"

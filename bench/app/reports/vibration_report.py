@@ -107,9 +107,9 @@ def _error_figure(a: VibrationAnalysis, path: Path) -> str:
     fig = Figure(figsize=(9, 3.5))
     ax = fig.add_subplot()
     lim = float(np.percentile(np.abs(e_ar), 99.9)) or 1.0
-    bins = np.linspace(-lim, lim, 121)
-    ax.hist(e_ar, bins=bins.tolist(), histtype="step", color="C1", label=f"AR fit, std {a.error_ar.std:.3g}")
-    ax.hist(e_k, bins=bins.tolist(), histtype="step", color="C0", label=f"AR + Kalman fit, std {a.error_ar_kalman.std:.3g}")
+    bins = np.linspace(-lim, lim, 121).tolist()  # a list: the bin edges as matplotlib's stubs type them
+    ax.hist(e_ar, bins=bins, histtype="step", color="C1", label=f"AR fit, std {a.error_ar.std:.3g}")
+    ax.hist(e_k, bins=bins, histtype="step", color="C0", label=f"AR + Kalman fit, std {a.error_ar_kalman.std:.3g}")
     ax.set(xlabel="fit error y − fit", ylabel="samples", title="Fit error distribution")
     ax.legend(fontsize=8)
     return _save(fig, path)
@@ -140,10 +140,11 @@ def write_vibration_report(analysis: VibrationAnalysis, directory: str | Path, c
                    _g(m.residual_white.ljung_box_p, 3), _g(m.adf.p_value, 3), _g(m.kpss.p_value, 3),
                    _g(m.imf_white.ljung_box_p, 3), m.identified, _g(k.gain[0], 3)]
                   for m, k in zip(a.models, a.kalman)]
-    err_rows: list[list[object]] = [["AR model fit", _g(a.error_ar.mean), _g(a.error_ar.std), DOCUMENT_C[0][1], DOCUMENT_C[0][2]],
-                ["AR + Kalman fit", _g(a.error_ar_kalman.mean), _g(a.error_ar_kalman.std), DOCUMENT_C[1][1],
-                 DOCUMENT_C[1][2]],
-                ["std ratio (Kalman / AR)", "", _g(a.std_ratio, 3), "", _g(DOCUMENT_C[1][2] / DOCUMENT_C[0][2], 3)]]
+    err_rows: list[list[object]] = [
+        ["AR model fit", _g(a.error_ar.mean), _g(a.error_ar.std), DOCUMENT_C[0][1], DOCUMENT_C[0][2]],
+        ["AR + Kalman fit", _g(a.error_ar_kalman.mean), _g(a.error_ar_kalman.std), DOCUMENT_C[1][1], DOCUMENT_C[1][2]],
+        ["std ratio (Kalman / AR)", "", _g(a.std_ratio, 3), "", _g(DOCUMENT_C[1][2] / DOCUMENT_C[0][2], 3)],
+    ]
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in a.notes) or "<li>none</li>"
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Random-vibration error model</title>
