@@ -147,7 +147,8 @@ def _scan(u: np.ndarray, y: np.ndarray, taus: np.ndarray, fixed: tuple[float, ..
     for tau in taus:
         a = np.column_stack(base + [np.exp(-u / tau)])
         coef, *_ = np.linalg.lstsq(a, y, rcond=None)
-        sse = float(np.sum((a @ coef - y) ** 2))
+        with np.errstate(over="ignore"):  # an overflowing residual is refused below, by name
+            sse = float(np.sum((a @ coef - y) ** 2))
         if sse < best_sse:
             best_sse, best = sse, (coef, tau)
     if best is None:
