@@ -8,6 +8,12 @@ Trigger model (as the real instrument): ``INIT`` → *wait-for-trigger*; each tr
 FIFO reading memory (50 000 readings, 2 000 000 with the MEM option); when it overflows
 the oldest readings are lost and questionable-data bit 14 is set.
 
+``TRIG:SOUR EXT`` is accepted and waits for an edge on the Ext Trig input, which nothing
+on the simulated station drives (as a real meter with the BNC left open).  Level
+triggering (``TRIG:SOUR INT``) and pretrigger capture (``SAMP:COUN:PRET`` > 0) are
+settings the meter keeps and reports, but ``INIT`` with either is refused (-221): they
+are not simulated, and a trace that pretends would mislead.
+
 Virtual time: readings appear as the world advances (this object is a World activity).
 Queries that block on the real meter (``FETC?``/``READ?`` before the acquisition ends,
 ``*OPC?``, ``DATA:REM? n,WAIT``) let simulated time pass until they can answer.  A wait
@@ -102,7 +108,6 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
         self.memory = _Memory(2_000_000 if "MEM" in options else 50_000)
         self.pickup = line_pickup or LinePickup()
         self.converter = DmmConverter(world.rng(f"{name}.converter"), noise_scale=0.0 if ideal else 1.0)
-        self.display = ""
         self.format_real = False
         self.swapped = False
         self._defaults()
@@ -113,6 +118,12 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
         self.fe = DmmFrontEnd(line_hz=self.pickup.nominal_hz)
         self.trig_source, self.trig_count, self.trig_delay_s = "IMMEDIATE", 1.0, 0.0
         self.trig_delay_auto = True
+        self.trig_slope = "NEG"      # Ext Trig edge / level-trigger direction (*RST: NEG)
+        self.trig_level_v = 0.0      # level of TRIG:SOUR INT (*RST: 0 V)
+        self.pretrigger_count = 0    # SAMP:COUN:PRET (*RST: 0)
+        self.display, self.display_on = "", True
+        self.beeper_on = True
+        self.impedance_auto = False  # 10 MOhm on every range (*RST); the loading is not modelled
         self.samp_source, self.samp_count, self.samp_timer_s = "IMMEDIATE", 1, 1.0
         self.state = "IDLE"  # IDLE | WAIT_TRIGGER | ACQUIRING
         self.aperture_value_s = 0.1  # VOLT:APER value (used only while enabled)
@@ -184,6 +195,13 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
     def initiate(self) -> None:
         if self.state != "IDLE":
             raise ScpiError(-213, "INIT while a measurement is in progress")
+        # What the simulation cannot do is refused before anything changes, never faked:
+        # level triggering and pretrigger capture are not modelled.
+        if self.trig_source == "INTERNAL":
+            raise ScpiError(-221, "TRIG:SOUR INT (level trigger) not simulated; use IMM, BUS or EXT")
+        if self.pretrigger_count:
+            raise ScpiError(-221, f"SAMP:COUN:PRET {self.pretrigger_count}: pretrigger capture not "
+                                  "simulated; set it to 0")
         self.memory.clear()
         self._triggers_done = 0.0
         self.state = "WAIT_TRIGGER"

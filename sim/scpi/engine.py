@@ -61,7 +61,7 @@ from .errors import ScpiError, esr_bit_for, format_error_entry
 from .framing import MessageFramer, Oversize
 from .lexer import lex_message, parse_unit
 from .params import Args
-from .tree import Node, compile_pattern, resolve
+from .tree import Node, compile_pattern, registered_patterns, resolve
 
 __all__ = ["ScpiDevice"]
 
@@ -129,6 +129,12 @@ class ScpiDevice(CommonCommands):
         with self._lock:
             compile_pattern(self._root, self._commons, pattern, set, query, max_suffix)
             self._cache.clear()
+
+    def vocabulary(self) -> dict[str, set[str]]:
+        """The registered command tree: ``{pattern: {"set", "query"}}``, patterns as
+        registered (``[SENSe:]VOLTage[:DC]:NPLCycles``, ``*IDN``), built-ins included."""
+        with self._lock:
+            return registered_patterns(self._root, self._commons)
 
     # -- status and errors --------------------------------------------------------------
     @property
