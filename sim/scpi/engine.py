@@ -136,6 +136,23 @@ class ScpiDevice(CommonCommands):
         with self._lock:
             return registered_patterns(self._root, self._commons)
 
+    def pattern_of(self, header: str) -> str | None:
+        """The registered pattern a header *as sent from the root* reaches (``VOLT:DC:RANG?``
+        -> ``[SENSe:]VOLTage[:DC]:RANGe[:UPPer]``), or None when it is undefined or has no
+        handler of its kind (set, or query with ``?``).  Parameters after the header are
+        ignored; nothing is executed."""
+        header = (header.split(None, 1) or [""])[0]
+        query = header.endswith("?")
+        name = header[:-1] if query else header
+        with self._lock:
+            if name.startswith("*"):
+                node = self._commons.get(name.upper())
+            else:
+                hit = self._resolve(self._root, name)
+                node = hit[0] if len(hit) == 3 else None
+            entry = None if node is None else (node.query_entry if query else node.set_entry)
+        return None if entry is None else entry.pattern.strip().removesuffix("?")
+
     # -- status and errors --------------------------------------------------------------
     @property
     def stb(self) -> int:
