@@ -30,7 +30,7 @@ import numpy as np
 
 from sim.devices.dmm_model import DmmConverter, DmmFrontEnd, LinePickup
 from sim.devices.dmm_scpi import Keysight34465AVocabulary
-from sim.scpi import ScpiDevice, ScpiError
+from sim.scpi import ScpiError
 from sim.world import World
 
 #: the source the DMM's input terminals are wired to: (start times, aperture) -> mean volts
@@ -89,8 +89,10 @@ class _Memory:
         return np.concatenate(out) if out else np.empty(0)
 
 
-class Multimeter(Keysight34465AVocabulary, ScpiDevice):
+class Multimeter(Keysight34465AVocabulary):
     """34465A view of the world. ``input_signal`` is wired by the station."""
+
+    memory: _Memory
 
     def __init__(self, world: World, name: str, input_signal: InputSignal,
                  serial: str = "MY59001234", options: tuple[str, ...] = ("DIG", "MEM"),

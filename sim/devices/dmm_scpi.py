@@ -8,10 +8,23 @@ and reading memory it drives live in ``sim.devices.dmm``.
 
 from __future__ import annotations
 
+from abc import ABCMeta, abstractmethod
+from collections.abc import Callable
+from typing import Protocol
+
 import numpy as np
 
-from sim.devices.dmm_model import NOISE_PPM_OF_RANGE, allowed_nplc, noise_ppm, range_for, round_up_nplc
-from sim.scpi import Args, ScpiError, format_block, format_number, format_string
+from sim.devices.dmm_model import (
+    NOISE_PPM_OF_RANGE,
+    DmmConverter,
+    DmmFrontEnd,
+    allowed_nplc,
+    noise_ppm,
+    range_for,
+    round_up_nplc,
+)
+from sim.scpi import Args, ScpiDevice, ScpiError, format_block, format_number, format_string
+from sim.world import World
 
 MAX_SAMPLES = 1_000_000_000   # SAMP:COUN and TRIG:COUN of the 34465A: 1 .. 1e9
 MAX_DELAY_S = 3600.0
@@ -31,15 +44,81 @@ def _fmt_count(x: float) -> str:
 def limits_query(args: Args, current, lo, hi, default, fmt=format_number) -> str:
     """A setting's query: the value, or with MIN|MAX|DEF the limit (as the real meter)."""
     if args.count:
-        value = {"MIN": lo, "MAX": hi, "DEF": default}.get(args.keyword(0))
+        value = {"MIN": lo, "MAX": hi, "DEF": default}.get(args.keyword(0) or "")
         if value is None:
             raise ScpiError(-224, f"{args.raw[0]!r} not in MIN|MAX|DEF")
         return fmt(value)
     return fmt(current)
 
 
-class Keysight34465AVocabulary:
-    """SCPI commands of the 34465A (DC volts), registered on construction by ``_register``."""
+class ReadingMemory(Protocol):
+    """What the vocabulary reads of the meter's FIFO reading memory."""
+
+    depth: int
+    count: int
+    overflowed: bool
+    last: float
+
+    def peek_all(self) -> np.ndarray: ...
+
+    def remove(self, n: int) -> np.ndarray: ...
+
+
+class Keysight34465AVocabulary(ScpiDevice, metaclass=ABCMeta):
+    """SCPI commands of the 34465A (DC volts), registered on construction by ``_register``.
+
+    The state they set and the trigger model they drive belong to the meter
+    (``sim.devices.dmm.Multimeter``); declared here so that each command reads as one line.
+    """
+
+    world: World
+    fe: DmmFrontEnd
+    memory: ReadingMemory
+    converter: DmmConverter
+    input_signal: Callable[[np.ndarray, float], np.ndarray]
+    has_dig: bool
+    state: str
+    trig_source: str
+    trig_count: float
+    trig_delay_s: float
+    trig_delay_auto: bool
+    trig_slope: str
+    trig_level_v: float
+    pretrigger_count: int
+    samp_source: str
+    samp_count: int
+    samp_timer_s: float
+    aperture_value_s: float
+    format_real: bool
+    swapped: bool
+    display: str
+
+    @abstractmethod
+    def initiate(self) -> None:
+        """INIT: the trigger model to wait-for-trigger."""
+
+    @abstractmethod
+    def abort(self) -> None:
+        """ABORt: back to idle."""
+
+    @abstractmethod
+    def _wait_for_points(self, n: int) -> None:
+        """Let simulated time pass until ``n`` readings are in memory."""
+
+    @property
+    @abstractmethod
+    def delay_s(self) -> float:
+        """Trigger delay in force (the auto delay when enabled)."""
+
+    @property
+    @abstractmethod
+    def aperture_enabled(self) -> bool:
+        """Integration set in seconds (VOLT:APER) rather than NPLC."""
+
+    @property
+    @abstractmethod
+    def _aper_min(self) -> float:
+        """Shortest aperture of the fitted options, seconds."""
 
     # -- reply formatting ----------------------------------------------------------------
     def _readings_reply(self, values: np.ndarray, block: bool) -> bytes | str:

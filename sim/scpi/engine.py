@@ -90,17 +90,17 @@ class ScpiDevice(CommonCommands):
 
     def __init__(self, idn: tuple[str, str, str, str], options: str = "0",
                  error_queue_size: int = 20, max_message_bytes: int = 1 << 20):
-        idn = tuple(idn)
-        if len(idn) != 4 or not all(isinstance(f, str) for f in idn):
-            raise ValueError(f"idn must be 4 strings (maker, model, serial, firmware), got {idn!r}")
-        for field, forbidden in [(f, ",;\r\n") for f in idn] + [(options, ";\r\n")]:
+        fields = tuple(idn)
+        if len(fields) != 4 or not all(isinstance(f, str) for f in fields):
+            raise ValueError(f"idn must be 4 strings (maker, model, serial, firmware), got {fields!r}")
+        for field, forbidden in [(f, ",;\r\n") for f in fields] + [(options, ";\r\n")]:
             if not isinstance(field, str) or any(ch in field for ch in forbidden) or not field.isascii():
                 raise ValueError(f"*IDN?/*OPT? field {field!r} must be ASCII without {forbidden!r}")
         if not isinstance(error_queue_size, int) or error_queue_size < 1:
             raise ValueError(f"error_queue_size must be an int >= 1, got {error_queue_size!r}")
         if not isinstance(max_message_bytes, int) or max_message_bytes < 1:
             raise ValueError(f"max_message_bytes must be an int >= 1, got {max_message_bytes!r}")
-        self.idn = idn
+        self.idn = fields
         self.options = options
         self.error_queue_size = error_queue_size
         self.max_message_bytes = max_message_bytes
@@ -267,7 +267,7 @@ class ScpiDevice(CommonCommands):
                 entry = self._common_entry(name, query)
                 if entry is None:
                     continue
-                suffixes = ()
+                suffixes: tuple[int, ...] = ()
             else:
                 hit = self._cache.get((node, name))
                 if hit is None:

@@ -57,7 +57,7 @@ class Node:
     def __init__(self, parent: Node | None, long: str = "", short: str = "",
                  has_suffix: bool = False):
         self.parent = parent
-        self.depth = 0 if parent is None else parent.depth + 1
+        self.depth: int = 0 if parent is None else parent.depth + 1
         self.long = long
         self.short = short
         self.has_suffix = has_suffix
@@ -175,7 +175,7 @@ def compile_pattern(root: Node, commons: dict[str, Node], pattern: str,
     for included in itertools.product((True, False), repeat=len(group_ids)):
         keep = {g for g, inc in zip(group_ids, included) if inc}
         node = root
-        slots = []
+        slots: list[int | None] = []
         for long, short, has_suffix, group in mnemonics:
             if group is not None and group not in keep:
                 if has_suffix:
