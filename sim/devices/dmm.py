@@ -10,9 +10,9 @@ the oldest readings are lost and questionable-data bit 14 is set.
 
 ``TRIG:SOUR EXT`` is accepted and waits for an edge on the Ext Trig input, which nothing
 on the simulated station drives (as a real meter with the BNC left open).  Level
-triggering (``TRIG:SOUR INT``) and pretrigger capture (``SAMP:COUN:PRET`` > 0) are
-settings the meter keeps and reports, but ``INIT`` with either is refused (-221): they
-are not simulated, and a trace that pretends would mislead.
+triggering (``TRIG:SOUR INT``) and pretrigger capture (``SAMP:COUN:PRET`` > 0) sample
+continuously from ``INIT`` (``sim.devices.dmm_capture``); they take one trigger
+(``TRIG:COUN 1``; more is refused at ``INIT`` with -221).
 
 Virtual time: readings appear as the world advances (this object is a World activity).
 Queries that block on the real meter (``FETC?``/``READ?`` before the acquisition ends,
@@ -28,6 +28,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from sim.devices.dmm_capture import CaptureGrid
 from sim.devices.dmm_model import DmmConverter, DmmFrontEnd, LinePickup
 from sim.devices.dmm_scpi import Keysight34465AVocabulary
 from sim.scpi import ScpiError
@@ -36,6 +37,8 @@ from sim.world import World
 #: the source the DMM's input terminals are wired to: (start times, aperture) -> mean volts
 InputSignal = Callable[[np.ndarray, float], np.ndarray]
 MAX_BATCH = 500_000  # readings generated per step, bounds memory per advance
+#: how long a query waits (simulated s) for a level trigger before giving up (-230, no reply)
+LEVEL_WAIT_S = 60.0
 
 
 class _Memory:
@@ -62,6 +65,18 @@ class _Memory:
         while self.count > self.depth:  # drop the oldest readings
             self.overflowed = True
             excess = self.count - self.depth
+            head = self.chunks[0]
+            if head.size <= excess:
+                self.chunks.popleft()
+                self.count -= head.size
+            else:
+                self.chunks[0] = head[excess:]
+                self.count -= excess
+
+    def keep_newest(self, n: int) -> None:
+        """Drop all but the ``n`` newest readings (a pretrigger ring: no overflow flag)."""
+        while self.count > n:
+            excess = self.count - n
             head = self.chunks[0]
             if head.size <= excess:
                 self.chunks.popleft()
@@ -134,6 +149,7 @@ class Multimeter(Keysight34465AVocabulary):
         self._seg_triggers = 1.0     # triggers in it (IMM: all remaining; BUS: one)
         self._g = 0                  # next reading index within it
         self._triggers_done = 0.0
+        self._capture: CaptureGrid | None = None  # level-triggered / pretrigger acquisition
 
     def reset(self) -> None:
         self.abort()
@@ -197,18 +213,39 @@ class Multimeter(Keysight34465AVocabulary):
     def initiate(self) -> None:
         if self.state != "IDLE":
             raise ScpiError(-213, "INIT while a measurement is in progress")
-        # What the simulation cannot do is refused before anything changes, never faked:
-        # level triggering and pretrigger capture are not modelled.
-        if self.trig_source == "INTERNAL":
-            raise ScpiError(-221, "TRIG:SOUR INT (level trigger) not simulated; use IMM, BUS or EXT")
-        if self.pretrigger_count:
-            raise ScpiError(-221, f"SAMP:COUN:PRET {self.pretrigger_count}: pretrigger capture not "
-                                  "simulated; set it to 0")
+        level = self.trig_source == "INTERNAL"
+        if level and not self.fe.autorange and abs(self.trig_level_v) > 1.2 * self.fe.range_v:
+            # the guide: a level outside ±120 % of a manual range reverts the source to IMM
+            self.push_error(-221, f"TRIG:LEV {self.trig_level_v:g} V outside +-120 % of the "
+                                  f"{self.fe.range_v:g} V range: trigger source set to IMM")
+            self.trig_source, level = "IMMEDIATE", False
+        continuous = level or self.pretrigger_count > 0
+        if continuous and self.trig_count != 1:
+            raise ScpiError(-221, f"TRIG:COUN {_count_text(self.trig_count)} with level trigger or "
+                                  "pretrigger: the simulated meter takes one such trigger (TRIG:COUN 1)")
+        if self.pretrigger_count >= self.samp_count:
+            raise ScpiError(-221, f"SAMP:COUN:PRET {self.pretrigger_count} not below SAMP:COUN "
+                                  f"{self.samp_count}")
         self.memory.clear()
         self._triggers_done = 0.0
+        self._capture = None
         self.state = "WAIT_TRIGGER"
         self.world.add_activity(self)
-        if self.trig_source == "IMMEDIATE":
+        if continuous:
+            self._capture = CaptureGrid(
+                t_arm=self.world.now, interval_s=self.interval_s, aperture_s=self.fe.aperture_s,
+                delay_s=self.delay_s, pretrigger=self.pretrigger_count,
+                post_count=self.samp_count - self.pretrigger_count,
+                level_v=self.trig_level_v if level else None, slope=self.trig_slope)
+            if level:
+                # the comparator knows the input as it stands at INIT, so an edge in the same
+                # instant (INIT, then a supply switched on, with no time between) still counts
+                now = np.array([self.world.now])
+                self._capture.previous_v = float(self.input_signal(now, self.fe.aperture_s)[0]
+                                                 + self.pickup.averaged(now, self.fe.aperture_s)[0])
+            if self.trig_source == "IMMEDIATE":
+                self._capture.trigger_at_arm()
+        elif self.trig_source == "IMMEDIATE":
             self._fire(self.world.now, self.trig_count)
 
     def _fire(self, t: float, triggers: float) -> None:
@@ -217,7 +254,11 @@ class Multimeter(Keysight34465AVocabulary):
 
     def trigger(self) -> None:
         if self.state == "WAIT_TRIGGER" and self.trig_source == "BUS":
-            self._fire(self.world.now, 1.0)
+            if self._capture is not None:
+                self._capture.trigger_now(self.world.now)
+                self.state = "ACQUIRING"
+            else:
+                self._fire(self.world.now, 1.0)
         else:
             raise ScpiError(-211)
 
@@ -238,7 +279,50 @@ class Multimeter(Keysight34465AVocabulary):
             self.abort()
             self.push_error(-240, f"measurement failed: {type(exc).__name__}: {exc}")
 
+    def _take(self, t_start: np.ndarray) -> np.ndarray:
+        """Readings whose apertures start at ``t_start`` (increasing, in time order)."""
+        ap = self.fe.aperture_s
+        mean_v = self.input_signal(t_start, ap) + self.pickup.averaged(t_start, ap)
+        return self.converter.convert(mean_v, self.fe)
+
+    def _run_capture(self, t: float) -> None:
+        """The continuous acquisition (level trigger, pretrigger) up to ``t``."""
+        cap = self._capture
+        assert cap is not None
+        while self.state != "IDLE":
+            stop = cap.due(t)
+            if cap.end_index is not None:
+                stop = min(stop, cap.end_index)
+            n = min(stop - cap.next_index, MAX_BATCH)
+            if n <= 0:
+                return
+            first = cap.next_index
+            values = self._take(cap.t_start(np.arange(first, first + n, dtype=np.float64)))
+            if cap.trigger_index is None:
+                hit = cap.crossing(values)
+                if hit is not None:
+                    cap.trigger_index = first + hit
+            pre = n if cap.trigger_index is None else min(n, cap.trigger_index - first + 1)
+            if pre > 0:
+                self.memory.push(values[:pre])
+                self.memory.keep_newest(cap.pretrigger)
+            if cap.trigger_index is not None:
+                self.state = "ACQUIRING"
+                end = cap.end_index
+                assert end is not None
+                lo, hi = max(cap.first_post_index - first, 0), min(end - first, n)
+                if hi > lo:
+                    self.memory.push(values[lo:hi])
+            cap.previous_v = float(values[-1])
+            cap.next_index += n
+            if cap.end_index is not None and cap.next_index >= cap.end_index:
+                self.abort()
+                return
+
     def _run_until(self, t: float) -> None:
+        if self._capture is not None:
+            self._run_capture(t)
+            return
         while self.state == "ACQUIRING":
             due = self._due(t)
             if due - self._g > self.memory.depth:
@@ -248,10 +332,7 @@ class Multimeter(Keysight34465AVocabulary):
             n = min(due - self._g, MAX_BATCH)
             if n > 0:
                 g = np.arange(self._g, self._g + n, dtype=np.float64)
-                t_start = self._t_start(g)
-                ap = self.fe.aperture_s
-                mean_v = self.input_signal(t_start, ap) + self.pickup.averaged(t_start, ap)
-                self.memory.push(self.converter.convert(mean_v, self.fe))
+                self.memory.push(self._take(self._t_start(g)))
                 self._g += n
             if self._g >= self._seg_total:
                 self._triggers_done += self._seg_triggers
@@ -270,24 +351,63 @@ class Multimeter(Keysight34465AVocabulary):
         """Simulated time at which the acquisition ends, or None if it never does by itself."""
         if self.state == "IDLE":
             return self.world.now
+        if self._capture is not None:
+            return self._capture.completion_time()
         last_segment = self._triggers_done + self._seg_triggers >= self.trig_count
         if self.state != "ACQUIRING" or not last_segment or self._seg_total >= 9.9e37:
             return None
         return self._t_end(self._seg_total - 1)
 
+    def _wait_for_level(self) -> None:
+        """Let simulated time pass, up to LEVEL_WAIT_S, until the level trigger fires."""
+        cap = self._capture
+        if cap is None or cap.level_v is None:
+            return
+        give_up = self.world.now + LEVEL_WAIT_S
+        # steps from the acquisition's own length, doubling to 1 s: time overshoots the
+        # crossing by at most one step, and a crossing that came already costs nothing
+        step = max(cap.post_count * cap.interval_s, 1e-3)
+        while cap.trigger_index is None and self.state != "IDLE" and self.world.now < give_up:
+            self.world.advance_to(min(give_up, self.world.now + step))
+            step = min(2 * step, 1.0)
+
     def wait_complete(self) -> None:
+        if self.completion_time() is None:
+            self._wait_for_level()
         t_end = self.completion_time()
         if t_end is None:
-            raise ScpiError(-230, "acquisition waits for a trigger that cannot arrive")
+            raise ScpiError(-230, "acquisition waits for a trigger that cannot arrive"
+                            + (f" (no level crossing within {LEVEL_WAIT_S:g} s)"
+                               if self._capture is not None and self._capture.level_v is not None else ""))
         self.world.advance_to(max(t_end, self.world.now))
 
     def _wait_for_points(self, n: int) -> None:
         """Let simulated time pass until ``n`` readings are in memory."""
+        if self._capture is not None:
+            self._wait_for_capture_points(n)
+            return
         while self.memory.count < n:
             missing = n - self.memory.count
             if self.state != "ACQUIRING" or self._g + missing > self._seg_total:
                 raise ScpiError(-230, f"waiting for {n} readings that cannot arrive")
             self.world.advance_to(max(self.world.now, self._t_end(self._g + missing - 1)))
+
+    def _wait_for_capture_points(self, n: int) -> None:
+        cap = self._capture
+        assert cap is not None
+        self._wait_for_level()
+        while self.memory.count < n:
+            end = cap.end_index
+            if self.state == "IDLE" or end is None:
+                raise ScpiError(-230, f"waiting for {n} readings that cannot arrive")
+            # readings still to come at most: the rest of the acquisition
+            ahead = cap.next_index + (n - self.memory.count) + max(cap.first_post_index - cap.next_index, 0)
+            target = cap.time_of_reading(max(min(ahead, end) - 1, cap.next_index))  # at least one more
+            self.world.advance_to(max(self.world.now, target))
+
+
+def _count_text(count: float) -> str:
+    return "INF" if count >= 9.9e37 else f"{count:g}"
 
 
 __all__ = ["Multimeter"]

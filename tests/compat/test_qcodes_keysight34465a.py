@@ -176,9 +176,34 @@ def test_what_the_simulation_lacks_is_refused_with_the_standard_error(fresh):
     code, message = fresh.error()
     assert code == -224 and "not simulated" in message
     assert fresh.sense_function() == "DC Voltage"
-    fresh.trigger.source("INT")          # level triggering: a setting, but INIT refuses it
-    fresh.init_measurement()
-    assert fresh.error()[0] == -221
-    fresh.trigger.source("IMM")
     fresh.write("VOLT:NPLC 7e3")
     assert fresh.error() == (-222, "Data out of range;NPLC 7000 not in 0.001..100")
+
+
+def test_level_trigger_with_pretrigger_catches_the_unit_switching_on(fresh, raw):
+    supply = raw["supply"]
+    supply.write("OUTP OFF,(@1:3)")
+    fresh.NPLC(0.02)
+    fresh.autorange("OFF")
+    fresh.range(10)
+    fresh.sample.source("TIM")
+    fresh.sample.timer(1e-3)
+    fresh.sample.count(400)
+    fresh.sample.pretrigger_count(100)
+    fresh.trigger.delay(0)
+    fresh.trigger.source("INT")
+    fresh.trigger.slope("POS")
+    fresh.trigger.level(3.0)
+    fresh.init_measurement()
+    # two connections are ordered only by a round trip: the meter armed before the supply
+    # switches on (SYST:ERR?, not *OPC?, which would wait for the acquisition to end)
+    assert fresh.error() == (0, "No error")
+    raw["sim"].query("SIM:TIME:ADV 0.2;*OPC?")  # the script does something else for 200 ms
+    supply.write("APPL CH2,15,0.1;APPL CH3,15,0.1;:OUTP ON,(@2,3)")
+    assert supply.query("SYST:ERR?") == '+0,"No error"'
+    try:
+        trace = fresh.fetch()
+    finally:
+        supply.write("OUTP OFF,(@1:3)")
+    assert trace.shape == (400,)
+    assert np.all(np.abs(trace[:99]) < 1e-3) and np.all(trace[100:] > 6)  # off, then on
