@@ -16,9 +16,10 @@ SEED = 7
 ONLY = "dmm,supply"
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def served():
-    """``{name: VISA resource}`` of ``bench sim serve --only dmm,supply`` (plus ``sim``)."""
+    """``{name: VISA resource}`` of ``bench sim serve --only dmm,supply`` (plus ``sim``): one
+    server for the session (per worker); every test starts from ``*RST``."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen([sys.executable, "-m", "bench.app.cli", "sim", "serve", "--seed", str(SEED),
                              "--only", ONLY], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -37,7 +38,7 @@ def served():
         proc.wait(10)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def raw(served):
     """Plain pyvisa sessions by instrument name, for setting the scene around a driver."""
     rm = pyvisa.ResourceManager("@py")
