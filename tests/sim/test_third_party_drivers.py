@@ -9,6 +9,9 @@ from pymeasure.instruments.agilent import Agilent34410A
 from pymeasure.instruments.hp import HP34401A
 from pymeasure.instruments.keysight import KeysightE36312A
 
+# PyMeasure warns that it does not know whether a 34401A/34410A speaks SCPI: it does
+pytestmark = pytest.mark.filterwarnings("ignore:It is not known whether this device:FutureWarning")
+
 VISA = dict(visa_library="@py", read_termination="\n", write_termination="\n", timeout=10000)
 
 
