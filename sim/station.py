@@ -22,6 +22,7 @@ instruments; procedures see TCP addresses.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -121,7 +122,10 @@ class SimStationConfig:
 class SimulatedStation:
     """Builds the world and serves its instruments on loopback TCP ports."""
 
-    def __init__(self, config: SimStationConfig | None = None) -> None:
+    def __init__(self, config: SimStationConfig | None = None,
+                 only: Collection[str] | None = None) -> None:
+        """``only``: serve just these instruments (and the sim-control endpoint); the world
+        and every model are built all the same, so a seed gives the same bytes either way."""
         cfg = config or SimStationConfig()
         cfg.validate()
         self.config = cfg
@@ -166,6 +170,10 @@ class SimulatedStation:
         self.server.faults = self.faults
         self.sim_control = SimControl(self.world, names, self.faults)
         self._wire_power()
+        unknown = sorted(set(only or ()) - set(names))
+        if unknown:
+            raise ValueError(f"instrument {', '.join(unknown)} not on the simulated station; "
+                             f"allowed: {', '.join(names)}")
         for name, kind, dev in (("dmm", "multimeter", self.dmm),
                                 ("dmm_temp", "multimeter", self.dmm_temp),
                                 ("supply", "power_supply", self.supply),
@@ -176,7 +184,8 @@ class SimulatedStation:
                                 ("dmm_mhd", "multimeter", self.angular.dmm),
                                 ("lf_gyro", "gyro", self.angular.lf_line),
                                 ("sim", "sim_control", self.sim_control)):
-            self.server.add(name, kind, dev)
+            if only is None or name in only or name == "sim":
+                self.server.add(name, kind, dev)
         self.endpoints: list[Endpoint] = []
 
     # -- wiring ----------------------------------------------------------------------------

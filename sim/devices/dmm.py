@@ -8,6 +8,12 @@ Trigger model (as the real instrument): ``INIT`` → *wait-for-trigger*; each tr
 FIFO reading memory (50 000 readings, 2 000 000 with the MEM option); when it overflows
 the oldest readings are lost and questionable-data bit 14 is set.
 
+``TRIG:SOUR EXT`` is accepted and waits for an edge on the Ext Trig input, which nothing
+on the simulated station drives (as a real meter with the BNC left open).  Level
+triggering (``TRIG:SOUR INT``) and pretrigger capture (``SAMP:COUN:PRET`` > 0) sample
+continuously from ``INIT`` (``sim.devices.dmm_capture``); they take one trigger
+(``TRIG:COUN 1``; more is refused at ``INIT`` with -221).
+
 Virtual time: readings appear as the world advances (this object is a World activity).
 Queries that block on the real meter (``FETC?``/``READ?`` before the acquisition ends,
 ``*OPC?``, ``DATA:REM? n,WAIT``) let simulated time pass until they can answer.  A wait
@@ -22,14 +28,17 @@ from collections.abc import Callable
 
 import numpy as np
 
+from sim.devices.dmm_capture import CaptureGrid
 from sim.devices.dmm_model import DmmConverter, DmmFrontEnd, LinePickup
 from sim.devices.dmm_scpi import Keysight34465AVocabulary
-from sim.scpi import ScpiDevice, ScpiError
+from sim.scpi import ScpiError
 from sim.world import World
 
 #: the source the DMM's input terminals are wired to: (start times, aperture) -> mean volts
 InputSignal = Callable[[np.ndarray, float], np.ndarray]
 MAX_BATCH = 500_000  # readings generated per step, bounds memory per advance
+#: how long a query waits (simulated s) for a level trigger before giving up (-230, no reply)
+LEVEL_WAIT_S = 60.0
 
 
 class _Memory:
@@ -64,6 +73,18 @@ class _Memory:
                 self.chunks[0] = head[excess:]
                 self.count -= excess
 
+    def keep_newest(self, n: int) -> None:
+        """Drop all but the ``n`` newest readings (a pretrigger ring: no overflow flag)."""
+        while self.count > n:
+            excess = self.count - n
+            head = self.chunks[0]
+            if head.size <= excess:
+                self.chunks.popleft()
+                self.count -= head.size
+            else:
+                self.chunks[0] = head[excess:]
+                self.count -= excess
+
     def peek_all(self) -> np.ndarray:
         return np.concatenate(list(self.chunks)) if self.chunks else np.empty(0)
 
@@ -83,8 +104,10 @@ class _Memory:
         return np.concatenate(out) if out else np.empty(0)
 
 
-class Multimeter(Keysight34465AVocabulary, ScpiDevice):
+class Multimeter(Keysight34465AVocabulary):
     """34465A view of the world. ``input_signal`` is wired by the station."""
+
+    memory: _Memory
 
     def __init__(self, world: World, name: str, input_signal: InputSignal,
                  serial: str = "MY59001234", options: tuple[str, ...] = ("DIG", "MEM"),
@@ -102,7 +125,6 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
         self.memory = _Memory(2_000_000 if "MEM" in options else 50_000)
         self.pickup = line_pickup or LinePickup()
         self.converter = DmmConverter(world.rng(f"{name}.converter"), noise_scale=0.0 if ideal else 1.0)
-        self.display = ""
         self.format_real = False
         self.swapped = False
         self._defaults()
@@ -113,6 +135,12 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
         self.fe = DmmFrontEnd(line_hz=self.pickup.nominal_hz)
         self.trig_source, self.trig_count, self.trig_delay_s = "IMMEDIATE", 1.0, 0.0
         self.trig_delay_auto = True
+        self.trig_slope = "NEG"      # Ext Trig edge / level-trigger direction (*RST: NEG)
+        self.trig_level_v = 0.0      # level of TRIG:SOUR INT (*RST: 0 V)
+        self.pretrigger_count = 0    # SAMP:COUN:PRET (*RST: 0)
+        self.display, self.display_on = "", True
+        self.beeper_on = True
+        self.impedance_auto = False  # 10 MOhm on every range (*RST); the loading is not modelled
         self.samp_source, self.samp_count, self.samp_timer_s = "IMMEDIATE", 1, 1.0
         self.state = "IDLE"  # IDLE | WAIT_TRIGGER | ACQUIRING
         self.aperture_value_s = 0.1  # VOLT:APER value (used only while enabled)
@@ -121,6 +149,7 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
         self._seg_triggers = 1.0     # triggers in it (IMM: all remaining; BUS: one)
         self._g = 0                  # next reading index within it
         self._triggers_done = 0.0
+        self._capture: CaptureGrid | None = None  # level-triggered / pretrigger acquisition
 
     def reset(self) -> None:
         self.abort()
@@ -184,11 +213,39 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
     def initiate(self) -> None:
         if self.state != "IDLE":
             raise ScpiError(-213, "INIT while a measurement is in progress")
+        level = self.trig_source == "INTERNAL"
+        if level and not self.fe.autorange and abs(self.trig_level_v) > 1.2 * self.fe.range_v:
+            # the guide: a level outside ±120 % of a manual range reverts the source to IMM
+            self.push_error(-221, f"TRIG:LEV {self.trig_level_v:g} V outside +-120 % of the "
+                                  f"{self.fe.range_v:g} V range: trigger source set to IMM")
+            self.trig_source, level = "IMMEDIATE", False
+        continuous = level or self.pretrigger_count > 0
+        if continuous and self.trig_count != 1:
+            raise ScpiError(-221, f"TRIG:COUN {_count_text(self.trig_count)} with level trigger or "
+                                  "pretrigger: the simulated meter takes one such trigger (TRIG:COUN 1)")
+        if self.pretrigger_count >= self.samp_count:
+            raise ScpiError(-221, f"SAMP:COUN:PRET {self.pretrigger_count} not below SAMP:COUN "
+                                  f"{self.samp_count}")
         self.memory.clear()
         self._triggers_done = 0.0
+        self._capture = None
         self.state = "WAIT_TRIGGER"
         self.world.add_activity(self)
-        if self.trig_source == "IMMEDIATE":
+        if continuous:
+            self._capture = CaptureGrid(
+                t_arm=self.world.now, interval_s=self.interval_s, aperture_s=self.fe.aperture_s,
+                delay_s=self.delay_s, pretrigger=self.pretrigger_count,
+                post_count=self.samp_count - self.pretrigger_count,
+                level_v=self.trig_level_v if level else None, slope=self.trig_slope)
+            if level:
+                # the comparator knows the input as it stands at INIT, so an edge in the same
+                # instant (INIT, then a supply switched on, with no time between) still counts
+                now = np.array([self.world.now])
+                self._capture.previous_v = float(self.input_signal(now, self.fe.aperture_s)[0]
+                                                 + self.pickup.averaged(now, self.fe.aperture_s)[0])
+            if self.trig_source == "IMMEDIATE":
+                self._capture.trigger_at_arm()
+        elif self.trig_source == "IMMEDIATE":
             self._fire(self.world.now, self.trig_count)
 
     def _fire(self, t: float, triggers: float) -> None:
@@ -197,7 +254,11 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
 
     def trigger(self) -> None:
         if self.state == "WAIT_TRIGGER" and self.trig_source == "BUS":
-            self._fire(self.world.now, 1.0)
+            if self._capture is not None:
+                self._capture.trigger_now(self.world.now)
+                self.state = "ACQUIRING"
+            else:
+                self._fire(self.world.now, 1.0)
         else:
             raise ScpiError(-211)
 
@@ -218,7 +279,50 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
             self.abort()
             self.push_error(-240, f"measurement failed: {type(exc).__name__}: {exc}")
 
+    def _take(self, t_start: np.ndarray) -> np.ndarray:
+        """Readings whose apertures start at ``t_start`` (increasing, in time order)."""
+        ap = self.fe.aperture_s
+        mean_v = self.input_signal(t_start, ap) + self.pickup.averaged(t_start, ap)
+        return self.converter.convert(mean_v, self.fe)
+
+    def _run_capture(self, t: float) -> None:
+        """The continuous acquisition (level trigger, pretrigger) up to ``t``."""
+        cap = self._capture
+        assert cap is not None
+        while self.state != "IDLE":
+            stop = cap.due(t)
+            if cap.end_index is not None:
+                stop = min(stop, cap.end_index)
+            n = min(stop - cap.next_index, MAX_BATCH)
+            if n <= 0:
+                return
+            first = cap.next_index
+            values = self._take(cap.t_start(np.arange(first, first + n, dtype=np.float64)))
+            if cap.trigger_index is None:
+                hit = cap.crossing(values)
+                if hit is not None:
+                    cap.trigger_index = first + hit
+            pre = n if cap.trigger_index is None else min(n, cap.trigger_index - first + 1)
+            if pre > 0:
+                self.memory.push(values[:pre])
+                self.memory.keep_newest(cap.pretrigger)
+            if cap.trigger_index is not None:
+                self.state = "ACQUIRING"
+                end = cap.end_index
+                assert end is not None
+                lo, hi = max(cap.first_post_index - first, 0), min(end - first, n)
+                if hi > lo:
+                    self.memory.push(values[lo:hi])
+            cap.previous_v = float(values[-1])
+            cap.next_index += n
+            if cap.end_index is not None and cap.next_index >= cap.end_index:
+                self.abort()
+                return
+
     def _run_until(self, t: float) -> None:
+        if self._capture is not None:
+            self._run_capture(t)
+            return
         while self.state == "ACQUIRING":
             due = self._due(t)
             if due - self._g > self.memory.depth:
@@ -228,10 +332,7 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
             n = min(due - self._g, MAX_BATCH)
             if n > 0:
                 g = np.arange(self._g, self._g + n, dtype=np.float64)
-                t_start = self._t_start(g)
-                ap = self.fe.aperture_s
-                mean_v = self.input_signal(t_start, ap) + self.pickup.averaged(t_start, ap)
-                self.memory.push(self.converter.convert(mean_v, self.fe))
+                self.memory.push(self._take(self._t_start(g)))
                 self._g += n
             if self._g >= self._seg_total:
                 self._triggers_done += self._seg_triggers
@@ -250,24 +351,63 @@ class Multimeter(Keysight34465AVocabulary, ScpiDevice):
         """Simulated time at which the acquisition ends, or None if it never does by itself."""
         if self.state == "IDLE":
             return self.world.now
+        if self._capture is not None:
+            return self._capture.completion_time()
         last_segment = self._triggers_done + self._seg_triggers >= self.trig_count
         if self.state != "ACQUIRING" or not last_segment or self._seg_total >= 9.9e37:
             return None
         return self._t_end(self._seg_total - 1)
 
+    def _wait_for_level(self) -> None:
+        """Let simulated time pass, up to LEVEL_WAIT_S, until the level trigger fires."""
+        cap = self._capture
+        if cap is None or cap.level_v is None:
+            return
+        give_up = self.world.now + LEVEL_WAIT_S
+        # steps from the acquisition's own length, doubling to 1 s: time overshoots the
+        # crossing by at most one step, and a crossing that came already costs nothing
+        step = max(cap.post_count * cap.interval_s, 1e-3)
+        while cap.trigger_index is None and self.state != "IDLE" and self.world.now < give_up:
+            self.world.advance_to(min(give_up, self.world.now + step))
+            step = min(2 * step, 1.0)
+
     def wait_complete(self) -> None:
+        if self.completion_time() is None:
+            self._wait_for_level()
         t_end = self.completion_time()
         if t_end is None:
-            raise ScpiError(-230, "acquisition waits for a trigger that cannot arrive")
+            raise ScpiError(-230, "acquisition waits for a trigger that cannot arrive"
+                            + (f" (no level crossing within {LEVEL_WAIT_S:g} s)"
+                               if self._capture is not None and self._capture.level_v is not None else ""))
         self.world.advance_to(max(t_end, self.world.now))
 
     def _wait_for_points(self, n: int) -> None:
         """Let simulated time pass until ``n`` readings are in memory."""
+        if self._capture is not None:
+            self._wait_for_capture_points(n)
+            return
         while self.memory.count < n:
             missing = n - self.memory.count
             if self.state != "ACQUIRING" or self._g + missing > self._seg_total:
                 raise ScpiError(-230, f"waiting for {n} readings that cannot arrive")
             self.world.advance_to(max(self.world.now, self._t_end(self._g + missing - 1)))
+
+    def _wait_for_capture_points(self, n: int) -> None:
+        cap = self._capture
+        assert cap is not None
+        self._wait_for_level()
+        while self.memory.count < n:
+            end = cap.end_index
+            if self.state == "IDLE" or end is None:
+                raise ScpiError(-230, f"waiting for {n} readings that cannot arrive")
+            # readings still to come at most: the rest of the acquisition
+            ahead = cap.next_index + (n - self.memory.count) + max(cap.first_post_index - cap.next_index, 0)
+            target = cap.time_of_reading(max(min(ahead, end) - 1, cap.next_index))  # at least one more
+            self.world.advance_to(max(self.world.now, target))
+
+
+def _count_text(count: float) -> str:
+    return "INF" if count >= 9.9e37 else f"{count:g}"
 
 
 __all__ = ["Multimeter"]

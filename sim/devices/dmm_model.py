@@ -123,7 +123,7 @@ class DmmConverter:
         self.rng = rng
         self.noise_scale = float(noise_scale)
         self.zero_offset_v = float(rng.normal(0.0, zero_offset_sigma_v)) * self.noise_scale
-        self._once_offset = None
+        self._once_offset: float | None = None
 
     def convert(self, mean_input_v: np.ndarray, fe: DmmFrontEnd) -> np.ndarray:
         n = mean_input_v.shape[0]
@@ -133,11 +133,11 @@ class DmmConverter:
             ranges = np.asarray(RANGES_V)
             idx = np.minimum(np.searchsorted(ranges, np.abs(mean_input_v) * (1 - 1e-12)),
                              len(ranges) - 1)
-            rng_v = ranges[idx]
-            factor = np.where(rng_v == 0.1, LOW_RANGE_NOISE_FACTOR[0.1], 1.0)
+            rng_v: np.ndarray | float = ranges[idx]
+            factor: np.ndarray | float = np.where(rng_v == 0.1, LOW_RANGE_NOISE_FACTOR[0.1], 1.0)
         else:
             rng_v = fe.range_v
-            factor = LOW_RANGE_NOISE_FACTOR.get(rng_v, 1.0)
+            factor = LOW_RANGE_NOISE_FACTOR.get(fe.range_v, 1.0)
         sigma = noise_ppm(fe) * 1e-6 * rng_v * factor * self.noise_scale
         readings = mean_input_v + self.rng.normal(0.0, 1.0, n) * sigma
         if fe.autozero == "OFF":

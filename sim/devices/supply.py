@@ -176,8 +176,11 @@ class PowerSupply(ScpiDevice):
         def inst_sel(args: Args) -> None:
             self._selected = channel_named(args.raw[0])
 
-        def oper_mode(args: Args) -> str:
-            return ",".join(self.read(c).mode for c in self._channels_from(args, 0))
+        def isum_condition(args: Args) -> str:
+            # operation instrument summary of output n: 1 = constant current, 2 = constant
+            # voltage, 0 = off (the E364xA's published bit values; assumed the same here)
+            mode = self.read(args.suffixes[0]).mode
+            return str({"CC": 1, "CV": 2}.get(mode, 0))
 
         self.command("[SOURce:]VOLTage[:LEVel][:IMMediate][:AMPLitude]", set=set_volt, query=get_volt)
         self.command("[SOURce:]CURRent[:LEVel][:IMMediate][:AMPLitude]", set=set_curr, query=get_curr)
@@ -187,7 +190,7 @@ class PowerSupply(ScpiDevice):
         self.command("MEASure[:SCALar]:CURRent[:DC]", query=meas_curr)
         self.command("INSTrument:NSELect", set=inst_nsel, query=lambda a: str(self._selected))
         self.command("INSTrument[:SELect]", set=inst_sel, query=lambda a: f"CH{self._selected}")
-        self.command("STATus:OPERation:INSTrument:ISUMmary#:CONDition", query=lambda a: "0")
-        self.command("[SOURce:]CHANnel:MODE", query=oper_mode)
+        self.command("STATus:OPERation:INSTrument:ISUMmary#:CONDition", query=isum_condition,
+                     max_suffix=len(self.channels))
         self.command("SYSTem:REMote", set=lambda a: None)
         self.command("SYSTem:LOCal", set=lambda a: None)

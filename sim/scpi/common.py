@@ -14,6 +14,10 @@ ignores bit 6 (IEEE 488.2 §11.3.2.3), ``*ESR?`` clears the ESR it reports.
 
 from __future__ import annotations
 
+from abc import abstractmethod
+from collections import deque
+from collections.abc import Callable
+
 from .errors import ScpiError, format_error_entry
 from .formatting import format_int
 from .params import Args
@@ -26,8 +30,35 @@ class CommonCommands:
     ``SYSTem:ERRor[:NEXT]? / :COUNt? / :ALL?``, ``SYSTem:VERSion?``.
 
     Expects the host class to provide ``command``, ``idn``, ``options``, ``esr``,
-    ``ese``, ``sre``, ``stb``, ``_errors`` and ``pop_error``.
+    ``ese``, ``sre``, ``stb``, ``errors``, ``_errors`` and ``pop_error`` (declared below).
     """
+
+    idn: tuple[str, ...]
+    options: str
+    esr: int
+    ese: int
+    sre: int
+    _errors: deque[tuple[int, str | None]]
+
+    @abstractmethod
+    def command(self, pattern: str, *, set: Callable[[Args], None] | None = None,
+                query: Callable[[Args], str | bytes] | None = None,
+                max_suffix: int | tuple[int | None, ...] | None = None) -> None:
+        """Register handlers for a SCPI pattern."""
+
+    @abstractmethod
+    def pop_error(self) -> str:
+        """Oldest error entry, removed from the queue."""
+
+    @property
+    @abstractmethod
+    def stb(self) -> int:
+        """Status byte."""
+
+    @property
+    @abstractmethod
+    def errors(self) -> list[str]:
+        """Queued error entries, oldest first."""
 
     def _register_builtins(self) -> None:
         c = self.command

@@ -61,7 +61,7 @@ from .errors import ScpiError, esr_bit_for, format_error_entry
 from .framing import MessageFramer, Oversize
 from .lexer import lex_message, parse_unit
 from .params import Args
-from .tree import Node, compile_pattern, resolve
+from .tree import Node, compile_pattern, registered_patterns, resolve
 
 __all__ = ["ScpiDevice"]
 
@@ -90,17 +90,17 @@ class ScpiDevice(CommonCommands):
 
     def __init__(self, idn: tuple[str, str, str, str], options: str = "0",
                  error_queue_size: int = 20, max_message_bytes: int = 1 << 20):
-        idn = tuple(idn)
-        if len(idn) != 4 or not all(isinstance(f, str) for f in idn):
-            raise ValueError(f"idn must be 4 strings (maker, model, serial, firmware), got {idn!r}")
-        for field, forbidden in [(f, ",;\r\n") for f in idn] + [(options, ";\r\n")]:
+        fields = tuple(idn)
+        if len(fields) != 4 or not all(isinstance(f, str) for f in fields):
+            raise ValueError(f"idn must be 4 strings (maker, model, serial, firmware), got {fields!r}")
+        for field, forbidden in [(f, ",;\r\n") for f in fields] + [(options, ";\r\n")]:
             if not isinstance(field, str) or any(ch in field for ch in forbidden) or not field.isascii():
                 raise ValueError(f"*IDN?/*OPT? field {field!r} must be ASCII without {forbidden!r}")
         if not isinstance(error_queue_size, int) or error_queue_size < 1:
             raise ValueError(f"error_queue_size must be an int >= 1, got {error_queue_size!r}")
         if not isinstance(max_message_bytes, int) or max_message_bytes < 1:
             raise ValueError(f"max_message_bytes must be an int >= 1, got {max_message_bytes!r}")
-        self.idn = idn
+        self.idn = fields
         self.options = options
         self.error_queue_size = error_queue_size
         self.max_message_bytes = max_message_bytes
@@ -129,6 +129,29 @@ class ScpiDevice(CommonCommands):
         with self._lock:
             compile_pattern(self._root, self._commons, pattern, set, query, max_suffix)
             self._cache.clear()
+
+    def vocabulary(self) -> dict[str, set[str]]:
+        """The registered command tree: ``{pattern: {"set", "query"}}``, patterns as
+        registered (``[SENSe:]VOLTage[:DC]:NPLCycles``, ``*IDN``), built-ins included."""
+        with self._lock:
+            return registered_patterns(self._root, self._commons)
+
+    def pattern_of(self, header: str) -> str | None:
+        """The registered pattern a header *as sent from the root* reaches (``VOLT:DC:RANG?``
+        -> ``[SENSe:]VOLTage[:DC]:RANGe[:UPPer]``), or None when it is undefined or has no
+        handler of its kind (set, or query with ``?``).  Parameters after the header are
+        ignored; nothing is executed."""
+        header = (header.split(None, 1) or [""])[0]
+        query = header.endswith("?")
+        name = header[:-1] if query else header
+        with self._lock:
+            if name.startswith("*"):
+                node = self._commons.get(name.upper())
+            else:
+                hit = self._resolve(self._root, name)
+                node = hit[0] if len(hit) == 3 else None
+            entry = None if node is None else (node.query_entry if query else node.set_entry)
+        return None if entry is None else entry.pattern.strip().removesuffix("?")
 
     # -- status and errors --------------------------------------------------------------
     @property
@@ -244,7 +267,7 @@ class ScpiDevice(CommonCommands):
                 entry = self._common_entry(name, query)
                 if entry is None:
                     continue
-                suffixes = ()
+                suffixes: tuple[int, ...] = ()
             else:
                 hit = self._cache.get((node, name))
                 if hit is None:

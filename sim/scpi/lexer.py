@@ -167,6 +167,8 @@ def parse_unit(segs: list[list]) -> tuple[str, list[Param]] | None:
         return None  # empty unit (fast path: ';;' floods must stay cheap)
     head = _decode(raw_head)
     m = _HEADER.match(head)
+    if m is None:  # cannot happen: the pattern matches the empty string
+        raise ScpiError(-102, f"unreadable header {head[:40]!r}")
     header = m.group(1)
     rest = head[m.end():]
     more = len(segs) > 1 or len(segs[0]) > 1

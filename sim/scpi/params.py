@@ -308,6 +308,8 @@ class Args:
         p = self._get(i)
         if p.kind != BLOCK:
             raise self._type_error(p, "block data")
+        if p.payload is None:  # the lexer gives every block its payload
+            raise ScpiError(-161, f"{self._name()}: block without payload")
         return p.payload
 
     def channel_list(self, i: int, *, min: int | None = None, max: int | None = None) -> list[int]:

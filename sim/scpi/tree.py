@@ -23,7 +23,7 @@ import itertools
 import re
 from collections.abc import Callable
 
-__all__ = ["Node", "Entry", "compile_pattern", "resolve", "MAX_SUFFIX"]
+__all__ = ["Node", "Entry", "compile_pattern", "resolve", "registered_patterns", "MAX_SUFFIX"]
 
 #: Largest numeric header suffix accepted at all (handlers may set a lower max).
 MAX_SUFFIX = 999_999_999
@@ -57,7 +57,7 @@ class Node:
     def __init__(self, parent: Node | None, long: str = "", short: str = "",
                  has_suffix: bool = False):
         self.parent = parent
-        self.depth = 0 if parent is None else parent.depth + 1
+        self.depth: int = 0 if parent is None else parent.depth + 1
         self.long = long
         self.short = short
         self.has_suffix = has_suffix
@@ -175,7 +175,7 @@ def compile_pattern(root: Node, commons: dict[str, Node], pattern: str,
     for included in itertools.product((True, False), repeat=len(group_ids)):
         keep = {g for g, inc in zip(group_ids, included) if inc}
         node = root
-        slots = []
+        slots: list[int | None] = []
         for long, short, has_suffix, group in mnemonics:
             if group is not None and group not in keep:
                 if has_suffix:
@@ -226,3 +226,29 @@ def resolve(start: Node, tokens: list[str]) -> tuple[Node, tuple]:
         suffixes.append(value)
         node = child
     return node, tuple(suffixes)
+
+
+def registered_patterns(root: Node, commons: dict[str, Node]) -> dict[str, set[str]]:
+    """Every pattern registered in a tree, as given to ``compile_pattern``, with its kinds.
+
+    Returns ``{pattern: {"set", "query"}}`` (one or both): the command tree as a table,
+    for checking it against a documented vocabulary.  A trailing ``?`` of a pattern is
+    dropped (query-ness is the kind); every expansion of a pattern reports the same one.
+    """
+    found: dict[str, set[str]] = {}
+
+    def note(node: Node) -> None:
+        for kind, entry in (("set", node.set_entry), ("query", node.query_entry)):
+            if entry is not None:
+                found.setdefault(entry.pattern.strip().removesuffix("?"), set()).add(kind)
+
+    stack = [root, *commons.values()]
+    seen: set[int] = set()
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        note(node)
+        stack.extend(node.exact.values())
+    return found

@@ -172,7 +172,7 @@ def test_queries_with_min_max_def_return_the_limits():
     assert float(ask(dmm, "VOLT:NPLC? MIN")) == 0.001  # DIG option fitted
     assert float(ask(dmm, "VOLT:RANG? MAX")) == 1000.0
     assert float(ask(dmm, "TRIG:DEL? MAX")) == 3600.0
-    assert ask(dmm, "TRIG:COUN? MAX") == "+1000000\n"
+    assert ask(dmm, "TRIG:COUN? MAX") == "+1000000000\n"  # 34465A: 1..1e9 (34460A/61A: 1e6)
     _, plain = make(options=())
     assert float(ask(plain, "VOLT:NPLC? MIN")) == 0.02
     assert ask(dmm, "SAMP:COUN? maximum") == "+1000000000\n"  # long form, any case

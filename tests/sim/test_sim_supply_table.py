@@ -40,7 +40,7 @@ def test_current_limit_below_the_draw_collapses_the_rail(station):
     s = station.supply
     ask(s, "APPL CH2,15,0.1;APPL CH3,15,0.005")  # 5 mA limit < 16 mA quiescent draw
     ask(s, ":OUTP ON,(@2,3)")
-    assert ask(s, "CHAN:MODE? (@2,3)") == "CV,CC"
+    assert [ask(s, f"STAT:OPER:INST:ISUM{n}:COND?") for n in (1, 2, 3)] == ["0", "2", "1"]  # off, CV, CC
     volts = [float(v) for v in ask(s, "MEAS:VOLT? (@2,3)").split(",")]
     assert volts[0] == pytest.approx(15.0) and volts[1] < 13.0
     assert not bool(station.accel.powered(station.world.now))

@@ -1,13 +1,16 @@
-"""Drivers written for the real instruments, unchanged, against the simulators (PyMeasure)."""
+"""Drivers written for the real instruments, unchanged, against the simulators (PyMeasure),
+checked against the simulated unit's true parameters (in-process station; the full
+compatibility suite, against `bench sim serve`, is tests/compat/)."""
 
 from __future__ import annotations
 
 import pytest
+from pymeasure.instruments.agilent import Agilent34410A
+from pymeasure.instruments.hp import HP34401A
+from pymeasure.instruments.keysight import KeysightE36312A
 
-pymeasure = pytest.importorskip("pymeasure")
-from pymeasure.instruments.agilent import Agilent34410A  # noqa: E402
-from pymeasure.instruments.hp import HP34401A  # noqa: E402
-from pymeasure.instruments.keysight import KeysightE36312A  # noqa: E402
+# PyMeasure warns that it does not know whether a 34401A/34410A speaks SCPI: it does
+pytestmark = pytest.mark.filterwarnings("ignore:It is not known whether this device:FutureWarning")
 
 VISA = dict(visa_library="@py", read_termination="\n", write_termination="\n", timeout=10000)
 

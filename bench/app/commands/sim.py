@@ -19,6 +19,9 @@ def register(sub) -> None:
                        help="seed of the world [the station file's, else 0]")
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to listen on [127.0.0.1]; anything else warns")
+    serve.add_argument("--only", default=None, metavar="NAMES",
+                       help="serve only these instruments, comma-separated (e.g. dmm,supply); "
+                       "the sim-control endpoint is always served [all]")
     serve.set_defaults(func=serve_sim)
 
 
@@ -34,7 +37,10 @@ def serve_sim(args) -> int:
     options["host"] = args.host
     config = SimStationConfig(**options)
     config.validate()
-    station = SimulatedStation(config)
+    only = None if args.only is None else [n.strip() for n in args.only.split(",") if n.strip()]
+    if only is not None and not only:
+        raise ValueError(f"--only {args.only!r} names no instrument")
+    station = SimulatedStation(config, only=only)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"bench: warning: listening on {args.host}: reachable from the network",
               file=sys.stderr)
