@@ -26,7 +26,7 @@ from instruments.multimeter import Keysight34465A
 from instruments.power_supply import KeysightE36312A
 from instruments.shaker import VibrationTable
 from instruments.turntable import AxisFaultError, DualAxisTurntable
-from sim.faults import _garble
+from sim.faults import garble_reply
 from sim.station import SimStationConfig, SimulatedStation
 
 TIMEOUT_MS = 1000  # short enough for the stall tests, long enough for a loaded CI machine
@@ -252,7 +252,7 @@ def test_garbled_replies_are_seeded_and_a_garbled_readback_is_named_or_retried()
 @given(st.binary(max_size=40), st.integers(0, 2**32 - 1))
 def test_garbling_changes_one_byte_and_keeps_the_terminator(body, seed):
     reply = body.replace(b"\n", b"") + b"\n"
-    out = _garble(reply, np.random.default_rng(seed))
+    out = garble_reply(reply, np.random.default_rng(seed))
     assert out.endswith(b"\n") and out.count(b"\n") == 1
     if len(out) == len(reply):
         assert sum(x != y for x, y in zip(out, reply)) == 1
