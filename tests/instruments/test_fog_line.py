@@ -15,7 +15,7 @@ import pytest
 import pyvisa
 import serial
 
-from instruments.fog import GyroCommandError, GyroTimeout, SerialGyro
+from instruments.fog import GyroCommandError, GyroTimeoutError, SerialGyro
 from instruments.fog_decode import FrameDecoder
 from sim.physics.gyro import indicated_rate_dps
 from sim.station import SimStationConfig, SimulatedStation
@@ -110,7 +110,7 @@ def test_driver_validates_before_the_wire_and_orders_rate_and_baud(bench):
 def test_an_unpowered_unit_is_silent():
     bench = Bench(reply_timeout_s=1.0)
     try:
-        with pytest.raises(GyroTimeout, match=r"gyro: no reply to '\$ID\?'.*unpowered"):
+        with pytest.raises(GyroTimeoutError, match=r"gyro: no reply to '\$ID\?'.*unpowered"):
             bench.gyro.identify()
         snap = bench.gyro.snapshot()
         assert snap["idn"] is None and "no reply" in snap["error"]
@@ -259,7 +259,7 @@ def test_power_loss_ends_the_stream_without_a_stop_reply():
         bench.gyro.read_frames(500, wait=bench.wait)
         bench.wait(0.05)
         bench.power(False)
-        with pytest.raises(GyroTimeout, match=r"no \$OK,STOP") as err:
+        with pytest.raises(GyroTimeoutError, match=r"no \$OK,STOP") as err:
             bench.gyro.stop()
         assert len(err.value.frames) == 100  # the frames sent before the cut are kept
         assert not bench.gyro.streaming
