@@ -32,7 +32,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sim.station import SimulatedStation
-from tests.sim.fuzz_wire import GyroFuzzClient, Hang, ScpiFuzzClient, Tally, gyro_line, scpi_message
+from tests.sim.fuzz_wire import GyroFuzzClient, HangError, ScpiFuzzClient, Tally, gyro_line, scpi_message
 
 VALID = {  # messages each server must take without an error
     "dmm": ["VOLT:NPLC 1", "VOLT:NPLC?", "TRIG:COUN 3", "TRIG:COUN?", "SAMP:COUN 5",
@@ -58,7 +58,7 @@ class HandlerFailures(logging.Handler):
         self.count += 1
 
 
-def _classify(exc: Hang) -> tuple[int, int]:
+def _classify(exc: HangError) -> tuple[int, int]:
     """(crash, hang): a connection the server closed is a crash, a silence a hang."""
     closed = "closed" in str(exc)
     return int(closed), int(not closed)
@@ -78,7 +78,7 @@ def fuzz_scpi(port: int, name: str, n: int, oversize: int, seed: int, timeout_s:
             message, expect, replies = scpi_message(rng, valid, big=False)
         try:
             client.send(message, expect, replies, tally)
-        except Hang as exc:
+        except HangError as exc:
             c, h = _classify(exc)
             crashes, hangs = crashes + c, hangs + h
             client.conn.connect()
@@ -94,7 +94,7 @@ def fuzz_gyro(port: int, n: int, seed: int, timeout_s: float, out: dict) -> None
         line, expect = gyro_line(rng)
         try:
             client.send(line, expect, tally)
-        except Hang as exc:
+        except HangError as exc:
             c, h = _classify(exc)
             crashes, hangs = crashes + c, hangs + h
             client.conn.connect()
@@ -109,7 +109,7 @@ def well_behaved(port: int, stop: threading.Event, timeout_s: float, out: dict) 
         t0 = time.perf_counter()
         try:
             ok = client.identify().startswith(b"Keysight Technologies,E36312A,")
-        except Hang:
+        except HangError:
             ok = False
             client.conn.connect()
         worst_s = max(worst_s, time.perf_counter() - t0)
@@ -126,14 +126,14 @@ def _still_answering(ports: dict, timeout_s: float) -> list[str]:
         try:
             if client.identify().count(b",") != 3:
                 dead.append(name)
-        except Hang:
+        except HangError:
             dead.append(name)
         client.close()
     gyro = GyroFuzzClient("127.0.0.1", ports["gyro"], timeout_s=timeout_s)
     try:
         if not gyro.identify().startswith(b"$ID,"):
             dead.append("gyro")
-    except Hang:
+    except HangError:
         dead.append("gyro")
     gyro.close()
     return dead

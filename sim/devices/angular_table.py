@@ -253,7 +253,8 @@ class AngularTableController(ScpiDevice):
         def rate(a: Args) -> None:
             a.require_count(1, 1)
             self._ref_idle("rate")
-            self.reference.set_rate(a.number(0, min=RATE_RANGE_HZ[0], max=RATE_RANGE_HZ[1], default=DEFAULT_REF_RATE_HZ))
+            self.reference.set_rate(a.number(0, min=RATE_RANGE_HZ[0], max=RATE_RANGE_HZ[1],
+                                             default=DEFAULT_REF_RATE_HZ))
 
         def count(a: Args) -> None:
             a.require_count(1, 1)

@@ -123,7 +123,7 @@ class DmmConverter:
         self.rng = rng
         self.noise_scale = float(noise_scale)
         self.zero_offset_v = float(rng.normal(0.0, zero_offset_sigma_v)) * self.noise_scale
-        self._once_offset = None
+        self._once_offset: float | None = None
 
     def convert(self, mean_input_v: np.ndarray, fe: DmmFrontEnd) -> np.ndarray:
         n = mean_input_v.shape[0]
@@ -133,8 +133,8 @@ class DmmConverter:
             ranges = np.asarray(RANGES_V)
             idx = np.minimum(np.searchsorted(ranges, np.abs(mean_input_v) * (1 - 1e-12)),
                              len(ranges) - 1)
-            rng_v = ranges[idx]
-            factor = np.where(rng_v == 0.1, LOW_RANGE_NOISE_FACTOR[0.1], 1.0)
+            rng_v: np.ndarray | float = ranges[idx]
+            factor: np.ndarray | float = np.where(rng_v == 0.1, LOW_RANGE_NOISE_FACTOR[0.1], 1.0)
         else:
             rng_v = fe.range_v
             factor = LOW_RANGE_NOISE_FACTOR.get(rng_v, 1.0)

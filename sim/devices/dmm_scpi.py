@@ -8,9 +8,20 @@ and reading memory it drives live in ``sim.devices.dmm``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
-from sim.devices.dmm_model import noise_ppm, range_for, round_up_nplc
+from sim.devices.dmm_model import (
+    NOISE_PPM_OF_RANGE,
+    DmmConverter,
+    DmmFrontEnd,
+    allowed_nplc,
+    noise_ppm,
+    range_for,
+    round_up_nplc,
+)
 from sim.scpi import Args, ScpiError, format_block, format_number
 
 MAX_SAMPLES = 1_000_000_000
@@ -24,10 +35,15 @@ def _fmt_count(x: float) -> str:
     return f"{int(x):+d}" if x < 9.9e37 else "+9.90000000E+37"
 
 
+def _accept_boolean(args: Args) -> None:
+    """A setting the simulation does not model: its ON|OFF argument checked, nothing changed."""
+    args.boolean(0)
+
+
 def limits_query(args: Args, current, lo, hi, default, fmt=format_number) -> str:
     """A setting's query: the value, or with MIN|MAX|DEF the limit (as the real meter)."""
     if args.count:
-        value = {"MIN": lo, "MAX": hi, "DEF": default}.get(args.keyword(0))
+        value = {"MIN": lo, "MAX": hi, "DEF": default}.get(args.keyword(0) or "")
         if value is None:
             raise ScpiError(-224, f"{args.raw[0]!r} not in MIN|MAX|DEF")
         return fmt(value)
@@ -36,6 +52,34 @@ def limits_query(args: Args, current, lo, hi, default, fmt=format_number) -> str
 
 class Keysight34465AVocabulary:
     """SCPI commands of the 34465A (DC volts), registered on construction by ``_register``."""
+
+    if TYPE_CHECKING:  # what the host class provides (sim.devices.dmm.Multimeter, an ScpiDevice)
+        fe: DmmFrontEnd
+        converter: DmmConverter
+        memory: Any  # the reading memory
+        has_dig: bool
+        state: str
+
+        def command(self, pattern: str, *, set: Callable[[Args], None] | None = None,
+                    query: Callable[[Args], str | bytes] | None = None,
+                    max_suffix: int | tuple[int | None, ...] | None = None) -> None: ...
+
+        def abort(self) -> None: ...
+
+        def initiate(self) -> None: ...
+
+        def wait_complete(self) -> None: ...
+
+        def _wait_for_points(self, n: int) -> None: ...
+
+        @property
+        def delay_s(self) -> float: ...
+
+        @property
+        def aperture_enabled(self) -> bool: ...
+
+        @property
+        def _aper_min(self) -> float: ...
 
     # -- reply formatting ----------------------------------------------------------------
     def _readings_reply(self, values: np.ndarray, block: bool) -> bytes | str:
@@ -170,7 +214,7 @@ class Keysight34465AVocabulary:
           query=lambda a: format_number(self._resolution()))
         c("[SENSe:]VOLTage[:DC]:ZERO:AUTO", set=set_zero,
           query=lambda a: "1" if fe().autozero == "ON" else "0")
-        c("[SENSe:]VOLTage[:DC]:IMPedance:AUTO", set=lambda a: a.boolean(0), query=lambda a: "0")
+        c("[SENSe:]VOLTage[:DC]:IMPedance:AUTO", set=_accept_boolean, query=lambda a: "0")
         c("TRIGger:SOURce", set=set_trig_sour, query=lambda a: self.trig_source[:3])
         c("TRIGger:COUNt", set=set_trig_coun,
           query=lambda a: limits_query(a, self.trig_count, 1, 1_000_000, 1, _fmt_count))
@@ -196,7 +240,7 @@ class Keysight34465AVocabulary:
         c("SYSTem:LFRequency", query=lambda a: f"{int(fe().line_hz)}")
         c("DISPlay[:WINDow]:TEXT[:DATA]", set=disp_text, query=lambda a: f'"{self.display}"')
         c("DISPlay[:WINDow]:TEXT:CLEar", set=lambda a: setattr(self, "display", ""))
-        c("DISPlay[:STATe]", set=lambda a: a.boolean(0), query=lambda a: "1")
+        c("DISPlay[:STATe]", set=_accept_boolean, query=lambda a: "1")
         c("STATus:QUEStionable[:EVENt]", query=lambda a: f"{self._ques():+d}")
         c("STATus:QUEStionable:CONDition", query=lambda a: f"{self._ques():+d}")
         c("SYSTem:BEEPer[:IMMediate]", set=lambda a: None)
@@ -242,7 +286,6 @@ class Keysight34465AVocabulary:
         self._set_resolution_value(args.number(0, min=1e-9, max=1.0))
 
     def _set_resolution_value(self, res_v: float) -> None:
-        from sim.devices.dmm_model import NOISE_PPM_OF_RANGE, allowed_nplc
         ppm = res_v / self.fe.range_v * 1e6
         for n in allowed_nplc(self.has_dig):  # fastest NPLC that meets the resolution
             if NOISE_PPM_OF_RANGE[n] <= ppm:

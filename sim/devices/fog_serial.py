@@ -293,7 +293,7 @@ class FogSerialDevice:
                 return
 
     def _produce(self, k0: int, n: int) -> None:
-        edges = self._edge(np.arange(k0, k0 + n + 1, dtype=np.float64))
+        edges = np.asarray(self._edge(np.arange(k0, k0 + n + 1, dtype=np.float64)))
         inputs = self.inputs(edges)
         counts = self.gyro.pulses(edges, inputs.omega_dps, inputs.f_g, inputs.vibration_g_rms)
         t_end = edges[1:]

@@ -263,7 +263,7 @@ def test_common_commands() -> None:
     widget, fake = make_widget(replies={
         "*IDN?": "Keysight Technologies,34465A,MY1,A.03", "*OPC?": "1", "*OPT?": '"DIG","0",MEM'})
     assert widget.idn == Identity("Keysight Technologies", "34465A", "MY1", "A.03")
-    widget.idn  # cached: asked once
+    assert widget.idn.model == "34465A"  # cached: asked once
     assert widget.options == ("DIG", "MEM")
     widget.reset()
     widget.clear()

@@ -31,7 +31,7 @@ class ScriptedUnit:
         self.rate_reply_is_cfg = False  # answer $RATE with a configuration line (a faulty unit)
         self.received: list[bytes] = []
         self._listener = socket.create_server(("127.0.0.1", 0))
-        self.address = "socket://127.0.0.1:%d" % self._listener.getsockname()[1]
+        self.address = f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
         self._thread = threading.Thread(target=self._serve, daemon=True)
         self._thread.start()
 

@@ -29,7 +29,7 @@ ERROR_LINE = re.compile(rb'^([+-]\d+),"')
 UNDEFINED = -113
 
 
-class Hang(AssertionError):
+class HangError(AssertionError):
     """A reply that should have come did not come within the timeout."""
 
 
@@ -78,9 +78,9 @@ class _Line:
             try:
                 chunk = self.sock.recv(1 << 16)
             except TimeoutError:
-                raise Hang(f"no reply within {self.timeout_s} s to {what}") from None
+                raise HangError(f"no reply within {self.timeout_s} s to {what}") from None
             if not chunk:
-                raise Hang(f"connection closed by the server while waiting for {what}")
+                raise HangError(f"connection closed by the server while waiting for {what}")
             self.buf += chunk
         line, _, self.buf = self.buf.partition(b"\n")
         return line.rstrip(b"\r")

@@ -158,7 +158,7 @@ def test_truth_reports_the_true_parameters():
     truth = unit.truth()
     assert truth["k2_g_per_g2"] == 17e-6 and truth["k1_a_per_g"] == pytest.approx(1.33e-3)
     assert truth["power_on_time_s"] == 12.0
-    assert set(f.name for f in dataclasses.fields(AccelerometerParams)) <= set(truth)
+    assert {f.name for f in dataclasses.fields(AccelerometerParams)} <= set(truth)
 
 
 @pytest.mark.parametrize("field,value", [
