@@ -15,6 +15,7 @@ import pytest
 import pyvisa
 import serial
 
+from instruments.base import open_resource
 from instruments.fog import GyroCommandError, GyroTimeoutError, SerialGyro
 from instruments.fog_decode import FrameDecoder
 from sim.physics.gyro import indicated_rate_dps
@@ -32,8 +33,8 @@ class Bench:
         self.station.start()
         res = self.station.resources()
         self.rm = pyvisa.ResourceManager("@py")
-        opened = {n: self.rm.open_resource(res[n], read_termination="\n", write_termination="\n",
-                                           timeout=20000) for n in ("supply", "sim", "turntable")}
+        opened = {n: open_resource(res[n], resource_manager=self.rm, timeout_ms=20000)
+                  for n in ("supply", "sim", "turntable")}
         self.supply, self.clock, self.table = opened["supply"], opened["sim"], opened["turntable"]
         self.address = res["gyro"]
         self.port = serial.serial_for_url(self.address, baudrate=921600, timeout=reply_timeout_s)

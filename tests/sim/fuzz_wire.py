@@ -71,9 +71,11 @@ class _Line:
             self.sock = None
 
     def send(self, data: bytes) -> None:
+        assert self.sock is not None, "connect() first"
         self.sock.sendall(data)
 
     def line(self, what: str) -> bytes:
+        assert self.sock is not None, "connect() first"
         while b"\n" not in self.buf:
             try:
                 chunk = self.sock.recv(1 << 16)
@@ -157,7 +159,7 @@ class GyroFuzzClient:
         tally = tally if tally is not None else Tally()
         tally.sent += 1
         self.conn.send(line + b"\r\n" + GYRO_PROBE + b"\r\n")
-        replies = []
+        replies: list[bytes] = []
         while True:
             reply = self.conn.line(f"$ID? after {line[:40]!r}")
             if reply.startswith(b"$ID,") and (expect == "any" or replies or not line.strip()):

@@ -20,7 +20,7 @@ from instruments.angular_table import (
     ToneSpec,
     check_tones,
 )
-from instruments.base import InstrumentError
+from instruments.base import InstrumentError, open_resource
 from sim.devices.angular_reference import ENCODER_COUNTS
 from sim.devices.angular_table import AngularTableController
 from sim.devices.sim_control import SimControl
@@ -44,9 +44,8 @@ class Rig:
         self.server.start()
         self.endpoints = {e.name: e for e in self.server.endpoints}
         self.rm = pyvisa.ResourceManager("@py")
-        opts = dict(read_termination="\n", write_termination="\n", timeout=10000)
-        self.res = self.rm.open_resource(self.endpoints["table"].resource, **opts)
-        self.clock = self.rm.open_resource(self.endpoints["sim"].resource, **opts)
+        self.res = open_resource(self.endpoints["table"].resource, resource_manager=self.rm, timeout_ms=10000)
+        self.clock = open_resource(self.endpoints["sim"].resource, resource_manager=self.rm, timeout_ms=10000)
         self.tbl = AngularVibrationTable(self.res, name="table")
 
     def wait(self, seconds: float) -> None:

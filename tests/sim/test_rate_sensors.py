@@ -50,7 +50,7 @@ def ode_window_means(sensor: LinearRateSensor, pcs, t_origin: float, starts, dur
     a, b, c, d = sensor.state_space()
     edges = np.unique(np.concatenate([starts, starts + dur]))
     bounds = sorted({t_origin, edges[-1], *[p.t_start_s for p in pcs if t_origin < p.t_start_s < edges[-1]]})
-    z, got = np.zeros(a.shape[0] + 1), {}
+    z, got = np.zeros(a.shape[0] + 1), dict[float, float]()
     for lo, hi in zip(bounds, bounds[1:]):
         piece = next(p for p in pcs if p.t_start_s <= lo < p.t_end_s)
 

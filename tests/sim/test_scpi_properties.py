@@ -63,7 +63,7 @@ class Recorder(ScpiDevice):
         return handler
 
     def _data(self, args: Args) -> None:
-        values = []
+        values: list[bytes | str | int] = []
         for i in range(args.count):
             raw = args.raw[i]
             if raw.startswith("#"):

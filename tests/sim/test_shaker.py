@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 from scipy.signal import welch
 
-from instruments.base import InstrumentError
+from instruments.base import InstrumentError, open_resource
 from instruments.shaker import (
     RandomProfileSpec,
     SineProfileSpec,
@@ -178,9 +178,8 @@ class Rig:
         self.server.start()
         res = {e.name: e.resource for e in self.server.endpoints}
         self.rm = pyvisa.ResourceManager("@py")
-        opts = dict(read_termination="\n", write_termination="\n", timeout=10000)
-        self.res = self.rm.open_resource(res["shaker"], **opts)
-        self.clock = self.rm.open_resource(res["sim"], **opts)
+        self.res = open_resource(res["shaker"], resource_manager=self.rm, timeout_ms=10000)
+        self.clock = open_resource(res["sim"], resource_manager=self.rm, timeout_ms=10000)
         self.vt = VibrationTable(self.res, name="shaker")
 
     def wait(self, seconds: float) -> None:
