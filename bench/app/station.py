@@ -224,7 +224,7 @@ def _check_options(table: dict, spec: Mapping[str, Option], where: str) -> None:
 
 #: ``opener(instrument, connection options, VISA resource manager by backend)`` -> an open
 #: connection (anything with ``close()``) of one transport kind of ``instruments.registry``
-Opener = Callable[["InstrumentConfig", dict[str, Any], Callable[[str], Any]], Any]
+Opener = Callable[[InstrumentConfig, dict[str, Any], Callable[[str], Any]], Any]
 
 
 def _open_visa(inst: InstrumentConfig, options: dict[str, Any], manager: Callable[[str], Any]) -> Any:
