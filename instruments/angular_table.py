@@ -103,7 +103,7 @@ def check_tones(tones: Sequence[Sequence[float]], limits: AngularLimits) -> tupl
     return tuple(out)
 
 
-class AngularVibrationTable(RampedController, SCPIInstrument):
+class AngularVibrationTable(RampedController):
     """An angular vibration table and its controller.  The constructor does no I/O;
     ``allowed`` holds the figures the driver validates against (see :meth:`limits`)."""
 

@@ -5,7 +5,7 @@ the same ``write``/``query``/``query_binary_values`` methods); it never knows wh
 simulator or real hardware answers.
 
 Faults on the wire (policy, docs/ARCHITECTURE.md "Driver fault policy"): a query that gets
-no reply raises :class:`InstrumentTimeout`, a broken connection
+no reply raises :class:`InstrumentTimeoutError`, a broken connection
 :class:`InstrumentConnectionError`, a reply that cannot be decoded or parsed
 :class:`InstrumentReplyError` — each naming the instrument and the command, on one line.
 After any of these the session may hold stale bytes, so the next operation first reopens
@@ -37,6 +37,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
+import pyvisa
 
 from .properties import Setting, Validator, control, measurement, read_settings
 from .validate import (
@@ -57,7 +58,7 @@ from .wire import (
     QUERY_RETRIES,
     InstrumentConnectionError,
     InstrumentReplyError,
-    InstrumentTimeout,
+    InstrumentTimeoutError,
     WireFaults,
     safe_to_resend,
 )
@@ -65,7 +66,7 @@ from .wire import (
 __all__ = [
     "BINARY_CHUNK_SIZE", "DEFAULT_TIMEOUT_MS", "MAX_ERROR_READS", "QUERY_RETRIES", "Identity",
     "InstrumentChannel", "InstrumentConnectionError", "InstrumentError", "InstrumentReplyError",
-    "InstrumentTimeout", "SCPIInstrument", "Setting", "UnsupportedInstrumentError", "Validator", "boolean",
+    "InstrumentTimeoutError", "SCPIInstrument", "Setting", "UnsupportedInstrumentError", "Validator", "boolean",
     "channel_list", "control", "format_number", "in_range", "in_set", "int_in_range", "measurement",
     "open_resource", "parse_bool", "parse_error_reply", "parse_float", "parse_int", "quote_string",
     "read_settings", "safe_to_resend", "unquote_string",
@@ -230,7 +231,7 @@ class SCPIInstrument(WireFaults):
                 self._group_commands.append(command)
             else:
                 self.check_errors(command)
-        except (InstrumentTimeout, InstrumentConnectionError) as exc:
+        except (InstrumentTimeoutError, InstrumentConnectionError) as exc:
             if self._group_depth or not safe_to_resend(command):
                 raise
             log.warning("%s; sending %r again", exc, command)
@@ -382,8 +383,6 @@ def open_resource(
     chunk is large for binary reading transfers; extra keyword arguments go to
     ``ResourceManager.open_resource``.
     """
-    import pyvisa  # imported here so the pure helpers above work without a VISA stack
-
     manager = resource_manager if resource_manager is not None else pyvisa.ResourceManager(backend)
     options: dict[str, Any] = {
         "read_termination": "\n",

@@ -21,8 +21,16 @@ from typing import Any
 
 from .base import QUERY_RETRIES, Identity, InstrumentReplyError, in_range, in_set, int_in_range
 from .fog_decode import FRAME_BYTES, Decoded, FrameDecoder
-from .fog_types import GyroCommandError, GyroConfig, GyroFrames, GyroLineError, GyroTimeout, LineCounters, _line_broken
-from .protocols import Wait
+from .fog_types import (
+    GyroCommandError,
+    GyroConfig,
+    GyroFrames,
+    GyroLineError,
+    GyroTimeoutError,
+    LineCounters,
+    line_broken,
+)
+from .protocols import SafeOrder, Wait
 
 log = logging.getLogger(__name__)
 
@@ -43,6 +51,8 @@ SNAPSHOT_TIMEOUT_S = 0.5
 #: ``wait``-paced read gives up: the unit is unpowered or hung, waiting longer only hides it
 SILENT_S = 1.0
 SILENT_FRAMES = 10
+#: longest wait for ``$OK,STOP`` in a teardown (wall s): a powered unit answers at once
+SAFE_STOP_S = 1.0
 
 
 class SerialGyro:
@@ -53,6 +63,9 @@ class SerialGyro:
     the unit's nominal value from ``$CFG?``; ``polarity`` (+1 or -1) flips the sign for
     a unit mounted with its input axis against the reference axis.
     """
+
+    safe_order = SafeOrder.ACQUISITION
+    safe_action = "stop"
 
     def __init__(self, port: Any, name: str | None = None, *,
                  scale_factor_pulses_per_arcsec: float | None = None, polarity: int = 1) -> None:
@@ -78,7 +91,7 @@ class SerialGyro:
         self.port.timeout = self.reply_timeout_s
         line = self.port.read_until(b"\n", 256)
         if not line.endswith(b"\n"):
-            raise GyroTimeout(f"{self.name}: no reply to {command!r} within "
+            raise GyroTimeoutError(f"{self.name}: no reply to {command!r} within "
                               f"{self.reply_timeout_s:g} s (got {line[:40]!r}; unit unpowered?)")
         return line
 
@@ -106,8 +119,8 @@ class SerialGyro:
         for attempt in range(1, attempts + 1):
             try:
                 return self._command_once(command, expect)
-            except (GyroTimeout, GyroLineError, InstrumentReplyError) as exc:
-                if isinstance(exc, GyroTimeout):
+            except (GyroTimeoutError, GyroLineError, InstrumentReplyError) as exc:
+                if isinstance(exc, GyroTimeoutError):
                     self._late[expect] = LATE_REPLY_EXCHANGES
                 if attempt == attempts:
                     raise
@@ -122,7 +135,7 @@ class SerialGyro:
             self.port.write(command.encode("ascii") + b"\r\n")
             reply = self._read_reply(command, expect)
         except Exception as exc:
-            if _line_broken(exc):
+            if line_broken(exc):
                 self._stale = True
                 raise GyroLineError(self.name, command, exc) from exc
             raise
@@ -251,11 +264,30 @@ class SerialGyro:
             try:
                 return self._stop_stream()
             except Exception as exc:
-                if not _line_broken(exc):
+                if not line_broken(exc):
                     raise
                 self._stale = True
                 self.streaming = False
                 raise GyroLineError(self.name, "$STOP", exc) from exc
+
+    def make_safe(self) -> None:
+        """Teardown: end a stream this driver started (``$STOP``); nothing to do otherwise.
+
+        A unit that stays silent for :data:`SAFE_STOP_S` is taken as unpowered, hence at rest:
+        a teardown switches the station's supply off first, and the station's gyro goes quiet
+        with it.  A line that cannot be reopened still raises :class:`GyroLineError`.
+        """
+        if not self.streaming:
+            return
+        saved = self.reply_timeout_s
+        self.reply_timeout_s = min(saved, SAFE_STOP_S)
+        try:
+            self.stop()
+        except GyroTimeoutError as exc:
+            log.info("%s: silent after $STOP, taken as unpowered: %s", self.name, exc)
+        finally:
+            self.reply_timeout_s = saved
+            self.port.timeout = saved
 
     def _stop_stream(self) -> GyroFrames:
         # a broken line is reopened first: the unit goes on streaming through a line break
@@ -270,7 +302,7 @@ class SerialGyro:
             if not chunk:
                 frames = self._convert([self._decoder.feed(pending)])
                 self._decoder.reset()
-                raise GyroTimeout(f"{self.name}: no $OK,STOP within {self.reply_timeout_s:g} s "
+                raise GyroTimeoutError(f"{self.name}: no $OK,STOP within {self.reply_timeout_s:g} s "
                                   f"({len(frames)} frames read; unit unpowered?)", frames)
             pending += chunk
         frames = self._convert([self._decoder.feed(pending[:at])])
@@ -295,8 +327,8 @@ class SerialGyro:
         Without ``wait`` the port is read until n frames arrived (real time).  With
         ``wait`` (the bench clock's sleep), the frames already received are taken first,
         then ``wait`` lets the missing frames' time pass, at most WAIT_STEP_FRAMES frame
-        periods per step — on a simulated station that is what makes them exist.  ``timeout_s`` bounds the wall time of the whole call;
-        on expiry :class:`GyroTimeout` carries the frames read so far.
+        periods per step — on a simulated station that is what makes them exist.  ``timeout_s``
+        bounds the wall time of the whole call; on expiry :class:`GyroTimeoutError` carries the frames read so far.
         """
         n = int_in_range("n", n, (1, 10**9))
         timeout_s = in_range("timeout_s", timeout_s, (0.0, 86400.0))
@@ -307,7 +339,7 @@ class SerialGyro:
             try:
                 return self._read_frames(n, timeout_s, wait, blocks)
             except Exception as exc:
-                if not _line_broken(exc):
+                if not line_broken(exc):
                     raise
                 self._stale = True  # the unit still streams: stop() reopens and stops it
                 raise GyroLineError(self.name, f"reading {n} frames", exc,
@@ -338,7 +370,7 @@ class SerialGyro:
                 silent_s = 0.0 if data else silent_s + step / rate
                 if silent_s >= silent_limit_s:
                     frames = self._convert(blocks)
-                    raise GyroTimeout(f"{self.name}: no frame in {silent_s:g} s of line time "
+                    raise GyroTimeoutError(f"{self.name}: no frame in {silent_s:g} s of line time "
                                       f"({have} of {n} frames; unit unpowered or hung?)", frames)
             first = False
             if data:
@@ -347,7 +379,7 @@ class SerialGyro:
                 have += block.count.size
             if have < n and time.monotonic() >= deadline:
                 frames = self._convert(blocks)
-                raise GyroTimeout(f"{self.name}: {have} of {n} frames in {timeout_s:g} s "
+                raise GyroTimeoutError(f"{self.name}: {have} of {n} frames in {timeout_s:g} s "
                                   f"({frames.dropped} dropped, {frames.corrupt} corrupt)", frames)
         return self._convert(blocks)
 

@@ -183,11 +183,11 @@ class FrameDecoder:
         if prev is None:
             prev = int(seq[0]) - 1
         step = np.diff(seq, prepend=prev % _WRAP) % _WRAP
-        keep = slice(None)
+        keep: slice | np.ndarray = slice(None)
         out_of_order = 0
         if np.any((step == 0) | (step > _HALF)):
-            keep, step = self._drop_out_of_order(seq, prev)
-            out_of_order = seq.size - int(keep.sum())
+            kept, step = self._drop_out_of_order(seq, prev)
+            keep, out_of_order = kept, seq.size - int(kept.sum())
         index = prev + np.cumsum(step)
         if index.size:
             self._last_index = int(index[-1])

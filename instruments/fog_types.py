@@ -17,7 +17,7 @@ class GyroCommandError(RuntimeError):
         super().__init__(f"{name}: $ERR {code} {message!r} after {command!r}")
 
 
-class GyroTimeout(TimeoutError):
+class GyroTimeoutError(TimeoutError):
     """No (complete) answer in time; ``frames`` holds what arrived before the timeout."""
 
     def __init__(self, message: str, frames: GyroFrames | None = None) -> None:
@@ -36,7 +36,7 @@ class GyroLineError(ConnectionError):
         super().__init__(f"{name}: line lost at {command!r} ({type(cause).__name__}: {text[:120]})")
 
 
-def _line_broken(exc: BaseException) -> bool:
+def line_broken(exc: BaseException) -> bool:
     """A port failure (pyserial's SerialException is an OSError), not a timeout."""
     return isinstance(exc, OSError) and not isinstance(exc, TimeoutError)
 
@@ -59,8 +59,9 @@ class GyroFrames:
 
     ``index`` is the frame number since ``$START`` (the sequence unwrapped): the frame
     covers (index/rate_hz, (index+1)/rate_hz] s after the start and ``t_s`` is the end of
-    that interval.  ``counts`` are pulses, ``rate_dps`` their mean rate over the interval.  ``dropped`` counts frames missing from the sequence
-    (lost in the unit, on the line or to corruption), ``corrupt`` frames whose CRC
+    that interval.  ``counts`` are pulses, ``rate_dps`` their mean rate over the interval.
+    ``dropped`` counts frames missing from the sequence (lost in the unit, on the line or to
+    corruption), ``corrupt`` frames whose CRC
     failed, ``resync_bytes`` bytes skipped outside valid frames, ``out_of_order`` valid
     frames discarded because their sequence did not advance.
     """
@@ -93,9 +94,11 @@ class GyroFrames:
                           index=arrays["index"].astype(np.int64),
                           counts=arrays["counts"].astype(np.int64),
                           status=arrays["status"].astype(np.uint16))
-        totals = {f: sum(getattr(b, f) for b in blocks)
-                  for f in ("dropped", "corrupt", "resync_bytes", "out_of_order")}
-        return GyroFrames(**arrays, rate_hz=rate_hz, **totals)
+        return GyroFrames(arrays["sequence"], arrays["index"], arrays["counts"], arrays["rate_dps"],
+                          arrays["temperature_c"], arrays["status"], rate_hz,
+                          dropped=sum(b.dropped for b in blocks), corrupt=sum(b.corrupt for b in blocks),
+                          resync_bytes=sum(b.resync_bytes for b in blocks),
+                          out_of_order=sum(b.out_of_order for b in blocks))
 
 
 @dataclass

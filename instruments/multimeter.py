@@ -39,7 +39,7 @@ from .base import (
     quote_string,
     unquote_string,
 )
-from .protocols import Wait
+from .protocols import SafeOrder, Wait
 
 log = logging.getLogger(__name__)
 
@@ -125,6 +125,8 @@ class Keysight34465A(SCPIInstrument):
     #: they remove readings or trigger a measurement)
     idempotent_queries = SCPIInstrument.idempotent_queries | {"DATA:POIN?", "DATA:LAST?",
                                                               "SYST:LFR?"}
+    safe_order = SafeOrder.ACQUISITION
+    safe_action = "abort"
 
     def __init__(self, resource: Any, name: str | None = None) -> None:
         super().__init__(resource, name)
@@ -342,6 +344,10 @@ class Keysight34465A(SCPIInstrument):
     def abort(self) -> None:
         """``ABOR``: stop an acquisition in progress (readings so far stay in memory)."""
         self.configure_command("ABOR")
+
+    def make_safe(self) -> None:
+        """Teardown: :meth:`abort` (the readings stay in memory)."""
+        self.abort()
 
     def points_available(self) -> int:
         """``DATA:POIN?``: readings waiting in reading memory."""

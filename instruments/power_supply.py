@@ -34,6 +34,7 @@ from .base import (
     parse_float,
     read_settings,
 )
+from .protocols import SafeOrder
 
 ON_OFF = {True: "ON", False: "OFF"}
 
@@ -108,6 +109,9 @@ class KeysightE36312A(SCPIInstrument):
 
     #: the supply's MEAS? reads its output back (no trigger model): safe to re-send
     idempotent_queries = SCPIInstrument.idempotent_queries | {"MEAS:VOLT?", "MEAS:CURR?"}
+    #: first in a teardown: what it feeds (a unit under test, a gyro's stream) stops with it
+    safe_order = SafeOrder.POWER
+    safe_action = "off"
 
     def __init__(self, resource: Any, name: str | None = None) -> None:
         super().__init__(resource, name)
@@ -138,6 +142,10 @@ class KeysightE36312A(SCPIInstrument):
     def outputs_off(self) -> None:
         """Switch every output off (the safe state for teardown)."""
         self.set_outputs(None, False)
+
+    def make_safe(self) -> None:
+        """Teardown: :meth:`outputs_off`."""
+        self.outputs_off()
 
     def snapshot_details(self) -> dict[str, Any]:
         return {"channels": {n: read_settings(out, out.snapshot_settings)

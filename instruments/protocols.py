@@ -7,13 +7,20 @@ must let time pass take a :data:`Wait` callable from the caller (the bench clock
 
 Units are in the names (``_v``, ``_a``, ``_s``, ``_deg``, ``_dps``, ``_dps2``).
 
+Every kind is also a :class:`SafeInstrument`: it knows how to bring itself to rest
+(``make_safe``) and when, in a station's teardown, it should (``safe_order``: power sources
+first, since what they feed goes quiet with them; then acquisitions; then motion).  A
+teardown (``procedures.common.make_safe``) loops over the station's instruments in that
+order and never names one.
+
 The Protocols are deliberately not ``runtime_checkable``: on Python 3.11 an
 ``isinstance`` check reads every property, which would put queries on the wire.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from enum import IntEnum
 from typing import Any, Protocol
 
 import numpy as np
@@ -22,7 +29,35 @@ import numpy as np
 Wait = Callable[[float], None]
 
 
-class TimedTraceMultimeter(Protocol):
+class SafeOrder(IntEnum):
+    """When a station's teardown brings an instrument to rest: lower first, ties in station order."""
+
+    #: power sources: what they feed stops with them (the station's gyro goes silent with its
+    #: supply output), and nothing may stay powered because another instrument hung
+    POWER = 0
+    #: meters and data streams: acquisitions ended
+    ACQUISITION = 1
+    #: tables and shakers: brought to rest (after the rest, so a slow stop delays nothing else)
+    MOTION = 2
+
+
+class SafeInstrument(Protocol):
+    """Anything a teardown brings to rest."""
+
+    @property
+    def safe_order(self) -> SafeOrder:
+        """Its place in the teardown."""
+
+    @property
+    def safe_action(self) -> str:
+        """What :meth:`make_safe` does, in a word or two (``off``, ``abort``, ``stop``): the
+        teardown names a failure ``<instrument> <safe_action>: <error>``."""
+
+    def make_safe(self) -> None:
+        """Bring the instrument to rest; raise if it could not (naming what failed)."""
+
+
+class TimedTraceMultimeter(SafeInstrument, Protocol):
     """A DC voltmeter that samples at a fixed interval and streams the readings."""
 
     @property
@@ -87,7 +122,7 @@ class SupplyChannel(Protocol):
     def apply(self, voltage_v: float, current_a: float) -> None: ...
 
 
-class PowerSupply(Protocol):
+class PowerSupply(SafeInstrument, Protocol):
     """A multi-output DC supply with outputs addressed ``ch[1]``, ``ch[2]``, ..."""
 
     @property
@@ -132,7 +167,7 @@ class RateTableAxis(Protocol):
     def wait_at_rate(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> Any: ...
 
 
-class PositionRateTable(Protocol):
+class PositionRateTable(SafeInstrument, Protocol):
     """A table of numbered axes behind one interlock."""
 
     @property
@@ -152,7 +187,7 @@ class PositionRateTable(Protocol):
     def snapshot(self) -> dict[str, Any]: ...
 
 
-class FrameGyro(Protocol):
+class FrameGyro(SafeInstrument, Protocol):
     """A gyro streaming angle-increment frames (counts, temperature, status) on a line."""
 
     @property
@@ -173,7 +208,7 @@ class FrameGyro(Protocol):
     def snapshot(self) -> dict[str, Any]: ...
 
 
-class RandomVibrationTable(Protocol):
+class RandomVibrationTable(SafeInstrument, Protocol):
     """A shaker with its vibration controller: profile, level, start/stop, control level."""
 
     level_db: float
@@ -201,5 +236,40 @@ class RandomVibrationTable(Protocol):
     def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> str: ...
 
     def wait_idle(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> str: ...
+
+    def snapshot(self) -> dict[str, Any]: ...
+
+
+class AngularVibrationExciter(SafeInstrument, Protocol):
+    """An angular vibration table: tones or a sweep of rate about one axis, and a reference
+    capture (encoder angle and reference rate) on the table's own clock."""
+
+    ramp_time_s: float
+
+    @property
+    def state(self) -> str: ...
+
+    def limits(self) -> Any: ...
+
+    def set_tones(self, tones: Sequence[Sequence[float]]) -> Any: ...
+
+    def configure_sweep(self, start_hz: float, stop_hz: float, duration_s: float, amplitude_dps: float,
+                        spacing: str = ...) -> Any: ...
+
+    def start(self) -> None: ...
+
+    def stop(self) -> None: ...
+
+    def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> str: ...
+
+    def wait_idle(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> str: ...
+
+    def configure_reference(self, rate_hz: float, count: int) -> None: ...
+
+    def start_reference(self) -> None: ...
+
+    def abort_reference(self) -> None: ...
+
+    def read_reference(self, max_points: int | None = ...) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
     def snapshot(self) -> dict[str, Any]: ...

@@ -6,16 +6,17 @@ turntable's axes wait with too."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Any, TypeVar
 
-from .protocols import Wait
+from .base import SCPIInstrument
+from .protocols import SafeOrder, Wait
 from .validate import in_range
 
 T = TypeVar("T")
 
 
-class Interlocked:
-    """Mixin for a driver of a controller with a safety interlock (``:INT:OPEN|CLOS|RES``):
+class Interlocked(SCPIInstrument):
+    """Base of a driver of a controller with a safety interlock (``:INT:OPEN|CLOS|RES``):
     the turntable, the shaker, the angular vibration table."""
 
     def interlock_close(self) -> None:
@@ -32,10 +33,19 @@ class Interlocked:
 
 
 class RampedController(Interlocked):
-    """Mixin for a driver with a ``state`` property (IDLE, RAMP, RUN, ABORT) and a ``name``;
-    ``aborted_error`` is the exception raised when the controller reports ABORT."""
+    """Base of a driver with a ``state`` setting (IDLE, RAMP, RUN, ABORT), declared by the
+    driver; ``aborted_error`` is the exception raised when the controller reports ABORT.
+    Made safe by ``:STOP`` (ramped down to rest)."""
 
     aborted_error: type[Exception] = RuntimeError
+    #: ``:STAT?``: IDLE, RAMP, RUN or ABORT (a ``measurement`` of the driver)
+    state: Any
+    safe_order = SafeOrder.MOTION
+    safe_action = "stop"
+
+    def make_safe(self) -> None:
+        """``:STOP``: ramp down to rest (sent again over a reopened connection if lost)."""
+        self.stop()
 
     def start(self) -> None:
         """``:STAR``: ramp the demand up and run (while running: the old one down first)."""

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from .base import SCPIInstrument, control, in_range, measurement, parse_bool
+from .base import control, in_range, measurement, parse_bool
 from .ramped import RampedController
 
 STATES = ("IDLE", "RAMP", "RUN", "ABORT")
@@ -98,7 +98,7 @@ def _parse_profile(reply: str) -> RandomProfileSpec | SineProfileSpec | None:
     raise ValueError(f":PROF? reply {reply!r} is not NONE, SINE,<hz>,<g> or RAND,<f>,<asd>,...")
 
 
-class VibrationTable(RampedController, SCPIInstrument):
+class VibrationTable(RampedController):
     """A shaker and its random-vibration controller.  The constructor does no I/O."""
 
     aborted_error = VibrationAbortedError

@@ -19,7 +19,6 @@ from typing import Any
 
 from .base import (
     InstrumentChannel,
-    SCPIInstrument,
     control,
     in_range,
     in_set,
@@ -28,7 +27,7 @@ from .base import (
     parse_int,
     read_settings,
 )
-from .protocols import Wait
+from .protocols import SafeOrder, Wait
 from .ramped import Interlocked, poll_until
 
 log = logging.getLogger(__name__)
@@ -203,7 +202,7 @@ class StopFailure:
     error: Exception
 
 
-class DualAxisTurntable(Interlocked, SCPIInstrument):
+class DualAxisTurntable(Interlocked):
     """Two-axis position/rate table; ``table.axis[1]`` (inner), ``table.axis[2]`` (outer).
 
     ``limits`` overrides :data:`DEFAULT_LIMITS` per axis.  The constructor does no I/O.
@@ -222,6 +221,8 @@ class DualAxisTurntable(Interlocked, SCPIInstrument):
 
     interlock_closed = measurement(":INT?", "True while the interlock is closed (drives enabled).",
                                    parse=parse_bool)
+    safe_order = SafeOrder.MOTION
+    safe_action = "stop"
 
     def snapshot_details(self) -> dict[str, Any]:
         return {"axes": {n: read_settings(ax, ax.snapshot_settings) for n, ax in self.axis.items()}}
@@ -240,3 +241,9 @@ class DualAxisTurntable(Interlocked, SCPIInstrument):
                 log.error("%s: could not stop axis %d: %s", self.name, number, exc)
                 failures.append(StopFailure(number, exc))
         return failures
+
+    def make_safe(self) -> None:
+        """Teardown: :meth:`stop_all`, then one error naming every axis that did not stop."""
+        failures = self.stop_all()
+        if failures:
+            raise RuntimeError("; ".join(f"axis {f.axis}: {f.error}" for f in failures))

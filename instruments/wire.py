@@ -35,7 +35,7 @@ class InstrumentReplyError(RuntimeError):
     """A reply did not have the form the programming reference documents."""
 
 
-class InstrumentTimeout(TimeoutError):
+class InstrumentTimeoutError(TimeoutError):
     """No reply in time: names the instrument, the query and (``after``) the command it
     was checking, the timeout and the attempts made."""
 
@@ -91,7 +91,7 @@ class WireFaults:
                   after: str = "") -> Exception | None:
         """The driver's error for a transfer failure, or None for anything else."""
         if getattr(exc, "error_code", None) == _VI_ERROR_TMO or isinstance(exc, TimeoutError):
-            return InstrumentTimeout(self.name, command, getattr(self.resource, "timeout", "?"),
+            return InstrumentTimeoutError(self.name, command, getattr(self.resource, "timeout", "?"),
                                      attempt, after)
         if isinstance(exc, (UnicodeDecodeError, InstrumentReplyError)):
             context = f" after {after!r}" if after else ""

@@ -8,12 +8,14 @@ accelerometer from two rails (positive and negative channel), the gyro from one 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from bench.analysis.trend import Estimate  # the steps' value ± standard uncertainty
 from bench.core.procedure import Context, each_safely
+from instruments.protocols import SafeInstrument
 
 #: fastest integration that fits a reading interval, per mains frequency (NPLC values)
 NPLC_CHOICES = (100.0, 10.0, 1.0, 0.2, 0.06, 0.02)
@@ -138,32 +140,16 @@ def read_gyro_frames(ctx: Context, n: int, store, *, stop: bool = False):
 
 
 def make_safe(ctx: Context) -> None:
-    """Teardown for every procedure: supply off, meters idle, tables and shaker stopped.
-
-    The supply going off is what stops a gyro's frame stream (an unpowered gyro cannot be
-    asked to stop). Tries every instrument the station has even when one fails, then raises
-    one error naming all failures.
+    """Teardown for every procedure: each instrument of the station brought to rest by its own
+    ``make_safe()`` (supply off, meters aborted, streams, tables and shakers stopped), in
+    ``safe_order`` (``instruments.protocols.SafeOrder``): power sources first — the supply going
+    off is what silences the station's gyro — then acquisitions, then motion; ties in station
+    order.  Tries every instrument even when one fails, then raises one error naming all
+    failures (``<instrument> <action>: <error>``).
     """
-    inst = ctx.instruments
-    actions = []
-    if "supply" in inst:
-        actions.append(("supply off", inst["supply"].outputs_off))
-    for name in ("dmm", "dmm_temp", "dmm_mhd"):
-        if name in inst:
-            actions.append((f"{name} abort", inst[name].abort))
-    if "lf_gyro" in inst and inst["lf_gyro"].streaming:  # its own supply: stop the stream by command
-        actions.append(("lf_gyro stop", inst["lf_gyro"].stop))
-    if "turntable" in inst:
-        def stop_table() -> None:
-            failures = inst["turntable"].stop_all()
-            if failures:
-                raise RuntimeError("; ".join(f"axis {f.axis}: {f.error}" for f in failures))
-        actions.append(("turntable stop", stop_table))
-    if "shaker" in inst:
-        actions.append(("shaker stop", inst["shaker"].stop))
-    if "angular_table" in inst:
-        actions.append(("angular table stop", inst["angular_table"].stop))
-    each_safely(actions)
+    instruments: Mapping[str, SafeInstrument] = ctx.instruments
+    ordered = sorted(instruments.items(), key=lambda item: item[1].safe_order)
+    each_safely([(f"{name} {inst.safe_action}", inst.make_safe) for name, inst in ordered])
 
 
 __all__ = ["Estimate", "check_ranges", "choose_nplc", "accelerometer_rails", "power_accelerometer",

@@ -16,19 +16,26 @@ Wiring (what a lab would do with cables):
   it still while shaking).  The vibration drives the gyro's vibration terms; the
   accelerometer does not see it.
 
+The instruments are listed once, in :data:`INSTRUMENTS` (the station table): name, kind,
+the wire it is served over, the bench driver that speaks to it (a key of
+``instruments.registry``, as text: ``sim`` imports nothing of the bench) and where its device
+is on the station.  The server, sim-control's ``SIM:INST:LIST?``, the fault targets, ``bench
+sim serve``, ``bench doctor`` and the bench's embedded station are all derived from it.
+
 Only this module (and ``bench.app.station`` which starts it) knows both the physics and the
 instruments; procedures see TCP addresses.
 """
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from sim.devices.dmm import Multimeter
 from sim.devices.dmm_model import LinePickup
+from sim.devices.lifecycle import SimDevice
 from sim.devices.shaker import ShakerController
 from sim.devices.sim_control import SimControl
 from sim.devices.supply import PowerSupply
@@ -38,7 +45,7 @@ from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
 from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
 from sim.physics.motion import DualAxisTable
 from sim.physics.shaker import Shaker
-from sim.server import Endpoint, InstrumentServer
+from sim.server import SCPI, SERIAL, Endpoint, InstrumentServer, Transport
 from sim.station_angular import AngularRig, draw_rig
 from sim.station_gyro import StationGyro, check_gyro_serial, station_gyro_params
 from sim.world import World
@@ -156,36 +163,24 @@ class SimulatedStation:
         self.angular = AngularRig(self.world, serial=cfg.mhd_serial, mhd=cfg.mhd, lf=cfg.lf_sensor,
                                   line_pickup_v=cfg.line_pickup_v, line_hz=cfg.line_hz,
                                   ideal_meters=cfg.ideal_meters, dmm_timebase_ppm=cfg.dmm_timebase_ppm)
-        names = ["dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "angular_table", "dmm_mhd",
-                 "lf_gyro"]
+        #: every instrument's device, by name, in table order (``INSTRUMENTS``)
+        self.devices: dict[str, SimDevice] = {row.name: row.device(self) for row in INSTRUMENTS}
         self.server = InstrumentServer(cfg.host)
-        gyro_ch = cfg.gyro_supply_channel
         #: fault injection (``sim.faults``): ``station.faults.inject("stall", "dmm", at_s=...)``
         self.faults = FaultInjector(
-            self.world, dict(zip(names, (self.dmm, self.dmm_temp, self.supply, self.turntable,
-                                         self.gyro_line, self.shaker_controller, self.angular.controller,
-                                         self.angular.dmm, self.angular.lf_line))),
-            call=self.server.call, gyro_volts={"gyro": lambda: self.supply.read(gyro_ch).voltage_v,
-                                               "lf_gyro": self.angular.supply_volts})
+            self.world, {row.name: (self.devices[row.name], row.transport) for row in INSTRUMENTS},
+            call=self.server.call)
         self.server.faults = self.faults
-        self.sim_control = SimControl(self.world, names, self.faults)
+        self.sim_control = SimControl(self.world, list(self.devices), self.faults)
         self._wire_power()
-        unknown = sorted(set(only or ()) - set(names))
+        unknown = sorted(set(only or ()) - set(self.devices))
         if unknown:
             raise ValueError(f"instrument {', '.join(unknown)} not on the simulated station; "
-                             f"allowed: {', '.join(names)}")
-        for name, kind, dev in (("dmm", "multimeter", self.dmm),
-                                ("dmm_temp", "multimeter", self.dmm_temp),
-                                ("supply", "power_supply", self.supply),
-                                ("turntable", "turntable", self.turntable),
-                                ("gyro", "gyro", self.gyro_line),
-                                ("shaker", "shaker", self.shaker_controller),
-                                ("angular_table", "angular_table", self.angular.controller),
-                                ("dmm_mhd", "multimeter", self.angular.dmm),
-                                ("lf_gyro", "gyro", self.angular.lf_line),
-                                ("sim", "sim_control", self.sim_control)):
-            if only is None or name in only or name == "sim":
-                self.server.add(name, kind, dev)
+                             f"allowed: {', '.join(self.devices)}")
+        for row in INSTRUMENTS:
+            if only is None or row.name in only:
+                self.server.add(row.name, row.kind, self.devices[row.name], row.transport)
+        self.server.add("sim", "sim_control", self.sim_control, SCPI)
         self.endpoints: list[Endpoint] = []
 
     # -- wiring ----------------------------------------------------------------------------
@@ -263,3 +258,31 @@ class SimulatedStation:
     def gyro_truth(self) -> dict:
         """The simulated gyro's true parameters (for recovery tests, never for procedures)."""
         return {"latitude_deg": self.config.latitude_deg, **self.gyro.truth()}
+
+
+@dataclass(frozen=True)
+class StationInstrument:
+    """One row of the station table: an instrument of the simulated station."""
+
+    name: str                   # as procedures, station files and sim-control name it
+    kind: str                   # what it is (multimeter, power_supply, ...), as ``bench sim serve`` lists it
+    transport: Transport        # the wire it is served over (``sim.server``: SCPI, SERIAL)
+    driver: str                 # the bench driver that speaks to it: a key of ``instruments.registry``
+    #: its device on the built station (a ``sim.devices.lifecycle.SimDevice``): called once, in
+    #: table order, after the world and its models are wired; may build the device or find it
+    device: Callable[[SimulatedStation], SimDevice]
+
+
+#: the simulated station's instruments, in the order they are served and listed
+INSTRUMENTS: tuple[StationInstrument, ...] = (
+    StationInstrument("dmm", "multimeter", SCPI, "keysight_34465a", lambda s: s.dmm),
+    StationInstrument("dmm_temp", "multimeter", SCPI, "keysight_34465a", lambda s: s.dmm_temp),
+    StationInstrument("supply", "power_supply", SCPI, "keysight_e36312a", lambda s: s.supply),
+    StationInstrument("turntable", "turntable", SCPI, "acutrol_turntable", lambda s: s.turntable),
+    StationInstrument("gyro", "gyro", SERIAL, "fog_serial", lambda s: s.gyro_line),
+    StationInstrument("shaker", "shaker", SCPI, "vibration_controller", lambda s: s.shaker_controller),
+    StationInstrument("angular_table", "angular_table", SCPI, "angular_vibration_table",
+                      lambda s: s.angular.controller),
+    StationInstrument("dmm_mhd", "multimeter", SCPI, "keysight_34465a", lambda s: s.angular.dmm),
+    StationInstrument("lf_gyro", "gyro", SERIAL, "fog_serial", lambda s: s.angular.lf_line),
+)

@@ -98,7 +98,8 @@ class AngularRig:
         self.lf_line = FogSerialDevice(
             world, self.lf_unit, self._no_table_inputs, serial=f"{serial}-LF", model="LFRS-1",
             scale_factor_pulses_per_arcsec=self.lf_params.scale_factor_pulses_per_arcsec,
-            full_scale_dps=self.lf_params.full_scale_dps, clock_ppm=self.lf_params.frame_clock_error_ppm)
+            full_scale_dps=self.lf_params.full_scale_dps, clock_ppm=self.lf_params.frame_clock_error_ppm,
+            supply_volts=self.supply_volts)
 
     def mhd_volts(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
         return self.mhd.mean_output(t_start, aperture_s)

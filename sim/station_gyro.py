@@ -70,7 +70,8 @@ class StationGyro:
         self.line = FogSerialDevice(
             world, self.model, self.inputs, serial=serial,
             scale_factor_pulses_per_arcsec=self.params.scale_factor_pulses_per_arcsec,
-            full_scale_dps=self.params.full_scale_dps)
+            full_scale_dps=self.params.full_scale_dps,
+            supply_volts=lambda: supply.read(channel).voltage_v)
         self._wire_power(supply, channel)
 
     def _wire_power(self, supply: PowerSupply, channel: int) -> None:

@@ -29,36 +29,32 @@ The built-in station ``sim`` starts the simulated world in-process on free loopb
 and fills in the addresses; a ``[simulation]`` table in a station file does the same with
 its own settings (seed, latitude, resistor, accelerometer overrides).  The same procedure
 runs on either.
+
+Drivers are looked up in ``instruments.registry`` (class, connection kind, options); the
+simulated station's instruments come from its table (``sim.station.INSTRUMENTS``: name,
+driver key, address once served).  This module joins the two and opens each connection
+with the opener of its kind (:data:`OPENERS`).
 """
 
 from __future__ import annotations
 
-import importlib
 import tomllib
+from collections.abc import Callable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import pyvisa
 
 from bench.core.clock import Clock, SimulatedClock, WallClock
 from bench.core.site import DEFAULT_SITE
+from instruments.base import open_resource
+from instruments.registry import DRIVERS, SERIAL, VISA, Option
 
-#: driver kind -> "module:Class"; a driver takes an open pyvisa resource and a name
-DRIVERS = {
-    "keysight_34465a": "instruments.multimeter:Keysight34465A",
-    "keysight_e36312a": "instruments.power_supply:KeysightE36312A",
-    "acutrol_turntable": "instruments.turntable:DualAxisTurntable",
-    "fog_serial": "instruments.fog:SerialGyro",
-    "vibration_controller": "instruments.shaker:VibrationTable",
-    "angular_vibration_table": "instruments.angular_table:AngularVibrationTable",
-}
-#: serial-line driver kinds (opened with pyserial, not VISA):
-#: option -> ("set" of allowed values | "range" lo..hi, allowed, default)
-SERIAL_DRIVERS = {
-    "fog_serial": {"baudrate": ("set", (115200, 230400, 460800, 921600), 921600),
-                   "scale_factor_pulses_per_arcsec": ("range", (1e-6, 1e9), None),
-                   "polarity": ("set", (1, -1), 1)},
-}
+if TYPE_CHECKING:  # the simulator is imported when a station starts one (it is slow to import)
+    from sim.station import SimulatedStation
+
 DEFAULT_WIRING = {
     "sampling_resistor_ohm": 5000.0,
     "temp_resistor_ohm": 10000.0,
@@ -70,6 +66,8 @@ DEFAULT_WIRING = {
     "gyro_supply_voltage_v": 5.0,
     "gyro_current_limit_a": 1.0,
 }
+#: instruments the station's supply powers: name -> the [wiring] key of the output feeding it
+SUPPLY_FED = {"gyro": "gyro_supply_channel"}
 
 
 SITE_RANGES = {"latitude_deg": (-90.0, 90.0), "height_m": (-1000.0, 10000.0),
@@ -158,8 +156,8 @@ def parse_station(data: dict, source: str = "<station>") -> StationConfig:
         timeout = table.get("timeout_ms", 10000)
         if not isinstance(timeout, int) or not 100 <= timeout <= 600000:
             raise StationError(f"{where}: timeout_ms {timeout!r} not in 100..600000")
-        if driver in SERIAL_DRIVERS:
-            _check_serial_options(table, SERIAL_DRIVERS[driver], where)
+        if DRIVERS[driver].options:
+            _check_options(table, DRIVERS[driver].options, where)
         instruments[name] = InstrumentConfig(
             name, driver, address, table.get("visa_backend", "@py"), timeout,
             {k: v for k, v in table.items()
@@ -212,35 +210,38 @@ def _parse_site(data: dict, simulation: dict | None, source: str) -> dict[str, A
     return site
 
 
-def _check_serial_options(table: dict, spec: dict, where: str) -> None:
-    """Options of a serial-line instrument: each known, and in its set or range."""
+def _check_options(table: dict, spec: Mapping[str, Option], where: str) -> None:
+    """A driver's options (``instruments.registry``): each known, and in its set or range."""
     for key, value in table.items():
         if key in ("driver", "address", "timeout_ms"):
             continue
         if key not in spec:
             raise StationError(f"{where}: option {key!r} not in {sorted(spec)}")
-        kind, allowed, _ = spec[key]
-        number = not isinstance(value, bool) and isinstance(value, (int, float))
-        if kind == "range" and not (number and allowed[0] <= value <= allowed[1]):
-            raise StationError(f"{where}: {key} = {value!r} must be a number in "
-                               f"{allowed[0]:g}..{allowed[1]:g}")
-        if kind == "set" and not (number and value in allowed):
-            raise StationError(f"{where}: {key} = {value!r} not in {'|'.join(map(str, allowed))}")
+        problem = spec[key].problem(key, value)
+        if problem:
+            raise StationError(f"{where}: {problem}")
 
 
-def _open_serial(inst: InstrumentConfig):
-    """A pyserial port for ``socket://host:port`` or a device path, and its driver."""
+#: ``opener(instrument, connection options, VISA resource manager by backend)`` -> an open
+#: connection (anything with ``close()``) of one transport kind of ``instruments.registry``
+Opener = Callable[[InstrumentConfig, dict[str, Any], Callable[[str], Any]], Any]
+
+
+def _open_visa(inst: InstrumentConfig, options: dict[str, Any], manager: Callable[[str], Any]) -> Any:
+    """A pyvisa message-based resource (``TCPIP::host::port::SOCKET``, GPIB, ...)."""
+    return open_resource(inst.address, backend=inst.visa_backend, timeout_ms=inst.timeout_ms,
+                         resource_manager=manager(inst.visa_backend), **options)
+
+
+def _open_serial(inst: InstrumentConfig, options: dict[str, Any], manager: Callable[[str], Any]) -> Any:
+    """A pyserial port for ``socket://host:port`` or a device path."""
     import serial  # imported here so `bench --help` stays fast
 
-    spec = SERIAL_DRIVERS[inst.driver]
-    options = {k: inst.options.get(k, default) for k, (_, _, default) in spec.items()}
-    port = serial.serial_for_url(inst.address, baudrate=options.pop("baudrate"),
-                                 timeout=inst.timeout_ms / 1000.0)
-    try:
-        return port, _driver_class(inst.driver)(port, name=inst.name, **options)
-    except BaseException:
-        port.close()
-        raise
+    return serial.serial_for_url(inst.address, timeout=inst.timeout_ms / 1000.0, **options)
+
+
+#: how a station opens each kind of connection a driver is driven over
+OPENERS: dict[str, Opener] = {VISA: _open_visa, SERIAL: _open_serial}
 
 
 def check_simulation(options: dict, source: str = "<station>") -> None:
@@ -268,11 +269,6 @@ def load_station(path: str | Path) -> StationConfig:
     return parse_station(data, str(path))
 
 
-def _driver_class(kind: str):
-    module, cls = DRIVERS[kind].split(":")
-    return getattr(importlib.import_module(module), cls)
-
-
 #: sensor kind → the simulated station's option naming that unit's serial
 UNIT_KEYS = {"accelerometer": "unit_serial", "gyro": "gyro_serial", "angular": "mhd_serial"}
 
@@ -290,7 +286,7 @@ class Station:
         self.unit_kind = unit_kind  # which simulated sensor the serial number names
         self.instruments: dict[str, Any] = {}
         self.clock: Clock = WallClock()
-        self.sim = None  # the embedded simulated station, if any
+        self.sim: SimulatedStation | None = None  # the embedded simulated station, if any
         self._stack = ExitStack()
 
     def __enter__(self) -> Station:
@@ -305,36 +301,24 @@ class Station:
         self._stack.close()
 
     def _open(self) -> None:
-        import pyvisa  # imported here so `bench --help` stays fast
-
         cfg = self.config
         if cfg.simulation is not None:
-            cfg = self._start_embedded(cfg)
+            cfg = self.start_simulation(cfg)
         managers: dict[str, Any] = {}
 
-        def manager(backend: str):
+        def manager(backend: str) -> Any:
             if backend not in managers:
                 managers[backend] = pyvisa.ResourceManager(backend)
                 self._stack.callback(managers[backend].close)
             return managers[backend]
 
-        from instruments.base import open_resource
-
         for name, inst in cfg.instruments.items():
-            if inst.driver in SERIAL_DRIVERS:
-                try:
-                    port, self.instruments[name] = _open_serial(inst)
-                except Exception as exc:
-                    raise StationError(f"cannot open instrument {name!r} ({inst.driver}) at "
-                                       f"{inst.address!r}: {exc}") from exc
-                self._stack.callback(port.close)
-                continue
+            driver = DRIVERS[inst.driver]
             try:
-                resource = open_resource(inst.address, backend=inst.visa_backend,
-                                         timeout_ms=inst.timeout_ms,
-                                         resource_manager=manager(inst.visa_backend))
-                self._stack.callback(resource.close)
-                self.instruments[name] = _driver_class(inst.driver)(resource, name=name)
+                connection = OPENERS[driver.transport](inst, driver.connection_options(inst.options), manager)
+                self._stack.callback(connection.close)
+                self.instruments[name] = driver.cls(connection, name=name,
+                                                    **driver.driver_options(inst.options))
             except Exception as exc:
                 raise StationError(f"cannot open instrument {name!r} ({inst.driver}) at "
                                    f"{inst.address!r}: {exc}") from exc
@@ -348,8 +332,10 @@ class Station:
             self.clock = SimulatedClock(res)
         self.config = cfg
 
-    def _start_embedded(self, cfg: StationConfig) -> StationConfig:
-        from sim.station import SimStationConfig, SimulatedStation
+    def start_simulation(self, cfg: StationConfig) -> StationConfig:
+        """Start ``cfg``'s embedded simulated station (stopped when this station closes);
+        return the station config with its instruments and clock at the served addresses."""
+        from sim.station import INSTRUMENTS, SimStationConfig, SimulatedStation
 
         sim_opts = dict(cfg.simulation or {})
         if self.seed is not None:
@@ -363,16 +349,11 @@ class Station:
             sim_cfg = SimStationConfig(**sim_opts)
         except TypeError as exc:
             raise StationError(f"[simulation]: {exc}") from None
-        self.sim = SimulatedStation(sim_cfg)
-        self.sim.start()
-        self._stack.callback(self.sim.stop)
-        res = self.sim.resources()
-        drivers = {"dmm": "keysight_34465a", "dmm_temp": "keysight_34465a",
-                   "supply": "keysight_e36312a", "turntable": "acutrol_turntable",
-                   "gyro": "fog_serial", "shaker": "vibration_controller",
-                   "angular_table": "angular_vibration_table", "dmm_mhd": "keysight_34465a",
-                   "lf_gyro": "fog_serial"}
-        instruments = {n: InstrumentConfig(n, d, res[n]) for n, d in drivers.items()}
+        sim = self.sim = SimulatedStation(sim_cfg)
+        sim.start()
+        self._stack.callback(sim.stop)
+        res = sim.resources()
+        instruments = {row.name: InstrumentConfig(row.name, row.driver, res[row.name]) for row in INSTRUMENTS}
         return StationConfig("sim", instruments, res["sim"], "@py", cfg.wiring, cfg.simulation,
                              cfg.site)
 

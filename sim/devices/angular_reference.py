@@ -148,6 +148,7 @@ class ReferenceCapture:
                 self._head = 0
 
     def _samples(self, k: np.ndarray) -> np.ndarray:
+        assert self._t0 is not None, "samples exist only while capturing"
         t_rel = k / self.rate_hz
         t = self._t0 + t_rel
         rate, angle, _ = self.motion.motion(t)
@@ -172,5 +173,5 @@ class ReferenceCapture:
         return self._block[1]
 
 
-__all__ = ["COUNT_RANGE", "DEFAULT_REF_COUNT", "DEFAULT_REF_RATE_HZ", "ENCODER_COUNTS", "MEMORY_SAMPLES", "RATE_NOISE_DPS", "RATE_RANGE_HZ",
-           "ReferenceCapture"]
+__all__ = ["COUNT_RANGE", "DEFAULT_REF_COUNT", "DEFAULT_REF_RATE_HZ", "ENCODER_COUNTS", "MEMORY_SAMPLES",
+           "RATE_NOISE_DPS", "RATE_RANGE_HZ", "ReferenceCapture"]

@@ -15,8 +15,8 @@ oscillator, no oscillator enabled) is -221.
 
 The interlock is the shaker's (``interlock_closed``; ``:INT:OPEN`` cuts the motion and
 latches ABORT, ``:INT:RES`` clears it once at rest), so fault injection can treat both
-alike: a power loss calls :meth:`AngularTableController.cut_drive`, an interlock fault
-:meth:`AngularTableController.open_interlock`.
+alike: a power loss cuts the drive (:meth:`AngularTableController.power_off`), an interlock
+fault opens the interlock (:meth:`AngularTableController.trip_interlock`).
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from sim.devices.angular_reference import (
     RATE_RANGE_HZ,
     ReferenceCapture,
 )
+from sim.devices.lifecycle import scpi_power_on
 from sim.physics.angular_demand import SWEEP_TIME_RANGE_S, Sweep, Tone, describe
 from sim.physics.angular_table import DEFAULT_RAMP_S, RAMP_RANGE_S, AngularMotion
 from sim.scpi import Args, ScpiDevice, ScpiError, format_block, format_int, format_number
@@ -68,6 +69,8 @@ class SweepSettings:
 
 
 class AngularTableController(ScpiDevice):
+    fault_kinds: tuple[str, ...] = ("power", "interlock")
+
     def __init__(self, world, motion: AngularMotion, *, serial: str = "AVT-0001") -> None:
         super().__init__(("BENCHSIM", "ANGVIB-1", serial, "1.0"), options="0")
         self.world, self.motion = world, motion
@@ -90,16 +93,24 @@ class AngularTableController(ScpiDevice):
         self.reference.set_rate(DEFAULT_REF_RATE_HZ)
         self.reference.set_count(DEFAULT_REF_COUNT)
 
-    def cut_drive(self) -> None:
-        """Power lost or emergency stop: the motion cut now, ABORT latched."""
-        self.motion.abort(self.world.now)
-
     def open_interlock(self) -> None:
         """The interlock opens (``:INT:OPEN``, or a fault): a moving table is cut, ABORT latches."""
         self.interlock_closed = False
         if not self.motion.at_rest(self.world.now):
             self.motion.abort(self.world.now)
             self.world.note("angular table interlock open: drive cut")
+
+    # -- lifecycle (sim.devices.lifecycle) ------------------------------------------------
+    def power_off(self) -> None:
+        """Power lost: the motion cut now, ABORT latched."""
+        self.motion.abort(self.world.now)
+
+    def power_on(self) -> None:
+        scpi_power_on(self)
+
+    def trip_interlock(self) -> None:
+        """The interlock trips: the motion cut, ABORT latched until ``:INT:RES``."""
+        self.open_interlock()
 
     # -- demands -------------------------------------------------------------------------
     def staged_tones(self) -> list[Tone]:

@@ -23,6 +23,7 @@ that can never end (bus trigger pending, infinite trigger count) is answered wit
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable
 
@@ -31,6 +32,7 @@ import numpy as np
 from sim.devices.dmm_capture import CaptureGrid
 from sim.devices.dmm_model import DmmConverter, DmmFrontEnd, LinePickup
 from sim.devices.dmm_scpi import Keysight34465AVocabulary
+from sim.devices.lifecycle import scpi_power_on
 from sim.scpi import ScpiError
 from sim.world import World
 
@@ -108,6 +110,7 @@ class Multimeter(Keysight34465AVocabulary):
     """34465A view of the world. ``input_signal`` is wired by the station."""
 
     memory: _Memory
+    fault_kinds: tuple[str, ...] = ("power", "overload")
 
     def __init__(self, world: World, name: str, input_signal: InputSignal,
                  serial: str = "MY59001234", options: tuple[str, ...] = ("DIG", "MEM"),
@@ -127,6 +130,8 @@ class Multimeter(Keysight34465AVocabulary):
         self.converter = DmmConverter(world.rng(f"{name}.converter"), noise_scale=0.0 if ideal else 1.0)
         self.format_real = False
         self.swapped = False
+        #: (t_from_s, t_to_s, volts): intervals in which the input is forced (overload faults)
+        self._overloads: list[tuple[float, float, float]] = []
         self._defaults()
         self._register()
 
@@ -157,6 +162,36 @@ class Multimeter(Keysight34465AVocabulary):
         self.memory.clear()
         self.memory.last = np.nan
         self.format_real, self.swapped = False, False
+
+    # -- lifecycle (sim.devices.lifecycle) ------------------------------------------------
+    def power_off(self) -> None:
+        """Power lost: the acquisition and the reading memory are gone."""
+        self.abort()
+        self.memory.clear()
+
+    def power_on(self) -> None:
+        scpi_power_on(self)
+
+    @property
+    def overloaded(self) -> bool:
+        return bool(self._overloads) and self._overloads[-1][1] == math.inf
+
+    def overload(self, volts: float) -> None:
+        """The input forced to ``volts`` from now on (beyond range: readings ±9.9E37)."""
+        self.end_overload()
+        self._overloads.append((self.world.now, math.inf, float(volts)))
+
+    def end_overload(self) -> None:
+        if self.overloaded:
+            t0, _, volts = self._overloads[-1]
+            self._overloads[-1] = (t0, self.world.now, volts)
+
+    def _input_volts(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
+        """The input terminals' mean volts over each aperture, forced where an overload was."""
+        volts = self.input_signal(t_start, aperture_s)
+        for t0, t1, forced in self._overloads:
+            volts = np.where((t_start >= t0) & (t_start < t1), forced, volts)
+        return volts
 
     @property
     def delay_s(self) -> float:
@@ -241,7 +276,7 @@ class Multimeter(Keysight34465AVocabulary):
                 # the comparator knows the input as it stands at INIT, so an edge in the same
                 # instant (INIT, then a supply switched on, with no time between) still counts
                 now = np.array([self.world.now])
-                self._capture.previous_v = float(self.input_signal(now, self.fe.aperture_s)[0]
+                self._capture.previous_v = float(self._input_volts(now, self.fe.aperture_s)[0]
                                                  + self.pickup.averaged(now, self.fe.aperture_s)[0])
             if self.trig_source == "IMMEDIATE":
                 self._capture.trigger_at_arm()
@@ -282,7 +317,7 @@ class Multimeter(Keysight34465AVocabulary):
     def _take(self, t_start: np.ndarray) -> np.ndarray:
         """Readings whose apertures start at ``t_start`` (increasing, in time order)."""
         ap = self.fe.aperture_s
-        mean_v = self.input_signal(t_start, ap) + self.pickup.averaged(t_start, ap)
+        mean_v = self._input_volts(t_start, ap) + self.pickup.averaged(t_start, ap)
         return self.converter.convert(mean_v, self.fe)
 
     def _run_capture(self, t: float) -> None:

@@ -41,6 +41,11 @@ def _fmt_count(x: float) -> str:
     return f"{int(x):+d}" if x < 9.9e37 else "+9.90000000E+37"
 
 
+def _accept_boolean(args: Args) -> None:
+    """A setting the simulation does not model: its ON|OFF argument checked, nothing changed."""
+    args.boolean(0)
+
+
 def limits_query(args: Args, current, lo, hi, default, fmt=format_number) -> str:
     """A setting's query: the value, or with MIN|MAX|DEF the limit (as the real meter)."""
     if args.count:

@@ -9,8 +9,10 @@ delivered (nobody connected, or the client stopped reading and the send buffer i
 are never computed — the gyro model accepts a gap between calls and carries its noise
 processes across it exactly — so even a year-long advance costs little.
 
-Faults (``sim.faults``) plug in at :meth:`FogSerialDevice._transmit`, the one place the
-encoded frames pass: ``fault_hook.transmit(bytes)`` may corrupt, drop or silence them.
+Faults (``sim.faults``): the encoded frames leave through the line's
+:meth:`sim.server.SerialLink.write_frames`, where the line's fault gate may corrupt, drop or
+silence them; power comes and goes through :meth:`FogSerialDevice.power_off` /
+:meth:`FogSerialDevice.power_on` (the unit's supply as wired, ``supply_volts``).
 """
 
 from __future__ import annotations
@@ -68,20 +70,25 @@ class FogSerialDevice:
     ``temperature_c``); its status bits 0-6 go into the frame as they are
     (docs/FOG_SERIAL.md), LINE_OVERFLOW is added here.  ``scale_factor_pulses_per_arcsec``
     and ``full_scale_dps`` are the nominal figures ``$CFG?`` reports.  Call
-    :meth:`power_changed` after every change of the gyro's supply.
+    :meth:`power_changed` after every change of the gyro's supply.  ``supply_volts()`` is
+    the voltage the unit's supply gives it now, as wired (the station's supply output, the
+    rig's own supply): what a power fault's end powers it back up with.
     """
+
+    fault_kinds: tuple[str, ...] = ("frame", "power")
 
     def __init__(self, world: World, gyro: Any, inputs: InputsFn, *, serial: str,
                  scale_factor_pulses_per_arcsec: float, full_scale_dps: float,
                  model: str = "SFOG-2K",
                  firmware: str = "1.0.0", send_buffer_bytes: int = 1 << 20,
-                 clock_ppm: float = 0.0) -> None:
+                 clock_ppm: float = 0.0, supply_volts: Callable[[], float] = lambda: 0.0) -> None:
         for field in (serial, model, firmware):
             if not field or any(c in field for c in ",\r\n$") or not field.isascii():
                 raise ValueError(f"identity field {field!r} must be ASCII without , $ or line breaks")
         if not isinstance(send_buffer_bytes, int) or send_buffer_bytes < ff.FRAME_BYTES:
             raise ValueError(f"send_buffer_bytes {send_buffer_bytes!r} must be an int ≥ {ff.FRAME_BYTES}")
         self.world, self.gyro, self.inputs = world, gyro, inputs
+        self.supply_volts = supply_volts
         self.identity = ("BENCHSIM", model, serial, firmware)
         self.scale_factor = float(scale_factor_pulses_per_arcsec)
         self.full_scale_dps = float(full_scale_dps)
@@ -102,8 +109,6 @@ class FogSerialDevice:
         #: counters for tests and diagnostics
         self.frames_sent = 0
         self.frames_lost = 0
-        #: ``sim.faults.Gate`` (or None): frames pass through its ``transmit(bytes)``
-        self.fault_hook = None
         world.add_activity(self)
 
     # -- the line (ByteStreamDevice) -------------------------------------------------------
@@ -235,6 +240,17 @@ class FogSerialDevice:
             self.state = "STOPPED"
             self._rx.clear()
 
+    # -- lifecycle (sim.devices.lifecycle) ---------------------------------------------------
+    def power_off(self) -> None:
+        """The unit loses power: silent, a stream cut."""
+        self.gyro.set_supply(self.world.now, 0.0)
+        self.power_changed(self.world.now)
+
+    def power_on(self) -> None:
+        """Power back from its supply as wired (``supply_volts()``): it boots if that is in range."""
+        self.gyro.set_supply(self.world.now, self.supply_volts())
+        self.power_changed(self.world.now)
+
     # -- the frame stream (World activity) ---------------------------------------------------
     def run_until(self, t_s: float) -> None:
         try:
@@ -277,7 +293,7 @@ class FogSerialDevice:
                 return
 
     def _produce(self, k0: int, n: int) -> None:
-        edges = self._edge(np.arange(k0, k0 + n + 1, dtype=np.float64))
+        edges = np.asarray(self._edge(np.arange(k0, k0 + n + 1, dtype=np.float64)))
         inputs = self.inputs(edges)
         counts = self.gyro.pulses(edges, inputs.omega_dps, inputs.f_g, inputs.vibration_g_rms)
         t_end = edges[1:]
@@ -287,12 +303,8 @@ class FogSerialDevice:
             status[0] |= ff.LINE_OVERFLOW
             self._overflowed = False
         counts = np.clip(np.asarray(counts, dtype=np.int64), -(2**31), 2**31 - 1)
-        self._transmit(ff.encode_frames(np.arange(k0, k0 + n), counts, temperature, status))
+        if self._link is not None:  # produced only while a client can take them
+            self._link.write_frames(ff.encode_frames(np.arange(k0, k0 + n), counts, temperature, status),
+                                    ff.FRAME_BYTES)
         self._k = k0 + n
         self.frames_sent += n
-
-    def _transmit(self, data: bytes) -> None:
-        if self.fault_hook is not None:
-            data = self.fault_hook.transmit(data)
-        if self._link is not None and data:
-            self._link.write(data)

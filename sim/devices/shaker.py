@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from sim.devices.lifecycle import scpi_power_on
 from sim.physics.shaker import DEFAULT_RAMP_S, LEVEL_RANGE_DB, RAMP_RANGE_S, Shaker
 from sim.physics.shaker_profile import MAX_BREAKPOINTS, RandomProfile, SineProfile
 from sim.scpi import Args, ScpiDevice, ScpiError, format_number
@@ -28,6 +29,8 @@ def _exact(x: float) -> str:
 
 
 class ShakerController(ScpiDevice):
+    fault_kinds: tuple[str, ...] = ("power",)
+
     def __init__(self, world, shaker: Shaker, *, serial: str = "VC-0001",
                  table_at_rest: Callable[[float], bool] | None = None) -> None:
         super().__init__(("BENCHSIM", "VIBCTRL-1", serial, "1.0"), options="0")
@@ -45,6 +48,14 @@ class ShakerController(ScpiDevice):
             self.shaker.set_level(now, 0.0)  # not driving any more: only the setting changes
         except ValueError:  # the profile at 0 dB exceeds a limit: keep the level
             pass
+
+    # -- lifecycle (sim.devices.lifecycle) ------------------------------------------------
+    def power_off(self) -> None:
+        """Power lost: the drive cut now (ABORT latched)."""
+        self.shaker.abort(self.world.now)
+
+    def power_on(self) -> None:
+        scpi_power_on(self)
 
     # -- helpers -------------------------------------------------------------------------
     def _profile(self, profile_fn) -> None:

@@ -5,6 +5,8 @@ The bench clock of a simulated station talks to it (see docs/ARCHITECTURE.md).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from sim.faults import FaultInjector, FaultTargetError
 from sim.scpi import Args, ScpiDevice, ScpiError, format_number
 from sim.world import MAX_ADVANCE_S, World
@@ -44,7 +46,7 @@ def register_fault_commands(device: ScpiDevice, injector: FaultInjector) -> None
                "POWer": ("power", ()), "INTerlock": ("interlock", ()),
                "OVERload": ("overload", ("volts",))}
 
-    def handler(kind: str, names: tuple[str, ...]):
+    def handler(kind: str, names: tuple[str, ...]) -> Callable[[Args], None]:
         def apply(args: Args) -> None:
             args.require_count(1, 1 + len(names))
             params = {n: args.number(i + 1, min=None, max=None)
@@ -64,12 +66,10 @@ def register_fault_commands(device: ScpiDevice, injector: FaultInjector) -> None
         args.require_count(1, 1)
         target = args.raw[0].strip().strip('"').strip("'")
         try:
-            names = (list(injector.devices) if target.upper() == "ALL"
-                     else [injector._name(target)])
+            action = injector.prepare_clear(target)
         except ValueError as exc:
             raise ScpiError(-224, f"{exc} (or ALL)") from None
-        for name in names:
-            injector._clear(name)
+        action()
 
     def query(args: Args) -> str:
         entries = [f'"{name}:{kind.upper()}"' for name, kinds in injector.active().items()

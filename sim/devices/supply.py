@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from sim.devices.lifecycle import scpi_power_on
 from sim.scpi import Args, ScpiDevice, ScpiError, format_number
 from sim.world import World
 
@@ -60,6 +61,8 @@ class ChannelReading:
 class PowerSupply(ScpiDevice):
     """E36312A view of the world; ``listeners`` get ``(t_s, channel, terminal_volts)``."""
 
+    fault_kinds: tuple[str, ...] = ("power",)
+
     def __init__(self, world: World, serial: str = "MY61000123") -> None:
         super().__init__(("Keysight Technologies", "E36312A", serial, "2.1.0-1.0.4-1.12"),
                          options="0")
@@ -98,6 +101,16 @@ class PowerSupply(ScpiDevice):
             ch.reset()
         self._selected = 1
         self._changed()
+
+    # -- lifecycle (sim.devices.lifecycle) ------------------------------------------------
+    def power_off(self) -> None:
+        """Power lost: every output off (the setpoints are kept until power-on resets them)."""
+        for ch in self.channels.values():
+            ch.output = False
+        self._changed()
+
+    def power_on(self) -> None:
+        scpi_power_on(self)
 
     # -- SCPI vocabulary --------------------------------------------------------------
     def _channels_from(self, args: Args, index: int) -> list[int]:

@@ -7,6 +7,7 @@ module is only the controller's command language and its interlock, evaluated at
 
 from __future__ import annotations
 
+from sim.devices.lifecycle import scpi_power_on
 from sim.physics.motion import DualAxisTable
 from sim.scpi import Args, ScpiDevice, ScpiError, format_number
 from sim.world import World
@@ -16,6 +17,8 @@ STATUS_LIMIT, STATUS_INTERLOCK_OPEN, STATUS_FAULT = 8, 16, 32
 
 
 class TurntableController(ScpiDevice):
+    fault_kinds: tuple[str, ...] = ("power", "interlock")
+
     def __init__(self, world: World, table: DualAxisTable, serial: str = "0001") -> None:
         super().__init__(("BENCHSIM", "TURNTABLE-2AX", serial, "1.0"), options="0")
         self.world, self.table = world, table
@@ -35,6 +38,24 @@ class TurntableController(ScpiDevice):
     def reset(self) -> None:
         for axis in self.table.axes:
             axis.stop(self.world.now)
+
+    # -- lifecycle (sim.devices.lifecycle) ------------------------------------------------
+    def _drives_off(self) -> None:
+        for axis in self.table.axes:  # drives disabled: the axes coast to rest
+            axis.command_off(self.world.now)
+
+    def power_off(self) -> None:
+        """Power lost: both drives off, the axes coast to rest."""
+        self._drives_off()
+
+    def power_on(self) -> None:
+        scpi_power_on(self)
+
+    def trip_interlock(self) -> None:
+        """The interlock trips: drives off (the axes coast to rest), status bits 16 and 32,
+        motion refused until ``:INT:RES``."""
+        self.tripped = True
+        self._drives_off()
 
     def status_bits(self, axis) -> int:
         t = self.world.now

@@ -9,7 +9,10 @@ import socket
 import pytest
 
 from bench.app.cli import main
-from sim.station import SimulatedStation
+from sim.station import INSTRUMENTS, SimulatedStation
+
+#: what doctor checks on the built-in station: every instrument of its table, then its clock
+CHECKED = [row.name for row in INSTRUMENTS] + ["clock"]
 
 
 @pytest.fixture(scope="module")
@@ -42,8 +45,8 @@ def _station_file(tmp_path, sim, *, dmm_address=None, dmm_options=None) -> str:
 def test_builtin_sim_station_is_healthy(capsys):
     assert main(["doctor"]) == 0
     out = capsys.readouterr().out
-    for name in ("dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "angular_table", "dmm_mhd",
-                 "lf_gyro", "clock"):
+    assert len(CHECKED) == 10
+    for name in CHECKED:
         assert f"\n{name} " in out
     assert "all healthy" in out and "FAIL" not in out
 
@@ -53,8 +56,8 @@ def test_json_shape(capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["station"] == "sim" and doc["healthy"] is True
     rows = {r["name"]: r for r in doc["instruments"]}
-    assert set(rows) == {"dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "angular_table", "dmm_mhd",
-                         "lf_gyro", "clock"}
+    assert list(rows) == CHECKED  # in table order
+    assert {r["driver"] for r in doc["instruments"][:-1]} == {row.driver for row in INSTRUMENTS}
     for row in rows.values():
         assert set(row) >= {"driver", "address", "identity", "errors", "status", "reason",
                             "round_trip_ms", "options", "expected_options"}

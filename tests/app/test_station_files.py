@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.app.station import Station, load_station
+from bench.app.station import Station, builtin_sim_config, load_station
 from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.startup import StartupAcquisition, StartupParameters
@@ -60,3 +60,33 @@ def test_site_table_is_validated_and_defaults_to_the_simulated_world(tmp_path):
         parse_station({"site": {"latitude_deg": 95}})
     with pytest.raises(StationError, match="'altitude' not in"):
         parse_station({"site": {"altitude": 3.0}})
+
+
+def test_the_embedded_station_is_the_sim_table_joined_with_the_driver_registry():
+    from bench.app.station import OPENERS
+    from instruments.registry import DRIVERS, SERIAL, TRANSPORTS, VISA
+    from sim import server
+    from sim.station import INSTRUMENTS
+
+    assert set(OPENERS) == set(TRANSPORTS)  # every kind of connection a driver needs can be opened
+    driven_over = {server.SCPI.name: VISA, server.SERIAL.name: SERIAL}
+    for row in INSTRUMENTS:
+        assert DRIVERS[row.driver].transport == driven_over[row.transport.name], row.name
+    with Station(builtin_sim_config()) as station:
+        assert list(station.instruments) == [row.name for row in INSTRUMENTS]
+        for row in INSTRUMENTS:
+            assert station.config.instruments[row.name].driver == row.driver
+            assert isinstance(station.instruments[row.name], DRIVERS[row.driver].cls)
+
+
+def test_driver_options_are_checked_from_the_registry():
+    from bench.app.station import StationError, parse_station
+
+    table = {"instruments": {"gyro": {"driver": "fog_serial", "address": "/dev/ttyUSB0", "polarity": 2}}}
+    with pytest.raises(StationError, match=r"\[instruments.gyro\]: polarity = 2 not in 1\|-1"):
+        parse_station(table)
+    table["instruments"]["gyro"] = {"driver": "fog_serial", "address": "x", "parity": "N"}
+    with pytest.raises(StationError, match=r"option 'parity' not in \['baudrate', 'polarity', "):
+        parse_station(table)
+    dmm = {"driver": "keysight_34465a", "address": "x", "options": ["DIG"]}  # free keys kept for the tools
+    assert parse_station({"instruments": {"dmm": dmm}}).instruments["dmm"].options == {"options": ["DIG"]}

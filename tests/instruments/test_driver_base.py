@@ -126,14 +126,17 @@ def pack_real64_block(values: Any) -> bytes:
 
 
 def assert_conforms(instance: Any, protocol: type) -> None:
-    """Every member a Protocol declares exists on ``instance`` (looked up statically, so
+    """Every member a Protocol declares, itself or through the Protocols it extends
+    (``SafeInstrument``: ``make_safe`` ...), exists on ``instance`` (looked up statically, so
     no property is read over the wire) and methods accept the Protocol's parameters."""
-    names = set(getattr(protocol, "__annotations__", {}))
-    names |= {n for n, v in vars(protocol).items()
-              if not n.startswith("_") and (callable(v) or isinstance(v, property))}
-    for name in sorted(names):
+    declared: dict[str, Any] = {}
+    for cls in reversed([c for c in protocol.__mro__ if c is not object and c.__module__ != "typing"]):
+        declared |= dict.fromkeys(getattr(cls, "__annotations__", {}))
+        declared |= {n: v for n, v in vars(cls).items()
+                     if not n.startswith("_") and (callable(v) or isinstance(v, property))}
+    for name in sorted(declared):
         member = inspect.getattr_static(instance, name)  # AttributeError if missing
-        wanted = vars(protocol).get(name)
+        wanted = declared[name]
         if callable(wanted) and not isinstance(wanted, property):
             have = inspect.signature(member).parameters
             for param in list(inspect.signature(wanted).parameters)[1:]:
@@ -263,7 +266,7 @@ def test_common_commands() -> None:
     widget, fake = make_widget(replies={
         "*IDN?": "Keysight Technologies,34465A,MY1,A.03", "*OPC?": "1", "*OPT?": '"DIG","0",MEM'})
     assert widget.idn == Identity("Keysight Technologies", "34465A", "MY1", "A.03")
-    widget.idn  # cached: asked once
+    assert widget.idn.model == "34465A"  # cached: asked once
     assert widget.options == ("DIG", "MEM")
     widget.reset()
     widget.clear()

@@ -17,16 +17,16 @@ from instruments.base import (
     InstrumentConnectionError,
     InstrumentError,
     InstrumentReplyError,
-    InstrumentTimeout,
+    InstrumentTimeoutError,
     open_resource,
     parse_float,
 )
-from instruments.fog import GyroLineError, GyroTimeout, SerialGyro
+from instruments.fog import GyroLineError, GyroTimeoutError, SerialGyro
 from instruments.multimeter import Keysight34465A
 from instruments.power_supply import KeysightE36312A
 from instruments.shaker import VibrationTable
 from instruments.turntable import AxisFaultError, DualAxisTurntable
-from sim.faults import _garble
+from sim.faults import garble_reply
 from sim.station import SimStationConfig, SimulatedStation
 
 TIMEOUT_MS = 1000  # short enough for the stall tests, long enough for a loaded CI machine
@@ -72,18 +72,18 @@ def rig():
 
 def test_a_stalled_instrument_times_out_naming_instrument_and_command(rig):
     rig.fault('SIM:FAUL:STAL "dmm"')
-    with pytest.raises(InstrumentTimeout) as info:
+    with pytest.raises(InstrumentTimeoutError) as info:
         rig.dmm.nplc  # noqa: B018 - a setting readback: idempotent, so retried
     text = str(info.value)
     assert "dmm" in text and "VOLT:DC:NPLC?" in text and "3 attempts" in text and "\n" not in text
-    with pytest.raises(InstrumentTimeout, match=r"SYST:ERR\?.* after 'ABOR'.*1 attempt\)"):
+    with pytest.raises(InstrumentTimeoutError, match=r"SYST:ERR\?.* after 'ABOR'.*1 attempt\)"):
         rig.dmm.abort()  # a command: sent once, its error check not repeated
 
 
 def test_a_stall_for_simulated_seconds_ends_and_the_driver_reconnects(rig):
     rig.fault('SIM:FAUL:STAL "dmm",5')
     assert rig.sim.query("SIM:FAUL?").strip() == '"dmm:STALL"'
-    with pytest.raises(InstrumentTimeout):
+    with pytest.raises(InstrumentTimeoutError):
         rig.dmm.points_available()
     rig.wait(6)
     assert rig.sim.query("SIM:FAUL?").strip() == '""'
@@ -105,7 +105,7 @@ def test_a_refused_command_is_reported_as_the_instruments_error(rig):
 
 def test_a_late_reply_is_never_taken_for_the_next_one(rig):
     rig.fault('SIM:FAUL:SLOW "dmm",2500')
-    with pytest.raises(InstrumentTimeout, match=r"\*OPC\?.*1 attempt"):
+    with pytest.raises(InstrumentTimeoutError, match=r"\*OPC\?.*1 attempt"):
         rig.dmm.query("*OPC?")  # not idempotent: asked once; its "1" arrives late
     rig.fault('SIM:FAUL:CLE "dmm"')
     assert rig.dmm.points_available() == 0  # a fresh connection: the late "1" is gone
@@ -119,7 +119,7 @@ def test_a_dropped_connection_is_reopened_for_an_idempotent_query(rig):
 
 def test_reconnects_refused_for_a_while_end_in_a_named_error(rig):
     rig.fault('SIM:FAUL:DROP "supply",100')
-    with pytest.raises((InstrumentTimeout, InstrumentConnectionError), match="supply"):
+    with pytest.raises((InstrumentTimeoutError, InstrumentConnectionError), match="supply"):
         rig.supply.ch[2].voltage_setpoint_v  # noqa: B018
     rig.wait(101)
     assert rig.supply.ch[2].voltage_setpoint_v == 0.0
@@ -129,7 +129,7 @@ def test_outputs_off_is_sent_again_after_a_drop_but_output_on_never(rig):
     sim_supply = rig.station.supply
     rig.supply.ch[2].apply(12.5, 0.2)
     rig.fault('SIM:FAUL:DROP "supply"')
-    with pytest.raises((InstrumentTimeout, InstrumentConnectionError), match="OUTP ON"):
+    with pytest.raises((InstrumentTimeoutError, InstrumentConnectionError), match="OUTP ON"):
         rig.supply.set_outputs([2], True)
     assert not sim_supply.channels[2].output  # lost with the connection, never re-sent
     rig.supply.set_outputs([2], True)
@@ -142,7 +142,7 @@ def test_outputs_off_is_sent_again_after_a_drop_but_output_on_never(rig):
 def test_a_motion_command_lost_with_the_connection_is_not_re_sent(rig):
     rig.table.interlock_close()
     rig.fault('SIM:FAUL:DROP "turntable"')
-    with pytest.raises((InstrumentTimeout, InstrumentConnectionError), match="turntable"):
+    with pytest.raises((InstrumentTimeoutError, InstrumentConnectionError), match="turntable"):
         rig.table.axis[1].move_to(30.0)
     assert rig.station.table.axes[0].position_demand_deg == 0.0
     rig.table.axis[1].stop()  # the next command goes over a reopened connection
@@ -151,7 +151,7 @@ def test_a_motion_command_lost_with_the_connection_is_not_re_sent(rig):
 def test_a_shaker_stop_lost_with_the_connection_is_sent_again_and_a_start_never(rig):
     rig.shaker.set_random_profile(grms=1.0)
     rig.fault('SIM:FAUL:DROP "shaker"')
-    with pytest.raises((InstrumentTimeout, InstrumentConnectionError), match="shaker.*STAR"):
+    with pytest.raises((InstrumentTimeoutError, InstrumentConnectionError), match="shaker.*STAR"):
         rig.shaker.start()
     assert not rig.station.shaker.driving  # never re-sent
     rig.shaker.start()
@@ -168,7 +168,7 @@ def test_power_loss_drops_the_supply_outputs_and_the_instrument_comes_back_reset
     rig.supply.set_outputs([2], True)
     rig.fault('SIM:FAUL:POW "supply"')
     assert not rig.station.supply.channels[2].output
-    with pytest.raises((InstrumentTimeout, InstrumentConnectionError), match="supply"):
+    with pytest.raises((InstrumentTimeoutError, InstrumentConnectionError), match="supply"):
         rig.supply.ch[2].output_enabled  # noqa: B018
     rig.fault('SIM:FAUL:CLE ALL')
     assert rig.supply.ch[2].voltage_setpoint_v == 0.0  # *RST state after power-up
@@ -252,7 +252,7 @@ def test_garbled_replies_are_seeded_and_a_garbled_readback_is_named_or_retried()
 @given(st.binary(max_size=40), st.integers(0, 2**32 - 1))
 def test_garbling_changes_one_byte_and_keeps_the_terminator(body, seed):
     reply = body.replace(b"\n", b"") + b"\n"
-    out = _garble(reply, np.random.default_rng(seed))
+    out = garble_reply(reply, np.random.default_rng(seed))
     assert out.endswith(b"\n") and out.count(b"\n") == 1
     if len(out) == len(reply):
         assert sum(x != y for x, y in zip(out, reply)) == 1
@@ -303,13 +303,13 @@ def test_a_gyro_line_drop_mid_stream_keeps_the_frames_and_stop_reopens(rig):
 def test_a_stalled_gyro_times_out_naming_the_command_and_recovers(rig):
     gyro = _gyro(rig, timeout_s=0.3)  # short: the stalled queries are asked four times
     rig.fault('SIM:FAUL:STAL "gyro"')
-    with pytest.raises(GyroTimeout, match=r"gyro: no reply to '\$ID\?'"):
+    with pytest.raises(GyroTimeoutError, match=r"gyro: no reply to '\$ID\?'"):
         gyro.identify()
     rig.fault('SIM:FAUL:CLE "gyro"')
     assert gyro.identify().serial
     rig.fault('SIM:FAUL:POW "gyro"')
     assert rig.station.gyro_line.state == "OFF"
-    with pytest.raises(GyroTimeout):
+    with pytest.raises(GyroTimeoutError):
         gyro.read_config()
     rig.fault('SIM:FAUL:CLE "gyro"')
     rig.wait(10.0)
@@ -324,7 +324,7 @@ def test_a_gyro_losing_power_mid_stream_is_noticed_in_line_time_not_wall_time(ri
     gyro.start()
     gyro.read_frames(200, wait=rig.wait)
     rig.station.faults.inject("power", "gyro", at_s=rig.station.world.now + 0.1)
-    with pytest.raises(GyroTimeout, match=r"gyro: no frame in .* s of line time") as info:
+    with pytest.raises(GyroTimeoutError, match=r"gyro: no frame in .* s of line time") as info:
         gyro.read_frames(5000, timeout_s=600, wait=rig.wait)  # the wall limit never matters
     assert 50 <= len(info.value.frames) <= 150  # the 0.1 s before the power went
     gyro.close()

@@ -15,7 +15,8 @@ import pytest
 import pyvisa
 import serial
 
-from instruments.fog import GyroCommandError, GyroTimeout, SerialGyro
+from instruments.base import open_resource
+from instruments.fog import GyroCommandError, GyroTimeoutError, SerialGyro
 from instruments.fog_decode import FrameDecoder
 from sim.physics.gyro import indicated_rate_dps
 from sim.station import SimStationConfig, SimulatedStation
@@ -32,8 +33,8 @@ class Bench:
         self.station.start()
         res = self.station.resources()
         self.rm = pyvisa.ResourceManager("@py")
-        opened = {n: self.rm.open_resource(res[n], read_termination="\n", write_termination="\n",
-                                           timeout=20000) for n in ("supply", "sim", "turntable")}
+        opened = {n: open_resource(res[n], resource_manager=self.rm, timeout_ms=20000)
+                  for n in ("supply", "sim", "turntable")}
         self.supply, self.clock, self.table = opened["supply"], opened["sim"], opened["turntable"]
         self.address = res["gyro"]
         self.port = serial.serial_for_url(self.address, baudrate=921600, timeout=reply_timeout_s)
@@ -110,7 +111,7 @@ def test_driver_validates_before_the_wire_and_orders_rate_and_baud(bench):
 def test_an_unpowered_unit_is_silent():
     bench = Bench(reply_timeout_s=1.0)
     try:
-        with pytest.raises(GyroTimeout, match=r"gyro: no reply to '\$ID\?'.*unpowered"):
+        with pytest.raises(GyroTimeoutError, match=r"gyro: no reply to '\$ID\?'.*unpowered"):
             bench.gyro.identify()
         snap = bench.gyro.snapshot()
         assert snap["idn"] is None and "no reply" in snap["error"]
@@ -259,7 +260,7 @@ def test_power_loss_ends_the_stream_without_a_stop_reply():
         bench.gyro.read_frames(500, wait=bench.wait)
         bench.wait(0.05)
         bench.power(False)
-        with pytest.raises(GyroTimeout, match=r"no \$OK,STOP") as err:
+        with pytest.raises(GyroTimeoutError, match=r"no \$OK,STOP") as err:
             bench.gyro.stop()
         assert len(err.value.frames) == 100  # the frames sent before the cut are kept
         assert not bench.gyro.streaming

@@ -16,7 +16,7 @@ import time
 import pytest
 import serial
 
-from instruments.fog import GyroTimeout, SerialGyro
+from instruments.fog import GyroTimeoutError, SerialGyro
 from instruments.wire import InstrumentReplyError
 
 CFG = b"$CFG,RATE=%d,BAUD=921600,FRAME=20,SF=10,FS=490,STATE=STOPPED\r\n"
@@ -31,7 +31,7 @@ class ScriptedUnit:
         self.rate_reply_is_cfg = False  # answer $RATE with a configuration line (a faulty unit)
         self.received: list[bytes] = []
         self._listener = socket.create_server(("127.0.0.1", 0))
-        self.address = "socket://127.0.0.1:%d" % self._listener.getsockname()[1]
+        self.address = f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
         self._thread = threading.Thread(target=self._serve, daemon=True)
         self._thread.start()
 
@@ -107,5 +107,5 @@ def test_a_foreign_reply_without_a_timed_out_query_is_still_an_error(unit_and_gy
 
 def test_a_query_that_never_gets_an_answer_still_times_out(unit_and_gyro):
     unit, gyro = unit_and_gyro([5.0, 5.0, 5.0, 5.0], timeout_s=0.2)
-    with pytest.raises(GyroTimeout, match=r"no reply to '\$CFG\?'"):
+    with pytest.raises(GyroTimeoutError, match=r"no reply to '\$CFG\?'"):
         gyro.read_config()

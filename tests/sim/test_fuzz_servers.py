@@ -377,6 +377,9 @@ class _Link:
     def write(self, data: bytes) -> None:
         self.out += data
 
+    def write_frames(self, data: bytes, frame_bytes: int) -> None:
+        self.out += data
+
     def lines(self) -> list[bytes]:
         text, self.out = bytes(self.out), bytearray()
         return [ln for ln in text.split(b"\r\n") if ln]

@@ -238,6 +238,9 @@ class FakeLink:
     def write(self, data: bytes) -> None:
         self.data += data
 
+    def write_frames(self, data: bytes, frame_bytes: int) -> None:
+        self.data += data
+
 
 def serial_line(pcs, noise=False, params=LF_PRESET, seed=0):
     world = World(seed)

@@ -92,7 +92,9 @@ def dmm() -> FakeDmm:
 
 
 def err(dev: ScpiDevice) -> str:
-    return dev.ask("SYST:ERR?")
+    reply = dev.ask("SYST:ERR?")
+    assert reply is not None  # a query always answers
+    return reply
 
 
 # ---------------------------------------------------------------- common commands

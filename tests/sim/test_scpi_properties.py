@@ -14,7 +14,8 @@ from sim.scpi.errors import ERROR_MESSAGES
 
 IDN = ("Sim", "PROP-1", "0001", "1.0")
 # SCPI_EXAMPLES=5000 for a deeper local fuzz run; the default keeps the file a few seconds.
-FAST = settings(max_examples=int(os.environ.get("SCPI_EXAMPLES", "200")), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FAST = settings(max_examples=int(os.environ.get("SCPI_EXAMPLES", "200")), deadline=None,
+                suppress_health_check=[HealthCheck.too_slow])
 
 # Each pattern as (mnemonic, optional, has_suffix) nodes, written out independently of
 # the engine's own pattern parser.
@@ -62,7 +63,7 @@ class Recorder(ScpiDevice):
         return handler
 
     def _data(self, args: Args) -> None:
-        values = []
+        values: list[bytes | str | int] = []
         for i in range(args.count):
             raw = args.raw[i]
             if raw.startswith("#"):

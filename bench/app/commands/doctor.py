@@ -6,10 +6,16 @@ line's ``$ID?``), read its error queue (``SYST:ERR?`` until ``+0``), compare ``*
 with the ``options = [...]`` the station file states for it, and time one identity
 round trip.  The sim-control clock of a simulated station is checked the same way.
 
+How an instrument is checked follows from its driver's connection kind
+(``instruments.registry``): SCPI over VISA as above, a serial line by its identity command.
+VISA instruments are checked first, so the supply's outputs are known before the lines it
+powers are opened.
+
 Status per instrument: ``OK``; ``FAIL`` with the reason (cannot open, no or malformed
-identity, errors queued, options missing); ``OFF`` for the gyro when the supply output
-that powers it (``[wiring] gyro_supply_channel``) reads off — an unpowered unit is
-silent by design, so it is reported and not asked.
+identity, errors queued, options missing); ``OFF`` for an instrument the station's supply
+powers (``bench.app.station.SUPPLY_FED``: the gyro, from ``[wiring] gyro_supply_channel``)
+when that output reads off — an unpowered unit is silent by design, so it is reported and
+not asked.
 
 Exit codes: 0 every instrument OK (or OFF), 1 at least one FAIL, 2 the station cannot
 be opened at all (a bad station file, an embedded simulation that does not start, no
@@ -21,11 +27,22 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from bench.app.station import SERIAL_DRIVERS, InstrumentConfig, Station, StationConfig, StationError, resolve_station
+from bench.app.station import (
+    SUPPLY_FED,
+    InstrumentConfig,
+    Station,
+    StationConfig,
+    StationError,
+    resolve_station,
+)
+from instruments.base import Identity, open_resource, parse_error_reply
+from instruments.protocols import PowerSupply
+from instruments.registry import DRIVERS, SERIAL, VISA
 
 #: at most this many ``SYST:ERR?`` reads (an error queue is 20..100 deep on real meters)
 MAX_ERROR_READS = 200
@@ -89,18 +106,16 @@ def diagnose(config: StationConfig) -> list[Health]:
             holder = Station(config)
             stack.callback(holder.__exit__, None, None, None)
             try:
-                config = holder._start_embedded(config)
+                config = holder.start_simulation(config)
             except (StationError, ValueError):
                 raise
             except Exception as exc:
                 raise StationError(f"the embedded simulation did not start: {exc}") from exc
         if not config.instruments:
             raise StationError(f"station {config.name!r} configures no instruments")
-        scpi = [i for i in config.instruments.values() if i.driver not in SERIAL_DRIVERS]
-        serial = [i for i in config.instruments.values() if i.driver in SERIAL_DRIVERS]
         powered: dict[int, bool] = {}  # supply channel -> output on, read from the supply
-        results = [_check_scpi(inst, config, powered) for inst in scpi]
-        results += [_check_serial(inst, config, powered) for inst in serial]
+        results = [CHECKS[transport](inst, config, powered) for transport in CHECKS
+                   for inst in config.instruments.values() if DRIVERS[inst.driver].transport == transport]
         if config.clock != "wall":
             results.append(_check_clock(config))
         order = list(config.instruments) + ["clock"]
@@ -113,8 +128,6 @@ def _single(config: StationConfig, inst: InstrumentConfig) -> StationConfig:
 
 def _read_errors(query) -> tuple[list[str], str]:
     """Drain ``SYST:ERR?``; returns the entries and a reason if the queue never emptied."""
-    from instruments.base import parse_error_reply
-
     errors: list[str] = []
     for _ in range(MAX_ERROR_READS):
         reply = query("SYST:ERR?")
@@ -141,7 +154,7 @@ def _check_scpi(inst: InstrumentConfig, config: StationConfig, powered: dict) ->
             h.errors, overflow = _read_errors(driver.query)
             if h.expected_options is not None:
                 h.options = list(driver.options)
-            if inst.driver == "keysight_e36312a":
+            if DRIVERS[inst.driver].protocol is PowerSupply:
                 for n, out in driver.ch.items():
                     powered[n] = bool(out.output_enabled)
                 _read_errors(driver.query)  # output reads must not leave errors behind
@@ -154,7 +167,7 @@ def _check_scpi(inst: InstrumentConfig, config: StationConfig, powered: dict) ->
     if overflow:
         problems.append(overflow)
     if h.expected_options is not None:
-        missing = [o for o in h.expected_options if o not in h.options]
+        missing = [o for o in h.expected_options if o not in (h.options or [])]
         if missing:
             problems.append(f"options {missing} missing (has {h.options or 'none'})")
     h.status, h.reason = ("FAIL", "; ".join(problems)) if problems else ("OK", "")
@@ -163,13 +176,14 @@ def _check_scpi(inst: InstrumentConfig, config: StationConfig, powered: dict) ->
 
 def _check_serial(inst: InstrumentConfig, config: StationConfig, powered: dict) -> Health:
     h = Health(inst.name, inst.driver, inst.address)
-    channel = config.wiring.get("gyro_supply_channel")
+    fed_by = SUPPLY_FED.get(inst.name)
+    channel = config.wiring.get(fed_by) if fed_by else None
     try:
         with Station(_single(config, inst)) as station:
             driver = station.instruments[inst.name]
-            # only the gyro is fed by the station's supply ([wiring] gyro_supply_channel); other
-            # serial units (the angular rig's LF sensor) have their own power: always asked
-            if inst.name == "gyro" and powered.get(channel) is False:
+            # only units fed by the station's supply can be found unpowered; others (the angular
+            # rig's LF sensor) have their own power: always asked
+            if channel is not None and powered.get(channel) is False:
                 h.status = "OFF"
                 h.reason = f"unpowered: supply output CH{channel} is off (line opened, not asked)"
                 return h
@@ -184,8 +198,6 @@ def _check_serial(inst: InstrumentConfig, config: StationConfig, powered: dict) 
 
 def _check_clock(config: StationConfig) -> Health:
     """The sim-control endpoint that serves a simulated station's clock."""
-    from instruments.base import Identity, open_resource
-
     h = Health("clock", "sim_control", config.clock)
     try:
         res = open_resource(config.clock, backend=config.clock_backend, timeout_ms=10000)
@@ -202,6 +214,12 @@ def _check_clock(config: StationConfig) -> Health:
         + ([overflow] if overflow else [])
     h.status, h.reason = ("FAIL", "; ".join(problems)) if problems else ("OK", "")
     return h
+
+
+#: how an instrument is checked, by its driver's connection kind, in this order (the supply,
+#: a VISA instrument, is read before the serial lines it may power)
+CHECKS: dict[str, Callable[[InstrumentConfig, StationConfig, dict[int, bool]], Health]] = {
+    VISA: _check_scpi, SERIAL: _check_serial}
 
 
 def _short(exc: BaseException) -> str:

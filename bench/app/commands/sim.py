@@ -1,19 +1,26 @@
-"""``bench sim serve``: serve the simulated station's instruments until interrupted."""
+"""``bench sim serve``: serve the simulated station's instruments until interrupted.
+
+One JSON line per endpoint, in the station table's order (``sim.station.INSTRUMENTS``), then
+the sim-control endpoint ``sim``: ``name``, ``kind``, ``transport`` (``scpi`` | ``serial``),
+``resource`` (the address a driver opens) and, for an instrument, the ``driver`` key a
+station file names it with."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import signal
 import sys
 import threading
+from typing import Any
 
 
-def register(sub) -> None:
+def register(sub: Any) -> None:
     sim = sub.add_parser("sim", help="the simulated station")
     cmds = sim.add_subparsers(dest="sim_command", metavar="SUBCOMMAND")
     cmds.required = True
     serve = cmds.add_parser("serve", help="serve the simulated instruments on TCP and print "
-                            "one JSON line per instrument")
+                            "one JSON line per instrument (name, kind, transport, driver, resource)")
     serve.add_argument("--station", default=None, help="station TOML with a [simulation] table")
     serve.add_argument("--seed", type=int, default=None,
                        help="seed of the world [the station file's, else 0]")
@@ -25,9 +32,9 @@ def register(sub) -> None:
     serve.set_defaults(func=serve_sim)
 
 
-def serve_sim(args) -> int:
+def serve_sim(args: argparse.Namespace) -> int:
     from bench.app.station import load_station
-    from sim.station import SimStationConfig, SimulatedStation
+    from sim.station import INSTRUMENTS, SimStationConfig, SimulatedStation
 
     options = {}
     if args.station:
@@ -48,8 +55,12 @@ def serve_sim(args) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):  # before the addresses are announced
         signal.signal(sig, lambda *_: stop.set())
     station.start()
+    drivers = {row.name: row.driver for row in INSTRUMENTS}
     for e in station.endpoints:
-        print(json.dumps({"name": e.name, "kind": e.kind, "resource": e.resource}), flush=True)
+        line = {"name": e.name, "kind": e.kind, "transport": e.transport.name, "resource": e.resource}
+        if e.name in drivers:
+            line["driver"] = drivers[e.name]
+        print(json.dumps(line), flush=True)
     while not stop.wait(0.5):
         pass
     station.stop()
