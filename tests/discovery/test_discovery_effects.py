@@ -179,9 +179,12 @@ def test_quantized_reading_variance_and_the_floor_without_the_quantizer(tau, see
     v = q.residual_var({"step": step}, tau * step)
     # sampling sd of a mean of squared errors: ≈ v·√(2/n) (0.32 %; measured over 60 seeds: mean
     # −0.01 %, sd 0.30–0.35 % at τ = 0.3…1), and ≤ step·√(v/n) when rare edge errors of about a
-    # step dominate (small τ); hypothesis hunts the seeds, so allow 6 sd of the larger
+    # step dominate (small τ); hypothesis hunts the seeds, so allow 6 sd of the larger. Near τ = 0
+    # the edge errors are a Poisson count with a mean far below one (5e-4 at τ = 4e-9), where one
+    # event is already "many sd": allow 8 of them, as the quantized-mean test does
     got = float(np.var(y - expected_quantized(x, step, tau * step)))
-    assert got == pytest.approx(v, abs=6 * max(v * math.sqrt(2 / n), step * math.sqrt(v / n)) + 1e-9 * step ** 2)
+    tol = 6 * max(v * math.sqrt(2 / n), step * math.sqrt(v / n)) + 8 * step ** 2 / n
+    assert got == pytest.approx(v, abs=tol)
     floor = float(np.std(y - x))  # what a model without the quantizer leaves
     # floor² − step²/12 is known to ±step²/(12·√(n/1.8)): its square root to ~0.02 step near 0
     assert q.pre_transform_sd({"step": step}, floor) == pytest.approx(tau * step, abs=0.05 * step)
