@@ -13,13 +13,32 @@ The Protocols are deliberately not ``runtime_checkable``: on Python 3.11 an
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping
+import contextlib
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, Protocol
 
 import numpy as np
 
+from .fog_types import GyroConfig, GyroFrames
+
 #: ``wait(seconds)``: let that much (bench-clock) time pass.  Drivers never sleep.
 Wait = Callable[[float], None]
+
+
+class TracePlanned(Protocol):
+    """A configured timed trace (``instruments.multimeter.TracePlan``)."""
+
+    @property
+    def n_samples(self) -> int: ...
+
+    @property
+    def interval_s(self) -> float: ...
+
+    @property
+    def trigger_delay_s(self) -> float: ...
+
+    @property
+    def duration_s(self) -> float: ...
 
 
 class TimedTraceMultimeter(Protocol):
@@ -27,6 +46,12 @@ class TimedTraceMultimeter(Protocol):
 
     @property
     def line_frequency_hz(self) -> float: ...
+
+    @property
+    def memory_depth(self) -> int: ...
+
+    @property
+    def aperture_range_s(self) -> tuple[float, float]: ...
 
     def configure_dc_voltage(
         self, range_v: float | None = ..., nplc: float | None = ...
@@ -44,7 +69,7 @@ class TimedTraceMultimeter(Protocol):
         range_v: float = ...,
         autozero: str = ...,
         trigger_delay_s: float = ...,
-    ) -> Any: ...
+    ) -> TracePlanned: ...
 
     def initiate(self) -> None: ...
 
@@ -155,8 +180,13 @@ class PositionRateTable(Protocol):
 class FrameGyro(Protocol):
     """A gyro streaming angle-increment frames (counts, temperature, status) on a line."""
 
+    streaming: bool
+
     @property
     def rate_hz(self) -> int: ...
+
+    @property
+    def config(self) -> GyroConfig: ...
 
     def identify(self) -> Any: ...
 
@@ -166,9 +196,9 @@ class FrameGyro(Protocol):
 
     def start(self) -> None: ...
 
-    def stop(self) -> Any: ...
+    def stop(self) -> GyroFrames: ...
 
-    def read_frames(self, n: int, timeout_s: float = ..., *, wait: Wait | None = ...) -> Any: ...
+    def read_frames(self, n: int, timeout_s: float = ..., *, wait: Wait | None = ...) -> GyroFrames: ...
 
     def snapshot(self) -> dict[str, Any]: ...
 
@@ -194,6 +224,8 @@ class RandomVibrationTable(Protocol):
 
     def set_sine(self, freq_hz: float, peak_g: float) -> Any: ...
 
+    def configuring(self) -> contextlib.AbstractContextManager[Any]: ...
+
     def start(self) -> None: ...
 
     def stop(self) -> None: ...
@@ -201,5 +233,49 @@ class RandomVibrationTable(Protocol):
     def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> str: ...
 
     def wait_idle(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> str: ...
+
+    def snapshot(self) -> dict[str, Any]: ...
+
+
+class AngularLimited(Protocol):
+    """An angular vibration table's peak angle (°), rate (°/s) and angular acceleration (°/s²)
+    (``instruments.angular_table.AngularLimits``)."""
+
+    @property
+    def angle_deg(self) -> float: ...
+
+    @property
+    def rate_dps(self) -> float: ...
+
+    @property
+    def accel_dps2(self) -> float: ...
+
+
+class AngularTable(Protocol):
+    """An angular vibration table and its controller: tones, start/stop, a reference capture
+    (encoder angle and reference rate) on the table's own clock."""
+
+    ramp_time_s: float
+
+    @property
+    def state(self) -> str: ...
+
+    def limits(self) -> AngularLimited: ...
+
+    def set_tones(self, tones: Sequence[Sequence[float]]) -> Any: ...
+
+    def start(self) -> None: ...
+
+    def stop(self) -> None: ...
+
+    def wait_running(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> str: ...
+
+    def wait_idle(self, wait: Wait, timeout_s: float, poll_s: float = ...) -> str: ...
+
+    def configure_reference(self, rate_hz: float, count: int) -> None: ...
+
+    def start_reference(self) -> None: ...
+
+    def read_reference(self, max_points: int | None = ...) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
     def snapshot(self) -> dict[str, Any]: ...

@@ -1,27 +1,56 @@
-"""Running a procedure: set-up, steps, a teardown that always runs, and one run record.
+"""Steps and the runner: what a test is, what it gets, how it runs, and the one record it leaves.
 
-Measurements are declared as data beside the step that takes them (OpenHTF style): a name,
-a unit, limits and an optional marginal band.  The runner records every measurement's
-value and outcome in the run store, and the run's status follows from them:
+A **step** (:class:`Step`) is one test that produces named values with standard
+uncertainties — a tumble calibration, a rate table, a static noise record, a start-up record.
+It declares what it needs and what it produces beside the code that takes it (OpenHTF
+style)::
+
+    class TumbleCalibration(Step[TumbleParameters]):
+        \"\"\"Accelerometer multi-position (tumble) calibration, IEEE 1293 (the help line).\"\"\"
+        name = "tumble"
+        requires = ("dmm", "supply", "turntable")      # station instruments
+        kinds = ("accelerometer",)                      # sensor kinds it applies to
+        produces = {"k1": ("mA/g", "scale factor K1"), ...}
+        Parameters = TumbleParameters                   # a dataclass: parameter(default, help), validate()
+        def duration_s(self) -> float: ...              # time it takes (progress weight)
+        def run(self, ctx) -> dict[str, Estimate]: ...  # streams its data; returns what it produced
+
+A **catalogue** (:class:`Catalogue`, filled in ``procedures.catalogue``) names every step;
+``bench run <step>``, its options and the acceptance specs' procedures all come from it.
+
+A **procedure** (:class:`Procedure`) is what the runner (:func:`execute`) runs: one step or
+a sequence of them, between a set-up that brings the station to its start state and a
+teardown that always runs and leaves it safe, with a *judge* that turns each step's
+produced values into the run's measurements (on its own: every value, no limits; in
+acceptance: against the unit spec's limits).  Measurements carry a unit, limits and an
+optional marginal band; the run's status follows from them:
 
 * ``passed``  – every measurement inside its limits,
 * ``failed``  – at least one outside,
 * ``aborted`` – an exception (instrument error, limit violation by the station, Ctrl-C):
   the reason and the time of the last good sample are kept with everything acquired.
+
+The framework knows no instrument: ``Context.instruments`` is a plain mapping, and the
+procedures layer gives it types (``procedures.typed_instruments``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import traceback
-from collections.abc import Callable
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, ClassVar, Generic, Protocol, TypeVar
 
+from bench.analysis.trend import Estimate
 from bench.core.clock import Clock
 from bench.core.site import DEFAULT_SITE
 from bench.core.store import RunStore, RunWriter
 from bench.core.version import code_version
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -74,7 +103,7 @@ def _no_progress(done: float, total: float, message: str = "") -> None:
 
 @dataclass
 class Context:
-    """What a procedure gets: the station's instruments, its clock and the open run."""
+    """What a step gets: the station's instruments, its clock and the open run."""
 
     instruments: dict[str, Any]
     clock: Clock
@@ -94,13 +123,228 @@ class Context:
         return m
 
 
-class Procedure(Protocol):
-    name: str
+# -- steps --------------------------------------------------------------------------------------
 
-    def parameters(self) -> dict[str, Any]: ...
-    def setup(self, ctx: Context) -> None: ...
-    def run(self, ctx: Context) -> None: ...
-    def teardown(self, ctx: Context) -> None: ...
+def parameter(default: T, help: str, *, aliases: tuple[str, ...] = ()) -> T:
+    """A step parameter: a dataclass field with its default and its help — the help of its
+    ``bench run`` option (``--warmup-s``), whose type and default come from the field.
+    ``aliases``: further option names a user may know it by (``rate-hz``)."""
+    return field(default=default, metadata={"help": help, "aliases": aliases})
+
+
+class StepParameters(Protocol):
+    """A step's parameters: a dataclass whose fields are :func:`parameter` s, checked whole by
+    ``validate()`` (``ValueError`` naming the value and the allowed range)."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]
+
+    def validate(self) -> None: ...
+
+
+P = TypeVar("P", bound=StepParameters)
+
+
+@dataclass(frozen=True)
+class FollowUp:
+    """What follows a stored run of a step on its own, done by the application (it writes the
+    report): ``analysis`` names the application's analysis of a stored run (``startup``,
+    ``vibration``, ``angular``); ``on_request``: only when asked (``--analyze``), else after
+    every passed run; ``summary``: what it does, in a line (the option's help)."""
+
+    analysis: str
+    on_request: bool
+    summary: str
+
+
+class Step(ABC, Generic[P]):
+    """One test that produces named values with standard uncertainties (module docstring).
+
+    Built from a parameter object or from keywords (a spec's table, the command line's
+    options), validated at construction — before any instrument is touched — and recorded
+    as a dict.  Its class docstring's first line is its one-line help (``bench run --help``).
+    """
+
+    name: ClassVar[str]
+    #: station instruments it needs (a station without one is refused before a run exists)
+    requires: ClassVar[tuple[str, ...]]
+    #: sensor kinds it applies to (the unit a spec or ``--unit`` names)
+    kinds: ClassVar[tuple[str, ...]]
+    #: what ``run`` returns: measurement name → (unit, description)
+    produces: ClassVar[Mapping[str, tuple[str, str]]] = {}
+    Parameters: ClassVar[type[Any]]
+    #: what the application does with a stored run of the step on its own, if anything
+    follow_up: ClassVar[FollowUp | None] = None
+
+    def __init__(self, params: P | None = None, **overrides: Any) -> None:
+        if params is not None and overrides:
+            raise ValueError("give a parameter object or keywords, not both")
+        self.p: P = params if params is not None else self.Parameters(**overrides)
+        self.p.validate()
+
+    @classmethod
+    def build(cls, table: Mapping[str, Any]) -> Step[Any]:
+        """The step from a parameter table (a spec's ``[procedures.<name>]``): an unknown key
+        is a ``ValueError`` naming it and the allowed ones; the values are validated."""
+        allowed = [f.name for f in dataclasses.fields(cls.Parameters)]
+        unknown = sorted(set(table) - set(allowed))
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown}; allowed: {allowed}")
+        return cls(**table)
+
+    @classmethod
+    def summary(cls) -> str:
+        """The first line of the step's own docstring (its ``bench run`` help)."""
+        doc = cls.__dict__.get("__doc__") or ""
+        return " ".join(doc.strip().split("\n\n")[0].split())
+
+    def parameters(self) -> dict[str, Any]:
+        """The validated parameters, for the run's record."""
+        return dataclasses.asdict(self.p)
+
+    def producible(self) -> set[str]:
+        """What these parameters can produce (a 4-position tumble cannot separate K3 from K1);
+        by default everything the step produces."""
+        return set(self.produces)
+
+    @abstractmethod
+    def duration_s(self) -> float:
+        """Simulated/real time the step takes (its weight in a sequence's progress)."""
+
+    @abstractmethod
+    def run(self, ctx: Context) -> Mapping[str, Estimate]:
+        """Bring what it uses to its start state, take the test (streaming every sample to the
+        run as it arrives, keeping its fit under the run's results) and return the produced
+        values.  A value it could not produce is left out (a spec that judges it fails it)."""
+
+
+@dataclass(frozen=True)
+class Catalogue:
+    """Every step the bench can run, by name, and the names that changed (old → new): a spec
+    or a command line using an old name is told the new one."""
+
+    steps: Mapping[str, type[Step[Any]]]
+    renamed: Mapping[str, str] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, *steps: type[Step[Any]], renamed: Mapping[str, str] | None = None) -> Catalogue:
+        by_name: dict[str, type[Step[Any]]] = {}
+        for step in steps:
+            if step.name in by_name:
+                raise ValueError(f"two steps named {step.name!r}: {by_name[step.name].__name__} "
+                                 f"and {step.__name__}")
+            by_name[step.name] = step
+        renamed = dict(renamed or {})
+        for old, new in renamed.items():
+            if new not in by_name:
+                raise ValueError(f"renamed {old!r} → {new!r}: no step is named {new!r}")
+        return cls(by_name, renamed)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.steps
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.steps)
+
+    def renamed_note(self, name: str) -> str:
+        """``" (… is now 'new')"`` for a name that changed, else ``""``."""
+        new = self.renamed.get(name)
+        return f" (the step once named {name!r} is now {new!r})" if new is not None else ""
+
+    def step(self, name: str) -> type[Step[Any]]:
+        """The step class named ``name``; a ``LookupError`` naming the new name of a renamed
+        step, or the known ones."""
+        if name in self.steps:
+            return self.steps[name]
+        if name in self.renamed:
+            raise LookupError(f"step {name!r} was renamed {self.renamed[name]!r}")
+        raise LookupError(f"step {name!r} unknown; known: {sorted(self.steps)}")
+
+    def build(self, name: str, table: Mapping[str, Any]) -> Step[Any]:
+        """Step ``name`` built (and validated) from a parameter table."""
+        return self.step(name).build(table)
+
+
+# -- procedures and the runner ---------------------------------------------------------------------
+
+def scaled_progress(progress: Progress, offset: float, weight: float, whole: float,
+                    label: str) -> Progress:
+    """A progress callback for one step inside a longer sequence (``weight`` of ``whole``)."""
+    def report(done: float, total: float, message: str = "") -> None:
+        fraction = min(max(done / total, 0.0), 1.0) if total > 0 else 1.0
+        progress(offset + weight * fraction, whole, f"{label}: {message}" if message else label)
+    return report
+
+
+class Procedure(ABC):
+    """What the runner runs: ``steps`` in order, between :meth:`setup` (the station to its
+    start state) and :meth:`teardown` (always runs: the station left safe); :meth:`judge`
+    turns each step's produced values into measurements."""
+
+    def __init__(self, name: str, steps: Sequence[Step[Any]]) -> None:
+        if not steps:
+            raise ValueError(f"procedure {name!r} has no steps")
+        self.name = name
+        self.steps = tuple(steps)
+
+    @property
+    def requires(self) -> tuple[str, ...]:
+        return tuple(sorted({r for s in self.steps for r in s.requires}))
+
+    def parameters(self) -> dict[str, Any]:
+        """The run's recorded parameters: a step's own when it runs alone, each step's by name
+        in a sequence."""
+        if len(self.steps) == 1:
+            return self.steps[0].parameters()
+        return {s.name: s.parameters() for s in self.steps}
+
+    def duration_s(self) -> float:
+        return sum(s.duration_s() for s in self.steps)
+
+    @abstractmethod
+    def setup(self, ctx: Context) -> None:
+        """Bring the station to the start state the steps expect."""
+
+    @abstractmethod
+    def teardown(self, ctx: Context) -> None:
+        """Leave the station safe; runs whatever happened, and should try everything."""
+
+    def judge(self, ctx: Context, step: Step[Any], produced: Mapping[str, Estimate]) -> None:
+        """Record what ``step`` produced as measurements: by default every produced value in
+        its own unit, without limits (a step run on its own)."""
+        for name, (unit, description) in step.produces.items():
+            if name in produced:
+                est = produced[name]
+                ctx.measure(name, est.value, unit, Limit(), description, est.std)
+
+    def run(self, ctx: Context) -> None:
+        """Each step in turn, its progress a share of the whole, bracketed by events, judged."""
+        total = self.duration_s()
+        done = 0.0
+        outer = ctx.progress
+        for step in self.steps:
+            ctx.run.event(ctx.clock.now(), "step_start", step.name)
+            weight = step.duration_s()
+            ctx.progress = scaled_progress(outer, done, weight, total, step.name)
+            try:
+                produced = step.run(ctx)
+            finally:
+                ctx.progress = outer
+            done += weight
+            ctx.run.event(ctx.clock.now(), "step_end", step.name)
+            self.judge(ctx, step, produced)
+        ctx.progress(total, total, "done")
+
+
+class OpenStation(Protocol):
+    """What the runner needs of an open station (``bench.app.station.Station``)."""
+
+    instruments: dict[str, Any]
+    clock: Clock
+
+    @property
+    def config(self) -> Any: ...
+
+    def snapshot(self) -> dict[str, Any]: ...
 
 
 @dataclass
@@ -117,14 +361,14 @@ class RunOutcome:
                 "measurements": [m.to_dict() for m in self.measurements]}
 
 
-def execute(procedure: Procedure, station, store: RunStore, *, unit_serial: str | None,
+def execute(procedure: Procedure, station: OpenStation, store: RunStore, *, unit_serial: str | None,
             seed: int | None, progress: Progress = _no_progress) -> RunOutcome:
     """Run ``procedure`` on an open station; always tears down; always leaves a record.
 
     A station that lacks an instrument the procedure needs is refused before a run is
     created (ValueError naming what is missing).
     """
-    missing = [n for n in getattr(procedure, "requires", ()) if n not in station.instruments]
+    missing = [n for n in procedure.requires if n not in station.instruments]
     if missing:
         raise ValueError(f"station {station.config.name!r} lacks {missing} needed by "
                          f"{procedure.name!r}; it has {sorted(station.instruments)}")
@@ -183,5 +427,6 @@ def each_safely(actions: list[tuple[str, Callable[[], Any]]]) -> None:
         raise RuntimeError("; ".join(errors))
 
 
-__all__ = ["Limit", "Measurement", "Context", "Procedure", "RunOutcome", "execute",
-           "each_safely"]
+__all__ = ["Limit", "Measurement", "Context", "Progress", "parameter", "StepParameters", "FollowUp",
+           "Step", "Catalogue", "scaled_progress", "Procedure", "OpenStation", "RunOutcome",
+           "execute", "each_safely"]
