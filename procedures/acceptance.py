@@ -14,8 +14,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from bench.analysis.trend import Estimate
-from bench.core.procedure import Catalogue, Context, Limit, Step
 from bench.core.spec import UnitSpec, convert
+from bench.core.step import Catalogue, Context, Limit, Step
 from procedures.catalogue import CATALOGUE
 from procedures.running import StationProcedure
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.core.procedure import Context
+from bench.core.step import Context
 from instruments.angular_table import AngularTableAbortedError
 from instruments.fog_types import GyroFrames
 from procedures.typed_instruments import angular_table, frame_gyro, multimeter

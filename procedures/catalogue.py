@@ -3,7 +3,7 @@
 ``bench run <step>`` (its options from the step's parameter dataclass, its help from the
 step's docstring, ``--analyze`` / ``--report`` from its follow-up), the procedures a unit
 spec may name (``bench.core.spec``) and the acceptance sequence (``procedures.acceptance``)
-are all derived from it.  A new step is its module (a :class:`~bench.core.procedure.Step`
+are all derived from it.  A new step is its module (a :class:`~bench.core.step.Step`
 subclass), one line here, and its tests.
 
 ``renamed``: names that changed (old → new), so that a spec or a command line using an old
@@ -15,7 +15,7 @@ tests are ``turn_on`` and ``gyro_turn_on``.
 
 from __future__ import annotations
 
-from bench.core.procedure import Catalogue
+from bench.core.step import Catalogue
 from procedures.frf import FrfTest
 from procedures.fusion import FusionTest
 from procedures.noise import AccelerometerNoise, GyroNoise

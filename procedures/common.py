@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from bench.analysis.trend import Estimate  # the steps' value ± standard uncertainty
-from bench.core.procedure import Context, each_safely
+from bench.core.procedure import each_safely
+from bench.core.step import Context
 from instruments.fog_types import GyroFrames
 from procedures.typed_instruments import frame_gyro, multimeter, power_supply, turntable
 

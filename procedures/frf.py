@@ -39,7 +39,7 @@ import numpy as np
 from bench.analysis.frf import component_std, frf_point
 from bench.analysis.frf_timebase import apply_time_base, estimate_time_base
 from bench.analysis.fusion_models import fit_transfer_function
-from bench.core.procedure import Context, FollowUp, Progress, Step, parameter
+from bench.core.step import Context, FollowUp, Progress, Step, parameter
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
 from procedures.common import Estimate, check_ranges
 from procedures.typed_instruments import angular_table

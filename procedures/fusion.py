@@ -36,7 +36,7 @@ from bench.analysis.frf_timebase import aperture_compensate, apply_time_base, es
 from bench.analysis.fusion import tune_fusion_params
 from bench.analysis.fusion_metrics import _residual_var, analyze_fusion, excess_over_best
 from bench.analysis.fusion_tuning import tune_fusion
-from bench.core.procedure import Context, FollowUp, Step, parameter
+from bench.core.step import Context, FollowUp, Step, parameter
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
 from procedures.common import Estimate, check_ranges
 from procedures.frf import LIMIT_USE, RUN_TIMEOUT_MARGIN_S, FrfParameters, measure_frf

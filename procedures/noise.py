@@ -19,7 +19,7 @@ import numpy as np
 
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.allan_stats import adev_interval, edf_greenhall
-from bench.core.procedure import Context, Step, parameter
+from bench.core.step import Context, Step, parameter
 from instruments.fog_types import GyroFrames
 from procedures.common import Estimate, check_ranges, level_table, power_accelerometer, power_gyro, read_gyro_frames
 from procedures.typed_instruments import frame_gyro, multimeter

@@ -21,8 +21,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.analysis.ratetable import fit_rate_table, rate_plan, whole_revolution_duration_s
-from bench.core.procedure import Context, Step, parameter
 from bench.core.site import earth_rate_vertical_dph
+from bench.core.step import Context, Step, parameter
 from instruments.fog_types import GyroFrames
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 from procedures.typed_instruments import frame_gyro, turntable

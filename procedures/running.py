@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from bench.core.procedure import Context, Procedure, Step
+from bench.core.procedure import Procedure
+from bench.core.step import Context, Step
 from procedures.common import level_table, make_safe
 
 

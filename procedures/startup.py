@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.core.procedure import Context, FollowUp, Limit, Step, parameter
+from bench.core.step import Context, FollowUp, Limit, Step, parameter
 from procedures.common import Estimate, choose_nplc, power_accelerometer
 from procedures.typed_instruments import multimeter, power_supply
 

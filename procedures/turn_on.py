@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from bench.analysis.turn_on import turn_on_metrics
-from bench.core.procedure import Context, Step, parameter
+from bench.core.step import Context, Step, parameter
 from instruments.fog_types import GyroFrames
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 from procedures.startup import StartupAcquisition, StartupParameters

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from bench.core.procedure import Context
+from bench.core.step import Context
 from instruments.protocols import (
     AngularTable,
     FrameGyro,

@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.core.procedure import Context, FollowUp, Step, parameter
+from bench.core.step import Context, FollowUp, Step, parameter
 from procedures.common import Estimate, check_ranges, power_gyro
 from procedures.typed_instruments import frame_gyro, shaker
 

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bench.core.procedure import Catalogue
+from bench.core.step import Catalogue
 
 #: unit → (dimension, value of one unit in the dimension's base unit)
 _ARCSEC_RAD = math.pi / 180 / 3600

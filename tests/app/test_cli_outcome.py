@@ -9,7 +9,8 @@ import json
 import pytest
 
 from bench.app.commands.common import FollowUpResult, conclude
-from bench.core.procedure import Limit, Measurement, RunOutcome
+from bench.core.procedure import RunOutcome
+from bench.core.step import Limit, Measurement
 
 
 def outcome(status: str) -> RunOutcome:

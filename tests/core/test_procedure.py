@@ -1,6 +1,7 @@
-"""The framework's steps and runner, without a station: a step's parameters and build, the
-catalogue's names, and a procedure run — set-up, steps in order with events and scaled
-progress, judging, a teardown that always runs, the abort path."""
+"""The framework's steps (``bench.core.step``) and runner (``bench.core.procedure``), without a
+station: a step's parameters and build, the catalogue's names, and a procedure run — set-up,
+steps in order with events and scaled progress, judging, a teardown that always runs, the
+abort path."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from typing import Any
 import pytest
 
 from bench.analysis.trend import Estimate
-from bench.core.procedure import Catalogue, Context, Limit, Procedure, Step, execute, parameter
+from bench.core.procedure import Procedure, execute
+from bench.core.step import Catalogue, Context, Limit, Step, parameter
 from bench.core.store import RunStore
 
 

@@ -9,7 +9,7 @@ import inspect
 
 import pytest
 
-from bench.core.procedure import Step
+from bench.core.step import Step
 from procedures.catalogue import CATALOGUE
 
 STEPS = list(CATALOGUE.steps.values())

@@ -15,7 +15,7 @@ from typing import Any, cast
 import pytest
 
 from bench.app.station import Station, builtin_sim_config
-from bench.core.procedure import Context
+from bench.core.step import Context
 from instruments.angular_table import AngularVibrationTable
 from instruments.fog import SerialGyro
 from instruments.multimeter import Keysight34465A

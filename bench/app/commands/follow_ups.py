@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.app.commands.common import FollowUpResult, attach_folder
-from bench.core.procedure import FollowUp
+from bench.core.step import FollowUp
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.app.commands.common import conclude, open_store, progress_bar, seed_of, unit_of
-from bench.core.procedure import Step
+from bench.core.step import Step
 
 
 def register(sub) -> None:
