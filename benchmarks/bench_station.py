@@ -26,6 +26,7 @@ from pyvisa.resources import MessageBasedResource
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
+from procedures.running import alone
 from procedures.startup import StartupAcquisition, StartupParameters
 from sim.station import SimStationConfig, SimulatedStation
 
@@ -40,7 +41,7 @@ def speedup(duration_s: float) -> None:
         t_wall = time.perf_counter()
         with Station(builtin_sim_config(), seed=1, unit_serial="QA-BENCH") as station:
             t_sim0 = station.clock.now()
-            outcome = execute(StartupAcquisition(params), station, store,
+            outcome = execute(alone(StartupAcquisition(params)), station, store,
                               unit_serial="QA-BENCH", seed=1)
             t_sim = station.clock.now() - t_sim0
         wall = time.perf_counter() - t_wall

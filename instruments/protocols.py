@@ -19,11 +19,14 @@ The Protocols are deliberately not ``runtime_checkable``: on Python 3.11 an
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from enum import IntEnum
 from typing import Any, Protocol
 
 import numpy as np
+
+from .fog_types import GyroConfig, GyroFrames
 
 #: ``wait(seconds)``: let that much (bench-clock) time pass.  Drivers never sleep.
 Wait = Callable[[float], None]
@@ -57,11 +60,33 @@ class SafeInstrument(Protocol):
         """Bring the instrument to rest; raise if it could not (naming what failed)."""
 
 
+class TracePlanned(Protocol):
+    """A configured timed trace (``instruments.multimeter.TracePlan``)."""
+
+    @property
+    def n_samples(self) -> int: ...
+
+    @property
+    def interval_s(self) -> float: ...
+
+    @property
+    def trigger_delay_s(self) -> float: ...
+
+    @property
+    def duration_s(self) -> float: ...
+
+
 class TimedTraceMultimeter(SafeInstrument, Protocol):
     """A DC voltmeter that samples at a fixed interval and streams the readings."""
 
     @property
     def line_frequency_hz(self) -> float: ...
+
+    @property
+    def memory_depth(self) -> int: ...
+
+    @property
+    def aperture_range_s(self) -> tuple[float, float]: ...
 
     def configure_dc_voltage(
         self, range_v: float | None = ..., nplc: float | None = ...
@@ -79,7 +104,7 @@ class TimedTraceMultimeter(SafeInstrument, Protocol):
         range_v: float = ...,
         autozero: str = ...,
         trigger_delay_s: float = ...,
-    ) -> Any: ...
+    ) -> TracePlanned: ...
 
     def initiate(self) -> None: ...
 
@@ -190,8 +215,13 @@ class PositionRateTable(SafeInstrument, Protocol):
 class FrameGyro(SafeInstrument, Protocol):
     """A gyro streaming angle-increment frames (counts, temperature, status) on a line."""
 
+    streaming: bool
+
     @property
     def rate_hz(self) -> int: ...
+
+    @property
+    def config(self) -> GyroConfig: ...
 
     def identify(self) -> Any: ...
 
@@ -201,9 +231,9 @@ class FrameGyro(SafeInstrument, Protocol):
 
     def start(self) -> None: ...
 
-    def stop(self) -> Any: ...
+    def stop(self) -> GyroFrames: ...
 
-    def read_frames(self, n: int, timeout_s: float = ..., *, wait: Wait | None = ...) -> Any: ...
+    def read_frames(self, n: int, timeout_s: float = ..., *, wait: Wait | None = ...) -> GyroFrames: ...
 
     def snapshot(self) -> dict[str, Any]: ...
 
@@ -229,6 +259,8 @@ class RandomVibrationTable(SafeInstrument, Protocol):
 
     def set_sine(self, freq_hz: float, peak_g: float) -> Any: ...
 
+    def configuring(self) -> contextlib.AbstractContextManager[Any]: ...
+
     def start(self) -> None: ...
 
     def stop(self) -> None: ...
@@ -240,16 +272,30 @@ class RandomVibrationTable(SafeInstrument, Protocol):
     def snapshot(self) -> dict[str, Any]: ...
 
 
-class AngularVibrationExciter(SafeInstrument, Protocol):
-    """An angular vibration table: tones or a sweep of rate about one axis, and a reference
-    capture (encoder angle and reference rate) on the table's own clock."""
+class AngularLimited(Protocol):
+    """An angular vibration table's peak angle (°), rate (°/s) and angular acceleration (°/s²)
+    (``instruments.angular_table.AngularLimits``)."""
+
+    @property
+    def angle_deg(self) -> float: ...
+
+    @property
+    def rate_dps(self) -> float: ...
+
+    @property
+    def accel_dps2(self) -> float: ...
+
+
+class AngularTable(SafeInstrument, Protocol):
+    """An angular vibration table and its controller: tones, start/stop, a reference capture
+    (encoder angle and reference rate) on the table's own clock."""
 
     ramp_time_s: float
 
     @property
     def state(self) -> str: ...
 
-    def limits(self) -> Any: ...
+    def limits(self) -> AngularLimited: ...
 
     def set_tones(self, tones: Sequence[Sequence[float]]) -> Any: ...
 

@@ -26,7 +26,7 @@ from .fog import BAUD_RATES, SerialGyro
 from .multimeter import Keysight34465A
 from .power_supply import KeysightE36312A
 from .protocols import (
-    AngularVibrationExciter,
+    AngularTable,
     FrameGyro,
     PositionRateTable,
     PowerSupply,
@@ -102,7 +102,7 @@ DRIVERS: Mapping[str, Driver] = MappingProxyType({d.key: d for d in (
         "scale_factor_pulses_per_arcsec": Option(None, range=(1e-6, 1e9)),
         "polarity": Option(1, choices=(1, -1))})),
     Driver("vibration_controller", VibrationTable, RandomVibrationTable, VISA),
-    Driver("angular_vibration_table", AngularVibrationTable, AngularVibrationExciter, VISA),
+    Driver("angular_vibration_table", AngularVibrationTable, AngularTable, VISA),
 )})
 
 __all__ = ["DRIVERS", "SERIAL", "TRANSPORTS", "VISA", "Driver", "Option"]

@@ -32,8 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.core.procedure import Context
+from bench.core.step import Context
 from instruments.angular_table import AngularTableAbortedError
+from instruments.fog_types import GyroFrames
+from procedures.typed_instruments import angular_table, frame_gyro, multimeter
 
 log = logging.getLogger(__name__)
 #: status bit of a frame whose rate was clipped at the unit's full scale (docs/FOG_SERIAL.md)
@@ -73,7 +75,7 @@ class Record:
 
 def add_streams(ctx: Context, prefix: str) -> None:
     for key, (units, description) in STREAM_UNITS.items():
-        dtypes = {"block": np.int32}
+        dtypes: dict[str, type] = {"block": np.int32}
         if key == "lf":
             dtypes.update(counts=np.int64, status=np.int64)
         ctx.run.add_stream(f"{prefix}_{key}", units, description, dtypes=dtypes)
@@ -97,7 +99,7 @@ def record(ctx: Context, duration_s: float, rate_hz: float, frame_rate_hz: int, 
     the profile asked for.  LF frames over range (clipped at full scale), dropped or corrupt
     raise.  Whatever happens, every sample that reached the bench is stored first (the LF
     frames of a timeout, the DMM and reference samples still in the instruments)."""
-    table, dmm, lf = (ctx.instruments[n] for n in ("angular_table", "dmm_mhd", "lf_gyro"))
+    table, dmm, lf = angular_table(ctx), multimeter(ctx, "dmm_mhd"), frame_gyro(ctx, "lf_gyro")
     if not (0 < rate_hz <= MAX_RATE_HZ):
         raise ValueError(f"rate_hz {rate_hz!r} not in (0, {MAX_RATE_HZ:g}] Hz")
     interval = 1.0 / rate_hz
@@ -112,12 +114,12 @@ def record(ctx: Context, duration_s: float, rate_hz: float, frame_rate_hz: int, 
     dmm.initiate()
     table.start_reference()
     lf.start()
-    got = {"ref": [], "hf": [], "lf": []}
+    got: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {"ref": [], "hf": [], "lf": []}
     counts = {"ref": 0, "hf": 0, "lf": 0}
     ref_angle: list[np.ndarray] = []
     frames_per_chunk = max(1, int(round(chunk_s * frame_rate_hz)))
 
-    def store_frames(frames) -> None:
+    def store_frames(frames: GyroFrames) -> None:
         t = t0 + (np.asarray(frames.index, dtype=float) + 0.5) / frame_rate_hz
         ctx.run.append(f"{prefix}_lf", t_s=t, rate_dps=frames.rate_dps, counts=frames.counts,
                        status=frames.status, block=np.full(t.size, block))

@@ -8,14 +8,17 @@ accelerometer from two rails (positive and negative channel), the gyro from one 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
 from bench.analysis.trend import Estimate  # the steps' value ± standard uncertainty
-from bench.core.procedure import Context, each_safely
+from bench.core.procedure import each_safely
+from bench.core.step import Context
+from instruments.fog_types import GyroFrames
 from instruments.protocols import SafeInstrument
+from procedures.typed_instruments import frame_gyro, multimeter, power_supply, turntable
 
 #: fastest integration that fits a reading interval, per mains frequency (NPLC values)
 NPLC_CHOICES = (100.0, 10.0, 1.0, 0.2, 0.06, 0.02)
@@ -54,7 +57,7 @@ def accelerometer_rails(ctx: Context) -> list[int]:
 
 def power_accelerometer(ctx: Context, on: bool) -> None:
     """Both rails to ``rail_voltage_v`` (current-limited) and on, or both off."""
-    w, supply = ctx.wiring, ctx.instruments["supply"]
+    w, supply = ctx.wiring, power_supply(ctx)
     rails = accelerometer_rails(ctx)
     if on:
         for ch in rails:
@@ -66,7 +69,7 @@ def power_accelerometer(ctx: Context, on: bool) -> None:
 
 def power_gyro(ctx: Context, on: bool) -> None:
     """The gyro's supply channel to ``gyro_supply_voltage_v`` (current-limited) and on, or off."""
-    w, supply = ctx.wiring, ctx.instruments["supply"]
+    w, supply = ctx.wiring, power_supply(ctx)
     ch = int(w["gyro_supply_channel"])
     if on:
         supply.ch[ch].apply(float(w["gyro_supply_voltage_v"]), float(w["gyro_current_limit_a"]))
@@ -77,7 +80,7 @@ def power_gyro(ctx: Context, on: bool) -> None:
 
 def move_table(ctx: Context, inner_deg: float, outer_deg: float) -> None:
     """Both axes to a position, waiting until each is in position (bench clock)."""
-    table = ctx.instruments["turntable"]
+    table = turntable(ctx)
     table.axis[1].move_to(inner_deg)
     table.axis[2].move_to(outer_deg)
     for axis in (1, 2):
@@ -85,7 +88,8 @@ def move_table(ctx: Context, inner_deg: float, outer_deg: float) -> None:
 
 
 def level_table(ctx: Context) -> None:
-    ctx.instruments["turntable"].interlock_close()
+    """The turntable level, both axes at 0° (platform z up: an input axis along z senses +1 g)."""
+    turntable(ctx).interlock_close()
     move_table(ctx, 0.0, 0.0)
     ctx.run.event(ctx.clock.now(), "levelled", "turntable at 0°, 0°: platform z up")
 
@@ -98,7 +102,7 @@ def averaged_voltage(ctx: Context, average_s: float, nplc: float, *, stream: str
     the standard error treats the readings as independent. With ``stream`` every reading is
     stored first (``position`` = ``tag``), so an overload still leaves the readings behind.
     """
-    dmm = ctx.instruments["dmm"]
+    dmm = multimeter(ctx)
     interval = nplc / dmm.line_frequency_hz + 0.002
     n = max(2, int(average_s / interval))
     plan = dmm.configure_timed_trace(n, interval, nplc=nplc, range_v=10.0)
@@ -116,12 +120,13 @@ def averaged_voltage(ctx: Context, average_s: float, nplc: float, *, stream: str
 FRAME_TIMEOUT_MARGIN_S = 60.0  # wall time allowed beyond a record's own length
 
 
-def read_gyro_frames(ctx: Context, n: int, store, *, stop: bool = False):
+def read_gyro_frames(ctx: Context, n: int, store: Callable[[GyroFrames], None], *,
+                     stop: bool = False) -> GyroFrames:
     """The next ``n`` frames from the streaming ``gyro``; ``store(frames)`` is called first —
     also with the partial frames of a timeout — so nothing acquired is lost, then a line with
     dropped or corrupt frames raises (a whole-record mean or an Allan deviation needs every
     frame). ``stop``: stop the stream after reading."""
-    gyro = ctx.instruments["gyro"]
+    gyro = frame_gyro(ctx)
     timeout_s = n / gyro.rate_hz + FRAME_TIMEOUT_MARGIN_S  # a real unit needs the record's time
     try:
         frames = gyro.read_frames(n, timeout_s=timeout_s, wait=ctx.clock.sleep)

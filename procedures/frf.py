@@ -32,16 +32,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
 from bench.analysis.frf import component_std, frf_point
 from bench.analysis.frf_timebase import apply_time_base, estimate_time_base
 from bench.analysis.fusion_models import fit_transfer_function
-from bench.core.procedure import Context
+from bench.core.step import Context, FollowUp, Progress, Step, parameter
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
 from procedures.common import Estimate, check_ranges
-from procedures.steps import ParameterizedStep
+from procedures.typed_instruments import angular_table
 
 LIMIT_USE = 0.5          # a dwell uses at most half of any table limit
 MIN_RATE_HZ = 1000.0
@@ -69,15 +70,16 @@ FRF_PRODUCES = {
 
 @dataclass
 class FrfParameters:
-    f_min_hz: float = 0.1
-    f_max_hz: float = 1000.0
-    points_per_decade: int = 3
-    amplitude_dps: float = 5.0
-    min_periods: float = 5.0
-    min_dwell_s: float = 2.0
-    settle_s: float = 0.5
-    ramp_s: float = 0.5
-    frame_rate_hz: int = 4000
+    f_min_hz: float = parameter(0.1, "lowest frequency of the grid, Hz")
+    f_max_hz: float = parameter(1000.0, "highest frequency of the grid, Hz")
+    points_per_decade: int = parameter(3, "frequencies per decade")
+    amplitude_dps: float = parameter(5.0, "rate amplitude of each tone, deg/s (reduced to half of "
+                                          "the table's limits where needed)")
+    min_periods: float = parameter(5.0, "each dwell records at least this many periods")
+    min_dwell_s: float = parameter(2.0, "and at least this long, s")
+    settle_s: float = parameter(0.5, "after the tone runs, before recording, s (at least one period)")
+    ramp_s: float = parameter(0.5, "table ramp time, s")
+    frame_rate_hz: int = parameter(4000, "LF sensor frame rate, Hz")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {
@@ -157,10 +159,10 @@ def on_reference_clock(rec, clocks: dict | None):
             apply_time_base(rec.t_lf_s, clocks["lf"], epoch_s=rec.t0_s))
 
 
-def measure_frf(ctx: Context, p: FrfParameters, *, prefix: str = "frf", progress=None) -> dict:
+def measure_frf(ctx: Context, p: FrfParameters, *, prefix: str = "frf", progress: Progress | None = None) -> dict:
     """Stepped-sine FRF of both sensors after a clock dwell; returns the clocks, points and
     fits (also stored in the run)."""
-    table = ctx.instruments["angular_table"]
+    table = angular_table(ctx)
     limits = table.limits()
     freqs = p.frequencies_hz()
     f_clk = clock_frequency_hz(p)
@@ -174,7 +176,7 @@ def measure_frf(ctx: Context, p: FrfParameters, *, prefix: str = "frf", progress
     ctx.run.set_result(f"{prefix}.clocks", {k: v.to_dict() for k, v in clocks.items()})
     table.wait_idle(ctx.clock.sleep, timeout_s=p.ramp_s + RUN_TIMEOUT_MARGIN_S + 2.0 / f_clk)
     done = CLOCK_DWELL_S
-    points = {"freq_hz": [], "amplitude_dps": [], "hf": [], "lf": []}
+    points: dict[str, list[Any]] = {"freq_hz": [], "amplitude_dps": [], "hf": [], "lf": []}
     for i, f in enumerate(freqs):
         dwell = p.dwell_s(float(f))
 
@@ -238,13 +240,23 @@ def corrected_point(point, window_s: float) -> dict:
     return d
 
 
-class FrfTest(ParameterizedStep):
+class FrfTest(Step[FrfParameters]):
+    """Angular rig: frequency response of the MHD and LF rate sensors (stepped sine) and their
+    models.
+
+    A clock dwell, then one tone per frequency; sine fits against the table reference; a
+    high-pass (MHD) and a low-pass (LF) transfer function with a delay fitted to each FRF.
+    The report (FRFs with fits) is attached to every passed run.
+    """
+
     name = "frf"
     requires = ("angular_table", "dmm_mhd", "lf_gyro")
     kinds = ("angular",)
     produces = FRF_PRODUCES
 
     Parameters = FrfParameters
+    follow_up = FollowUp("angular", on_request=False,
+                         summary="the rig's report (FRFs, fits) attached to the run")
 
     def duration_s(self) -> float:
         p = self.p

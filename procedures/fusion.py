@@ -36,11 +36,11 @@ from bench.analysis.frf_timebase import aperture_compensate, apply_time_base, es
 from bench.analysis.fusion import tune_fusion_params
 from bench.analysis.fusion_metrics import _residual_var, analyze_fusion, excess_over_best
 from bench.analysis.fusion_tuning import tune_fusion
-from bench.core.procedure import Context
+from bench.core.step import Context, FollowUp, Step, parameter
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
 from procedures.common import Estimate, check_ranges
 from procedures.frf import LIMIT_USE, RUN_TIMEOUT_MARGIN_S, FrfParameters, measure_frf
-from procedures.steps import ParameterizedStep
+from procedures.typed_instruments import angular_table
 
 CLOCK_BLOCK_S = 5.0       # block length of the clock estimates
 METRIC_SETTLE_S = 1.0     # the metrics skip the first second of the evaluated part (filter start-up)
@@ -70,19 +70,21 @@ FUSION_PRODUCES = {
 
 @dataclass
 class FusionParameters:
-    f_min_hz: float = 0.1
-    f_max_hz: float = 1000.0
-    tones_per_decade: int = 2
-    amplitude_dps: float = 2.0
-    duration_s: float = 60.0
-    static_s: float = 5.0
-    settle_s: float = 2.0
-    ramp_s: float = 1.0
-    rate_hz: float = 10000.0
-    frame_rate_hz: int = 4000
-    frf_points_per_decade: int = 2
-    frf_amplitude_dps: float = 5.0
-    tune_fraction: float = 0.4     # the first part of the profile record tunes the filter; 0: defaults
+    f_min_hz: float = parameter(0.1, "lowest tone (and FRF frequency), Hz")
+    f_max_hz: float = parameter(1000.0, "highest tone (and FRF frequency), Hz")
+    tones_per_decade: int = parameter(2, "profile tones per decade, log-spaced")
+    amplitude_dps: float = parameter(2.0, "rate amplitude of each tone, deg/s (all scaled down "
+                                          "together to half of the table's limits where needed)")
+    duration_s: float = parameter(60.0, "profile record, s")
+    static_s: float = parameter(5.0, "static segment for the MHD offset and LF bias, s")
+    settle_s: float = parameter(2.0, "after the profile runs, before recording, s")
+    ramp_s: float = parameter(1.0, "table ramp time, s")
+    rate_hz: float = parameter(10000.0, "MHD and reference sample rate, Hz")
+    frame_rate_hz: int = parameter(4000, "LF sensor frame rate, Hz")
+    frf_points_per_decade: int = parameter(2, "the sensor models' FRF: frequencies per decade")
+    frf_amplitude_dps: float = parameter(5.0, "the sensor models' FRF: tone amplitude, deg/s")
+    tune_fraction: float = parameter(0.4, "first part of the profile record that tunes Document B's "
+                                          "filter (0: its default settings, no tuning)")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {
@@ -168,13 +170,23 @@ def align(rec, fits: dict, tones_hz: np.ndarray, hf_offset_v: float, lf_bias_dps
             "hf_delay_s": fits["hf"].delay_s, "lf_delay_s": fits["lf"].delay_s}
 
 
-class FusionTest(ParameterizedStep):
+class FusionTest(Step[FusionParameters]):
+    """Angular rig: Document B's sequential Kalman fusion vs each sensor, fixed-R KF,
+    complementary.
+
+    A quick FRF for the sensor models, a static segment, a multi-tone profile recorded with
+    the table reference; clocks, delays and the DMM aperture corrected; the filter tuned on
+    the first part, judged on the rest.  The report is attached to every passed run.
+    """
+
     name = "fusion"
     requires = ("angular_table", "dmm_mhd", "lf_gyro")
     kinds = ("angular",)
     produces = FUSION_PRODUCES
 
     Parameters = FusionParameters
+    follow_up = FollowUp("angular", on_request=False,
+                         summary="the rig's report (FRFs, tuning, errors per method) attached to the run")
 
     def duration_s(self) -> float:
         p = self.p
@@ -184,7 +196,7 @@ class FusionTest(ParameterizedStep):
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
-        table = ctx.instruments["angular_table"]
+        table = angular_table(ctx)
         total = self.duration_s()
         frf_total = total - (p.static_s + p.duration_s + p.settle_s + 2 * p.ramp_s)
         frf = measure_frf(ctx, p.frf(), prefix="frf",

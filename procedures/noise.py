@@ -19,9 +19,10 @@ import numpy as np
 
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.allan_stats import adev_interval, edf_greenhall
-from bench.core.procedure import Context
+from bench.core.step import Context, Step, parameter
+from instruments.fog_types import GyroFrames
 from procedures.common import Estimate, check_ranges, level_table, power_accelerometer, power_gyro, read_gyro_frames
-from procedures.steps import ParameterizedStep
+from procedures.typed_instruments import frame_gyro, multimeter
 
 ACCEL_NOISE_PRODUCES = {
     "noise_density": ("g/rtHz", "white-noise density, one-sided (√2 × IEEE 952 N)"),
@@ -58,10 +59,10 @@ def _coefficient(allan, name: str) -> Estimate:
 
 @dataclass
 class AccelerometerNoiseParameters:
-    duration_s: float = 3600.0
-    rate_hz: float = 10.0
-    warmup_s: float = 900.0
-    chunk_s: float = 300.0
+    duration_s: float = parameter(3600.0, "static record, s")
+    rate_hz: float = parameter(10.0, "reading rate, Hz (the aperture fills each interval)")
+    warmup_s: float = parameter(900.0, "powered and level, before the record, s")
+    chunk_s: float = parameter(300.0, "readings drained (and stored) per chunk, s")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {"duration_s": (60, 86400), "rate_hz": (1, 100),
@@ -70,7 +71,13 @@ class AccelerometerNoiseParameters:
             raise ValueError(f"duration_s × rate_hz = {self.duration_s * self.rate_hz:.0f} readings exceeds 2e6")
 
 
-class AccelerometerNoise(ParameterizedStep):
+class AccelerometerNoise(Step[AccelerometerNoiseParameters]):
+    """Accelerometer static record → Allan deviation: noise density, bias instability.
+
+    The unit powered, warm and level (IA up); white-noise density (one-sided) and bias
+    instability B read off the overlapping Allan deviation (IEEE 952).
+    """
+
     name = "accelerometer_noise"
     requires = ("dmm", "supply", "turntable")
     kinds = ("accelerometer",)
@@ -83,7 +90,7 @@ class AccelerometerNoise(ParameterizedStep):
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
-        dmm = ctx.instruments["dmm"]
+        dmm = multimeter(ctx)
         level_table(ctx)  # IA up: the record's mean is then 1 g (the normalisation below)
         power_accelerometer(ctx, on=True)
         ctx.progress(0, self.duration_s(), "warming up")
@@ -122,10 +129,10 @@ class AccelerometerNoise(ParameterizedStep):
 
 @dataclass
 class GyroNoiseParameters:
-    duration_s: float = 7200.0
-    frame_rate_hz: int = 100
-    warmup_s: float = 900.0
-    chunk_s: float = 600.0
+    duration_s: float = parameter(7200.0, "static record, s")
+    frame_rate_hz: int = parameter(100, "gyro frame rate, Hz")
+    warmup_s: float = parameter(900.0, "powered, table at rest, before the record, s")
+    chunk_s: float = parameter(600.0, "frames read (and stored) per chunk, s")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {"duration_s": (60, 86400 * 3), "frame_rate_hz": (1, 4608),
@@ -136,7 +143,13 @@ class GyroNoiseParameters:
                              "frames exceeds 5e7")
 
 
-class GyroNoise(ParameterizedStep):
+class GyroNoise(Step[GyroNoiseParameters]):
+    """Gyro static record → Allan deviation: ARW, bias instability.
+
+    The gyro powered, warm, the table at rest; angle random walk N and bias instability B
+    read off the overlapping Allan deviation (IEEE 952).
+    """
+
     name = "gyro_noise"
     requires = ("gyro", "supply", "turntable")
     kinds = ("gyro",)
@@ -149,7 +162,7 @@ class GyroNoise(ParameterizedStep):
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
-        gyro = ctx.instruments["gyro"]
+        gyro = frame_gyro(ctx)
         level_table(ctx)  # at rest, input axis up
         power_gyro(ctx, on=True)
         ctx.progress(0, self.duration_s(), "gyro warming up")
@@ -164,7 +177,7 @@ class GyroNoise(ParameterizedStep):
         gyro.start()
         parts: list[np.ndarray] = []
 
-        def store(frames) -> None:
+        def store(frames: GyroFrames) -> None:
             ctx.run.append("gyro_static", t_s=t0 + (frames.index + 1) / p.frame_rate_hz,
                            counts=frames.counts, rate_dps=frames.rate_dps,
                            temperature_c=frames.temperature_c, status=frames.status)

@@ -21,10 +21,11 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.analysis.ratetable import fit_rate_table, rate_plan, whole_revolution_duration_s
-from bench.core.procedure import Context
 from bench.core.site import earth_rate_vertical_dph
+from bench.core.step import Context, Step, parameter
+from instruments.fog_types import GyroFrames
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
-from procedures.steps import ParameterizedStep
+from procedures.typed_instruments import frame_gyro, turntable
 
 RATETABLE_PRODUCES = {
     "scale_factor_error": ("ppm", "scale factor relative to nominal, minus 1"),
@@ -38,16 +39,17 @@ AT_RATE_TIMEOUT_S = 120.0
 
 @dataclass
 class RateTableParameters:
-    rates_per_sign: int = 6
-    min_fraction: float = 0.01     # smallest rate as a fraction of full scale
-    max_fraction: float = 0.95     # largest (head-room for the Earth rate and the clip)
-    min_record_s: float = 30.0     # per rate, rounded up to whole revolutions
-    warmup_s: float = 600.0
-    settle_s: float = 2.0          # after "at rate", before recording
-    frame_rate_hz: int = 1000
-    full_scale_dps: float = 0.0    # 0: the gyro's own ($CFG?)
-    latitude_deg: float | None = None  # None: the station's site
-    boot_wait_s: float = 5.0       # powered, before the gyro is asked its configuration
+    rates_per_sign: int = parameter(6, "table rates of each sign, log-spaced")
+    min_fraction: float = parameter(0.01, "smallest rate as a fraction of full scale")
+    max_fraction: float = parameter(0.95, "largest rate as a fraction of full scale (head-room for "
+                                          "the Earth rate and the clip)")
+    min_record_s: float = parameter(30.0, "record per rate, rounded up to whole revolutions, s")
+    warmup_s: float = parameter(600.0, "powered, before the first rate, s")
+    settle_s: float = parameter(2.0, "after 'at rate', before recording, s")
+    frame_rate_hz: int = parameter(1000, "gyro frame rate, Hz")
+    full_scale_dps: float = parameter(0.0, "full scale, deg/s (0: the gyro's own, $CFG?)")
+    latitude_deg: float | None = parameter(None, "latitude for the Earth rate, deg (default: the station's site)")
+    boot_wait_s: float = parameter(5.0, "powered, before the gyro is asked its configuration, s")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {
@@ -60,7 +62,13 @@ class RateTableParameters:
             raise ValueError(f"min_fraction = {self.min_fraction} must be < max_fraction = {self.max_fraction}")
 
 
-class RateTableCalibration(ParameterizedStep):
+class RateTableCalibration(Step[RateTableParameters]):
+    """Gyro rate-table calibration (IEEE 952): scale factor, bias, nonlinearity, asymmetry.
+
+    ± rates log-spaced up to a fraction of full scale, whole revolutions each, the Earth
+    rate's vertical component at the station's latitude in the input.
+    """
+
     name = "ratetable"
     requires = ("gyro", "supply", "turntable")
     kinds = ("gyro",)
@@ -80,7 +88,7 @@ class RateTableCalibration(ParameterizedStep):
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
-        gyro, table = ctx.instruments["gyro"], ctx.instruments["turntable"]
+        gyro, table = frame_gyro(ctx), turntable(ctx)
         level_table(ctx)  # input axis up: the Earth rate's vertical component is the one sensed
         power_gyro(ctx, on=True)
         ctx.clock.sleep(p.boot_wait_s)
@@ -106,7 +114,7 @@ class RateTableCalibration(ParameterizedStep):
     def _rates(self, ctx: Context, plan: np.ndarray, fs: float, earth_dps: float,
                latitude: float) -> dict[str, Estimate]:
         p = self.p
-        gyro, axis = ctx.instruments["gyro"], ctx.instruments["turntable"].axis[1]
+        gyro, axis = frame_gyro(ctx), turntable(ctx).axis[1]
         total = self.duration_s()
         ctx.progress(0, total, "gyro warming up")
         ctx.clock.sleep(max(p.warmup_s - p.boot_wait_s, 0.0))
@@ -128,7 +136,7 @@ class RateTableCalibration(ParameterizedStep):
             record_s = n / p.frame_rate_hz
             t_start = ctx.clock.now()
 
-            def store(frames, rate=float(rate), t_start=t_start) -> None:
+            def store(frames: GyroFrames, rate: float = float(rate), t_start: float = t_start) -> None:
                 ctx.run.append("ratetable_frames", t_s=t_start + frames.t_s,
                                table_rate_dps=np.full(len(frames), rate), counts=frames.counts,
                                rate_dps=frames.rate_dps, temperature_c=frames.temperature_c,

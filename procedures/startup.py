@@ -1,12 +1,14 @@
 """Start-up acquisition of a quartz flexure accelerometer (Document A, step 1).
 
-1. Level the turntable with the input axis vertical (both axes at 0°) and check that the
-   powered unit reads ≈ +1 g.
+1. On the level turntable (input axis vertical, both axes at 0°: the procedure's set-up
+   levels it — ``procedures.running`` — and the turn-on test does before this record),
+   check that the powered unit reads ≈ +1 g.
 2. Supply off; wait for the unit to cool back to a cold start.
 3. Arm a timed DMM trace of the output (and a slower one of the internal temperature),
    then switch the supply on: that instant is t = 0.
 4. Stream both traces to the run store as they arrive, for the requested duration.
-5. Teardown — always — leaves the supply off, the meters idle and the turntable stopped.
+5. The procedure's teardown — always — leaves the supply off, the meters idle and the
+   turntable stopped.
 
 Times in the record are seconds since power-on on the bench clock.  Acceleration in g is
 ``V / R_sample / K1_nominal``; the analysis works on volts or g alike.
@@ -15,25 +17,26 @@ Times in the record are seconds since power-on on the bench clock.  Acceleration
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
-from bench.core.procedure import Context, Limit
-from procedures.common import choose_nplc, make_safe, power_accelerometer
+from bench.core.step import Context, FollowUp, Limit, Step, parameter
+from procedures.common import Estimate, choose_nplc, power_accelerometer
+from procedures.typed_instruments import multimeter, power_supply
 
 
 @dataclass
 class StartupParameters:
-    duration_s: float = 1800.0
-    rate_hz: float = 100.0
-    temperature_rate_hz: float = 1.0
-    off_wait_s: float = 600.0        # cool-down before the cold start
-    pre_trigger_s: float = 1.0       # trace starts this long before power-on
-    check_settle_s: float = 5.0
-    nominal_scale_factor_ma_per_g: float = 1.33
-    one_g_tolerance: float = 0.15    # |reading − 1 g| allowed in the level check (K1 spread)
-    chunk_s: float = 60.0            # how often the trace is drained to the store
+    duration_s: float = parameter(1800.0, "trace after power-on, s")
+    rate_hz: float = parameter(100.0, "output sample rate, Hz")
+    temperature_rate_hz: float = parameter(1.0, "temperature sample rate, Hz")
+    off_wait_s: float = parameter(600.0, "cool-down with the supply off before the cold start, s")
+    pre_trigger_s: float = parameter(1.0, "the traces start this long before power-on, s")
+    check_settle_s: float = parameter(5.0, "powered, before the level check's readings, s")
+    nominal_scale_factor_ma_per_g: float = parameter(1.33, "nominal K1 that converts the output to g, mA/g")
+    one_g_tolerance: float = parameter(0.15, "|reading − 1 g| the level check allows (K1 spread), g")
+    chunk_s: float = parameter(60.0, "how often the traces are drained to the store, s")
 
     def validate(self) -> None:
         checks = {
@@ -55,35 +58,35 @@ class StartupParameters:
                              "readings exceeds 5e7")
 
 
-class StartupAcquisition:
+class StartupAcquisition(Step[StartupParameters]):
+    """Start-up acquisition of a quartz accelerometer (Document A, step 1): level check, cold
+    start, output and temperature traces from power-on.
+
+    Produces no value of its own — its record is what Document A's start-up model
+    (``--analyze``, ``bench analyze run``) and the turn-on test reduce — and judges two
+    guards itself: the level check (≈ +1 g) and no reading lost.
+    """
+
     name = "startup"
     requires = ("dmm", "dmm_temp", "supply", "turntable")
+    kinds = ("accelerometer",)
+    Parameters = StartupParameters
+    follow_up = FollowUp("startup", on_request=True,
+                         summary="fit Document A's start-up model to the run and attach the report")
 
-    def __init__(self, params: StartupParameters | None = None) -> None:
-        self.p = params or StartupParameters()
-        self.p.validate()
+    def duration_s(self) -> float:
+        return self.p.check_settle_s + self.p.off_wait_s + self.p.pre_trigger_s + self.p.duration_s
 
-    def parameters(self) -> dict:
-        return asdict(self.p)
-
-    # -- set-up ---------------------------------------------------------------------------
-    def setup(self, ctx: Context) -> None:
-        supply, table = ctx.instruments["supply"], ctx.instruments["turntable"]
-        for dmm in (ctx.instruments["dmm"], ctx.instruments["dmm_temp"]):
-            dmm.reset()
-        supply.outputs_off()
-        table.interlock_close()
-        for axis in (1, 2):
-            table.axis[axis].move_to(0.0)
-        for axis in (1, 2):
-            table.axis[axis].wait_in_position(ctx.clock.sleep, timeout_s=120.0)
-        ctx.run.event(ctx.clock.now(), "levelled", "turntable at 0°, 0°: input axis up")
-
-    # -- steps ----------------------------------------------------------------------------
-    def run(self, ctx: Context) -> None:
+    def run(self, ctx: Context) -> dict[str, Estimate]:
         p, w = self.p, ctx.wiring
-        dmm, dmm_temp, supply = (ctx.instruments[k] for k in ("dmm", "dmm_temp", "supply"))
+        dmm, dmm_temp, supply = multimeter(ctx), multimeter(ctx, "dmm_temp"), power_supply(ctx)
         volts_per_g = p.nominal_scale_factor_ma_per_g * 1e-3 * w["sampling_resistor_ohm"]
+
+        # 0. a known start: meters reset, unit unpowered (the table is level, input axis up:
+        #    the procedure's set-up levels it, and so does the turn-on test before this record)
+        for meter in (dmm, dmm_temp):
+            meter.reset()
+        supply.outputs_off()
 
         # 1. level check: powered, settled, averaged reading ≈ +1 g
         power_accelerometer(ctx, on=True)
@@ -98,7 +101,7 @@ class StartupAcquisition:
             ctx.run.event(ctx.clock.now(), "level_check_failed",
                           f"read {one_g:.4f} g, expected 1 ± {p.one_g_tolerance} g — check "
                           "mounting, wiring and the sampling resistor; no trace taken")
-            return
+            return {}
         # 2. cold start
         supply.outputs_off()
         ctx.run.event(ctx.clock.now(), "supply_off", "cool-down before the cold start")
@@ -163,7 +166,4 @@ class StartupAcquisition:
         ctx.measure("readings_lost", n_out - got_out, "readings", Limit(0, 0),
                     "output readings expected minus stored")
         ctx.run.set_result("samples", {"output": got_out, "temperature": got_temp})
-
-    # -- teardown: always, and safe even if one instrument is gone ------------------------
-    def teardown(self, ctx: Context) -> None:
-        make_safe(ctx)
+        return {}

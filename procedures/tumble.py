@@ -17,14 +17,14 @@ height) unless the step is given ``local_g_mps2``.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
 from bench.analysis.tumble import fit_tumble, specific_force_iapo_g, tumble_positions
-from bench.core.procedure import Context
 from bench.core.site import STANDARD_GRAVITY_MPS2, site_gravity_mps2
+from bench.core.step import Context, Step, parameter
 from procedures.common import Estimate, averaged_voltage, check_ranges, move_table, power_accelerometer
-from procedures.steps import ParameterizedStep
 
 #: produced measurement → (unit, description); names follow IEEE 1293 symbols
 TUMBLE_PRODUCES = {
@@ -45,13 +45,14 @@ _PARAM = {"k0": "k0_g", "k1": "k1_ma_per_g", "k2": "k2_g_per_g2", "k3": "k3_g_pe
 
 @dataclass
 class TumbleParameters:
-    positions: int = 12           # outer angles per plane (multiple of 4)
-    planes: int = 2               # 1: IA–OA plane; 2: also IA–PA
-    warmup_s: float = 600.0       # powered, before the first position
-    settle_s: float = 5.0         # after in position, before averaging
-    average_s: float = 10.0       # averaging time per position
-    nplc: float = 10.0
-    local_g_mps2: float | None = None  # None: the station's site (measured g, else normal gravity)
+    positions: int = parameter(12, "equally spaced angles per plane (a multiple of 4)")
+    planes: int = parameter(2, "1: the IA–OA plane; 2: also the IA–PA plane")
+    warmup_s: float = parameter(600.0, "powered, before the first position, s")
+    settle_s: float = parameter(5.0, "after in position, before averaging, s")
+    average_s: float = parameter(10.0, "averaging time per position, s")
+    nplc: float = parameter(10.0, "DMM integration per reading, power-line cycles (0.02|0.06|0.2|1|10|100)")
+    local_g_mps2: float | None = parameter(None, "local gravity, m/s² (default: the station's site — "
+                                                 "its measured g, else normal gravity)")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {
@@ -64,7 +65,13 @@ class TumbleParameters:
             raise ValueError(f"nplc = {self.nplc} not in 0.02|0.06|0.2|1|10|100")
 
 
-class TumbleCalibration(ParameterizedStep):
+class TumbleCalibration(Step[TumbleParameters]):
+    """Accelerometer multi-position (tumble) calibration, IEEE 1293, on the turntable.
+
+    K0, K1, K2, K3, δo, δp, Kip, Kio (the identifiable ones for the plan) with standard
+    errors, and the fit's rms residual.
+    """
+
     name = "tumble"
     requires = ("dmm", "supply", "turntable")
     kinds = ("accelerometer",)
@@ -72,7 +79,7 @@ class TumbleCalibration(ParameterizedStep):
 
     Parameters = TumbleParameters
 
-    def __init__(self, params: TumbleParameters | None = None, **overrides) -> None:
+    def __init__(self, params: TumbleParameters | None = None, **overrides: Any) -> None:
         super().__init__(params, **overrides)
         self.plan = tumble_positions(self.p.positions, self.p.planes)
 

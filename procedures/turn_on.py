@@ -1,22 +1,28 @@
-"""Start-up tests for acceptance: cold start, record, turn-on time and warm-up drift — of an
-accelerometer (``startup``, through the DMM) and of a gyro (``gyro_startup``, its frames).
+"""Turn-on tests: cold start, record, turn-on time and warm-up drift — of an accelerometer
+(``turn_on``, through the DMM) and of a gyro (``gyro_turn_on``, its frames).
 
-The acquisition is the start-up procedure's (level check, cool-down, armed traces, power-on
-at t = 0, streaming); the record is then read back from the run and reduced by
-:func:`bench.analysis.turn_on.turn_on_metrics`.
+The accelerometer's record is the start-up acquisition's (``procedures.startup``: level
+check, cool-down, armed traces, power-on at t = 0, streaming); it is read back from the run
+and reduced by :func:`bench.analysis.turn_on.turn_on_metrics`.  The reductions are kept under
+the start-up records' names (``startup.turn_on``, ``gyro_startup.turn_on``): what they reduce.
+
+(Until the one step catalogue these steps were named ``startup`` and ``gyro_startup`` in
+unit specs; ``startup`` is now only Document A's acquisition, ``bench run startup``.)
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
 from bench.analysis.turn_on import turn_on_metrics
-from bench.core.procedure import Context
+from bench.core.step import Context, Step, parameter
+from instruments.fog_types import GyroFrames
 from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
 from procedures.startup import StartupAcquisition, StartupParameters
-from procedures.steps import ParameterizedStep
+from procedures.typed_instruments import frame_gyro
 
 TURN_ON_PRODUCES = {
     "turn_on_time": ("s", "time from power-on to within the band of the settled output"),
@@ -26,12 +32,12 @@ TURN_ON_PRODUCES = {
 
 @dataclass
 class TurnOnParameters:
-    duration_s: float = 1800.0
-    rate_hz: float = 20.0
-    off_wait_s: float = 600.0
-    band_g: float = 20e-6          # the "within" band around the settled output
-    smooth_s: float = 10.0         # averaging of the output before comparing with the band
-    settled_window_s: float = 300.0
+    duration_s: float = parameter(1800.0, "record after power-on, s")
+    rate_hz: float = parameter(20.0, "output sample rate, Hz")
+    off_wait_s: float = parameter(600.0, "cool-down with the supply off before the cold start, s")
+    band_g: float = parameter(20e-6, "the 'within' band around the settled output, g")
+    smooth_s: float = parameter(10.0, "averaging of the output before it is compared with the band, s")
+    settled_window_s: float = parameter(300.0, "end of the record whose mean is the settled output, s")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {"duration_s": (120, 86400), "rate_hz": (0.1, 1000),
@@ -42,15 +48,22 @@ class TurnOnParameters:
                              "2 × settled_window_s")
 
 
-class TurnOnTest(ParameterizedStep):
-    name = "startup"
+class TurnOnTest(Step[TurnOnParameters]):
+    """Accelerometer cold start through the DMM: turn-on time and warm-up drift.
+
+    The start-up acquisition (level check, cool-down, armed traces, power-on at t = 0),
+    then the record reduced: time to within ``band_g`` of the settled output, and the change
+    of the fitted start-up trend over the record.
+    """
+
+    name = "turn_on"
     requires = ("dmm", "dmm_temp", "supply", "turntable")
     kinds = ("accelerometer",)
     produces = TURN_ON_PRODUCES
 
     Parameters = TurnOnParameters
 
-    def __init__(self, params: TurnOnParameters | None = None, **overrides) -> None:
+    def __init__(self, params: TurnOnParameters | None = None, **overrides: Any) -> None:
         super().__init__(params, **overrides)
         self.acquisition = StartupAcquisition(StartupParameters(
             duration_s=self.p.duration_s, rate_hz=self.p.rate_hz, off_wait_s=self.p.off_wait_s))
@@ -59,8 +72,8 @@ class TurnOnTest(ParameterizedStep):
         return self.p.duration_s + self.p.off_wait_s
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
-        self.acquisition.setup(ctx)  # meters reset, supply off, table level: IA up
-        self.acquisition.run(ctx)
+        level_table(ctx)  # input axis up: the acquisition's level check expects +1 g
+        self.acquisition.run(ctx)  # meters reset, supply off, the record from power-on
         streams = ctx.run.store.streams(ctx.run.id)
         if "output" not in streams:  # the level check failed: nothing to reduce
             return {}
@@ -83,14 +96,15 @@ STATUS_READY = 0x01  # docs/FOG_SERIAL.md: powered and booted, the output is val
 
 @dataclass
 class GyroTurnOnParameters:
-    duration_s: float = 1800.0
-    frame_rate_hz: int = 100
-    off_wait_s: float = 600.0
-    boot_wait_s: float = 5.0       # powered, before the unit is asked to stream
-    band_dph: float = 2.0          # the "within" band around the settled rate
-    smooth_s: float = 120.0        # averaging before comparing (ARW: 0.07 °/√h → 0.4 °/h at 120 s)
-    settled_window_s: float = 600.0
-    chunk_s: float = 300.0
+    duration_s: float = parameter(1800.0, "record after power-on, s")
+    frame_rate_hz: int = parameter(100, "gyro frame rate, Hz")
+    off_wait_s: float = parameter(600.0, "cool-down with the supply off before the cold start, s")
+    boot_wait_s: float = parameter(5.0, "powered, before the unit is asked to stream, s")
+    band_dph: float = parameter(2.0, "the 'within' band around the settled rate, deg/h")
+    # ARW 0.07 °/√h averages to 0.4 °/h over 120 s: well inside the band
+    smooth_s: float = parameter(120.0, "averaging of the rate before it is compared with the band, s")
+    settled_window_s: float = parameter(600.0, "end of the record whose mean is the settled rate, s")
+    chunk_s: float = parameter(300.0, "frames read (and stored) per chunk, s")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {"duration_s": (120, 86400), "frame_rate_hz": (1, 4608),
@@ -103,11 +117,14 @@ class GyroTurnOnParameters:
                              "2 × settled_window_s")
 
 
-class GyroTurnOnTest(ParameterizedStep):
-    """Cold start of a gyro: supply off and cool-down, power on (t = 0), stream frames from
-    boot; turn-on time and warm-up drift of the valid (READY) output, in °/h."""
+class GyroTurnOnTest(Step[GyroTurnOnParameters]):
+    """Gyro cold start from its frames: turn-on time and warm-up drift.
 
-    name = "gyro_startup"
+    Supply off and cool-down, power on (t = 0), stream frames from boot; turn-on time and
+    warm-up drift of the valid (READY) output, in °/h.
+    """
+
+    name = "gyro_turn_on"
     requires = ("gyro", "supply", "turntable")
     kinds = ("gyro",)
     produces = GYRO_TURN_ON_PRODUCES
@@ -119,7 +136,7 @@ class GyroTurnOnTest(ParameterizedStep):
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
-        gyro = ctx.instruments["gyro"]
+        gyro = frame_gyro(ctx)
         level_table(ctx)  # at rest, input axis up
         power_gyro(ctx, on=False)
         ctx.progress(0, self.duration_s(), "cool-down before the cold start")
@@ -134,7 +151,7 @@ class GyroTurnOnTest(ParameterizedStep):
         t_start = ctx.clock.now() - t_on
         parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
-        def store(frames) -> None:
+        def store(frames: GyroFrames) -> None:
             t = t_start + (frames.index + 1) / p.frame_rate_hz
             ctx.run.append("gyro_startup", t_s=t, rate_dps=frames.rate_dps,
                            temperature_c=frames.temperature_c, status=frames.status)

@@ -27,9 +27,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.core.procedure import Context
+from bench.core.step import Context, FollowUp, Step, parameter
 from procedures.common import Estimate, check_ranges, power_gyro
-from procedures.steps import ParameterizedStep
+from procedures.typed_instruments import frame_gyro, shaker
 
 VIBRATION_PRODUCES = {
     "static_noise": ("deg/s", "rms rate at the frame rate, static segments (each segment's mean removed)"),
@@ -46,15 +46,16 @@ BLOCK_S = 1.0          # block length of the means behind the bias shift's uncer
 
 @dataclass
 class VibrationParameters:
-    static_s: float = 60.0
-    duration_s: float = 175.0      # steady vibration (Document C analyses 1320-1495 s: 175 s)
-    level_grms: float = 6.0
-    f_lo_hz: float = 20.0
-    f_hi_hz: float = 2000.0
-    ramp_s: float = 2.0
-    warmup_s: float = 600.0
-    frame_rate_hz: int = 2000
-    chunk_s: float = 1.0           # frames per read; the controller's level is polled per chunk
+    static_s: float = parameter(60.0, "each static segment, s")
+    # Document C analyses 1320-1495 s: 175 s
+    duration_s: float = parameter(175.0, "steady vibration segment, s")
+    level_grms: float = parameter(6.0, "flat random level, g rms")
+    f_lo_hz: float = parameter(20.0, "profile start, Hz")
+    f_hi_hz: float = parameter(2000.0, "profile end, Hz")
+    ramp_s: float = parameter(2.0, "shaker ramp time, s")
+    warmup_s: float = parameter(600.0, "gyro warm-up, s")
+    frame_rate_hz: int = parameter(2000, "gyro frame rate, Hz", aliases=("rate-hz",))
+    chunk_s: float = parameter(1.0, "frames per read, s (the controller's level is polled per chunk)")
 
     def validate(self) -> None:
         check_ranges(asdict(self), {
@@ -71,7 +72,7 @@ class _Recorder:
 
     def __init__(self, ctx: Context, p: VibrationParameters, t0: float, total_s: float) -> None:
         self.ctx, self.p, self.t0, self.total_s = ctx, p, t0, total_s
-        self.gyro, self.shaker = ctx.instruments["gyro"], ctx.instruments["shaker"]
+        self.gyro, self.shaker = frame_gyro(ctx), shaker(ctx)
         self.bounds = [-math.inf, math.inf, math.inf]  # start time of segments 0, 1, 2
         self.steady_from = [-math.inf, math.inf, math.inf]
         self.t: list[np.ndarray] = []
@@ -125,13 +126,22 @@ class _Recorder:
         return t, rate, level, segment, steady
 
 
-class VibrationTest(ParameterizedStep):
+class VibrationTest(Step[VibrationParameters]):
+    """Gyro frames through static, random vibration, static (Document C): noise, rms under
+    vibration, rectified bias shift.
+
+    Every frame stored with its segment; with ``--analyze`` the steady vibration segment goes
+    through Document C's EMD → AR → AR-Kalman model.
+    """
+
     name = "vibration"
     requires = ("gyro", "supply", "shaker")
     kinds = ("gyro",)
     produces = VIBRATION_PRODUCES
 
     Parameters = VibrationParameters
+    follow_up = FollowUp("vibration", on_request=True,
+                         summary="model the vibration segment (EMD → AR → AR-Kalman) and attach the report")
 
     def duration_s(self) -> float:
         p = self.p
@@ -139,14 +149,14 @@ class VibrationTest(ParameterizedStep):
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p = self.p
-        gyro, shaker = ctx.instruments["gyro"], ctx.instruments["shaker"]
-        shaker.stop()
-        shaker.set_random_profile(grms=p.level_grms, f_lo_hz=p.f_lo_hz, f_hi_hz=p.f_hi_hz)
-        with shaker.configuring():
-            shaker.level_db = 0.0
-            shaker.ramp_time_s = p.ramp_s
+        gyro, vibration_table = frame_gyro(ctx), shaker(ctx)
+        vibration_table.stop()
+        vibration_table.set_random_profile(grms=p.level_grms, f_lo_hz=p.f_lo_hz, f_hi_hz=p.f_hi_hz)
+        with vibration_table.configuring():
+            vibration_table.level_db = 0.0
+            vibration_table.ramp_time_s = p.ramp_s
         ctx.run.event(ctx.clock.now(), "profile", f"flat random {p.level_grms:g} g rms, "
-                      f"{p.f_lo_hz:g}-{p.f_hi_hz:g} Hz", target_grms=shaker.target_grms)
+                      f"{p.f_lo_hz:g}-{p.f_hi_hz:g} Hz", target_grms=vibration_table.target_grms)
         power_gyro(ctx, on=True)
         ctx.progress(0, self.duration_s(), "gyro warming up")
         ctx.clock.sleep(p.warmup_s)
@@ -165,19 +175,19 @@ class VibrationTest(ParameterizedStep):
         rec.mark(0)
         rec.read(p.static_s)
         rec.mark(1)
-        shaker.start()
-        shaker.wait_running(rec.read, timeout_s=p.ramp_s + RAMP_MARGIN_S, poll_s=p.chunk_s)
+        vibration_table.start()
+        vibration_table.wait_running(rec.read, timeout_s=p.ramp_s + RAMP_MARGIN_S, poll_s=p.chunk_s)
         rec.mark(1, steady=True)
         rec.read(p.duration_s)
         rec.mark(2)
-        shaker.stop()
-        shaker.wait_idle(rec.read, timeout_s=p.ramp_s + RAMP_MARGIN_S, poll_s=p.chunk_s)
+        vibration_table.stop()
+        vibration_table.wait_idle(rec.read, timeout_s=p.ramp_s + RAMP_MARGIN_S, poll_s=p.chunk_s)
         rec.mark(2, steady=True)
         rec.read(p.static_s)
         gyro.stop()
         result = vibration_statistics(*rec.arrays())
         ctx.run.set_result("vibration.segments", {**result.pop("segments"), "t0_s": t0})
-        ctx.run.set_result("vibration.statistics", {k: v for k, v in result.items()})
+        ctx.run.set_result("vibration.statistics", dict(result))
         return {"static_noise": Estimate(result["static_noise_dps"], None),
                 "vibration_rms": Estimate(result["vibration_rms_dps"], None),
                 "vibration_bias_shift": Estimate(result["bias_shift_dph"], result["bias_shift_se_dph"]),

@@ -47,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra and not getattr(args, "ignores_arguments", False):  # as parse_args, unless the
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")  # command only says "renamed"
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

@@ -1,8 +1,11 @@
-"""Running a procedure: set-up, steps, a teardown that always runs, and one run record.
+"""Running steps: a procedure's set-up, its steps, a teardown that always runs, one run record.
 
-Measurements are declared as data beside the step that takes them (OpenHTF style): a name,
-a unit, limits and an optional marginal band.  The runner records every measurement's
-value and outcome in the run store, and the run's status follows from them:
+A **procedure** (:class:`Procedure`) is what the runner (:func:`execute`) runs: one step
+(``bench.core.step``) or a sequence of them, between a set-up that brings the station to its
+start state and a teardown that always runs and leaves it safe, with a *judge* that turns
+each step's produced values into the run's measurements (on its own: every value, no limits;
+in acceptance: against the unit spec's limits).  The run's status follows from the
+measurements:
 
 * ``passed``  – every measurement inside its limits,
 * ``failed``  – at least one outside,
@@ -12,95 +15,99 @@ value and outcome in the run store, and the run's status follows from them:
 
 from __future__ import annotations
 
-import math
 import traceback
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, Protocol
 
+from bench.analysis.trend import Estimate
 from bench.core.clock import Clock
 from bench.core.site import DEFAULT_SITE
-from bench.core.store import RunStore, RunWriter
+from bench.core.step import Context, Limit, Measurement, Progress, Step, no_progress
+from bench.core.store import RunStore
 from bench.core.version import code_version
 
 
-@dataclass(frozen=True)
-class Limit:
-    """Inclusive limits with an optional marginal band inside them (same unit)."""
-
-    low: float | None = None
-    high: float | None = None
-    marginal: float = 0.0
-
-    def outcome(self, value: float) -> str:
-        if value is None or not math.isfinite(value):
-            return "fail"
-        if (self.low is not None and value < self.low) or (self.high is not None and value > self.high):
-            return "fail"
-        if self.marginal and ((self.low is not None and value < self.low + self.marginal)
-                              or (self.high is not None and value > self.high - self.marginal)):
-            return "marginal"
-        return "pass"
+def scaled_progress(progress: Progress, offset: float, weight: float, whole: float,
+                    label: str) -> Progress:
+    """A progress callback for one step inside a longer sequence (``weight`` of ``whole``)."""
+    def report(done: float, total: float, message: str = "") -> None:
+        fraction = min(max(done / total, 0.0), 1.0) if total > 0 else 1.0
+        progress(offset + weight * fraction, whole, f"{label}: {message}" if message else label)
+    return report
 
 
-@dataclass
-class Measurement:
-    name: str
-    value: float
-    unit: str
-    limit: Limit = field(default_factory=Limit)
-    description: str = ""
-    uncertainty: float | None = None  # standard uncertainty, same unit (None: not known)
+class Procedure(ABC):
+    """What the runner runs: ``steps`` in order, between :meth:`setup` (the station to its
+    start state) and :meth:`teardown` (always runs: the station left safe); :meth:`judge`
+    turns each step's produced values into measurements."""
+
+    def __init__(self, name: str, steps: Sequence[Step[Any]]) -> None:
+        if not steps:
+            raise ValueError(f"procedure {name!r} has no steps")
+        self.name = name
+        self.steps = tuple(steps)
 
     @property
-    def outcome(self) -> str:
-        return self.limit.outcome(self.value)
+    def requires(self) -> tuple[str, ...]:
+        return tuple(sorted({r for s in self.steps for r in s.requires}))
 
-    def to_dict(self) -> dict[str, Any]:
-        value = self.value if math.isfinite(self.value) else None  # JSON has no NaN: null
-        return {"name": self.name, "value": value, "unit": self.unit,
-                "low": self.limit.low, "high": self.limit.high, "marginal": self.limit.marginal,
-                "outcome": self.outcome, "description": self.description,
-                "uncertainty": self.uncertainty}
+    def parameters(self) -> dict[str, Any]:
+        """The run's recorded parameters: a step's own when it runs alone, each step's by name
+        in a sequence."""
+        if len(self.steps) == 1:
+            return self.steps[0].parameters()
+        return {s.name: s.parameters() for s in self.steps}
+
+    def duration_s(self) -> float:
+        return sum(s.duration_s() for s in self.steps)
+
+    @abstractmethod
+    def setup(self, ctx: Context) -> None:
+        """Bring the station to the start state the steps expect."""
+
+    @abstractmethod
+    def teardown(self, ctx: Context) -> None:
+        """Leave the station safe; runs whatever happened, and should try everything."""
+
+    def judge(self, ctx: Context, step: Step[Any], produced: Mapping[str, Estimate]) -> None:
+        """Record what ``step`` produced as measurements: by default every produced value in
+        its own unit, without limits (a step run on its own)."""
+        for name, (unit, description) in step.produces.items():
+            if name in produced:
+                est = produced[name]
+                ctx.measure(name, est.value, unit, Limit(), description, est.std)
+
+    def run(self, ctx: Context) -> None:
+        """Each step in turn, its progress a share of the whole, bracketed by events, judged."""
+        total = self.duration_s()
+        done = 0.0
+        outer = ctx.progress
+        for step in self.steps:
+            ctx.run.event(ctx.clock.now(), "step_start", step.name)
+            weight = step.duration_s()
+            ctx.progress = scaled_progress(outer, done, weight, total, step.name)
+            try:
+                produced = step.run(ctx)
+            finally:
+                ctx.progress = outer
+            done += weight
+            ctx.run.event(ctx.clock.now(), "step_end", step.name)
+            self.judge(ctx, step, produced)
+        ctx.progress(total, total, "done")
 
 
-class Progress(Protocol):
-    def __call__(self, done: float, total: float, message: str = "") -> None: ...
-
-
-def _no_progress(done: float, total: float, message: str = "") -> None:
-    return None
-
-
-@dataclass
-class Context:
-    """What a procedure gets: the station's instruments, its clock and the open run."""
+class OpenStation(Protocol):
+    """What the runner needs of an open station (``bench.app.station.Station``)."""
 
     instruments: dict[str, Any]
     clock: Clock
-    run: RunWriter
-    wiring: dict[str, Any]
-    progress: Progress = _no_progress
-    measurements: list[Measurement] = field(default_factory=list)
-    #: latitude_deg, height_m and optionally local_g_mps2 of the station
-    site: dict[str, Any] = field(default_factory=lambda: dict(DEFAULT_SITE))
 
-    def measure(self, name: str, value: float, unit: str, limit: Limit | None = None,
-                description: str = "", uncertainty: float | None = None) -> Measurement:
-        u = None if uncertainty is None or not math.isfinite(uncertainty) else float(uncertainty)
-        m = Measurement(name, float(value), unit, limit or Limit(), description, u)
-        self.measurements.append(m)
-        self.run.set_result(f"measurement.{name}", m.to_dict())
-        return m
+    @property
+    def config(self) -> Any: ...
 
-
-class Procedure(Protocol):
-    name: str
-
-    def parameters(self) -> dict[str, Any]: ...
-    def setup(self, ctx: Context) -> None: ...
-    def run(self, ctx: Context) -> None: ...
-    def teardown(self, ctx: Context) -> None: ...
+    def snapshot(self) -> dict[str, Any]: ...
 
 
 @dataclass
@@ -117,14 +124,14 @@ class RunOutcome:
                 "measurements": [m.to_dict() for m in self.measurements]}
 
 
-def execute(procedure: Procedure, station, store: RunStore, *, unit_serial: str | None,
-            seed: int | None, progress: Progress = _no_progress) -> RunOutcome:
+def execute(procedure: Procedure, station: OpenStation, store: RunStore, *, unit_serial: str | None,
+            seed: int | None, progress: Progress = no_progress) -> RunOutcome:
     """Run ``procedure`` on an open station; always tears down; always leaves a record.
 
     A station that lacks an instrument the procedure needs is refused before a run is
     created (ValueError naming what is missing).
     """
-    missing = [n for n in getattr(procedure, "requires", ()) if n not in station.instruments]
+    missing = [n for n in procedure.requires if n not in station.instruments]
     if missing:
         raise ValueError(f"station {station.config.name!r} lacks {missing} needed by "
                          f"{procedure.name!r}; it has {sorted(station.instruments)}")
@@ -183,5 +190,5 @@ def each_safely(actions: list[tuple[str, Callable[[], Any]]]) -> None:
         raise RuntimeError("; ".join(errors))
 
 
-__all__ = ["Limit", "Measurement", "Context", "Procedure", "RunOutcome", "execute",
-           "each_safely"]
+
+__all__ = ["scaled_progress", "Procedure", "OpenStation", "RunOutcome", "execute", "each_safely"]

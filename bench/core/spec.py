@@ -20,9 +20,11 @@ parameters) and every measurement with its unit, limits and optional marginal ba
     high = 4.0
     marginal = 0.4                         # inside the limits but this close: "marginal"
 
-Which measurements and parameters each procedure has is the *catalogue* the caller passes
-(``procedures.acceptance.CATALOGUE``); the spec is checked against it completely before any
-instrument is touched. Limits are compared in the spec's unit.
+The procedures are steps of the step catalogue the caller passes
+(``procedures.catalogue.CATALOGUE``): which sensor kinds each applies to, its parameters,
+what it produces and what a given parameter table can produce.  The spec is checked against
+it completely before any instrument is touched; a step's old name is refused naming the new
+one.  Limits are compared in the spec's unit.
 """
 
 from __future__ import annotations
@@ -30,10 +32,11 @@ from __future__ import annotations
 import fnmatch
 import math
 import tomllib
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from bench.core.step import Catalogue
 
 #: unit → (dimension, value of one unit in the dimension's base unit)
 _ARCSEC_RAD = math.pi / 180 / 3600
@@ -120,35 +123,25 @@ class UnitSpec:
                 "measurements": [m.to_dict() for m in self.measurements]}
 
 
-@dataclass(frozen=True)
-class CatalogueEntry:
-    """What one procedure offers a spec: its measurements (name → unit, description), the
-    sensor kinds it applies to, and a validator of its parameter table."""
-
-    produces: Mapping[str, tuple[str, str]]
-    kinds: tuple[str, ...]
-    check_parameters: Callable[[dict[str, Any]], Any] = field(default=lambda params: params)
-    #: which measurements a parameter table can produce (None: all of ``produces``)
-    producible: Callable[[dict[str, Any]], set[str]] | None = None
-
-
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise SpecError(f"{where} = {value!r} must be a finite number")
     return float(value)
 
 
-def _text(table: dict, key: str, where: str, required: bool = True) -> str | None:
+def _text(table: dict, key: str, where: str) -> str:
     value = table.get(key)
-    if value is None and not required:
-        return None
     if not isinstance(value, str) or not value.strip():
         raise SpecError(f"{where}: '{key}' = {value!r} must be non-empty text")
     return value
 
 
-def parse_spec(data: dict, catalogue: Mapping[str, CatalogueEntry], source: str = "<spec>") -> UnitSpec:
-    """Validate a spec table (as read from TOML) against the procedures' catalogue."""
+def _optional_text(table: dict, key: str, where: str) -> str | None:
+    return None if table.get(key) is None else _text(table, key, where)
+
+
+def parse_spec(data: dict, catalogue: Catalogue, source: str = "<spec>") -> UnitSpec:
+    """Validate a spec table (as read from TOML) against the step catalogue."""
     unknown = set(data) - {"unit", "procedures", "measurements"}
     if unknown:
         raise SpecError(f"{source}: unknown table(s) {sorted(unknown)}; allowed: unit, procedures, "
@@ -164,22 +157,31 @@ def parse_spec(data: dict, catalogue: Mapping[str, CatalogueEntry], source: str 
     kind = _text(unit, "kind", f"{source}: [unit]")
     if kind not in KINDS:
         raise SpecError(f"{source}: [unit] kind = {kind!r} not in {list(KINDS)}")
-    pattern = _text(unit, "serial_pattern", f"{source}: [unit]", required=False)
+    pattern = _optional_text(unit, "serial_pattern", f"{source}: [unit]")
+    judged = sorted(n for n, step in catalogue.steps.items() if step.produces)
     procedures = data.get("procedures", {})
     if not isinstance(procedures, dict) or not procedures:
         raise SpecError(f"{source}: [procedures.<name>] tables needed, one per procedure to run; "
-                        f"known: {sorted(catalogue)}")
+                        f"known: {judged}")
     checked: dict[str, dict[str, Any]] = {}
+    producible: dict[str, set[str]] = {}
     for name, params in procedures.items():
         where = f"{source}: [procedures.{name}]"
         if name not in catalogue:
-            raise SpecError(f"{where}: unknown procedure; known: {sorted(catalogue)}")
-        if kind not in catalogue[name].kinds:
-            raise SpecError(f"{where}: applies to {list(catalogue[name].kinds)}, not to a {kind}")
+            if name in catalogue.renamed:
+                raise SpecError(f"{where}: renamed {catalogue.renamed[name]!r}; "
+                                f"write [procedures.{catalogue.renamed[name]}]")
+            raise SpecError(f"{where}: unknown procedure; known: {judged}")
+        step = catalogue.steps[name]
+        if not step.produces:  # nothing to judge: a spec naming it meant something else
+            raise SpecError(f"{where}: {name!r} produces no measurement a spec can judge"
+                            f"{catalogue.renamed_note(name)}; known: {judged}")
+        if kind not in step.kinds:
+            raise SpecError(f"{where}: applies to {list(step.kinds)}, not to a {kind}")
         if not isinstance(params, dict):
             raise SpecError(f"{where} must be a table of parameters")
         try:
-            catalogue[name].check_parameters(dict(params))
+            producible[name] = step.build(params).producible()
         except (TypeError, ValueError) as exc:
             raise SpecError(f"{where}: {exc}") from None
         checked[name] = dict(params)
@@ -199,15 +201,13 @@ def parse_spec(data: dict, catalogue: Mapping[str, CatalogueEntry], source: str 
         where = f"{source}: measurement {name!r}"
         if proc not in checked:
             raise SpecError(f"{where}: procedure {proc!r} is not among this spec's [procedures.*] "
-                            f"({sorted(checked)})")
-        produced = catalogue[proc].produces
+                            f"({sorted(checked)}){catalogue.renamed_note(proc)}")
+        produced = catalogue.steps[proc].produces
         if name not in produced:
             raise SpecError(f"{where}: {proc} produces {sorted(produced)}, not {name!r}")
-        if catalogue[proc].producible is not None:
-            can = catalogue[proc].producible(checked[proc])
-            if name not in can:
-                raise SpecError(f"{where}: {proc} with these parameters cannot produce it "
-                                f"(it can: {sorted(can)}) — e.g. more positions or planes")
+        if name not in producible[proc]:
+            raise SpecError(f"{where}: {proc} with these parameters cannot produce it "
+                            f"(it can: {sorted(producible[proc])}) — e.g. more positions or planes")
         if name in seen:  # one record per name: two procedures cannot both judge "bias"
             raise SpecError(f"{where}: listed twice (measurement names are unique in a spec)")
         seen.add(name)
@@ -233,7 +233,7 @@ def parse_spec(data: dict, catalogue: Mapping[str, CatalogueEntry], source: str 
                     pattern, source)
 
 
-def load_spec(path: str | Path, catalogue: Mapping[str, CatalogueEntry]) -> UnitSpec:
+def load_spec(path: str | Path, catalogue: Catalogue) -> UnitSpec:
     path = Path(path)
     if not path.is_file():
         raise SpecError(f"spec file {str(path)!r} not found")
@@ -244,5 +244,5 @@ def load_spec(path: str | Path, catalogue: Mapping[str, CatalogueEntry]) -> Unit
     return parse_spec(data, catalogue, str(path))
 
 
-__all__ = ["UNITS", "KINDS", "SpecError", "SpecMeasurement", "UnitSpec", "CatalogueEntry",
-           "convert", "same_dimension", "parse_spec", "load_spec"]
+__all__ = ["UNITS", "KINDS", "SpecError", "SpecMeasurement", "UnitSpec", "convert",
+           "same_dimension", "parse_spec", "load_spec"]

@@ -1,7 +1,7 @@
 """Unit specs shipped with the bench (TOML): one per simulated sensor model.
 
-``builtin_specs()`` lists them; ``spec_for_serial(serial)`` picks the one whose
-``serial_pattern`` matches.
+``builtin_specs()`` lists them; ``bench acceptance --unit SN`` uses the one whose
+``serial_pattern`` matches (``bench.app.commands.acceptance.choose_spec``).
 """
 
 from __future__ import annotations
@@ -12,4 +12,5 @@ HERE = Path(__file__).resolve().parent
 
 
 def builtin_specs() -> list[Path]:
+    """The shipped spec files, by name."""
     return sorted(HERE.glob("*.toml"))

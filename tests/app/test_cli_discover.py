@@ -115,6 +115,7 @@ def test_discover_a_stored_startup_run(tmp_path, capsys):
     from bench.app.station import Station, builtin_sim_config
     from bench.core.procedure import execute
     from bench.core.store import RunStore
+    from procedures.running import alone
     from procedures.startup import StartupAcquisition, StartupParameters
 
     store_path = tmp_path / "bench.sqlite"
@@ -122,7 +123,7 @@ def test_discover_a_stored_startup_run(tmp_path, capsys):
     config = builtin_sim_config()
     config.simulation = {"accelerometer": {"warmup_amplitude_g": 6e-5}}
     with RunStore(store_path) as store, Station(config, seed=2, unit_serial="QA-D-1") as station:
-        execute(StartupAcquisition(params), station, store, unit_serial="QA-D-1", seed=2)
+        execute(alone(StartupAcquisition(params)), station, store, unit_serial="QA-D-1", seed=2)
     rc = main(["--store", str(store_path), "discover", "--run", "latest", "--out", str(tmp_path / "o"), "--json"])
     assert rc == 0
     doc = json.loads(capsys.readouterr().out)

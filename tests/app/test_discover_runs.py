@@ -14,7 +14,7 @@ from bench.app.commands.discover_runs import longest_stretch, power_on_time, rea
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
-from procedures.steps import StepProcedure
+from procedures.running import alone
 
 GYRO = {"unit": "FOG-SIM-0003", "kind": "gyro"}
 ACCEL = {"unit": "QA-SIM-0003", "kind": "accelerometer"}
@@ -23,7 +23,7 @@ ACCEL = {"unit": "QA-SIM-0003", "kind": "accelerometer"}
 def _run(path, step, who, seed=3):
     with RunStore(path) as store, Station(builtin_sim_config(), seed=seed, unit_serial=who["unit"],
                                           unit_kind=who["kind"]) as station:
-        outcome = execute(StepProcedure(step), station, store, unit_serial=who["unit"], seed=seed)
+        outcome = execute(alone(step), station, store, unit_serial=who["unit"], seed=seed)
         events = store.events(outcome.run_id)
     assert outcome.status == "passed", outcome.reason
     return outcome.run_id, events

@@ -9,6 +9,7 @@ import pytest
 from bench.app.station import Station, builtin_sim_config, load_station
 from bench.core.procedure import execute
 from bench.core.store import RunStore
+from procedures.running import alone
 from procedures.startup import StartupAcquisition, StartupParameters
 
 STATIONS = Path(__file__).resolve().parents[2] / "stations"
@@ -23,12 +24,12 @@ def test_the_real_rig_template_names_every_instrument_the_startup_procedure_need
 
 
 def test_the_acceptance_rig_template_has_what_every_step_and_the_vibration_test_need():
-    from procedures.acceptance import STEPS
-    from procedures.vibration import VibrationTest
+    from procedures.catalogue import CATALOGUE
 
     cfg = load_station(STATIONS / "lab-acceptance-rig.toml")
     assert not cfg.simulated
-    needed = {r for cls in STEPS.values() for r in cls.requires} | set(VibrationTest.requires)
+    needed = {r for step in CATALOGUE.steps.values() if set(step.kinds) & {"accelerometer", "gyro"}
+              for r in step.requires}
     assert needed <= set(cfg.instruments)
     assert cfg.instruments["gyro"].driver == "fog_serial" and cfg.wiring["gyro_supply_channel"] == 1
 
@@ -39,7 +40,7 @@ def test_a_simulated_station_file_sets_the_world(tmp_path):
     with Station(cfg, seed=None, unit_serial=None) as station:
         assert station.sim.config.line_hz == 60.0 and station.sim.config.seed == 42
         assert station.instruments["dmm"].line_frequency_hz == 60.0
-        outcome = execute(StartupAcquisition(StartupParameters(duration_s=30, off_wait_s=1)),
+        outcome = execute(alone(StartupAcquisition(StartupParameters(duration_s=30, off_wait_s=1))),
                           station, RunStore(tmp_path / "b.sqlite"), unit_serial="QA-SIM-0042",
                           seed=42)
         k1 = station.sim.truth()["k1_ma_per_g"]

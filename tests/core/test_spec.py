@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from bench.core.spec import UNITS, SpecError, convert, load_spec, parse_spec
 from bench.specs import builtin_specs
-from procedures.acceptance import CATALOGUE
+from procedures.catalogue import CATALOGUE
 
 GOOD = {
     "unit": {"model": "M", "kind": "accelerometer", "serial_pattern": "M-*"},
@@ -123,3 +123,31 @@ def test_unknown_unit_keys_and_parameters_are_named():
 ])
 def test_every_unit_factor_is_pinned(unit, base, factor):
     assert convert(1.0, unit, base) == pytest.approx(factor, rel=1e-12)
+
+
+TURN_ON = {"unit": {"model": "M", "kind": "accelerometer"},
+           "procedures": {"turn_on": {"duration_s": 600.0}},
+           "measurements": [{"name": "turn_on_time", "procedure": "turn_on", "unit": "s", "high": 900.0}]}
+
+
+def test_a_spec_written_with_the_turn_on_tests_old_names_is_told_the_new_ones():
+    assert parse_spec(TURN_ON, CATALOGUE).procedures == {"turn_on": {"duration_s": 600.0}}
+    old = {**TURN_ON, "procedures": {"startup": {"duration_s": 600.0, "band_g": 2e-5}},
+           "measurements": [{**TURN_ON["measurements"][0], "procedure": "startup"}]}
+    # 'startup' is Document A's acquisition now: nothing a spec can judge; the test is 'turn_on'
+    with pytest.raises(SpecError, match=r"\[procedures.startup\]: 'startup' produces no measurement "
+                                        r"a spec can judge \(the step once named 'startup' is now 'turn_on'\)"):
+        parse_spec(old, CATALOGUE, "old.toml")
+    gyro = {"unit": {"model": "G", "kind": "gyro"}, "procedures": {"gyro_startup": {}},
+            "measurements": [{"name": "turn_on_time", "procedure": "gyro_startup", "unit": "s", "high": 600.0}]}
+    with pytest.raises(SpecError, match=r"\[procedures.gyro_startup\]: renamed 'gyro_turn_on'"):
+        parse_spec(gyro, CATALOGUE)
+    mixed = {**TURN_ON, "measurements": [{**TURN_ON["measurements"][0], "procedure": "gyro_startup"}]}
+    with pytest.raises(SpecError, match="not among this spec's .* is now 'gyro_turn_on'"):
+        parse_spec(mixed, CATALOGUE)
+
+
+def test_a_step_of_another_sensor_kind_is_refused():
+    data = spec_with(procedures__frf={})
+    with pytest.raises(SpecError, match=r"\[procedures.frf\]: applies to \['angular'\], not to a accelerometer"):
+        parse_spec(data, CATALOGUE)

@@ -12,7 +12,7 @@ from instruments.fog import SerialGyro
 from instruments.multimeter import Keysight34465A
 from instruments.power_supply import KeysightE36312A
 from instruments.protocols import (
-    AngularVibrationExciter,
+    AngularTable,
     FrameGyro,
     PositionRateTable,
     PowerSupply,
@@ -28,7 +28,7 @@ from tests.instruments.test_driver_base import assert_conforms
 
 # Checked by the type checker (mypy runs on tests/): each driver is structurally its Protocol.
 STATIC: tuple[type[TimedTraceMultimeter], type[PowerSupply], type[PositionRateTable], type[FrameGyro],
-              type[RandomVibrationTable], type[AngularVibrationExciter]] = (
+              type[RandomVibrationTable], type[AngularTable]] = (
     Keysight34465A, KeysightE36312A, DualAxisTurntable, SerialGyro, VibrationTable, AngularVibrationTable)
 
 

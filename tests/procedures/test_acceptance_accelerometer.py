@@ -15,7 +15,8 @@ from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.spec import parse_spec
 from bench.core.store import RunStore
-from procedures.acceptance import CATALOGUE, AcceptanceTest
+from procedures.acceptance import AcceptanceTest
+from procedures.catalogue import CATALOGUE
 
 SHORT_SPEC = """
 [unit]
@@ -23,7 +24,7 @@ model = "QA-TEST"
 kind = "accelerometer"
 serial_pattern = "QA-SIM-*"
 
-[procedures.startup]
+[procedures.turn_on]
 duration_s = 400.0
 rate_hz = 10.0
 off_wait_s = 0.0
@@ -52,7 +53,7 @@ high = 1.46
 
 [[measurements]]
 name = "turn_on_time"
-procedure = "startup"
+procedure = "turn_on"
 unit = "s"
 high = 390.0
 """
@@ -121,7 +122,8 @@ PARAM = {"k0": ("k0_g", 1e3), "k1": ("k1_ma_per_g", 1.0), "k2": ("k2_g_per_g2", 
          "delta_o": ("delta_o_rad", 1e6), "delta_p": ("delta_p_rad", 1e6)}
 
 
-@settings(max_examples=4, deadline=None, phases=[Phase.explicit, Phase.generate])  # no shrinking: each draw is a whole station run
+# no shrinking: each draw is a whole station run
+@settings(max_examples=4, deadline=None, phases=[Phase.explicit, Phase.generate])
 @given(k0=st.floats(-3e-3, 3e-3), k1=st.floats(1.25, 1.41), k2=st.floats(-15e-6, 15e-6),
        delta=st.floats(-60e-6, 60e-6), outside=st.sampled_from(["", "k0", "k1", "k2"]))
 def test_tumble_recovers_drawn_units_and_judges_them(tmp_path_factory, k0, k1, k2, delta, outside):
@@ -159,7 +161,7 @@ def test_tumble_recovers_drawn_units_and_judges_them(tmp_path_factory, k0, k1, k
 def test_noiseless_unit_on_ideal_meters_calibrates_exactly_through_the_whole_station(tmp_path):
     """Issue 6: K0, K1, K2, K3 and δ to 1e-9 relative — here end to end (table geometry,
     local gravity, mount, sampling resistor, DMM, wire, fit), not only in the estimator."""
-    from procedures.steps import StepProcedure
+    from procedures.running import alone
     from procedures.tumble import TumbleCalibration
 
     quiet = {"white_density_g_per_rthz": 0.0, "gm_sigma_g": (), "gm_tau_s": (),
@@ -170,7 +172,7 @@ def test_noiseless_unit_on_ideal_meters_calibrates_exactly_through_the_whole_sta
     store = RunStore(tmp_path / "b.sqlite")
     step = TumbleCalibration(positions=12, planes=2, warmup_s=10.0, settle_s=5.0, average_s=2.0)
     with Station(config, seed=1, unit_serial="QA-SIM-0009") as station:
-        outcome = execute(StepProcedure(step), station, store, unit_serial="QA-SIM-0009", seed=1)
+        outcome = execute(alone(step), station, store, unit_serial="QA-SIM-0009", seed=1)
         truth = station.sim.truth()
     assert outcome.status == "passed", outcome.reason
     by_name = {m.name: m.value for m in outcome.measurements}
@@ -212,9 +214,9 @@ def test_noise_after_the_tumble_is_measured_level_and_the_site_reaches_the_steps
 def test_a_measurement_not_produced_is_null_in_json_and_fails(tmp_path, capsys):
     spec = tmp_path / "s.toml"
     spec.write_text('[unit]\nmodel = "QA-TEST"\nkind = "accelerometer"\n'
-                    "[procedures.startup]\nduration_s = 300.0\nrate_hz = 10.0\noff_wait_s = 0.0\n"
+                    "[procedures.turn_on]\nduration_s = 300.0\nrate_hz = 10.0\noff_wait_s = 0.0\n"
                     "settled_window_s = 60.0\n"
-                    '[[measurements]]\nname = "turn_on_time"\nprocedure = "startup"\nunit = "s"\n'
+                    '[[measurements]]\nname = "turn_on_time"\nprocedure = "turn_on"\nunit = "s"\n'
                     "high = 900.0\n")
     station = tmp_path / "st.toml"  # the fixture's resistor is not the one the wiring states
     station.write_text("[simulation]\nsampling_resistor_ohm = 2500.0\n")

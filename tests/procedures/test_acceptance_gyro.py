@@ -16,7 +16,8 @@ from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.spec import parse_spec
 from bench.core.store import RunStore
-from procedures.acceptance import CATALOGUE, AcceptanceTest
+from procedures.acceptance import AcceptanceTest
+from procedures.catalogue import CATALOGUE
 from sim.physics.gyro import indicated_rate_dps
 
 RATETABLE = {"rates_per_sign": 4, "min_record_s": 10.0, "warmup_s": 300.0, "frame_rate_hz": 500}
@@ -103,7 +104,7 @@ def test_gyro_start_up_turn_on_time_and_warm_up_drift(tmp_path):
     (+ about half the averaging window); the drift is the warm-up's change over the record."""
     import math
 
-    from procedures.steps import StepProcedure
+    from procedures.running import alone
     from procedures.turn_on import GyroTurnOnTest
 
     amp, tau, band, smooth = 20.0, 200.0, 3.0, 120.0  # band ≫ the 120-s noise (ARW, flicker)
@@ -116,7 +117,7 @@ def test_gyro_start_up_turn_on_time_and_warm_up_drift(tmp_path):
     step = GyroTurnOnTest(duration_s=2400.0, off_wait_s=60.0, band_dph=band, smooth_s=smooth,
                           settled_window_s=600.0)
     with Station(config, seed=4, unit_serial="FOG-SIM-0003", unit_kind="gyro") as station:
-        outcome = execute(StepProcedure(step), station, store, unit_serial="FOG-SIM-0003", seed=4)
+        outcome = execute(alone(step), station, store, unit_serial="FOG-SIM-0003", seed=4)
         truth = station.sim.gyro_truth()
     assert outcome.status == "passed", outcome.reason
     m = {x.name: x for x in outcome.measurements}

@@ -17,7 +17,7 @@ from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.frf import FrfParameters, FrfTest, safe_amplitude_dps
 from procedures.fusion import FusionParameters, FusionTest, tone_demand
-from procedures.steps import StepProcedure
+from procedures.running import alone
 from sim.devices.fog_serial import FogSerialDevice
 from sim.station import SimStationConfig, SimulatedStation
 from sim.station_angular import draw_rig
@@ -31,7 +31,7 @@ def _run(tmp_path, step, seed=SEED, serial="MHD-SIM-0007", faults=None):
         truth = station.sim.angular_truth()
         if faults:
             faults(station.sim)
-        outcome = execute(StepProcedure(step), station, store, unit_serial=serial, seed=seed)
+        outcome = execute(alone(step), station, store, unit_serial=serial, seed=seed)
     return outcome, truth, store
 
 
@@ -146,7 +146,7 @@ def test_interlock_during_the_frf_aborts_and_keeps_what_was_acquired(tmp_path):
     assert store.load(outcome.run_id, "frf_ref")["t_s"].size > 0
 
 
-def test_lf_frame_clock_and_dmm_timebase_run_off_nominal():
+def test_lf_frame_clock_and_dmm_timebase_run_off_nominal() -> None:
     with SimulatedStation(SimStationConfig(seed=1, lf_sensor={"frame_clock_error_ppm": 100.0})) as sim:
         line: FogSerialDevice = sim.angular.lf_line
         assert line.clock_ppm == 100.0
@@ -222,7 +222,7 @@ def test_a_slow_dmm_timebase_is_measured_and_removed(tmp_path):
     step = FrfTest(FrfParameters(f_min_hz=1.0, f_max_hz=1000.0, points_per_decade=2, min_periods=4))
     with Station(cfg, seed=5, unit_serial="MHD-SIM-0002", unit_kind="angular") as station:
         truth = station.sim.angular_truth()
-        outcome = execute(StepProcedure(step), station, store, unit_serial="MHD-SIM-0002", seed=5)
+        outcome = execute(alone(step), station, store, unit_serial="MHD-SIM-0002", seed=5)
     v = _values(outcome)
     clock = v["hf_clock_error"]
     assert abs(clock["value"] - (-40.0)) < 4 * clock["uncertainty"] + 0.2  # slow by 40 = fast by −40

@@ -6,6 +6,8 @@ faulty instrument is gone — make_safe tries every action."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -14,8 +16,8 @@ from bench.core.procedure import execute
 from bench.core.store import RunStore
 from instruments.base import open_resource
 from procedures.ratetable import RateTableCalibration
+from procedures.running import alone
 from procedures.startup import StartupAcquisition, StartupParameters
-from procedures.steps import StepProcedure
 from procedures.tumble import TumbleCalibration
 
 TIMEOUT_MS = 400  # the faulty instrument's timeout in these runs (a stall costs a few of them)
@@ -27,11 +29,11 @@ STARTUP = StartupParameters(duration_s=40.0, rate_hz=10.0, off_wait_s=5.0, chunk
 
 
 def startup():
-    return StartupAcquisition(STARTUP)
+    return alone(StartupAcquisition(STARTUP))
 
 
 def tumble():
-    return StepProcedure(TumbleCalibration(positions=4, planes=1, warmup_s=5.0, settle_s=1.0,
+    return alone(TumbleCalibration(positions=4, planes=1, warmup_s=5.0, settle_s=1.0,
                                            average_s=1.0, nplc=1.0))
 
 
@@ -41,7 +43,7 @@ RECORD_2_MID_S = 53.0
 
 
 def ratetable():
-    return StepProcedure(RateTableCalibration(rates_per_sign=1, min_record_s=10.0, warmup_s=8.0,
+    return alone(RateTableCalibration(rates_per_sign=1, min_record_s=10.0, warmup_s=8.0,
                                               settle_s=1.0, boot_wait_s=5.0))
 
 
@@ -52,7 +54,11 @@ def run(tmp_path, procedure, *, at_progress: int, fault: str | None = None,
     through the Python API at now + delay_s."""
     store = RunStore(tmp_path / "bench.sqlite")
     serial = "FOG-F-1" if unit_kind == "gyro" else "QA-F-1"
-    faulty = (fault.split('"')[1] if fault is not None else schedule[1])
+    if fault is not None:
+        faulty = fault.split('"')[1]
+    else:
+        assert schedule is not None, "a fault or a schedule to inject"
+        faulty = schedule[1]
     with Station(builtin_sim_config(), seed=seed, unit_serial=serial, unit_kind=unit_kind) as station:
         for name, inst in station.instruments.items():
             timeout_ms = TIMEOUT_MS if name == faulty else HEALTHY_TIMEOUT_MS
@@ -60,7 +66,7 @@ def run(tmp_path, procedure, *, at_progress: int, fault: str | None = None,
                 inst.resource.timeout = timeout_ms
             if hasattr(inst, "reply_timeout_s"):  # the gyro's serial line
                 inst.reply_timeout_s = timeout_ms / 1000
-        sim = station.sim
+        sim: Any = station.sim  # the embedded simulated station (typed None until started)
         control = open_resource(station.config.clock, timeout_ms=20000)
         calls = []
 

@@ -11,7 +11,7 @@ from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.noise import AccelerometerNoise, GyroNoise
-from procedures.steps import StepProcedure
+from procedures.running import alone
 
 
 def run_step(tmp_path, step, serial, kind, simulation=None):
@@ -19,7 +19,7 @@ def run_step(tmp_path, step, serial, kind, simulation=None):
     config.simulation = simulation or {}
     store = RunStore(tmp_path / "b.sqlite")
     with Station(config, seed=11, unit_serial=serial, unit_kind=kind) as station:
-        outcome = execute(StepProcedure(step), station, store, unit_serial=serial, seed=11)
+        outcome = execute(alone(step), station, store, unit_serial=serial, seed=11)
         truth = station.sim.gyro_truth() if kind == "gyro" else station.sim.truth()
     return store, outcome, truth, {m.name: m for m in outcome.measurements}
 

@@ -10,7 +10,9 @@ import pytest
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
-from procedures.startup import StartupAcquisition, StartupParameters, choose_nplc
+from procedures.common import choose_nplc
+from procedures.running import alone
+from procedures.startup import StartupAcquisition, StartupParameters
 
 SHORT = dict(duration_s=240.0, rate_hz=50.0, off_wait_s=60.0, chunk_s=30.0)
 
@@ -22,7 +24,7 @@ def run_startup(tmp_path, seed=3, progress=None, **overrides):
     config.simulation = {"accelerometer": {"warmup_amplitude_g": 6e-5}}  # a clear transient
     with Station(config, seed=seed, unit_serial="QA-T-1") as station:
         kwargs = {"progress": progress} if progress else {}
-        outcome = execute(StartupAcquisition(params), station, store, unit_serial="QA-T-1",
+        outcome = execute(alone(StartupAcquisition(params)), station, store, unit_serial="QA-T-1",
                           seed=seed, **kwargs)
         sim = station.sim
         safe = {
@@ -127,7 +129,7 @@ def test_a_meter_that_stops_mid_trace_aborts_the_run_with_the_counts(tmp_path):
     with Station(builtin_sim_config(), seed=5, unit_serial="QA-T-2") as station:
         sim = station.sim
         sim.server.call(lambda: sim.world.schedule(150.0, sim.dmm.abort))
-        outcome = execute(StartupAcquisition(params), station, store, unit_serial="QA-T-2", seed=5)
+        outcome = execute(alone(StartupAcquisition(params)), station, store, unit_serial="QA-T-2", seed=5)
         outputs = [ch.output for ch in sim.supply.channels.values()]
     assert outcome.status == "aborted"
     assert "no readings for" in outcome.reason and "output" in outcome.reason

@@ -10,7 +10,7 @@ from bench.app.cli import main
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
-from procedures.steps import StepProcedure
+from procedures.running import alone
 from procedures.vibration import VibrationParameters, VibrationTest
 
 UNIT = "FOG-SIM-0042"
@@ -32,7 +32,7 @@ def _run(tmp_path, before=None, **overrides):
         if before is not None:
             before(station)
         step = VibrationTest(VibrationParameters(**{**SHORT, **overrides}))
-        outcome = execute(StepProcedure(step), station, store, unit_serial=UNIT, seed=5)
+        outcome = execute(alone(step), station, store, unit_serial=UNIT, seed=5)
         sim = station.sim
         after = {"shaker_driving": sim.shaker.driving, "shaker_state": sim.shaker.state(sim.world.now),
                  "supply_on": any(ch.output for ch in sim.supply.channels.values()),

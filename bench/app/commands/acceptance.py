@@ -5,12 +5,11 @@ Exit 0 pass (marginal measurements included), 1 fail, 2 error or aborted run.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
 
-from bench.app.commands.common import open_store, progress_bar, seed_of
+from bench.app.commands.common import FollowUpResult, attach_folder, conclude, open_store, progress_bar, seed_of
 
 
 def register(sub) -> None:
@@ -31,7 +30,7 @@ def register(sub) -> None:
 def choose_spec(spec_path: str | None, unit: str | None):
     from bench.core.spec import load_spec
     from bench.specs import builtin_specs
-    from procedures.acceptance import CATALOGUE
+    from procedures.catalogue import CATALOGUE
 
     if spec_path is not None:
         return load_spec(spec_path, CATALOGUE)
@@ -75,43 +74,35 @@ def run_acceptance(args) -> int:
             progress_bar(not args.no_progress and not args.json) as progress:
         outcome = execute(procedure, station, store, unit_serial=unit, seed=seed, progress=progress)
     folder = report_root / outcome.run_id
-    report_error = None
+    report = None
+    written = FollowUpResult("report")
     try:
         report = write_acceptance_report(store, outcome.run_id, folder)
-        mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
-        for f in sorted(folder.iterdir()):
-            if f.is_file() and f.suffix in mime:
-                store.attach_analysis(outcome.run_id, f"analysis/acceptance/{f.name}",
-                                      f.read_bytes(), mime[f.suffix])
+        attach_folder(store, outcome.run_id, folder, "analysis/acceptance/")
     except OSError as exc:  # the verdict is stored and still printed
-        report, report_error = None, f"the report could not be written: {exc}"
+        written.error = f"run {outcome.run_id} is stored, but the report could not be written: {exc}"
     doc = acceptance_document(store, outcome.run_id)
     doc.update(report=None if report is None else str(report), store=str(store.path),
                wall_time_s=round(time.perf_counter() - started, 2))
-    if args.json:
-        json.dump(doc, sys.stdout, indent=2, allow_nan=False, default=str)
-        print()
-    else:
-        print_verdict(doc)
-    if report_error:
-        print(f"bench: error: run {outcome.run_id} is stored, but {report_error}", file=sys.stderr)
-        return 2
-    return {"passed": 0, "failed": 1}.get(outcome.status, 2)
+    return conclude(outcome, as_json=args.json, document=doc, table=verdict_lines(doc),
+                    follow_ups=[written])
 
 
-def print_verdict(doc: dict) -> None:
-    print(f"{doc['model']} s/n {doc['unit']}: {doc['verdict']}"
-          + (f" — {doc['reason']}" if doc.get("reason") else ""))
-    print(f"  {'measurement':<18} {'value':>13} {'± unc.':>9} {'unit':<8} {'low':>9} {'high':>9}  outcome")
+def verdict_lines(doc: dict) -> list[str]:
+    """The verdict and the measurement table of an acceptance document, as printed."""
+    lines = [f"{doc['model']} s/n {doc['unit']}: {doc['verdict']}"
+             + (f" — {doc['reason']}" if doc.get("reason") else ""),
+             f"  {'measurement':<18} {'value':>13} {'± unc.':>9} {'unit':<8} {'low':>9} {'high':>9}  outcome"]
     for m in doc["measurements"]:
         unc = "" if m.get("uncertainty") is None else f"{m['uncertainty']:.2g}"
         low = "" if m["low"] is None else f"{m['low']:g}"
         high = "" if m["high"] is None else f"{m['high']:g}"
         value = "—" if m["value"] is None else f"{m['value']:.6g}"  # None: not produced
-        print(f"  {m['name']:<18} {value:>13} {unc:>9} {m['unit']:<8} {low:>9} {high:>9}  "
-              f"{m['outcome'].upper()}")
-    print(f"run {doc['run_id']} stored in {doc['store']} (bench runs show {doc['run_id']})")
+        lines.append(f"  {m['name']:<18} {value:>13} {unc:>9} {m['unit']:<8} {low:>9} {high:>9}  "
+                     f"{m['outcome'].upper()}")
+    lines.append(f"run {doc['run_id']} stored in {doc['store']} (bench runs show {doc['run_id']})")
     if doc.get("report"):
-        print(f"report: {doc['report']}")
+        lines.append(f"report: {doc['report']}")
     if "wall_time_s" in doc:
-        print(f"wall time: {doc['wall_time_s']:.1f} s")
+        lines.append(f"wall time: {doc['wall_time_s']:.1f} s")
+    return lines

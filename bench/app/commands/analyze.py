@@ -20,7 +20,7 @@ import numpy as np
 from bench.analysis import timeseries as ts
 
 RUN_STREAM, RUN_TIME_COL, RUN_VALUE_COL = "output", "t_s", "voltage_v"
-
+ATTACHED = "analysis/startup/"  # where a stored run's start-up model and report are attached
 
 
 def _analysis_modules() -> list[str]:
@@ -93,7 +93,7 @@ def read_csv_table(path: str | Path, required: tuple, optional: tuple = (), *,
                     raise ValueError(f"{path}: no column {name!r}; columns are {', '.join(header)}")
             names = list(required) + [n for n in optional if n in header]
             cols = {n: header.index(n) for n in names}
-            out = {n: [] for n in names}
+            out: dict[str, list[float]] = {n: [] for n in names}
             for row_no, row in enumerate(reader, start=2):
                 if not row or all(not c.strip() for c in row):
                     continue  # blank line
@@ -152,19 +152,24 @@ def analysis_document(analysis, label: str, report: Path | None, run_id: str | N
     doc = analysis.to_dict()
     doc["source"] = label
     if run_id is not None:
-        doc["attached"] = "analysis/startup/"
+        doc["attached"] = ATTACHED
     if report is not None:
         doc["report"] = str(report)
     return doc
 
 
-def print_analysis(analysis, label: str, report: Path | None, run_id: str | None = None) -> None:
+def analysis_lines(analysis, label: str, report: Path | None, run_id: str | None = None) -> list[str]:
     """The text form: summary, where the report was attached and written."""
-    print(_summary(analysis, label))
+    lines = _summary(analysis, label).split("\n")
     if run_id is not None:
-        print(f"report attached to run {run_id} as analysis/startup/startup_report.html")
+        lines.append(f"report attached to run {run_id} as {ATTACHED}startup_report.html")
     if report is not None:
-        print(f"report: {report}")
+        lines.append(f"report: {report}")
+    return lines
+
+
+def print_analysis(analysis, label: str, report: Path | None, run_id: str | None = None) -> None:
+    print("\n".join(analysis_lines(analysis, label, report, run_id)))
 
 
 def _summary(a, label: str) -> str:
@@ -197,7 +202,7 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
     import tempfile
 
     from bench.analysis.startup import analyze_startup
-    from bench.app.commands.common import require_store, resolve_run_id
+    from bench.app.commands.common import attach_folder, require_store, resolve_run_id
     from bench.app.reports.startup_report import write_startup_report
     from bench.core.store import RunStore
 
@@ -219,11 +224,7 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
                    "code version": info.code_version, "stream": f"{stream}.{value_col}"}
         folder = Path(report_root) / run_id if report_root is not None else Path(tmp)
         report = write_startup_report(analysis, folder, context)
-        mime = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
-        for f in sorted(report.parent.iterdir()):  # the report and model travel with the run
-            if f.is_file() and f.suffix in mime:
-                store.attach_analysis(run_id, f"analysis/startup/{f.name}", f.read_bytes(),
-                                      mime[f.suffix])
+        attach_folder(store, run_id, report.parent, ATTACHED)  # the report and model travel with the run
     return run_id, analysis, (report if report_root is not None else None)
 
 

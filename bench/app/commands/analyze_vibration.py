@@ -1,4 +1,5 @@
-"""``bench analyze vibration --input FILE.csv``: Document C's EMD → AR → AR-Kalman error model.
+"""``bench analyze vibration --input FILE.csv``: Document C's EMD → AR → AR-Kalman error model
+(and :func:`analyse_vibration_run`, the same model of a stored ``bench run vibration`` run).
 
 Reads a time column (s) and a rate column from a CSV with a header row; the sampling
 must be uniform (every interval within 1 % of the median — a gap or restart is refused,
@@ -14,6 +15,7 @@ import json
 from pathlib import Path
 
 DOCUMENT_C = {"ar": (7.3677e-6, 0.0041), "ar_kalman": (3.9332e-6, 0.0018)}  # °/s, published table
+ATTACHED = "analysis/vibration/"  # where a stored run's vibration model and report are attached
 
 
 def register_analysis(kinds) -> None:
@@ -45,7 +47,8 @@ def summary(a, label: str) -> str:
              f"({a.y.size / a.rate_hz:.6g} s)",
              f"EMD ({dec.stop}): {dec.n_imfs} IMFs + residue, siftings {list(dec.sifts)}"]
     for c in a.terms.nonrandom:
-        lines.append(f"non-random {c.label}: {c.kind}, {c.frequency_hz:.4g} Hz, amplitude {c.amplitude:.4g} — {c.reason}")
+        lines.append(f"non-random {c.label}: {c.kind}, {c.frequency_hz:.4g} Hz, amplitude {c.amplitude:.4g} "
+                     f"— {c.reason}")
     lines.append(f"{'IMF':>4} {'p':>3} {'AIC':>4} {'BIC':>4} {'resid LB p':>11} {'ADF p':>9} {'KPSS p':>7} "
                  f"{'ident':>5} {'K1':>6}")
     for m, k in zip(a.models, a.kalman):
@@ -83,3 +86,32 @@ def analyze_vibration_csv(args) -> int:
         if report is not None:
             print(f"report: {report}")
     return 0
+
+
+def analyse_vibration_run(store_path, run_id: str, report_root: Path | None):
+    """Document C's model of a stored vibration run's steady vibration segment; the report is
+    attached to the run under ``analysis/vibration/``.  Returns ``(analysis, report path or
+    None)``; the report is also written to ``report_root/<run id>/`` when one is given."""
+    import tempfile
+
+    import numpy as np
+
+    from bench.analysis.vibration import analyze_vibration
+    from bench.app.commands.common import attach_folder
+    from bench.app.reports.vibration_report import write_vibration_report
+    from bench.core.store import RunStore
+
+    with RunStore(store_path) as store, tempfile.TemporaryDirectory() as tmp:
+        frames = store.load(run_id, "gyro_frames")
+        keep = (frames["segment"] == 1) & frames["steady"].astype(bool)
+        if not np.any(keep):
+            raise ValueError(f"run {run_id} has no steady vibration frames to analyse")
+        analysis = analyze_vibration(frames["t_s"][keep], frames["rate_dps"][keep])
+        info = store.get_run(run_id)
+        context = {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure,
+                   "seed": info.seed, "code version": info.code_version,
+                   "record": "gyro_frames.rate_dps, steady vibration segment (deg/s)"}
+        folder = Path(report_root) / run_id if report_root is not None else Path(tmp)
+        report = write_vibration_report(analysis, folder, context)
+        attach_folder(store, run_id, report.parent, ATTACHED)
+    return analysis, (report if report_root is not None else None)

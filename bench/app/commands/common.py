@@ -1,18 +1,23 @@
-"""Helpers shared by CLI commands: the store, progress display, printing outcomes."""
+"""Helpers shared by CLI commands: the store, the unit and seed, progress display, and the one
+ending of every command that runs something (:func:`conclude`: table or JSON, exit code)."""
 
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
+from bench.core.procedure import RunOutcome
 from bench.core.store import RunStore
 
 
 def require_store(path) -> None:
     """Reading commands never create a store: a missing one is named (LookupError)."""
-    from pathlib import Path
-
     if not Path(path).is_file():
         raise LookupError(f"no run store at {path} (run a procedure first, or --store PATH)")
 
@@ -83,13 +88,68 @@ def _stderr_console():
     return Console(file=sys.stderr)
 
 
-def print_outcome(outcome) -> None:
-    print(f"run {outcome.run_id}: {outcome.status.upper()}"
-          + (f" — {outcome.reason}" if outcome.reason else ""))
+#: exit code of a finished run: 0 passed, 1 failed (a measurement outside its limits), 2 aborted
+EXIT_CODES = {"passed": 0, "failed": 1}
+#: what the bench attaches of a report folder
+REPORT_MIME = {".html": "text/html", ".png": "image/png", ".json": "application/json"}
+
+
+def attach_folder(store: RunStore, run_id: str, folder: Path, prefix: str) -> None:
+    """Every report file of ``folder`` attached to the run as ``<prefix><file name>``."""
+    for f in sorted(folder.iterdir()):
+        if f.is_file() and f.suffix in REPORT_MIME:
+            store.attach_analysis(run_id, prefix + f.name, f.read_bytes(), REPORT_MIME[f.suffix])
+
+
+@dataclass
+class FollowUpResult:
+    """What an analysis after a run had to say: its part of the ``--json`` document (under
+    ``key``), its lines of text, or the error that stopped it (``<key>_error``; exit 2)."""
+
+    key: str
+    document: Any = None
+    lines: list[str] = field(default_factory=list)
+    error: str | None = None
+
+
+def outcome_lines(outcome: RunOutcome) -> list[str]:
+    """A run's verdict and measurement table, as ``bench run`` prints them."""
+    lines = [f"run {outcome.run_id}: {outcome.status.upper()}"
+             + (f" — {outcome.reason}" if outcome.reason else "")]
     for m in outcome.measurements:
         lim = f"[{'' if m.limit.low is None else f'{m.limit.low:g}'} .. " \
               f"{'' if m.limit.high is None else f'{m.limit.high:g}'}]"
         unc = "" if m.uncertainty is None else f"± {m.uncertainty:.2g}"
         value = f"{m.value:.6g}" if math.isfinite(m.value) else "—"  # not produced
-        print(f"  {m.name:<22} {value:>14} {unc:<11} {m.unit:<9} {lim:<18} {m.outcome}")
-    print(f"stored in {outcome.store_path} (bench runs show {outcome.run_id})")
+        lines.append(f"  {m.name:<22} {value:>14} {unc:<11} {m.unit:<9} {lim:<18} {m.outcome}")
+    lines.append(f"stored in {outcome.store_path} (bench runs show {outcome.run_id})")
+    return lines
+
+
+def conclude(outcome: RunOutcome, *, as_json: bool, document: dict[str, Any] | None = None,
+             table: list[str] | None = None, follow_ups: Sequence[FollowUpResult] = ()) -> int:
+    """The one ending of every command that runs something: print the outcome — the table
+    (``table``, default :func:`outcome_lines`) and each follow-up's lines, or the ``--json``
+    document (``document``, default ``outcome.to_dict()``) with each follow-up's part under its
+    key — then each follow-up's error on stderr; return the exit code: 0 passed, 1 failed,
+    2 aborted or a follow-up failed (the run is stored whatever happened)."""
+    doc = dict(outcome.to_dict() if document is None else document)
+    errors = []
+    for f in follow_ups:
+        if f.error is not None:
+            doc[f"{f.key}_error"] = f.error
+            errors.append(f.error)
+        elif f.document is not None:
+            doc[f.key] = f.document
+    if as_json:
+        json.dump(doc, sys.stdout, indent=2, allow_nan=False, default=str)  # NaN → null in to_dict
+        print()
+    else:
+        for line in (outcome_lines(outcome) if table is None else table):
+            print(line)
+        for f in follow_ups:
+            for line in f.lines if f.error is None else ():
+                print(line)
+    for error in errors:
+        print(f"bench: error: {error}", file=sys.stderr)
+    return 2 if errors else EXIT_CODES.get(outcome.status, 2)

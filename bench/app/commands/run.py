@@ -1,47 +1,52 @@
-"""``bench run startup``: run a procedure on a station and store the run."""
+"""``bench run <step>``: one step of the catalogue on a station, stored as its own run.
+
+Every subcommand is derived from the step catalogue (``procedures.catalogue``): its help
+from the step's docstring, one ``--option`` per field of its parameter dataclass (type,
+default and help from the field), ``--analyze`` / ``--report DIR`` from the step's
+follow-up.  Every produced value is recorded with its uncertainty, no limits (``bench
+acceptance`` judges them against a unit spec); a step's own guards (the start-up
+acquisition's level check) are judged.  The ending is the one every run command shares
+(:func:`bench.app.commands.common.conclude`): exit 0 passed, 1 failed, 2 aborted or error.
+"""
 
 from __future__ import annotations
 
-import importlib
-import json
-import pkgutil
-import sys
+import argparse
+import dataclasses
+import inspect
+import typing
+from pathlib import Path
+from typing import Any
 
-from bench.app.commands.common import open_store, print_outcome, progress_bar, seed_of, unit_of
-from bench.app.station import Station, resolve_station
-from bench.core.procedure import execute
+from bench.app.commands.common import conclude, open_store, progress_bar, seed_of, unit_of
+from bench.core.step import Step
 
 
 def register(sub) -> None:
-    run = sub.add_parser("run", help="run a procedure on a station")
-    procs = run.add_subparsers(dest="procedure", metavar="PROCEDURE")
-    procs.required = True
-    p = procs.add_parser("startup", help="start-up acquisition of a quartz accelerometer "
-                         "(Document A, step 1)")
-    _common(p)
-    p.add_argument("--duration-s", type=float, default=1800.0, help="trace after power-on [1800]")
-    p.add_argument("--rate-hz", type=float, default=100.0, help="output sample rate [100]")
-    p.add_argument("--off-wait-s", type=float, default=600.0,
-                   help="cool-down with the supply off before the cold start [600]")
-    p.add_argument("--analyze", action="store_true",
-                   help="fit Document A's start-up model to the run and attach the report")
-    p.add_argument("--report", metavar="DIR", default=None,
-                   help="with --analyze: also write the report into DIR/<run id>/")
-    p.set_defaults(func=run_startup)
-    # Further procedures live in their own modules, each with ``register_procedure(procs, common)``.
-    for name in _procedure_modules():
-        importlib.import_module(name).register_procedure(procs, _common)
+    from procedures.catalogue import CATALOGUE
+
+    run = sub.add_parser("run", help="run one step on a station and store the run")
+    steps = run.add_subparsers(dest="procedure", metavar="STEP")
+    steps.required = True
+    for name, step in CATALOGUE.steps.items():
+        p = steps.add_parser(name, help=step.summary(), description=inspect.cleandoc(step.__doc__ or ""),
+                             formatter_class=argparse.RawDescriptionHelpFormatter)
+        station_options(p)
+        parameter_options(p, step.Parameters)
+        if step.follow_up is not None and step.follow_up.on_request:
+            p.add_argument("--analyze", action="store_true", help=step.follow_up.summary)
+            p.add_argument("--report", metavar="DIR", default=None,
+                           help="with --analyze: also write the report into DIR/<run id>/")
+        elif step.follow_up is not None:
+            p.add_argument("--report", metavar="DIR", default=None,
+                           help=f"{step.follow_up.summary}; also written into DIR/<run id>/")
+        p.set_defaults(func=run_step, step_name=name)
+    for old, new in CATALOGUE.renamed.items():
+        if old not in CATALOGUE:  # a name that went away: say the new one (not listed in the help)
+            steps.add_parser(old).set_defaults(func=_renamed, old=old, new=new, ignores_arguments=True)
 
 
-def _procedure_modules() -> list[str]:
-    """``bench.app.commands.run_<name>`` modules; each adds ``bench run <name>``."""
-    import bench.app.commands as pkg
-
-    return sorted(f"bench.app.commands.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)
-                  if m.name.startswith("run_"))
-
-
-def _common(p) -> None:
+def station_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--station", default="sim", help="'sim' (built-in simulated station) or a "
                    "station TOML file [sim]")
     p.add_argument("--unit", default=None, help="unit serial number")
@@ -50,50 +55,81 @@ def _common(p) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def run_startup(args) -> int:
-    from procedures.startup import StartupAcquisition, StartupParameters
+def _option_type(annotation: Any) -> type:
+    """int or float (``float | None`` is a float left to the station when not given)."""
+    kinds = {a for a in typing.get_args(annotation) if a is not type(None)} or {annotation}
+    if kinds == {int}:
+        return int
+    if kinds <= {float, int}:
+        return float
+    raise TypeError(f"no command-line option type for a parameter of type {annotation!r}")
 
-    if args.report is not None and not args.analyze:
-        raise ValueError("--report DIR needs --analyze (the report is the start-up model's)")
-    params = StartupParameters(duration_s=args.duration_s, rate_hz=args.rate_hz,
-                               off_wait_s=args.off_wait_s)
-    procedure = StartupAcquisition(params)  # validates before any instrument is touched
+
+def _shown(default: Any) -> str:
+    if default is None:
+        return "the station's"
+    return f"{default:g}" if isinstance(default, float) else str(default)
+
+
+def parameter_options(p: argparse.ArgumentParser, params: type) -> None:
+    """One ``--option`` per field of a step's parameter dataclass: type and default from the
+    field, help from its ``parameter(..., help)`` metadata."""
+    hints = typing.get_type_hints(params)
+    for f in dataclasses.fields(params):
+        kind = _option_type(hints[f.name])
+        names = [f"--{f.name.replace('_', '-')}"] + [f"--{a}" for a in f.metadata.get("aliases", ())]
+        p.add_argument(*names, dest=f"param_{f.name}", type=kind, default=f.default,
+                       metavar=kind.__name__.upper(),
+                       help=f"{f.metadata.get('help', '')} [{_shown(f.default)}]".strip())
+
+
+def step_from_args(args: argparse.Namespace) -> Step[Any]:
+    """The step built (and validated) from its ``--options``, before any station opens."""
+    from procedures.catalogue import CATALOGUE
+
+    step = CATALOGUE.step(args.step_name)
+    values = {f.name: getattr(args, f"param_{f.name}") for f in dataclasses.fields(step.Parameters)}
+    return step(step.Parameters(**values))
+
+
+def _report_root(args: argparse.Namespace, step: Step[Any]) -> Path | None:
+    """``--report DIR``, refused before the station opens when it cannot be used."""
+    from bench.app.commands.follow_ups import ANALYSES
+
+    report = getattr(args, "report", None)
+    if report is None:
+        return None
+    declared = step.follow_up
+    if declared is not None and declared.on_request and not args.analyze:
+        raise ValueError(f"--report DIR needs --analyze (the report is the "
+                         f"{ANALYSES[declared.analysis].title}'s)")
+    root = Path(report)
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"--report {report!r} exists and is not a folder")
+    return root
+
+
+def run_step(args: argparse.Namespace) -> int:
+    """Handler of ``bench run <step>``."""
+    from bench.app.commands.follow_ups import follow_up
+    from bench.app.station import Station, resolve_station
+    from bench.core.procedure import execute
+    from procedures.running import alone
+
+    step = step_from_args(args)  # validated before any instrument is touched
+    report_root = _report_root(args, step)
     config = resolve_station(args.station)
+    kind = step.kinds[0]
+    unit, seed = unit_of(args, config, kind), seed_of(args, config)
     store = open_store(args)
-    unit, seed = unit_of(args, config, "accelerometer"), seed_of(args, config)
-    with Station(config, seed=seed, unit_serial=unit) as station, \
+    with Station(config, seed=seed, unit_serial=unit, unit_kind=kind) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
-        outcome = execute(procedure, station, store, unit_serial=unit, seed=seed,
-                          progress=progress)
-    analysis = report = analysis_error = None
-    if args.analyze and outcome.status == "passed":
-        from pathlib import Path
+        outcome = execute(alone(step), station, store, unit_serial=unit, seed=seed, progress=progress)
+    declared, follow_ups = step.follow_up, []
+    if declared is not None and (not declared.on_request or args.analyze) and outcome.status == "passed":
+        follow_ups.append(follow_up(declared, store.path, outcome.run_id, report_root))
+    return conclude(outcome, as_json=args.json, follow_ups=follow_ups)
 
-        from bench.app.commands.analyze import analyse_run
 
-        try:
-            _, analysis, report = analyse_run(store.path, outcome.run_id,
-                                              None if args.report is None else Path(args.report))
-        except (ValueError, LookupError, OSError) as exc:  # the run is kept and reported first
-            analysis_error = f"run {outcome.run_id} is stored, but its analysis failed: {exc}"
-    if args.json:
-        doc = outcome.to_dict()
-        if analysis is not None:
-            from bench.app.commands.analyze import analysis_document
-
-            doc["analysis"] = analysis_document(analysis, f"run {outcome.run_id}", report,
-                                                outcome.run_id)
-        if analysis_error:
-            doc["analysis_error"] = analysis_error
-        json.dump(doc, sys.stdout, indent=2, allow_nan=False)
-        print()
-    else:
-        print_outcome(outcome)
-        if analysis is not None:
-            from bench.app.commands.analyze import print_analysis
-
-            print_analysis(analysis, f"run {outcome.run_id}", report, outcome.run_id)
-    if analysis_error:
-        print(f"bench: error: {analysis_error}", file=sys.stderr)
-        return 2
-    return {"passed": 0, "completed": 0, "failed": 1}.get(outcome.status, 2)
+def _renamed(args: argparse.Namespace) -> int:
+    raise ValueError(f"bench run {args.old} is now bench run {args.new} (the step was renamed)")

@@ -72,7 +72,7 @@ def show_run(args) -> int:
         doc["measurements"] = measurements
         doc["streams"] = {k: asdict(v) if hasattr(v, "__dataclass_fields__") else v
                           for k, v in streams.items()}
-        doc["events"] = [asdict(e) if hasattr(e, "__dataclass_fields__") else e for e in events]
+        doc["events"] = events  # (t_s, kind, message, data) each
         doc["attachments"] = [asdict(a) if hasattr(a, "__dataclass_fields__") else a
                               for a in store.attachments(args.run_id)]
         json.dump(doc, sys.stdout, indent=2, default=str)

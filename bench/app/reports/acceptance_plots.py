@@ -200,8 +200,8 @@ def vibration_section(store, run_id: str, results: dict[str, Any], out: Path) ->
 
 #: step name → section builder
 SECTIONS: dict[str, Callable[..., Section | None]] = {
-    "startup": startup_section,
-    "gyro_startup": gyro_startup_section,
+    "turn_on": startup_section,
+    "gyro_turn_on": gyro_startup_section,
     "tumble": tumble_section,
     "ratetable": ratetable_section,
     "accelerometer_noise": accelerometer_noise_section,

@@ -1,0 +1,179 @@
+"""The framework's steps (``bench.core.step``) and runner (``bench.core.procedure``), without a
+station: a step's parameters and build, the catalogue's names, and a procedure run — set-up,
+steps in order with events and scaled progress, judging, a teardown that always runs, the
+abort path."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+from bench.analysis.trend import Estimate
+from bench.core.procedure import Procedure, execute
+from bench.core.step import Catalogue, Context, Limit, Step, parameter
+from bench.core.store import RunStore
+
+
+@dataclasses.dataclass
+class CountParameters:
+    n: int = parameter(3, "values to produce")
+    fail_at: int = parameter(-1, "raise at this value (-1: never)")
+
+    def validate(self) -> None:
+        if not 1 <= self.n <= 10:
+            raise ValueError(f"n = {self.n} not in 1..10")
+
+
+class Count(Step[CountParameters]):
+    """Counts: produces ``n`` values, one per simulated second."""
+
+    name = "count"
+    requires = ("meter",)
+    kinds = ("accelerometer",)
+    produces = {"total": ("s", "sum of the values"), "last": ("s", "the last value")}
+    Parameters = CountParameters
+
+    def duration_s(self) -> float:
+        return float(self.p.n)
+
+    def run(self, ctx: Context) -> Mapping[str, Estimate]:
+        total = 0.0
+        for k in range(1, self.p.n + 1):
+            if k == self.p.fail_at:
+                raise RuntimeError(f"meter lost at {k}")
+            ctx.clock.sleep(1.0)
+            ctx.run.append("counts", t_s=[ctx.clock.now()], value=[k])
+            total += k
+            ctx.progress(k, self.p.n, f"value {k}")
+        return {"total": Estimate(total, 0.5)}  # "last" left out: not produced
+
+
+class Bare(Step[CountParameters]):
+    name = "bare"
+    requires = ()
+    kinds = ("gyro",)
+    Parameters = CountParameters
+
+    def duration_s(self) -> float:
+        return 0.0
+
+    def run(self, ctx: Context) -> Mapping[str, Estimate]:
+        return {}
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def now(self) -> float:
+        return self.t
+
+    def sleep(self, seconds: float) -> None:
+        self.t += seconds
+
+
+class Recorded(Procedure):
+    def __init__(self, steps: list[Step[Any]], *, teardown_fails: bool = False) -> None:
+        super().__init__("recorded", steps)
+        self.calls: list[str] = []
+        self.teardown_fails = teardown_fails
+
+    def setup(self, ctx: Context) -> None:
+        ctx.run.add_stream("counts", {"t_s": "s", "value": "1"}, "every value")
+        self.calls.append("setup")
+
+    def teardown(self, ctx: Context) -> None:
+        self.calls.append("teardown")
+        if self.teardown_fails:
+            raise OSError("supply unreachable")
+
+
+def station(**instruments: Any) -> Any:
+    return SimpleNamespace(instruments=instruments, clock=FakeClock(),
+                           config=SimpleNamespace(name="bench", wiring={}, site=None),
+                           snapshot=lambda: {"name": "bench"})
+
+
+def test_a_step_is_built_validated_and_recorded() -> None:
+    step = Count.build({"n": 4})
+    assert step.parameters() == {"n": 4, "fail_at": -1}
+    assert Count(CountParameters(n=2)).p.n == 2
+    assert Count.summary() == "Counts: produces ``n`` values, one per simulated second."
+    assert Bare.summary() == ""  # its own docstring only, not the base class's
+    with pytest.raises(ValueError, match=r"unknown parameter\(s\) \['m'\]; allowed: \['n', 'fail_at'\]"):
+        Count.build({"m": 1})
+    with pytest.raises(ValueError, match="n = 11 not in 1..10"):
+        Count(n=11)
+    with pytest.raises(ValueError, match="not both"):
+        Count(CountParameters(), n=2)
+    assert step.producible() == {"total", "last"}
+    (field,) = [f for f in dataclasses.fields(CountParameters) if f.name == "n"]
+    assert field.metadata["help"] == "values to produce"
+
+
+def test_the_catalogue_names_steps_once_and_says_the_new_name_of_an_old_one() -> None:
+    catalogue = Catalogue.of(Count, Bare, renamed={"tally": "count"})
+    assert list(catalogue) == ["count", "bare"] and "count" in catalogue
+    assert catalogue.build("count", {"n": 2}).parameters()["n"] == 2
+    with pytest.raises(LookupError, match="'tally' was renamed 'count'"):
+        catalogue.step("tally")
+    with pytest.raises(LookupError, match=r"'nope' unknown; known: \['bare', 'count'\]"):
+        catalogue.step("nope")
+    assert "is now 'count'" in catalogue.renamed_note("tally") and catalogue.renamed_note("count") == ""
+    with pytest.raises(ValueError, match="two steps named 'count'"):
+        Catalogue.of(Count, Count)
+    with pytest.raises(ValueError, match="no step is named 'counter'"):
+        Catalogue.of(Count, renamed={"tally": "counter"})
+
+
+def test_steps_run_in_order_between_setup_and_teardown_and_are_judged(tmp_path) -> None:
+    store = RunStore(tmp_path / "b.sqlite")
+    procedure = Recorded([Count(n=3), Count(n=2)])
+    seen: list[tuple[float, float, str]] = []
+    outcome = execute(procedure, station(meter=object()), store, unit_serial="U1", seed=None,
+                      progress=lambda done, total, message="": seen.append((done, total, message)))
+    assert outcome.status == "passed" and procedure.calls == ["setup", "teardown"]
+    # every produced value, in its own unit, no limits; "last" was not produced
+    assert [(m.name, m.value, m.unit, m.limit, m.uncertainty) for m in outcome.measurements] == [
+        ("total", 6.0, "s", Limit(), 0.5), ("total", 3.0, "s", Limit(), 0.5)]
+    kinds = [(e.kind, e.message) for e in store.events(outcome.run_id)]
+    assert kinds == [("step_start", "count"), ("step_end", "count")] * 2
+    # each step's progress is its share of the whole (3 s then 2 s of 5), labelled by the step
+    assert seen[0] == (1.0, 5.0, "count: value 1") and seen[3] == (3.0 + 1.0, 5.0, "count: value 1")
+    assert seen[-1] == (5.0, 5.0, "done")
+    info = store.get_run(outcome.run_id)
+    assert info.parameters == {"count": {"n": 2, "fail_at": -1}}  # by step name in a sequence
+    assert store.load(outcome.run_id, "counts")["value"].tolist() == [1, 2, 3, 1, 2]
+
+
+def test_one_step_records_its_own_parameters_and_a_fault_aborts_keeping_the_data(tmp_path) -> None:
+    store = RunStore(tmp_path / "b.sqlite")
+    procedure = Recorded([Count(n=5, fail_at=3)])
+    outcome = execute(procedure, station(meter=object()), store, unit_serial=None, seed=1)
+    assert outcome.status == "aborted" and outcome.reason == "RuntimeError: meter lost at 3"
+    assert procedure.calls == ["setup", "teardown"]
+    assert store.get_run(outcome.run_id).parameters == {"n": 5, "fail_at": 3}
+    assert store.load(outcome.run_id, "counts")["value"].tolist() == [1, 2]
+    assert any(a.name == "traceback.txt" for a in store.attachments(outcome.run_id))
+
+
+def test_a_failed_teardown_aborts_a_passed_run_and_is_logged(tmp_path) -> None:
+    store = RunStore(tmp_path / "b.sqlite")
+    outcome = execute(Recorded([Count(n=1)], teardown_fails=True), station(meter=1), store,
+                      unit_serial=None, seed=None)
+    assert (outcome.status, outcome.reason) == ("aborted", "teardown failed: OSError: supply unreachable")
+    assert ("teardown_error", "OSError: supply unreachable") in [
+        (e.kind, e.message) for e in store.events(outcome.run_id)]
+
+
+def test_a_station_without_what_the_steps_need_is_refused_before_a_run(tmp_path) -> None:
+    store = RunStore(tmp_path / "b.sqlite")
+    with pytest.raises(ValueError, match=r"lacks \['meter'\] needed by 'recorded'"):
+        execute(Recorded([Bare(), Count()]), station(), store, unit_serial=None, seed=None)
+    assert store.list_runs() == []
+    with pytest.raises(ValueError, match="has no steps"):
+        Recorded([])
