@@ -18,7 +18,7 @@ starts from the bare base model. Reported:
 ``--power 0.5,1,2``: instead, the power curve of the naming near its minimum effect size — each
 effect drawn with its main parameter exactly at snr = ratio × MIN_SNR (``Effect.draw(at_snr=)``;
 the normal draw starts at 3 × MIN_SNR) and the rate at which it is named first, per effect and
-ratio, with wrong first names counted apart (and among them its look-alike, ``competitors``).
+ratio, with wrong first names counted apart (and among them its look-alike, ``CATALOGUE.look_alikes``).
 The workflow's size gate is snr ≥ MIN_SNR on the *fitted* parameters, so ≈ 50 % is expected at
 ratio 1; below it the effect is, by design, too small to name. For an effect with a look-alike
 (time_delay ↔ lowpass_bandwidth, k2_nonlinearity ↔ scale_factor_asymmetry) the snr is that of
@@ -50,7 +50,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD, MIN_SNR
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import DEFAULT_NOISE_SD, MIN_SNR
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.workflow import discover
@@ -214,7 +215,7 @@ def report_power(cases: list[dict], ratios: list[float]) -> None:
             return f"{'—':>14s}"
         eid = cs[0]["hidden"][0]
         k = sum(c["first"] == eid for c in cs)
-        look = sum(c["first"] in CATALOGUE[eid].competitors for c in cs)
+        look = sum(c["first"] in CATALOGUE.look_alikes(eid) for c in cs)
         wrong = sum(c["first"] not in (None, eid) for c in cs) - look
         return f"{f'{k}/{len(cs)} [{wrong}' + (f'+{look}L' if look else '') + ']':>14s}"
     for (kind, eid), cs in by.items():
@@ -225,7 +226,7 @@ def report_power(cases: list[dict], ratios: list[float]) -> None:
     for r in ratios:
         sel = [c for c in cases if c["ratio"] == r]
         wrong = [c for c in sel if c["first"] not in (None, c["hidden"][0])]
-        look = sum(c["first"] in CATALOGUE[c["hidden"][0]].competitors for c in wrong)
+        look = sum(c["first"] in CATALOGUE.look_alikes(c["hidden"][0]) for c in wrong)
         print(f"  × {r:g}: named first {_pct(sum(c['first'] == c['hidden'][0] for c in sel), len(sel))}, "
               f"a wrong first name {_pct(len(wrong), len(sel))} (its look-alike in {look})")
 

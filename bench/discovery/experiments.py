@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.discovery.data import Record
-from bench.discovery.effects import KINDS
+from bench.discovery.effects_base import KINDS
 
 DEFAULTS = {"accelerometer": (7200, 1.0), "gyro": (20000, 10.0), "mhd": (30000, 500.0)}
 

@@ -29,6 +29,8 @@ from scipy import fft as sp_fft
 from scipy import optimize
 
 from bench.discovery.data import Record
+from bench.discovery.effects_base import Effect
+from bench.discovery.model import BASE_RANGES, Model
 
 #: Bartlett lag = this × the residual's correlation length (see hac_bandwidth).
 BANDWIDTH_FACTOR = 4
@@ -134,11 +136,6 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, max_lag: int, rows: np
     return bread @ meat @ bread * (n / max(n - k, 1))
 
 
-def _periodic(q) -> bool:
-    """A phase parameter spanning one full turn."""
-    return q.unit == "rad" and "phase" in q.name and q.high - q.low >= 2 * math.pi - 1e-9
-
-
 @dataclass(frozen=True)
 class Fit:
     """An effect fitted together with bias and scale factor."""
@@ -153,14 +150,14 @@ class Fit:
 
 
 class CandidateFitter:
-    """Fits effect ``effect_id`` (appended to ``model``) to ``rec`` on row masks."""
+    """Fits ``effect`` (appended to ``model``) to ``rec`` on row masks."""
 
-    def __init__(self, model, rec: Record, effect, effect_id: str, *, noise_is_floor: bool = True):
+    def __init__(self, model: Model, rec: Record, effect: Effect, *, noise_is_floor: bool = True):
         """``noise_is_floor``: ``model.base.noise_sd`` is the residual floor measured without the
         effect (the naming step), so an output transform's own noise share is taken out of it
         (``Effect.pre_transform_sd``: the rounding error for quantization) before its dithered
         prediction; False when it is already the noise sd before the transform."""
-        self.model, self.rec, self.effect, self.id = model, rec, effect, effect_id
+        self.model, self.rec, self.effect = model, rec, effect
         self.noise_is_floor = noise_is_floor
         self.kind = model.base.kind
         self.qs = effect.params_for(self.kind)
@@ -185,19 +182,17 @@ class CandidateFitter:
         p = {}
         for q, v in zip(self.qs, x[self.n_base:]):
             val = math.exp(v) if q.log else float(v)
-            if _periodic(q):  # a phase wraps: the optimiser must not stall at ±π
+            if q.periodic:  # a phase wraps: the optimiser must not stall at ±π
                 val = (val + math.pi) % (2 * math.pi) - math.pi
             p[q.name] = float(np.clip(val, q.low, q.high))
         return p, bias, sf
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
-
         rng = BASE_RANGES[self.kind]
         base = [rng["bias"], rng["scale_factor"]][: self.n_base]
-        lo = [b[0] for b in base] + [-8 * math.pi if _periodic(q) else math.log(q.low) if q.log else q.low
+        lo = [b[0] for b in base] + [-8 * math.pi if q.periodic else math.log(q.low) if q.log else q.low
                                      for q in self.qs]
-        hi = [b[1] for b in base] + [8 * math.pi if _periodic(q) else math.log(q.high) if q.log else q.high
+        hi = [b[1] for b in base] + [8 * math.pi if q.periodic else math.log(q.high) if q.log else q.high
                                      for q in self.qs]
         return np.array(lo), np.array(hi)
 
@@ -213,7 +208,7 @@ class CandidateFitter:
         base = replace(self.model.base, bias=bias, scale_factor=sf)
         if self.noise_is_floor and self.effect.stage == "output":
             base = replace(base, noise_sd=self.effect.pre_transform_sd(p, base.noise_sd))
-        return replace(self.model, base=base).with_effect(self.id, p)
+        return replace(self.model, base=base).with_effect(self.effect.id, p)
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         return self.model_at(x).predict(self.rec)

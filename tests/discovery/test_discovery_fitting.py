@@ -109,7 +109,7 @@ def _coverage(eid: str, truth_params: dict, start: dict, main: str, gm: dict | N
     est, sds = [], []
     for s in range(seeds):
         rec = rec0.replace(y=truth.simulate(rec0, np.random.default_rng(1000 + s)))
-        f = CandidateFitter(Model(truth.base), rec, CATALOGUE[eid], eid)
+        f = CandidateFitter(Model(truth.base), rec, CATALOGUE[eid])
         fit = f.fit([f.pack(start, 1e-3, 1.0)])
         est.append(fit.params[main])
         sds.append(fit.params_std[main])

@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from scipy.special import ndtr
 
 from bench.discovery.data import Record
-from bench.discovery.effects import CATALOGUE, KINDS, effects_for
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import KINDS
 from bench.discovery.effects_transforms import expected_quantized
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, base_model, model_from_toml, model_to_toml, read_model, write_model
@@ -191,7 +192,7 @@ def models(draw):
     lo_b, hi_b = {"accelerometer": (-0.05, 0.05), "gyro": (-1.0, 1.0), "mhd": (-100.0, 100.0)}[kind]
     base = BaseModel(kind, draw(st.floats(lo_b, hi_b)), draw(st.floats(0.5, 2.0)), draw(st.floats(0.0, 0.1)))
     effects = []
-    for e in draw(st.lists(st.sampled_from(effects_for(kind)), max_size=5, unique_by=lambda e: e.id)):
+    for e in draw(st.lists(st.sampled_from(CATALOGUE.for_kind(kind)), max_size=5, unique_by=lambda e: e.id)):
         effects.append((e.id, {q.name: draw(st.floats(q.low, q.high)) for q in e.params_for(kind)}))
     rate = draw(st.one_of(st.none(), st.floats(1e-3, 1e6)))
     return Model(replace(base, rate_hz=rate), tuple(effects))
