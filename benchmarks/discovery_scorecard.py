@@ -70,7 +70,7 @@ def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: 
                             scale_factor=1.0 + rng.normal(0, 2e-3), noise_sd=sd))
     snrs = []
     # an output-stage effect (clipping, rounding) acts on bias + SF·input: drawn and sized there
-    on_output = rec.replace(input=truth.base.bias + truth.base.scale_factor * rec.input)
+    on_output = rec.replace(input=truth.base.bias + truth.base.scale_factor * rec.column("input"))
     for eid in effects:
         eff = CATALOGUE[eid]
         where = on_output if eff.stage == "output" else rec
@@ -166,6 +166,8 @@ def main(argv=None) -> int:
             print(f"{kind:13s} pair {'+'.join(pair):40s}: {mark} named {c['named']}", flush=True)
         for k in range(args.clean):
             c = run_case(kind, (), 2000 + k, args.n)
+            if c is None:  # nothing to draw: a clean case always runs
+                continue
             cases.append(c)
             print(f"{kind:13s} clean seed {2000 + k}: named {c['named']} unexplained {len(c['unexplained'])}",
                   flush=True)
@@ -220,9 +222,10 @@ def report_power(cases: list[dict], ratios: list[float]) -> None:
         return f"{f'{k}/{len(cs)} [{wrong}' + (f'+{look}L' if look else '') + ']':>14s}"
     for (kind, eid), cs in by.items():
         print(f"  {kind:13s} {eid:26s} " + " ".join(cell([c for c in cs if c["ratio"] == r]) for r in ratios))
-    print(f"  {'all':13s} {'':26s} " + " ".join(
-        f"{_pct(sum(c['first'] == c['hidden'][0] for c in cases if c['ratio'] == r), sum(c['ratio'] == r for c in cases)):>14s}"
-        for r in ratios))
+    def named_first(r: float) -> str:
+        sel = [c for c in cases if c["ratio"] == r]
+        return _pct(sum(c["first"] == c["hidden"][0] for c in sel), len(sel))
+    print(f"  {'all':13s} {'':26s} " + " ".join(f"{named_first(r):>14s}" for r in ratios))
     for r in ratios:
         sel = [c for c in cases if c["ratio"] == r]
         wrong = [c for c in sel if c["first"] not in (None, c["hidden"][0])]
@@ -266,7 +269,7 @@ def report(cases: list[dict]) -> None:
     none = sum(not c["named"] for c in clean)
     print(f"clean data, nothing named: {_pct(none, len(clean))}   (target ≥ 95 %)")
     print("\nconfusion (hidden → first named: count)")
-    conf = defaultdict(Counter)
+    conf: defaultdict[str, Counter[str]] = defaultdict(Counter)
     for c in singles:
         conf[c["hidden"][0]][c["first"] or "nothing"] += 1
     for eid, cnt in conf.items():

@@ -13,6 +13,7 @@ parameter of the prediction, fitted with the rest.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from scipy import optimize
@@ -96,7 +97,7 @@ def _coords(model: Model, slots: list[_Slot]) -> tuple[np.ndarray, np.ndarray, n
 
 def _at(model: Model, slots: list[_Slot], x: np.ndarray) -> Model:
     """The model with the optimiser coordinates ``x`` (effect values clipped to their ranges)."""
-    base = {}
+    base: dict[str, Any] = {}
     effects = [(eid, dict(p)) for eid, p in model.effects]
     for s, v in zip(slots, x):
         if s.what == "noise":

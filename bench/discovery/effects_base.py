@@ -89,7 +89,8 @@ class Param:
         try:
             v = float(value)
         except (TypeError, ValueError):
-            raise ValueError(f"{where} = {value!r} is not a number; allowed: [{self.low}, {self.high}] {self.unit}") from None
+            raise ValueError(f"{where} = {value!r} is not a number; "
+                             f"allowed: [{self.low}, {self.high}] {self.unit}") from None
         if not (self.low <= v <= self.high):
             raise ValueError(f"{where} = {v!r} outside the allowed range [{self.low}, {self.high}] {self.unit}")
         return v

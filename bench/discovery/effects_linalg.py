@@ -17,7 +17,7 @@ def base_regressors(rec: Record) -> np.ndarray:
     """Columns a base-model calibration fits: 1 and (when logged and varying) the input."""
     cols = [np.ones(rec.n)]
     if rec.varies("input"):
-        cols.append(rec.input)
+        cols.append(rec.column("input"))
     return np.column_stack(cols)
 
 
@@ -29,7 +29,8 @@ def project_out(x: np.ndarray, a: np.ndarray) -> np.ndarray:
 def orthonormal(a: np.ndarray) -> np.ndarray:
     """An orthonormal basis of the column space of a (rank-revealing: tiny columns dropped)."""
     q, r = np.linalg.qr(a)
-    keep = np.abs(np.diag(r)) > 1e-12 * max(1.0, float(np.max(np.abs(np.diag(r))))) if r.size else []
+    keep = (np.abs(np.diag(r)) > 1e-12 * max(1.0, float(np.max(np.abs(np.diag(r))))) if r.size
+            else np.zeros(0, bool))
     return q[:, keep]
 
 

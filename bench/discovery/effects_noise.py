@@ -141,7 +141,8 @@ class GaussMarkov(StochasticEffect):
     form = "x' = −x/tau_s + w, stationary sd sigma; y += x (exact discretisation for any dt)"
     inputs = ("t",)
     main_param = "sigma"
-    signature = "tau: Allan hump peaking near 1.9·tau_s; ACF e^{−lag/tau_s}; spectrum Lorentzian with corner 1/(2π·tau_s)"
+    signature = ("tau: Allan hump peaking near 1.9·tau_s; ACF e^{−lag/tau_s}; spectrum Lorentzian with corner "
+                 "1/(2π·tau_s)")
     separating = {"rate_random_walk": "a record much longer than the correlation time: Gauss–Markov levels off "
                                       "in the Allan curve, a random walk keeps rising"}
     n_coords = 2  # log σ², logit φ
@@ -151,7 +152,7 @@ class GaussMarkov(StochasticEffect):
         "mhd": (Param("sigma", "deg/s", 1e-5, 1.0, log=True), Param("tau_s", "s", 1e-3, 1e4, log=True)),
     }
 
-    def noise(self, p, rec, rng):
+    def noise(self, p: Params, rec: Record, rng: np.random.Generator) -> np.ndarray:
         w = rng.standard_normal(rec.n)
         if p["sigma"] == 0:
             return np.zeros(rec.n)
@@ -163,26 +164,26 @@ class GaussMarkov(StochasticEffect):
         x = t_s / tau_s
         return 2 * sigma ** 2 * tau_s / t_s * (1 - (3 - 4 * math.exp(-x) + math.exp(-2 * x)) / (2 * x))
 
-    def snr(self, p, rec, noise_sd):
+    def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
         return _allan_z(lambda t: self.avar(p["sigma"], p["tau_s"], t), rec, noise_sd)
 
-    def drawable_range(self, q, rec, kind):
+    def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
         if q.name == "tau_s":  # ten samples up to a thirtieth of the record: hump inside the Allan range
             lo = max(q.low, 10 * rec.dt_s)
             return lo, max(min(q.high, rec.duration_s / 30), lo * 1.01)
         return q.low, q.high
 
-    def fit_range(self, q, rec, kind):
+    def fit_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
         if q.name == "tau_s":  # a correlation time beyond a fifth of the record looks like a walk or drift
             return rec.dt_s, 0.2 * rec.duration_s
         return q.low, q.high
 
-    def identifiable(self, p, rec):
+    def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
         """A correlation time beyond a fifth of the record is not identifiable on it (a walk or a
         drift there)."""
         return p.get("tau_s", 0.0) < rec.duration_s / 5
 
-    def fit_starts(self, rec, residual, *, kind=None):
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[Params]:
         """sigma from the residual's sd after the white part (lag-1 covariance), tau_s where the
         autocorrelation falls to e^{−1} of its lag-1 value, and that tau ×/÷ 3."""
         r = project_out(np.asarray(residual, float), base_regressors(rec))
@@ -198,7 +199,7 @@ class GaussMarkov(StochasticEffect):
         return [{"sigma": sigma, "tau_s": float(np.clip(tau * f, q.low, q.high))} for f in (1.0, 3.0, 1 / 3)]
 
     # ---- spectral component: AR(1), x_k = φ x_{k−1} + e, var x = σ²: S = σ²(1 − φ²)/|1 − φe^{−iω}|²
-    def spectrum(self, th, c, grad):
+    def spectrum(self, th: np.ndarray, c: np.ndarray, grad: bool) -> tuple[np.ndarray, list[np.ndarray]]:
         s2, phi = np.exp(th[0]), 1.0 / (1.0 + np.exp(-th[1]))
         den = 1 - 2 * phi * c + phi ** 2
         shape = (1 - phi ** 2) / den
@@ -207,15 +208,16 @@ class GaussMarkov(StochasticEffect):
         d_phi = (-2 * phi * den - (1 - phi ** 2) * (2 * phi - 2 * c)) / den ** 2
         return s2 * shape, [s2 * shape, s2 * d_phi * phi * (1 - phi)]
 
-    def coords(self, p, dt_s):
+    def coords(self, p: Mapping[str, float], dt_s: float) -> list[float]:
         phi = float(np.clip(np.exp(-dt_s / p["tau_s"]), 1e-9, 1 - 1e-12))
         return [np.log(max(p["sigma"], 1e-150) ** 2), np.log(phi / (1 - phi))]
 
-    def whittle_starts(self, v):
+    def whittle_starts(self, v: float) -> list[np.ndarray]:
         return [np.r_[np.log(v * 0.8), np.log(v * b), np.log(phi / (1 - phi))]
                 for b in (0.1, 1.0) for phi in (0.9, 0.995)]
 
-    def estimate(self, r, th, cov, dt_s, *, alone, bootstrap):
+    def estimate(self, r: np.ndarray, th: np.ndarray, cov: np.ndarray, dt_s: float, *,
+                 alone: bool, bootstrap: bool) -> ComponentEstimate:
         """σ = exp(th0/2), τ = −dt/ln φ with φ = logistic(th1); std by the delta method."""
         s2, phi = np.exp(th[0]), 1.0 / (1.0 + np.exp(-th[1]))
         sigma = float(np.sqrt(s2))
@@ -228,7 +230,7 @@ class GaussMarkov(StochasticEffect):
                                  {"sigma": float(d_sigma * sd[0]), "tau_s": float(abs(d_tau) * sd[1])},
                                  phi_k, sigma ** 2 * (1 - phi_k ** 2))
 
-    def state_space(self, p, dt_s, n):
+    def state_space(self, p: Mapping[str, float], dt_s: float, n: int) -> StateBlock:
         """One state: φ = e^{−dt/τ}, q = σ²(1 − φ²), starting stationary (variance σ²), as
         :meth:`noise` simulates it."""
         sigma, tau = float(p["sigma"]), float(p["tau_s"])
@@ -253,16 +255,16 @@ class RateRandomWalk(StochasticEffect):
         "gyro": (Param("k_per_rs", "deg/s/sqrt(s)", 1e-8, 1e-2, log=True),),
     }
 
-    def noise(self, p, rec, rng):
+    def noise(self, p: Params, rec: Record, rng: np.random.Generator) -> np.ndarray:
         w = rng.standard_normal(rec.n)
         steps = p["k_per_rs"] * np.sqrt(np.diff(rec.t_s)) * w[1:]
         return np.concatenate([[0.0], np.cumsum(steps)])
 
-    def snr(self, p, rec, noise_sd):
+    def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
         k = p["k_per_rs"]
         return _allan_z(lambda t: k * k * t / 3.0, rec, noise_sd)
 
-    def fit_starts(self, rec, residual, *, kind=None):
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[Params]:
         """K from the growth of var(r[k+m] − r[k]) between lags n/10 and n/5 (the white part
         cancels in the difference), and ×/÷ 3."""
         r = np.asarray(residual, float)
@@ -275,17 +277,18 @@ class RateRandomWalk(StochasticEffect):
         return [{"k_per_rs": float(np.clip(k * f, q.low, q.high))} for f in (1.0, 3.0, 1 / 3)]
 
     # ---- spectral component: x_k = x_{k−1} + e, var e = q: S = q/|1 − e^{−iω}|² ---------------
-    def spectrum(self, th, c, grad):
+    def spectrum(self, th: np.ndarray, c: np.ndarray, grad: bool) -> tuple[np.ndarray, list[np.ndarray]]:
         rw = np.exp(th[0]) / (2 - 2 * c)
         return rw, ([rw] if grad else [])
 
-    def coords(self, p, dt_s):
+    def coords(self, p: Mapping[str, float], dt_s: float) -> list[float]:
         return [np.log(max(p["k_per_rs"], 1e-150) ** 2 * dt_s)]
 
-    def whittle_starts(self, v):
+    def whittle_starts(self, v: float) -> list[np.ndarray]:
         return [np.r_[np.log(v * 0.9), np.log(v * b)] for b in (1e-5, 1e-2)]
 
-    def estimate(self, r, th, cov, dt_s, *, alone, bootstrap):
+    def estimate(self, r: np.ndarray, th: np.ndarray, cov: np.ndarray, dt_s: float, *,
+                 alone: bool, bootstrap: bool) -> ComponentEstimate:
         """Alone: q from the Whittle fit of the first differences, bias-corrected by parametric
         bootstrap when ``bootstrap`` (:func:`random_walk_q`); beside other processes the
         differenced fit has no room for them, so the levels' estimate stays. K = √(q/dt)."""
@@ -298,7 +301,7 @@ class RateRandomWalk(StochasticEffect):
         k_std = 0.5 * q_std / max(math.sqrt(q * dt_s), 1e-300)
         return ComponentEstimate({"k_per_rs": k}, {"k_per_rs": k_std}, 1.0, q)
 
-    def state_space(self, p, dt_s, n):
+    def state_space(self, p: Mapping[str, float], dt_s: float, n: int) -> StateBlock:
         """One state: φ = 1, q = K²·dt; its level at the first sample is not known once the bias
         is calibrated, so it starts with the variance the walk reaches over the record (K²·T) —
         the first innovations are then a little under unit variance, never over."""

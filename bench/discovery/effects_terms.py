@@ -32,7 +32,8 @@ class WarmupExponential(Effect):
     form = "y += amplitude · exp(−t_on / tau_s)"
     inputs = ("t_on",)
     main_param = "amplitude"
-    signature = "time: a decaying offset at the start of the record (early segments), Allan: slope near tau; correlates with t_on"
+    signature = ("time: a decaying offset at the start of the record (early segments), Allan: slope near tau; "
+                 "correlates with t_on")
     separating = {
         "temperature_bias": "vary temperature independently of time since power-on (soak at a second "
                             "temperature, or power-cycle at a stable temperature)",
@@ -40,9 +41,12 @@ class WarmupExponential(Effect):
     }
     kinds = ("accelerometer", "gyro", "mhd")
     ranges = {  # QA-2000 start-up tens of µg over minutes; FOG up to ~1000 deg/h; MHD electronics offset
-        "accelerometer": (Param("amplitude", "g", -1e-2, 1e-2, linear=True, floor=1e-7), Param("tau_s", "s", 1.0, 1e5, log=True)),
-        "gyro": (Param("amplitude", "deg/s", -0.3, 0.3, linear=True, floor=1e-6), Param("tau_s", "s", 1.0, 1e5, log=True)),
-        "mhd": (Param("amplitude", "deg/s", -1.0, 1.0, linear=True, floor=1e-4), Param("tau_s", "s", 0.1, 1e5, log=True)),
+        "accelerometer": (Param("amplitude", "g", -1e-2, 1e-2, linear=True, floor=1e-7),
+                          Param("tau_s", "s", 1.0, 1e5, log=True)),
+        "gyro": (Param("amplitude", "deg/s", -0.3, 0.3, linear=True, floor=1e-6),
+                 Param("tau_s", "s", 1.0, 1e5, log=True)),
+        "mhd": (Param("amplitude", "deg/s", -1.0, 1.0, linear=True, floor=1e-4),
+                Param("tau_s", "s", 0.1, 1e5, log=True)),
     }
 
     def term(self, p, rec):
@@ -65,7 +69,8 @@ class LinearDrift(Effect):
     form = "y += slope_per_s · (t − t[0])"
     inputs = ("t",)
     main_param = "slope_per_s"
-    signature = "time: a ramp across the whole record; Allan: +1 slope at the longest tau; spectrum: 1/f² at the lowest bins"
+    signature = ("time: a ramp across the whole record; Allan: +1 slope at the longest tau; spectrum: 1/f² at the "
+                 "lowest bins")
     separating = {
         "temperature_bias": "hold temperature constant for a long record, or ramp it down as well as up",
         "rate_random_walk": "repeat the record: a drift repeats with the same slope, a random walk does not",
@@ -141,7 +146,8 @@ class K2Nonlinearity(Effect):
     main_param = "k2_per_u"
     competitors = ("scale_factor_asymmetry",)  # input² and |input| differ only in shape
     signature = "input: residual ∝ input² (same sign for ±input)"
-    separating = {"scale_factor_asymmetry": "apply inputs of both signs with equal magnitudes (k2 is even, asymmetry is odd)"}
+    separating = {"scale_factor_asymmetry": "apply inputs of both signs with equal magnitudes (k2 is even, "
+                                            "asymmetry is odd)"}
     ranges = {  # QA-2000 sheet < 20 µg/g²; FOG: 100 ppm of 490 deg/s full scale ≈ 2e-7 /(deg/s)
         "accelerometer": (Param("k2_per_u", "1/g", -1e-3, 1e-3, linear=True, floor=1e-8),),
         "gyro": (Param("k2_per_u", "1/(deg/s)", -1e-4, 1e-4, linear=True, floor=1e-10),),

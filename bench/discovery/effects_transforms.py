@@ -11,6 +11,7 @@ record.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 from scipy.signal import lfilter
@@ -25,6 +26,7 @@ from bench.discovery.effects_base import (
     HistogramEffect,
     HistogramFit,
     Param,
+    Params,
     guess_kind,
     noise_sd_of,
 )
@@ -83,7 +85,8 @@ class TimeDelay(Effect):
     form = "input → input(t − delay_s), linear interpolation between samples, input[0] before the start"
     inputs = ("input",)
     main_param = "delay_s"
-    signature = "input: residual ∝ −delay·d(input)/dt, spikes at input changes; cross-correlation peak of y and input shifted by delay"
+    signature = ("input: residual ∝ −delay·d(input)/dt, spikes at input changes; cross-correlation peak of y and "
+                 "input shifted by delay")
     separating = {"lowpass_bandwidth": "sweep input frequency: a delay shifts phase linearly without attenuating, "
                                        "a low-pass attenuates"}
     stage = "input"
@@ -286,7 +289,7 @@ class Quantization(HistogramEffect):
         sd = float(np.std(np.diff(rec.y))) / math.sqrt(2) or q.low
         return max(q.low, sd), min(q.high, 30 * sd)
 
-    def fit_histogram(self, y, noise_sd, folds, kind):
+    def fit_histogram(self, y: np.ndarray, noise_sd: float, folds: np.ndarray, kind: str) -> HistogramFit:
         """Readings on a lattice (:mod:`bench.discovery.lattice`): the step by the lattice's
         visibility, its Rayleigh-tail p-value, and the held-out visibility excess as the score;
         no lattice found: the smallest step, score 0, p = 1."""
@@ -298,12 +301,12 @@ class Quantization(HistogramEffect):
         return HistogramFit({q.name: float(np.clip(fit.step, q.low, q.high))}, {q.name: fit.step_std},
                             score, float(fit.p_value))
 
-    def size_noise_sd(self, p, reading_sd):
+    def size_noise_sd(self, p: Params, reading_sd: float) -> float:
         """The noise before the quantizer: the calibrated white level includes the steps' own
         s²/12 (kept at least 5 % of it)."""
         return math.sqrt(max(reading_sd ** 2 - p["step"] ** 2 / 12, (0.05 * reading_sd) ** 2))
 
-    def colours_residual(self, p, noise_sd):
+    def colours_residual(self, p: Mapping[str, float], noise_sd: float) -> bool:
         """A step above :data:`COARSE_STEP_SD` white-noise sd: readings are Q(signal + noise) with
         little dither, the residual around E[Q] is a deterministic function of the signal (its
         colour follows the input's)."""

@@ -33,6 +33,7 @@ alarms (benchmarks/bench_unexplained.py, 400 records each, n = 300 / 3000 / 3000
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import numpy as np
 from scipy import fft as sp_fft
@@ -277,6 +278,9 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
     r = r - r.mean()
     sto = model.stochastic_effects()
     rate = rec.rate_hz
+    transform: Callable[[np.ndarray], np.ndarray] | None = None
+    prefix = ""
+    x = r
     if sto:
         # the white level is re-estimated beside the model's stochastic spectrum: a level that
         # counted a short-τ GM's high-frequency power as white would colour the innovations
@@ -285,11 +289,10 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
             white = float(model.base.noise_sd)
         x = innovations(r, rate, white, sto)
 
-        def transform(v):
+        def whiten(v: np.ndarray) -> np.ndarray:
             return innovations(v - v.mean(), rate, white, sto)
+        transform = whiten
         prefix = "in the Kalman innovations under the model's noise: "
-    else:
-        x, transform, prefix = r, None, ""
     sd, dof = white_floor(x, rate)
     if not (np.isfinite(sd) and sd > 0):
         return ()

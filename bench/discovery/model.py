@@ -67,7 +67,8 @@ class BaseModel:
             raise ValueError(f"base.kind = {self.kind!r}; allowed: {list(KINDS)}")
         for name, (lo, hi) in BASE_RANGES[self.kind].items():
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (lo <= float(v) <= hi):
+            if (isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating))
+                    or not (lo <= float(v) <= hi)):
                 raise ValueError(f"base.{name} = {v!r} outside the allowed range [{lo}, {hi}] for a {self.kind}")
             object.__setattr__(self, name, float(v))
         r = self.rate_hz
@@ -93,7 +94,7 @@ class Model:
     base: BaseModel
     effects: tuple[tuple[str, dict], ...] = field(default=())
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         checked = []
         seen: dict[str, int] = {}
         for i, item in enumerate(self.effects):
@@ -147,7 +148,7 @@ class Model:
         new = replace(b, rate_hz=rate_hz)  # validates the rate
         if b.rate_hz is None or b.rate_hz == new.rate_hz:
             return Model(new, self.effects)
-        sd = b.noise_sd * math.sqrt(new.rate_hz / b.rate_hz)
+        sd = b.noise_sd * math.sqrt(float(rate_hz) / b.rate_hz)
         return Model(replace(new, noise_sd=sd), self.effects)
 
     def residual_sd(self) -> float:

@@ -3,8 +3,9 @@
 Pure numpy/scipy; residuals in the sensor unit, rates in Hz, τ in s.
 
 Held-out scoring (never shuffled samples): the record is cut into ``n_blocks`` (48)
-contiguous blocks — short enough that a start-up transient spans several of them; fold 0 holds out the even blocks, fold 1 the odd ones (interleaved, so both folds see
-the start-up and the end of the record). A candidate is fitted on a fold's training blocks and
+contiguous blocks — short enough that a start-up transient spans several of them; fold 0 holds
+out the even blocks, fold 1 the odd ones (interleaved, so both folds see the start-up and the
+end of the record). A candidate is fitted on a fold's training blocks and
 scored on its held-out blocks; the score is the out-of-sample variance reduction
 ``1 − Σ SSE_test(candidate) / Σ SSE_test(nuisance only)`` over both folds (every sample held
 out once). Under "no effect" it is ≤ 0 on average: an over-fitted shape does not carry over.

@@ -31,13 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, signal, stats
 
-from bench.discovery.effects_base import Params
+from bench.discovery.effects_base import Effect, Params
 from bench.discovery.effects_noise import Processes, StochasticEffect
 from bench.discovery.significance import P_FLOOR
 from bench.discovery.whittle import inv_hessian, minimize, nll, periodogram
 
-#: Smallest p-value reported (a χ² tail below it underflows to 0.0): "p < 1e-300".
-P_FLOOR = 1e-300
 
 @dataclass(frozen=True)
 class StochasticFit:
@@ -105,16 +103,17 @@ def _null(comps: tuple[StochasticEffect, ...], th_k: np.ndarray, w: np.ndarray, 
     return minimize(comps, [np.r_[np.log(v * share), th_k] for share in (0.5, 0.99)], w, i, diff)
 
 
-def fit_stochastic(r: np.ndarray, dt_s: float, effect: StochasticEffect, start: np.ndarray | None = None,
+def fit_stochastic(r: np.ndarray, dt_s: float, effect: Effect, start: np.ndarray | None = None,
                    known: Processes = (), bootstrap: bool = True) -> StochasticFit:
     """Whittle fit of ``effect``'s spectral component plus white noise to ``r``; ``start``: log
     coordinates to start from (a previous fit's ``theta``) instead of the effect's starts;
     ``known``: stochastic effects already in the model (nuisance components: every parameter
     free in both the null and the alternative of the likelihood ratio, see :func:`_known_coords`);
     ``bootstrap``: the effect's costlier bias correction (the random walk's parametric
-    bootstrap; off where only the shape matters)."""
+    bootstrap; off where only the shape matters). ValueError for an effect that is not a random
+    process."""
     if not isinstance(effect, StochasticEffect):
-        raise ValueError(f"effect {getattr(effect, 'id', effect)!r} is not a stochastic effect; "
+        raise ValueError(f"effect {effect.id!r} is not a stochastic effect; "
                          "allowed: a StochasticEffect of the catalogue")
     r = np.asarray(r, dtype=float)
     diff = _judged_on_differences(known)
@@ -162,7 +161,7 @@ def _kalman(r: np.ndarray, phi: float, q: float, rv: float) -> np.ndarray:
     return pred
 
 
-def heldout_score(r: np.ndarray, dt_s: float, effect: StochasticEffect, folds: np.ndarray,
+def heldout_score(r: np.ndarray, dt_s: float, effect: Effect, folds: np.ndarray,
                   start: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
     """Held-out one-step prediction score and the per-sample squared errors (candidate, base).
 

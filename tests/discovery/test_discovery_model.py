@@ -83,7 +83,8 @@ def test_model_rejects_effects_outside_the_kind():
     m = Model(base_model("accelerometer"))
     with pytest.raises(ValueError, match="'g_sensitivity' does not apply to a accelerometer"):
         m.with_effect("g_sensitivity", {"coef_per_g": 1e-4})
-    with pytest.raises(ValueError, match=r"k2_nonlinearity.k2_per_u = 0.5 outside the allowed range \[-0.001, 0.001\] 1/g"):
+    with pytest.raises(ValueError,
+                       match=r"k2_nonlinearity.k2_per_u = 0.5 outside the allowed range \[-0.001, 0.001\] 1/g"):
         m.with_effect("k2_nonlinearity", {"k2_per_u": 0.5})
     with pytest.raises(ValueError, match=r"unknown parameter\(s\) \['k9'\]"):
         m.with_effect("k2_nonlinearity", {"k2_per_u": 1e-5, "k9": 1.0})

@@ -269,7 +269,7 @@ def test_step_std_is_recomputed_at_the_recalibrated_model():
     assert step.params == m.effects[0][1]
 
 
-def test_stochastic_p_value_is_calibrated_on_the_models_own_noise():
+def test_stochastic_p_value_is_calibrated_on_the_models_own_noise() -> None:
     # 20 draws of the calibrated base model's own noise: each stochastic candidate's LR p-value
     # falls below 5 % in about 5 % of them
     rec = make_experiment("accelerometer", np.random.default_rng(0), n=1500)
