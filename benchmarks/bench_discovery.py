@@ -31,7 +31,10 @@ from bench.discovery import significance as sig
 
 
 def _reference():
-    spec = importlib.util.spec_from_file_location("fastpath_ref", ROOT / "tests" / "test_discovery_fastpaths.py")
+    path = ROOT / "tests" / "discovery" / "test_discovery_fastpaths.py"
+    spec = importlib.util.spec_from_file_location("fastpath_ref", path)
+    if spec is None or spec.loader is None:
+        raise FileNotFoundError(f"reference implementations not found at {path}")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -41,7 +44,11 @@ def _reference():
 def old_code(ref):
     """Swap the reference implementations in for the duration of the block."""
     saved = lat.visibility, sig.LinearScorer, sig.block_bootstrap
-    lat.visibility = lambda y, s, cf=None: ref.visibility_reference(y, s)
+
+    def visibility(y: np.ndarray, s: np.ndarray | float, *, cf: lat.CharFun | None = None) -> np.ndarray:
+        return ref.visibility_reference(y, s)
+
+    lat.visibility = visibility
     sig.LinearScorer = ref.LinearScorerReference
     sig.block_bootstrap = ref.block_bootstrap_reference
     try:
@@ -58,7 +65,7 @@ def workload(n: int, reps: int) -> dict:
     warm = 7e-5 * np.exp(-t / 160.0)
     y = 1e-3 + warm + sd * rng.standard_normal(n)  # a start-up record: bias, warm-up, white noise
     folds = sig.block_folds(n)
-    out = {}
+    out: dict[str, tuple[float, tuple[float, ...]]] = {}
     t0 = time.perf_counter()
     fit = lat.fit_lattice(y, sd, 1e-7, 1e-3)
     score = lat.heldout_score(y, sd, folds, 1e-7, 1e-3)

@@ -38,7 +38,7 @@ def rate(effects, n: int, reps: int) -> tuple[int, Counter]:
         m = m.with_effect(eid, p)
     t = np.arange(n) * 0.1
     rec = Record(t_s=t, y=np.zeros(n), temp_c=20 + 5 * np.sin(2 * np.pi * t / t[-1]))
-    hits, fams = 0, Counter()
+    hits, fams = 0, Counter[str]()
     for seed in range(reps):
         r = m.simulate(rec, np.random.default_rng(10_000 + seed)) - m.predict(rec)
         u = unexplained_structure(rec, r, m)

@@ -18,7 +18,7 @@ starts from the bare base model. Reported:
 ``--power 0.5,1,2``: instead, the power curve of the naming near its minimum effect size — each
 effect drawn with its main parameter exactly at snr = ratio × MIN_SNR (``Effect.draw(at_snr=)``;
 the normal draw starts at 3 × MIN_SNR) and the rate at which it is named first, per effect and
-ratio, with wrong first names counted apart (and among them its look-alike, ``competitors``).
+ratio, with wrong first names counted apart (and among them its look-alike, ``CATALOGUE.look_alikes``).
 The workflow's size gate is snr ≥ MIN_SNR on the *fitted* parameters, so ≈ 50 % is expected at
 ratio 1; below it the effect is, by design, too small to name. For an effect with a look-alike
 (time_delay ↔ lowpass_bandwidth, k2_nonlinearity ↔ scale_factor_asymmetry) the snr is that of
@@ -50,7 +50,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD, MIN_SNR
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import DEFAULT_NOISE_SD, MIN_SNR
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.workflow import discover
@@ -69,7 +70,7 @@ def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: 
                             scale_factor=1.0 + rng.normal(0, 2e-3), noise_sd=sd))
     snrs = []
     # an output-stage effect (clipping, rounding) acts on bias + SF·input: drawn and sized there
-    on_output = rec.replace(input=truth.base.bias + truth.base.scale_factor * rec.input)
+    on_output = rec.replace(input=truth.base.bias + truth.base.scale_factor * rec.column("input"))
     for eid in effects:
         eff = CATALOGUE[eid]
         where = on_output if eff.stage == "output" else rec
@@ -165,6 +166,8 @@ def main(argv=None) -> int:
             print(f"{kind:13s} pair {'+'.join(pair):40s}: {mark} named {c['named']}", flush=True)
         for k in range(args.clean):
             c = run_case(kind, (), 2000 + k, args.n)
+            if c is None:  # nothing to draw: a clean case always runs
+                continue
             cases.append(c)
             print(f"{kind:13s} clean seed {2000 + k}: named {c['named']} unexplained {len(c['unexplained'])}",
                   flush=True)
@@ -214,18 +217,19 @@ def report_power(cases: list[dict], ratios: list[float]) -> None:
             return f"{'—':>14s}"
         eid = cs[0]["hidden"][0]
         k = sum(c["first"] == eid for c in cs)
-        look = sum(c["first"] in CATALOGUE[eid].competitors for c in cs)
+        look = sum(c["first"] in CATALOGUE.look_alikes(eid) for c in cs)
         wrong = sum(c["first"] not in (None, eid) for c in cs) - look
         return f"{f'{k}/{len(cs)} [{wrong}' + (f'+{look}L' if look else '') + ']':>14s}"
     for (kind, eid), cs in by.items():
         print(f"  {kind:13s} {eid:26s} " + " ".join(cell([c for c in cs if c["ratio"] == r]) for r in ratios))
-    print(f"  {'all':13s} {'':26s} " + " ".join(
-        f"{_pct(sum(c['first'] == c['hidden'][0] for c in cases if c['ratio'] == r), sum(c['ratio'] == r for c in cases)):>14s}"
-        for r in ratios))
+    def named_first(r: float) -> str:
+        sel = [c for c in cases if c["ratio"] == r]
+        return _pct(sum(c["first"] == c["hidden"][0] for c in sel), len(sel))
+    print(f"  {'all':13s} {'':26s} " + " ".join(f"{named_first(r):>14s}" for r in ratios))
     for r in ratios:
         sel = [c for c in cases if c["ratio"] == r]
         wrong = [c for c in sel if c["first"] not in (None, c["hidden"][0])]
-        look = sum(c["first"] in CATALOGUE[c["hidden"][0]].competitors for c in wrong)
+        look = sum(c["first"] in CATALOGUE.look_alikes(c["hidden"][0]) for c in wrong)
         print(f"  × {r:g}: named first {_pct(sum(c['first'] == c['hidden'][0] for c in sel), len(sel))}, "
               f"a wrong first name {_pct(len(wrong), len(sel))} (its look-alike in {look})")
 
@@ -265,7 +269,7 @@ def report(cases: list[dict]) -> None:
     none = sum(not c["named"] for c in clean)
     print(f"clean data, nothing named: {_pct(none, len(clean))}   (target ≥ 95 %)")
     print("\nconfusion (hidden → first named: count)")
-    conf = defaultdict(Counter)
+    conf: defaultdict[str, Counter[str]] = defaultdict(Counter)
     for c in singles:
         conf[c["hidden"][0]][c["first"] or "nothing"] += 1
     for eid, cnt in conf.items():

@@ -1,14 +1,17 @@
-"""Discrepancy workflow (issue 7): logged records, the effect catalogue, models and their files.
+"""Discrepancy workflow (issue 7): where a sensor model and a logged record disagree, and which
+physical effect the model lacks. Pure: arrays and frozen results, no I/O beyond the model file.
 
-``Record`` (data.py) is a logged experiment; ``CATALOGUE`` (effects.py) the physical effects a
-model may lack; ``Model`` (model.py) a base model plus effects, simulated on a record's stimulus
-and stored as TOML; ``make_experiment`` (experiments.py) a realistic stimulus per sensor kind.
+The modules, in the order the workflow uses them (``docs/ARCHITECTURE.md``, "Discovery"):
+
+* ``data`` — :class:`Record`, a logged experiment; ``experiments`` — realistic stimuli per kind;
+* ``effects`` — ``CATALOGUE``, the one registry of effects; the effects themselves in
+  ``effects_terms`` (additive), ``effects_transforms`` (input path and output), ``effects_noise``
+  (random processes), on the machinery and hooks of ``effects_base`` (``effects_linalg``:
+  projections);
+* ``model`` — a base model plus effects, simulated and stored as TOML;
+* ``workflow.discover`` — calibrate (``calibration``) → localize (``localize``, ``findings``)
+  → name (``naming``: ``fitting`` for waveforms, ``stochastic`` / ``whittle`` for random
+  processes, ``lattice`` for the quantizer's histogram; ``significance`` for held-out scores,
+  the bootstrap null and the gap; ``choosing``, ``separating``; results in ``candidates``) →
+  add → repeat, then ``localize.unexplained_structure`` (on ``whiten``'s innovations).
 """
-
-from bench.discovery.data import CSV_COLUMNS, Record
-from bench.discovery.effects import CATALOGUE, KINDS, Effect, Param, effect, effects_for
-from bench.discovery.experiments import make_experiment
-from bench.discovery.model import BaseModel, Model, base_model, read_model, write_model
-
-__all__ = ["CATALOGUE", "CSV_COLUMNS", "KINDS", "BaseModel", "Effect", "Model", "Param", "Record", "base_model",
-           "effect", "effects_for", "make_experiment", "read_model", "write_model"]

@@ -6,39 +6,23 @@ Occam among deterministic ones within a standard error (:func:`parsimonious`).""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from bench.discovery import stochastic as sto
+from bench.discovery.candidates import Trial
 from bench.discovery.data import Record
-
-if TYPE_CHECKING:
-    from bench.discovery.naming import Candidate
+from bench.discovery.model import Model
+from bench.discovery.significance import jackknife_ratio
 
 # A stochastic candidate must survive the best deterministic one (see choose).
 SURVIVE_P = 1e-6
 SURVIVE_FRACTION = 0.1
 
 
-def jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
-    """Std error of Σnum/Σden by deleting one block at a time (num, den per block)."""
-    k = num.size
-    if k < 3:
-        return float("nan")
-    loo = (num.sum() - num) / np.where(den.sum() - den > 0, den.sum() - den, np.nan)
-    return float(np.sqrt((k - 1) / k * np.nansum((loo - np.nanmean(loo)) ** 2)))
-
-
-def stochastic_in(model) -> list[tuple[str, dict]]:
-    """The model's stochastic effects (``Effect.stochastic`` in the catalogue) with their params."""
-    from bench.discovery.effects import CATALOGUE  # noqa: PLC0415
-
-    return [(e, p) for e, p in model.effects if CATALOGUE[e].stochastic]
-
-
-def choose(named: list[Candidate], model, rec: Record, catalogue: dict, kind: str,
-            det_p_under=None, alpha: float = 0.05) -> Candidate | None:
+def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
+           det_p_under: Callable[[Trial, Trial], float] | None = None, alpha: float = 0.05) -> Trial | None:
     """Deterministic first: the highest held-out score among the named deterministic candidates
     (then :func:`parsimonious`). A named stochastic candidate (best BIC gain of its spectral fit)
     replaces it only if all hold:
@@ -58,30 +42,28 @@ def choose(named: list[Candidate], model, rec: Record, catalogue: dict, kind: st
       clearly significant (p < ``SURVIVE_P``) and keeps a tenth of its likelihood-ratio
       statistic (a random walk stays a random walk once a straight line is removed).
 
-    Without a named deterministic candidate, the best stochastic one."""
+    Without a named deterministic candidate, the best stochastic one. (Between stochastic
+    shapes the spectrum decides: BIC on the Whittle likelihood, so a Gauss–Markov needs a
+    clearly better fit than a random walk for its extra parameter; one whose parameters the
+    record cannot resolve — ``Effect.identifiable`` — was not named.)"""
     if not named:
         return None
-    det = [c for c in named if not c.stochastic]
-    # between stochastic shapes the spectrum decides (BIC on the Whittle likelihood: a
-    # Gauss–Markov needs a clearly better fit than a random walk for its extra parameter)
-    sto_ = sorted((c for c in named if c.stochastic), key=lambda c: -c.aic_gain)
-    if len(sto_) > 1 and sto_[0].id == "gauss_markov" and sto_[1].id == "rate_random_walk" \
-            and sto_[0].params.get("tau_s", 0.0) >= rec.duration_s / 5:
-        sto_ = [sto_[1], sto_[0]]  # a correlation time beyond the record is a random walk on it
+    det = [c for c in named if not c.effect.stochastic]
+    sto_ = sorted((c for c in named if c.effect.stochastic), key=lambda c: -c.bic_gain)
     if not det:
         return sto_[0] if sto_ else None
     d = det[0]
     if not sto_ or d.resid_full is None:
         return d
     s = sto_[0]
-    known = stochastic_in(model)
+    known = model.stochastic_effects()
     r0 = rec.y - model.predict(rec)
     lr_d = 2.0 * (sto.white_nll(r0, rec.dt_s, known) - sto.white_nll(d.resid_full, rec.dt_s, known))
-    bic_d = lr_d - math.log(rec.n / 2) * len(catalogue[d.id].params_for(kind))
-    if s.aic_gain <= bic_d:
+    bic_d = lr_d - math.log(rec.n / 2) * len(d.effect.params_for(kind))
+    if s.bic_gain <= bic_d:
         return d
-    stype = "gauss_markov" if s.id == "gauss_markov" else "random_walk"
-    after = sto.fit_stochastic(d.resid_full - d.resid_full.mean(), rec.dt_s, stype, known=known, bootstrap=False)
+    after = sto.fit_stochastic(d.resid_full - d.resid_full.mean(), rec.dt_s, s.effect, known=known,
+                               bootstrap=False)
     if not (after.p_value < SURVIVE_P and after.lr >= SURVIVE_FRACTION * s.lr):
         return d
     if det_p_under is not None and det_p_under(s, d) < alpha:
@@ -89,17 +71,20 @@ def choose(named: list[Candidate], model, rec: Record, catalogue: dict, kind: st
     return s
 
 
-def parsimonious(best: Candidate | None, named: list[Candidate], blocks: np.ndarray, n_blocks: int,
-                  catalogue: dict, kind: str) -> Candidate | None:
+def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray, n_blocks: int,
+                 kind: str) -> Trial | None:
     """Among deterministic named candidates whose held-out score is within one (paired, block
     jackknife) standard error of the best's, the one with the fewest parameters (Occam: a long
     warm-up time constant is a drift on a short record)."""
-    if best is None or best.stochastic or best.err_c is None:
+    if best is None or best.effect.stochastic or best.err_c is None or best.err_b is None:
         return best
-    n_par = lambda c: len(catalogue[c.id].params_for(kind))
+
+    def n_par(c: Trial) -> int:
+        return len(c.effect.params_for(kind))
+
     pick = best
     for c in named:
-        if c.stochastic or c.err_c is None or c.id == best.id or n_par(c) >= n_par(pick):
+        if c.effect.stochastic or c.err_c is None or c.id == best.id or n_par(c) >= n_par(pick):
             continue
         d_num = np.bincount(blocks, c.err_c - best.err_c, n_blocks)
         den = np.bincount(blocks, best.err_b, n_blocks)

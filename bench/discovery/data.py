@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -150,7 +151,7 @@ class Record:
         """The rows ``idx`` (a slice, an integer index array or a boolean mask) of every column.
 
         ``t_on`` is materialised first so a slice keeps the time since power-on."""
-        kw = {}
+        kw: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name == "t_on_s" and v is None:
@@ -178,7 +179,7 @@ class Record:
         Header names are matched case-insensitively after stripping blanks; field names
         (``t_s``, ``temp_c`` ...) are accepted too. ``t`` and ``y`` are required; an unknown
         column raises ValueError naming it and the allowed ones."""
-        kw: dict[str, object] = {}
+        kw: dict[str, Any] = {}
         allowed = set(CSV_COLUMNS) | set(CSV_COLUMNS.values())
         for key, val in columns.items():
             k = str(key).strip().lower()

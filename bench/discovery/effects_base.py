@@ -1,4 +1,5 @@
-"""The common machinery of catalogue effects: parameters, detectability, drawing, fit starts.
+"""The common machinery of catalogue effects: parameters, detectability, drawing, fit starts, and
+the hooks through which the workflow asks an effect about itself.
 
 Conventions
 -----------
@@ -15,41 +16,46 @@ Conventions
   deterministic effect it is ``||P⊥ Δ|| / noise_sd``: Δ the change the effect makes to the
   reference output (``y = input``, or 0 without an input) and P⊥ the projection away from the
   base model's calibration regressors (1 and the input), so what a recalibration of bias and
-  scale factor absorbs does not count. Stochastic and quantization effects override it.
+  scale factor absorbs does not count — and, for an effect with look-alikes (``competitors``),
+  away from the best-matching signature of each, so it measures how well the effect can be told
+  from them. Stochastic and quantization effects override it.
   ``min_effect`` is the main parameter's magnitude at ``snr = MIN_SNR`` (5), never below the
   physically meaningful floor of the kind; ``draw`` picks the main parameter so that
   ``snr`` is between ``DRAW_SNR_FACTOR * MIN_SNR`` (15; for effects linear in their main
   parameter that is ``|main| >= 3 * min_effect``) and ``DRAW_SPAN`` (30) times that, inside the
-  kind's physical range (log-uniform in the main parameter between the two). Other parameters are drawn where the record can resolve them.
+  kind's physical range (log-uniform in the main parameter between the two). Other parameters
+  are drawn where the record can resolve them.
+
+Families (how the naming step judges a candidate): an :class:`Effect` is a *waveform* — its
+prediction is fitted by least squares, and calibration refits its parameters;
+``bench.discovery.effects_noise.StochasticEffect`` is a random process judged on the residual's
+spectral shape; :class:`HistogramEffect` is judged on the histogram of the readings.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
 from bench.discovery.data import Record
-from bench.discovery.effects_linalg import (  # noqa: F401
-    base_regressors,
-    competitor_direction,
-    orthonormal,
-    product_grid,
-    project_out,
-    project_q,
-    vdot,
-)
+from bench.discovery.effects_linalg import base_regressors, orthonormal, project_out, project_q, vdot
 
 KINDS = ("accelerometer", "gyro", "mhd")
 UNIT = {"accelerometer": "g", "gyro": "deg/s", "mhd": "deg/s"}
 #: White-noise sd per sample assumed when none is given and the record cannot tell (u).
 DEFAULT_NOISE_SD = {"accelerometer": 5e-6, "gyro": 3e-3, "mhd": 0.06}
 MIN_SNR = 5.0
-#: id -> Effect, filled by bench.discovery.effects (competitor look-ups without an import cycle).
-REGISTRY: dict[str, Effect] = {}
 DRAW_SNR_FACTOR = 3.0
 DRAW_SPAN = 30.0
+#: Starting points a grid search keeps for a nonlinear fit (:func:`grid_starts`).
+N_STARTS = 3
+
+#: An effect's parameter values by name (in the kind's units).
+Params = dict[str, float]
 
 
 @dataclass(frozen=True)
@@ -68,26 +74,32 @@ class Param:
     linear: bool = False
     floor: float = 0.0
 
-    def check(self, value, effect_id: str = "") -> float:
+    def __post_init__(self) -> None:
+        for name in ("low", "high", "floor"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+    @property
+    def periodic(self) -> bool:
+        """A phase spanning one full turn: it wraps, so an optimiser must not meet a wall at ±π."""
+        return self.unit == "rad" and "phase" in self.name and self.high - self.low >= 2 * math.pi - 1e-9
+
+    def check(self, value: Any, effect_id: str = "") -> float:
         """The value as float, or ValueError naming it and the allowed range."""
         where = f"{effect_id}.{self.name}" if effect_id else self.name
         try:
             v = float(value)
         except (TypeError, ValueError):
-            raise ValueError(f"{where} = {value!r} is not a number; allowed: [{self.low}, {self.high}] {self.unit}") from None
+            raise ValueError(f"{where} = {value!r} is not a number; "
+                             f"allowed: [{self.low}, {self.high}] {self.unit}") from None
         if not (self.low <= v <= self.high):
             raise ValueError(f"{where} = {v!r} outside the allowed range [{self.low}, {self.high}] {self.unit}")
         return v
 
 
-def _p(name, unit, low, high, **kw) -> Param:
-    return Param(name, unit, float(low), float(high), **kw)
-
-
 def guess_kind(rec: Record) -> str:
     """Sensor kind from the record alone: inputs beyond 5 (a rate in deg/s) mean a gyro,
     otherwise an accelerometer (g). Pass ``kind`` explicitly when it is known."""
-    if rec.logged("input") and float(np.max(np.abs(rec.input))) > 5.0:
+    if rec.input is not None and float(np.max(np.abs(rec.input))) > 5.0:
         return "gyro"
     return "accelerometer"
 
@@ -99,16 +111,39 @@ def noise_sd_of(rec: Record, kind: str) -> float:
     return s if s > 0 else DEFAULT_NOISE_SD[kind]
 
 
-class Effect:
-    """One catalogue entry. Subclasses set the class attributes and ``_term``/``_transform``.
+def reference_input(rec: Record) -> np.ndarray:
+    """The applied input, or zeros when none was logged (the output then is bias alone)."""
+    return rec.input.copy() if rec.input is not None else np.zeros(rec.n)
 
-    Attributes: ``id``, ``description``, ``form``, ``inputs`` (logged columns needed),
-    ``main_param``, ``signature``, ``stochastic``, ``stage``, ``kinds`` (sensor kinds it
-    applies to), ``identity`` (main-parameter value that leaves the output unchanged),
-    ``increasing`` (a larger main parameter is a larger effect; False for a bandwidth or a
-    saturation limit), ``ranges`` (kind -> tuple of Param), ``competitors`` (effects whose
-    signature this one resembles on typical records: its snr counts only what they cannot absorb),
-    ``needs_uniform`` (a sampled filter: the record must be uniform to 0.1 %)."""
+
+class Effect:
+    """One catalogue entry: a *waveform* effect (its prediction fitted by least squares).
+    Subclasses set the class attributes and implement the hook of their stage (``term``,
+    ``transform_input`` or ``transform``); the rest have defaults to override where the effect
+    differs.
+
+    Declaration: ``id``, ``description``, ``form``, ``inputs`` (logged columns needed),
+    ``main_param``, ``signature``, ``stage``, ``kinds`` (sensor kinds it applies to),
+    ``identity`` (main-parameter value that leaves the output unchanged), ``increasing`` (a
+    larger main parameter is a larger effect; False for a bandwidth or a saturation limit),
+    ``ranges`` (kind -> tuple of Param), ``needs_uniform`` (a sampled filter: the record must be
+    uniform to 0.1 %).
+
+    Relations to other entries, by id (the catalogue makes both symmetric, so they are declared
+    once, on either effect of a pair): ``competitors`` — effects whose signature this one
+    resembles on typical records (its snr counts only what they cannot absorb; the instances
+    arrive as ``look_alikes`` when the catalogue builds it); ``separating`` — id -> the
+    experiment that tells the two apart.
+
+    Family (how the workflow treats it): ``stochastic`` (a random process), ``waveform``
+    (calibration refits its parameters; False for random processes and histogram-judged effects,
+    whose residual floor the gap then simulates), ``mean_depends_on_noise`` (an output transform
+    whose mean reading depends on the noise before it: calibration fits the noise sd with it).
+
+    Hooks the naming step asks: ``big_enough`` (the size gate; ``size_noise_sd`` the sd it is
+    judged against), ``identifiable`` (can the record resolve these parameters at all),
+    ``colours_residual`` (once in the model, does it leave residual colour no random-process
+    null describes)."""
 
     id: str = ""
     description: str = ""
@@ -117,15 +152,26 @@ class Effect:
     main_param: str = ""
     signature: str = ""
     stochastic: bool = False
+    waveform: bool = True
+    mean_depends_on_noise: bool = False
     stage: str = "additive"
     kinds: tuple[str, ...] = KINDS
     identity: float = 0.0
     increasing: bool = True
-    ranges: dict[str, tuple[Param, ...]] = {}
+    ranges: Mapping[str, tuple[Param, ...]] = {}
     competitors: tuple[str, ...] = ()
+    separating: Mapping[str, str] = {}
     draw_span_main: float = DRAW_SPAN
     threshold_log_tol: float = 1e-3  # bisection width (log of the main parameter) of a threshold
     needs_uniform: bool = False  # a sampled filter: every interval within 0.1 % of the median
+
+    def __init__(self, look_alikes: Sequence[Effect] = ()) -> None:
+        """``look_alikes``: the competitor effects themselves (the catalogue passes them); an
+        effect built without them judges its snr plainly."""
+        self.look_alikes: tuple[Effect, ...] = tuple(look_alikes)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
 
     # ---- parameters -------------------------------------------------------------------
     @property
@@ -173,7 +219,7 @@ class Effect:
     def param_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.ranges[self.kinds[0]])
 
-    def check_params(self, p: dict, kind: str | None = None) -> dict:
+    def check_params(self, p: Mapping[str, object], kind: str | None = None) -> Params:
         """Validated copy of p (floats): every parameter present, none unknown, each in range."""
         names = self.param_names
         unknown = sorted(set(p) - set(names))
@@ -190,78 +236,115 @@ class Effect:
                 raise ValueError(f"effect {self.id!r} needs the logged column {name!r}, absent from this record")
 
     # ---- the effect -------------------------------------------------------------------
-    def apply(self, p: dict, rec: Record, y_ideal: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
-        """``y_ideal`` with this effect applied (see the module docstring for stages)."""
+    def apply(self, p: Params, rec: Record, y_ideal: np.ndarray,
+              rng: np.random.Generator | None = None) -> np.ndarray:
+        """``y_ideal`` with this effect applied (see the module docstring for stages; ``rng``
+        draws a random process's realisation)."""
         self.check_inputs(rec)
         y = np.asarray(y_ideal, dtype=float)
         if y.shape != (rec.n,):
             raise ValueError(f"y_ideal has shape {y.shape}; allowed: ({rec.n},) like the record")
-        if self.stochastic:
-            if rng is None:
-                raise ValueError(f"effect {self.id!r} is stochastic: apply needs rng (a numpy Generator)")
-            return y + self._noise(p, rec, rng)
+        return self._applied(p, rec, y, rng)
+
+    def _applied(self, p: Params, rec: Record, y: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
         if self.stage == "input":
-            u = rec.input
+            u = rec.column("input")
             return y + (self.transform_input(p, rec, u) - u)
         if self.stage == "output":
-            return self._transform(p, rec, y)
-        return y + self._term(p, rec)
+            return self.transform(p, rec, y)
+        return y + self.term(p, rec)
 
-    def transform_input(self, p: dict, rec: Record, u: np.ndarray) -> np.ndarray:
+    def term(self, p: Params, rec: Record) -> np.ndarray:
+        """Additive effects: the term added to the output (sensor unit)."""
+        raise NotImplementedError(f"{self.id} is not an additive effect")
+
+    def transform_input(self, p: Params, rec: Record, u: np.ndarray) -> np.ndarray:
         """Input-stage effects: the transformed input (same unit)."""
         raise NotImplementedError(f"{self.id} is not an input-stage effect")
 
-    def _term(self, p: dict, rec: Record) -> np.ndarray:
-        raise NotImplementedError
+    def transform(self, p: Params, rec: Record, y: np.ndarray) -> np.ndarray:
+        """Output-stage effects: the transformed output (what a reading of ``y`` becomes)."""
+        raise NotImplementedError(f"{self.id} is not an output-stage effect")
 
-    def _transform(self, p: dict, rec: Record, y: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+    def expected_transform(self, p: Params, rec: Record, y: np.ndarray, noise_sd: float) -> np.ndarray:
+        """Output stage: mean of ``transform(y + n)``, n white Gaussian of sd ``noise_sd`` (what
+        ``Model.predict`` returns; readings are transformed noisy signals). Default: ``transform(y)``."""
+        return self.transform(p, rec, y)
 
-    def _noise(self, p: dict, rec: Record, rng: np.random.Generator) -> np.ndarray:
-        raise NotImplementedError
-
-    def expected_transform(self, p: dict, rec: Record, y: np.ndarray, noise_sd: float) -> np.ndarray:
-        """Output stage: mean of ``_transform(y + n)``, n white Gaussian of sd ``noise_sd`` (what
-        ``Model.predict`` returns; readings are transformed noisy signals). Default: ``_transform(y)``."""
-        return self._transform(p, rec, y)
-
-    def pre_transform_sd(self, p: dict, floor_sd: float) -> float:
+    def pre_transform_sd(self, p: Params, floor_sd: float) -> float:
         """Output stage: white sd before this transform given the floor of a model without it."""
         return floor_sd
 
-    def residual_var(self, p: dict, noise_sd: float) -> float:
+    def residual_var(self, p: Params, noise_sd: float) -> float:
         """Output stage: variance of a reading about the model's mean (default noise_sd²)."""
         return noise_sd ** 2
 
     # ---- detectability ----------------------------------------------------------------
-    def _competitor_direction(self, comp: Effect, rec: Record, delta: np.ndarray, q: np.ndarray) -> np.ndarray:
-        return competitor_direction(comp, rec, delta, q, guess_kind(rec))
-
     def reference_output(self, rec: Record) -> np.ndarray:
         """The output the detectability rule perturbs: ``input`` (unit SF, zero bias) or 0."""
-        return rec.input.copy() if rec.logged("input") else np.zeros(rec.n)
+        return reference_input(rec)
 
-    def plain_snr(self, p: dict, rec: Record, noise_sd: float) -> float:
-        """The signature's snr without taking out what its competitors could absorb: the size
+    def plain_snr(self, p: Params, rec: Record, noise_sd: float) -> float:
+        """The signature's snr without taking out what its look-alikes could absorb: the size
         of the effect, not how well it can be told from them (the naming's size gate)."""
-        if not self.competitors:
+        if not self.look_alikes:
             return self.snr(p, rec, noise_sd)
         y0 = self.reference_output(rec)
         delta = project_q(self.apply(p, rec, y0) - y0, orthonormal(base_regressors(rec)))
         return math.sqrt(vdot(delta, delta)) / noise_sd
 
-    def snr(self, p: dict, rec: Record, noise_sd: float) -> float:
+    def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
         """Signal-to-noise ratio of the effect's signature on rec (see module docstring): the
-        part its competitors cannot absorb, i.e. how well it can be told from them."""
+        part its look-alikes cannot absorb, i.e. how well it can be told from them."""
         y0 = self.reference_output(rec)
         q = orthonormal(base_regressors(rec))
         delta = project_q(self.apply(p, rec, y0) - y0, q)
-        if self.competitors and np.any(delta):
-            dirs = [self._competitor_direction(REGISTRY[c], rec, delta, q) for c in self.competitors]
+        if self.look_alikes and np.any(delta):
+            dirs = [c.direction_matching(delta, rec, q, guess_kind(rec)) for c in self.look_alikes]
             delta = project_q(delta, orthonormal(np.column_stack(dirs)))
         return math.sqrt(vdot(delta, delta)) / noise_sd
 
-    def reference_params(self, rec: Record, kind: str) -> dict:
+    def direction_matching(self, delta: np.ndarray, rec: Record, q: np.ndarray, kind: str) -> np.ndarray:
+        """This effect's signature (projected away from the orthonormal columns ``q``, unit norm)
+        that best matches ``delta`` (already orthogonal to q) up to a scale — what it could absorb
+        of another effect's: all-linear effects have one direction; otherwise a 13-point log grid
+        of the main parameter over its resolvable range, then 8 golden-section steps."""
+        if kind not in self.ranges:
+            kind = self.kinds[0]
+        y0 = self.reference_output(rec)
+        base = self.reference_params(rec, kind)
+
+        def direction(v: float) -> np.ndarray:
+            d = project_q(self.apply(self.with_main(base, v), rec, y0) - y0, q)
+            nrm = math.sqrt(vdot(d, d))
+            return d / nrm if nrm > 0 else d
+
+        if all(p.linear for p in self.params_for(kind)):
+            return direction(1.0)
+
+        def fit(logv: float) -> float:  # captured fraction of delta (maximise)
+            return abs(vdot(direction(math.exp(logv)), delta))
+
+        lo, hi = self.main_grid_range(rec, kind)
+        grid = np.linspace(math.log(lo), math.log(hi), 13)
+        vals = [fit(g) for g in grid]
+        i = int(np.argmax(vals))
+        x0, x1 = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        g = (math.sqrt(5) - 1) / 2
+        c, d = x1 - g * (x1 - x0), x0 + g * (x1 - x0)
+        fc, fd = fit(c), fit(d)
+        for _ in range(8):
+            if fc > fd:
+                x1, d, fd = d, c, fc
+                c = x1 - g * (x1 - x0)
+                fc = fit(c)
+            else:
+                x0, c, fc = c, d, fd
+                d = x0 + g * (x1 - x0)
+                fd = fit(d)
+        return direction(math.exp(0.5 * (x0 + x1)))
+
+    def reference_params(self, rec: Record, kind: str) -> Params:
         """Typical values of every parameter for judging detectability on rec: geometric mean
         of the resolvable range (log parameters), 0 for signed linear ones, else the midpoint."""
         out = {}
@@ -274,17 +357,18 @@ class Effect:
         """The part of a non-main parameter's range the record can resolve (override per effect)."""
         return q.low, q.high
 
-    def identity_params(self, p: dict) -> dict:
+    def identity_params(self, p: Params) -> Params:
         """p with the effect switched off: main parameter at ``identity`` (and, for effects with a
         second amplitude such as temperature_bias's quadratic term, that one at 0 too)."""
-        return self._with_main(p, self.identity)
+        return self.with_main(p, self.identity)
 
-    def _with_main(self, others: dict, value: float) -> dict:
+    def with_main(self, others: Mapping[str, float], value: float) -> Params:
+        """``others`` with the main parameter set to ``value``."""
         d = dict(others)
         d[self.main_param] = value
         return d
 
-    def _threshold(self, others: dict, rec: Record, noise_sd: float, target: float, kind: str,
+    def _threshold(self, others: Params, rec: Record, noise_sd: float, target: float, kind: str,
                    distinct: bool = True) -> float:
         """Main-parameter magnitude where snr == target (bisection on a log scale); ``distinct``
         False: the plain snr (:meth:`plain_snr`)."""
@@ -293,7 +377,10 @@ class Effect:
         lo_mag = max(q.floor, hi_mag * 1e-12, 1e-300) if not q.log else q.low
         sgn = 1.0 if q.high > 0 else -1.0
         snr = self.snr if distinct else self.plain_snr
-        f = lambda m: snr(self._with_main(others, sgn * m), rec, noise_sd) - target
+
+        def f(m: float) -> float:
+            return snr(self.with_main(others, sgn * m), rec, noise_sd) - target
+
         a, b = math.log(lo_mag), math.log(hi_mag)
         fa, fb = f(lo_mag), f(hi_mag)
         if self.increasing:
@@ -317,12 +404,12 @@ class Effect:
         return math.exp(b if self.increasing else a)
 
     def min_effect(self, rec: Record, noise_sd: float, *, kind: str | None = None,
-                   params: dict | None = None, distinct: bool = True) -> float:
+                   params: Mapping[str, float] | None = None, distinct: bool = True) -> float:
         """Smallest main-parameter magnitude that matters on rec with white noise ``noise_sd``
         (the largest for a decreasing effect, e.g. a bandwidth): ``snr = MIN_SNR`` with the other
         parameters at ``params`` (default: reference values), and never finer than the physical
         floor. ``math.inf`` (0 for decreasing) when even the range's end is undetectable.
-        ``distinct`` (default): the snr of what tells it from its competitors (the scorecard's
+        ``distinct`` (default): the snr of what tells it from its look-alikes (the scorecard's
         draws); False: the plain snr — the naming's size gate, which asks whether the effect
         matters, not whether it can be told from a look-alike (that is the competitors' report)."""
         if not noise_sd > 0:
@@ -335,13 +422,47 @@ class Effect:
         floor = self.param(self.main_param, kind).floor
         return max(thr, floor) if self.increasing else thr
 
-    def detectable(self, p: dict, rec: Record, noise_sd: float) -> bool:
+    def detectable(self, p: Params, rec: Record, noise_sd: float) -> bool:
         """True when snr(p) >= MIN_SNR."""
         return self.snr(p, rec, noise_sd) >= MIN_SNR
 
+    # ---- the naming step's questions --------------------------------------------------
+    def size_noise_sd(self, p: Params, reading_sd: float) -> float:
+        """The white sd this effect's size is judged against when a reading of the model without
+        it has sd ``reading_sd`` (default: that sd; a quantizer's rounding is part of it)."""
+        return reading_sd
+
+    def big_enough(self, p: Mapping[str, float], rec: Record, noise_sd: float, *, kind: str,
+                   bias: float | None = None, scale_factor: float = 1.0) -> tuple[bool, float]:
+        """(main parameter beyond the minimum size?, that size): the plain snr of ``p`` at least
+        MIN_SNR on rec against white ``noise_sd``. An output-stage effect (clipping, rounding)
+        acts on the output itself: given the calibrated ``bias`` and ``scale_factor`` its size is
+        judged on ``bias + SF·input``, not on the unit-gain reference — a limit just under the
+        input's peak clips every reading of a unit with a positive bias. A size that cannot be
+        judged (``min_effect`` raising) is not big enough."""
+        if bias is not None and self.stage == "output" and rec.input is not None:
+            rec = rec.replace(input=bias + scale_factor * rec.input)
+        try:
+            thr = self.min_effect(rec, noise_sd, kind=kind, params=p, distinct=False)
+        except (ValueError, ZeroDivisionError, FloatingPointError):
+            return False, float("nan")  # fail closed
+        v = abs(float(p[self.main_param]))
+        return (v >= thr if self.increasing else v <= thr), float(thr)
+
+    def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
+        """False when rec cannot resolve these parameters (e.g. a correlation time beyond a fifth
+        of the record), however significant the fit: it is then not named."""
+        return True
+
+    def colours_residual(self, p: Mapping[str, float], noise_sd: float) -> bool:
+        """True when, in a model with white noise ``noise_sd``, this effect leaves residual colour
+        that follows the signal (a coarse quantizer's rounding): a spectral-shape test of a random
+        process then has no valid null, and stochastic candidates are not tried."""
+        return False
+
     # ---- drawing ----------------------------------------------------------------------
     def draw(self, rng: np.random.Generator, rec: Record, *, kind: str | None = None,
-             noise_sd: float | None = None, at_snr: float | None = None) -> dict:
+             noise_sd: float | None = None, at_snr: float | None = None) -> Params:
         """Parameters inside the kind's physical ranges, resolvable on rec, with the main
         parameter log-uniform between the values giving ``snr = DRAW_SNR_FACTOR·MIN_SNR`` (15)
         and ``DRAW_SPAN`` times that snr (450) — or, with ``at_snr``, exactly at that snr (a
@@ -377,7 +498,7 @@ class Effect:
                              f"detectable on this record (needs {'>=' if self.increasing else '<='} {thr:.3g})")
         mag = math.exp(rng.uniform(math.log(a), math.log(b)))
         sign = 1.0 if (q.low >= 0 or rng.random() < 0.5) else -1.0
-        p = self._with_main(others, sign * mag)
+        p = self.with_main(others, sign * mag)
         if at_snr is not None:  # the threshold stops at the range's end: was the snr reached?
             got = self.snr(p, rec, sd)
             if not abs(got / at_snr - 1) <= 0.02:
@@ -385,7 +506,7 @@ class Effect:
                                  f"gives snr {at_snr:.3g} on this record (the range ends at snr {got:.3g})")
         return self.finish_draw(rng, rec, kind, p)
 
-    def draw_others(self, rng: np.random.Generator, rec: Record, kind: str) -> dict:
+    def draw_others(self, rng: np.random.Generator, rec: Record, kind: str) -> Params:
         """Non-main parameters: uniform (log-uniform for log params) over the drawable range."""
         out = {}
         for q in self.params_for(kind):
@@ -400,18 +521,88 @@ class Effect:
         below the signal)."""
         return 0.0, math.inf
 
-    def finish_draw(self, rng: np.random.Generator, rec: Record, kind: str, p: dict) -> dict:
+    def finish_draw(self, rng: np.random.Generator, rec: Record, kind: str, p: Params) -> Params:
         """Hook for parameters drawn relative to the main one."""
         return p
 
     # ---- fit starts -------------------------------------------------------------------
-    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[dict]:
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[Params]:
         """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first): the
-        3 best points of a grid over its nonlinear parameters (:func:`.effects_starts.grid_starts`)."""
-        from bench.discovery.effects_starts import grid_starts  # noqa: PLC0415
-
+        :data:`N_STARTS` best points of a grid over its nonlinear parameters (:func:`grid_starts`)."""
         return grid_starts(self, rec, residual, kind or guess_kind(rec))
 
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
         q = self.param(self.main_param, kind)
         return self.drawable_range(q, rec, kind)
+
+
+class HistogramEffect(Effect):
+    """An effect judged on the histogram of the readings, not on a waveform (a quantizer whose
+    step is below the noise leaves no waveform of its own): the naming step asks
+    :meth:`fit_histogram` for its parameters, held-out score and p-value; calibration keeps its
+    parameters."""
+
+    waveform = False
+
+    def fit_histogram(self, y: np.ndarray, noise_sd: float, folds: np.ndarray, kind: str) -> HistogramFit:
+        """Fit to the readings ``y`` with calibrated white noise ``noise_sd``; held-out score on
+        the blocks of ``folds`` (fitted on the others), as comparable with the other candidates'."""
+        raise NotImplementedError(f"{self.id} does not say how its histogram is judged")
+
+
+@dataclass(frozen=True)
+class HistogramFit:
+    """A histogram-judged effect's fit: parameters ± std, held-out score and p-value."""
+
+    params: Params
+    params_std: Params
+    score: float
+    p_value: float
+
+
+def product_grid(grids: Sequence[tuple[str, np.ndarray]]) -> Iterator[Params]:
+    """Every combination of the named grids, as parameter dicts (the first name varies slowest)."""
+    if not grids:
+        yield {}
+        return
+    (name, pts), rest = grids[0], grids[1:]
+    for v in pts:
+        for tail in product_grid(rest):
+            yield {name: float(v)} | tail
+
+
+def grid_starts(effect: Effect, rec: Record, residual: np.ndarray, kind: str) -> list[Params]:
+    """The :data:`N_STARTS` best points of a grid over ``effect``'s nonlinear parameters (their
+    resolvable ranges: 9 log-spaced points for a log parameter, 5 linear ones otherwise), the
+    linear parameters solved by least squares at each grid point after projecting the base
+    model's calibration regressors out of both sides; lowest residual sum of squares first."""
+    r = np.asarray(residual, dtype=float)
+    qs = effect.params_for(kind)
+    lin = [q for q in qs if q.linear]
+    grids = []
+    for q in qs:
+        if q.linear:
+            continue
+        lo, hi = (effect.drawable_range(q, rec, kind) if q.name != effect.main_param
+                  else effect.main_grid_range(rec, kind))
+        pts = np.geomspace(lo, hi, 9) if q.log else np.linspace(lo, hi, 5)
+        grids.append((q.name, pts))
+    a = base_regressors(rec)
+    r_perp = project_out(r, a)
+    y0 = effect.reference_output(rec)
+    cands = []
+    for combo in product_grid(grids):
+        p = {q.name: 0.0 for q in lin} | combo
+        if lin:
+            cols = []
+            for q in lin:
+                pu = dict(p)
+                pu[q.name] = 1.0
+                cols.append(project_out(effect.apply(pu, rec, y0) - y0, a))
+            coef, *_ = np.linalg.lstsq(np.column_stack(cols), r_perp, rcond=None)
+            for q, c in zip(lin, coef):
+                p[q.name] = float(np.clip(c, q.low, q.high))
+        d = project_out(effect.apply(p, rec, y0) - y0, a)
+        cands.append((float(np.sum((r_perp - d) ** 2)), p))
+    cands.sort(key=lambda c: c[0])
+    return [c[1] for c in cands[:N_STARTS]]

@@ -10,9 +10,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.signal import lombscargle
 
 from bench.discovery.data import Record
-from bench.discovery.effects_base import Effect, _p, base_regressors, guess_kind, project_out
+from bench.discovery.effects_base import Effect, Param, guess_kind
+from bench.discovery.effects_linalg import base_regressors, project_out
 
 #: Reference temperature of the temperature effects, degC: a model file's coefficients then
 #: mean the same on any record (the record's first temperature would tie them to one run);
@@ -30,15 +32,24 @@ class WarmupExponential(Effect):
     form = "y += amplitude · exp(−t_on / tau_s)"
     inputs = ("t_on",)
     main_param = "amplitude"
-    signature = "time: a decaying offset at the start of the record (early segments), Allan: slope near tau; correlates with t_on"
+    signature = ("time: a decaying offset at the start of the record (early segments), Allan: slope near tau; "
+                 "correlates with t_on")
+    separating = {
+        "temperature_bias": "vary temperature independently of time since power-on (soak at a second "
+                            "temperature, or power-cycle at a stable temperature)",
+        "linear_drift": "record longer after power-on (an exponential settles, a drift keeps going) or power-cycle",
+    }
     kinds = ("accelerometer", "gyro", "mhd")
     ranges = {  # QA-2000 start-up tens of µg over minutes; FOG up to ~1000 deg/h; MHD electronics offset
-        "accelerometer": (_p("amplitude", "g", -1e-2, 1e-2, linear=True, floor=1e-7), _p("tau_s", "s", 1.0, 1e5, log=True)),
-        "gyro": (_p("amplitude", "deg/s", -0.3, 0.3, linear=True, floor=1e-6), _p("tau_s", "s", 1.0, 1e5, log=True)),
-        "mhd": (_p("amplitude", "deg/s", -1.0, 1.0, linear=True, floor=1e-4), _p("tau_s", "s", 0.1, 1e5, log=True)),
+        "accelerometer": (Param("amplitude", "g", -1e-2, 1e-2, linear=True, floor=1e-7),
+                          Param("tau_s", "s", 1.0, 1e5, log=True)),
+        "gyro": (Param("amplitude", "deg/s", -0.3, 0.3, linear=True, floor=1e-6),
+                 Param("tau_s", "s", 1.0, 1e5, log=True)),
+        "mhd": (Param("amplitude", "deg/s", -1.0, 1.0, linear=True, floor=1e-4),
+                Param("tau_s", "s", 0.1, 1e5, log=True)),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["amplitude"] * np.exp(-rec.column("t_on") / p["tau_s"])
 
     def drawable_range(self, q, rec, kind):
@@ -58,14 +69,19 @@ class LinearDrift(Effect):
     form = "y += slope_per_s · (t − t[0])"
     inputs = ("t",)
     main_param = "slope_per_s"
-    signature = "time: a ramp across the whole record; Allan: +1 slope at the longest tau; spectrum: 1/f² at the lowest bins"
+    signature = ("time: a ramp across the whole record; Allan: +1 slope at the longest tau; spectrum: 1/f² at the "
+                 "lowest bins")
+    separating = {
+        "temperature_bias": "hold temperature constant for a long record, or ramp it down as well as up",
+        "rate_random_walk": "repeat the record: a drift repeats with the same slope, a random walk does not",
+    }
     ranges = {
-        "accelerometer": (_p("slope_per_s", "g/s", -1e-6, 1e-6, linear=True, floor=1e-12),),
-        "gyro": (_p("slope_per_s", "deg/s/s", -1e-4, 1e-4, linear=True, floor=1e-10),),
-        "mhd": (_p("slope_per_s", "deg/s/s", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "accelerometer": (Param("slope_per_s", "g/s", -1e-6, 1e-6, linear=True, floor=1e-12),),
+        "gyro": (Param("slope_per_s", "deg/s/s", -1e-4, 1e-4, linear=True, floor=1e-10),),
+        "mhd": (Param("slope_per_s", "deg/s/s", -1e-3, 1e-3, linear=True, floor=1e-8),),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["slope_per_s"] * (rec.t_s - rec.t_s[0])
 
 
@@ -76,16 +92,17 @@ class TemperatureBias(Effect):
     inputs = ("temp",)
     main_param = "coef_per_c"
     signature = "input: residual correlates with temp (and temp²); time: follows the temperature profile"
+    separating = {"temperature_scale_factor": "change temperature at zero input and at a large input"}
     ranges = {  # QA-2000 sheet < 30 µg/°C; FOG ~0.1-10 deg/h/°C (1e-2 deg/h/°C = 2.8e-6 deg/s/°C)
-        "accelerometer": (_p("coef_per_c", "g/degC", -1e-4, 1e-4, linear=True, floor=1e-8),
-                          _p("coef_per_c2", "g/degC^2", -1e-6, 1e-6, linear=True)),
-        "gyro": (_p("coef_per_c", "deg/s/degC", -3e-3, 3e-3, linear=True, floor=1e-7),
-                 _p("coef_per_c2", "deg/s/degC^2", -1e-4, 1e-4, linear=True)),
-        "mhd": (_p("coef_per_c", "deg/s/degC", -1e-2, 1e-2, linear=True, floor=1e-5),
-                _p("coef_per_c2", "deg/s/degC^2", -1e-3, 1e-3, linear=True)),
+        "accelerometer": (Param("coef_per_c", "g/degC", -1e-4, 1e-4, linear=True, floor=1e-8),
+                          Param("coef_per_c2", "g/degC^2", -1e-6, 1e-6, linear=True)),
+        "gyro": (Param("coef_per_c", "deg/s/degC", -3e-3, 3e-3, linear=True, floor=1e-7),
+                 Param("coef_per_c2", "deg/s/degC^2", -1e-4, 1e-4, linear=True)),
+        "mhd": (Param("coef_per_c", "deg/s/degC", -1e-2, 1e-2, linear=True, floor=1e-5),
+                Param("coef_per_c2", "deg/s/degC^2", -1e-3, 1e-3, linear=True)),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         dt = rec.column("temp") - T_REF_C
         return p["coef_per_c"] * dt + p["coef_per_c2"] * dt * dt
 
@@ -112,12 +129,12 @@ class TemperatureScaleFactor(Effect):
     main_param = "sf_coef_per_c"
     signature = "input: residual ∝ input·ΔT (grows with |input| and with the temperature change)"
     ranges = {  # QA-2000 SF TC < 180 ppm/°C; FOG SF TC tens to hundreds of ppm/°C
-        "accelerometer": (_p("sf_coef_per_c", "1/degC", -1e-3, 1e-3, linear=True, floor=1e-8),),
-        "gyro": (_p("sf_coef_per_c", "1/degC", -1e-3, 1e-3, linear=True, floor=1e-8),),
-        "mhd": (_p("sf_coef_per_c", "1/degC", -1e-2, 1e-2, linear=True, floor=1e-6),),
+        "accelerometer": (Param("sf_coef_per_c", "1/degC", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "gyro": (Param("sf_coef_per_c", "1/degC", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "mhd": (Param("sf_coef_per_c", "1/degC", -1e-2, 1e-2, linear=True, floor=1e-6),),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["sf_coef_per_c"] * (rec.column("temp") - T_REF_C) * rec.input
 
 
@@ -129,13 +146,15 @@ class K2Nonlinearity(Effect):
     main_param = "k2_per_u"
     competitors = ("scale_factor_asymmetry",)  # input² and |input| differ only in shape
     signature = "input: residual ∝ input² (same sign for ±input)"
+    separating = {"scale_factor_asymmetry": "apply inputs of both signs with equal magnitudes (k2 is even, "
+                                            "asymmetry is odd)"}
     ranges = {  # QA-2000 sheet < 20 µg/g²; FOG: 100 ppm of 490 deg/s full scale ≈ 2e-7 /(deg/s)
-        "accelerometer": (_p("k2_per_u", "1/g", -1e-3, 1e-3, linear=True, floor=1e-8),),
-        "gyro": (_p("k2_per_u", "1/(deg/s)", -1e-4, 1e-4, linear=True, floor=1e-10),),
-        "mhd": (_p("k2_per_u", "1/(deg/s)", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "accelerometer": (Param("k2_per_u", "1/g", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "gyro": (Param("k2_per_u", "1/(deg/s)", -1e-4, 1e-4, linear=True, floor=1e-10),),
+        "mhd": (Param("k2_per_u", "1/(deg/s)", -1e-3, 1e-3, linear=True, floor=1e-8),),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["k2_per_u"] * rec.input ** 2
 
 
@@ -146,13 +165,14 @@ class K3Nonlinearity(Effect):
     inputs = ("input",)
     main_param = "k3_per_u2"
     signature = "input: residual ∝ input³ minus its linear part (S-shaped against input)"
+    separating = {"saturation": "step the input towards full range: saturation clips abruptly, k3 bends smoothly"}
     ranges = {  # FOG cubic n·FS·(ω/FS)³: n = 100 ppm at 490 deg/s -> 4e-10 /(deg/s)²
-        "accelerometer": (_p("k3_per_u2", "1/g^2", -1e-4, 1e-4, linear=True, floor=1e-9),),
-        "gyro": (_p("k3_per_u2", "1/(deg/s)^2", -1e-6, 1e-6, linear=True, floor=1e-14),),
-        "mhd": (_p("k3_per_u2", "1/(deg/s)^2", -1e-5, 1e-5, linear=True, floor=1e-12),),
+        "accelerometer": (Param("k3_per_u2", "1/g^2", -1e-4, 1e-4, linear=True, floor=1e-9),),
+        "gyro": (Param("k3_per_u2", "1/(deg/s)^2", -1e-6, 1e-6, linear=True, floor=1e-14),),
+        "mhd": (Param("k3_per_u2", "1/(deg/s)^2", -1e-5, 1e-5, linear=True, floor=1e-12),),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["k3_per_u2"] * rec.input ** 3
 
 
@@ -165,12 +185,12 @@ class ScaleFactorAsymmetry(Effect):
     competitors = ("k2_nonlinearity",)
     signature = "input: residual ∝ |input| (V-shaped against input)"
     ranges = {  # FOG asymmetry tens of ppm (limit 100 ppm); pendulous accelerometers ~ppm
-        "accelerometer": (_p("asymmetry", "1", -1e-3, 1e-3, linear=True, floor=1e-7),),
-        "gyro": (_p("asymmetry", "1", -1e-2, 1e-2, linear=True, floor=1e-7),),
-        "mhd": (_p("asymmetry", "1", -5e-2, 5e-2, linear=True, floor=1e-6),),
+        "accelerometer": (Param("asymmetry", "1", -1e-3, 1e-3, linear=True, floor=1e-7),),
+        "gyro": (Param("asymmetry", "1", -1e-2, 1e-2, linear=True, floor=1e-7),),
+        "mhd": (Param("asymmetry", "1", -5e-2, 5e-2, linear=True, floor=1e-6),),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return 0.5 * p["asymmetry"] * np.abs(rec.input)
 
 
@@ -182,12 +202,12 @@ class Misalignment(Effect):
     main_param = "angle_rad"
     signature = "input: residual correlates with cross_input"
     ranges = {  # QA-2000 sheet < 70 µrad (mounting adds mrad); FOG/MHD mounting up to tens of mrad
-        "accelerometer": (_p("angle_rad", "rad", -5e-3, 5e-3, linear=True, floor=1e-7),),
-        "gyro": (_p("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
-        "mhd": (_p("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
+        "accelerometer": (Param("angle_rad", "rad", -5e-3, 5e-3, linear=True, floor=1e-7),),
+        "gyro": (Param("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
+        "mhd": (Param("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["angle_rad"] * rec.column("cross_input")
 
 
@@ -199,12 +219,13 @@ class GSensitivity(Effect):
     inputs = ("accel",)
     main_param = "coef_per_g"
     signature = "input: residual correlates with the specific force column `accel`"
+    separating = {"temperature_bias": "change orientation (specific force) at constant temperature"}
     kinds = ("gyro",)
     ranges = {  # FOG g-sensitivity ≲ 1-100 deg/h/g (1 deg/h/g = 2.8e-4 deg/s/g)
-        "gyro": (_p("coef_per_g", "deg/s/g", -0.03, 0.03, linear=True, floor=3e-7),),
+        "gyro": (Param("coef_per_g", "deg/s/g", -0.03, 0.03, linear=True, floor=3e-7),),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["coef_per_g"] * rec.column("accel")
 
 
@@ -215,13 +236,14 @@ class VibrationRectification(Effect):
     inputs = ("vib",)
     main_param = "coef_per_g2"
     signature = "input/time: offset during vibration segments ∝ vib² (g rms)"
+    separating = {"linear_drift": "switch vibration on and off during the record"}
     kinds = ("accelerometer", "gyro")
     ranges = {  # QA-2000-class VRE tens of µg/g²; FOG vibration rectification ≲ 100 deg/h/g²
-        "accelerometer": (_p("coef_per_g2", "g/g^2", -1e-3, 1e-3, linear=True, floor=1e-8),),
-        "gyro": (_p("coef_per_g2", "deg/s/g^2", -0.03, 0.03, linear=True, floor=3e-7),),
+        "accelerometer": (Param("coef_per_g2", "g/g^2", -1e-3, 1e-3, linear=True, floor=1e-8),),
+        "gyro": (Param("coef_per_g2", "deg/s/g^2", -0.03, 0.03, linear=True, floor=3e-7),),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["coef_per_g2"] * rec.column("vib") ** 2
 
 
@@ -233,15 +255,15 @@ class SinusoidalInterference(Effect):
     main_param = "amplitude"
     signature = "frequency: a spectral line at freq_hz; time: present throughout"
     ranges = {
-        "accelerometer": (_p("amplitude", "g", 0.0, 1e-2, floor=1e-8), _p("freq_hz", "Hz", 1e-4, 1e4, log=True),
-                          _p("phase_rad", "rad", -math.pi, math.pi)),
-        "gyro": (_p("amplitude", "deg/s", 0.0, 1.0, floor=1e-6), _p("freq_hz", "Hz", 1e-4, 1e4, log=True),
-                 _p("phase_rad", "rad", -math.pi, math.pi)),
-        "mhd": (_p("amplitude", "deg/s", 0.0, 10.0, floor=1e-4), _p("freq_hz", "Hz", 1e-4, 1e5, log=True),
-                _p("phase_rad", "rad", -math.pi, math.pi)),
+        "accelerometer": (Param("amplitude", "g", 0.0, 1e-2, floor=1e-8), Param("freq_hz", "Hz", 1e-4, 1e4, log=True),
+                          Param("phase_rad", "rad", -math.pi, math.pi)),
+        "gyro": (Param("amplitude", "deg/s", 0.0, 1.0, floor=1e-6), Param("freq_hz", "Hz", 1e-4, 1e4, log=True),
+                 Param("phase_rad", "rad", -math.pi, math.pi)),
+        "mhd": (Param("amplitude", "deg/s", 0.0, 10.0, floor=1e-4), Param("freq_hz", "Hz", 1e-4, 1e5, log=True),
+                Param("phase_rad", "rad", -math.pi, math.pi)),
     }
 
-    def _term(self, p, rec):
+    def term(self, p, rec):
         return p["amplitude"] * np.sin(2 * np.pi * p["freq_hz"] * (rec.t_s - rec.t_s[0]) + p["phase_rad"])
 
     def drawable_range(self, q, rec, kind):
@@ -265,7 +287,6 @@ class SinusoidalInterference(Effect):
             spec = np.abs(np.fft.rfft(r * np.hanning(rec.n)))
             f = np.fft.rfftfreq(rec.n, rec.dt_s)
         else:
-            from scipy.signal import lombscargle
             f = np.geomspace(f_lo, f_hi, 4000)
             spec = lombscargle(tt, r, 2 * np.pi * f)
         ok = (f >= f_lo * 0.5) & (f <= min(f_hi * 1.25, 0.5 * rec.rate_hz))

@@ -11,13 +11,25 @@ record.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 from scipy.signal import lfilter
 from scipy.special import ndtr
 
+from bench.discovery import lattice
 from bench.discovery.data import Record
-from bench.discovery.effects_base import Effect, _p
+from bench.discovery.effects_base import (
+    DRAW_SNR_FACTOR,
+    MIN_SNR,
+    Effect,
+    HistogramEffect,
+    HistogramFit,
+    Param,
+    Params,
+    guess_kind,
+    noise_sd_of,
+)
 
 
 def expected_quantized(x: np.ndarray, step: float, noise_sd: float) -> np.ndarray:
@@ -56,6 +68,10 @@ def expected_quantized(x: np.ndarray, step: float, noise_sd: float) -> np.ndarra
     return step * out
 
 
+#: A quantizer step above this many white-noise sd makes the residual's colour follow the signal.
+COARSE_STEP_SD = 2.0
+
+
 def _uniform_dt(rec: Record, who: str) -> float:
     if not rec.is_uniform():
         raise ValueError(f"{who} needs a uniformly sampled record (every interval within 0.1 % of "
@@ -69,13 +85,16 @@ class TimeDelay(Effect):
     form = "input → input(t − delay_s), linear interpolation between samples, input[0] before the start"
     inputs = ("input",)
     main_param = "delay_s"
-    signature = "input: residual ∝ −delay·d(input)/dt, spikes at input changes; cross-correlation peak of y and input shifted by delay"
+    signature = ("input: residual ∝ −delay·d(input)/dt, spikes at input changes; cross-correlation peak of y and "
+                 "input shifted by delay")
+    separating = {"lowpass_bandwidth": "sweep input frequency: a delay shifts phase linearly without attenuating, "
+                                       "a low-pass attenuates"}
     stage = "input"
     competitors = ("lowpass_bandwidth",)  # a sampled single pole is a delay for slow inputs
     ranges = {
-        "accelerometer": (_p("delay_s", "s", 1e-5, 1.0, log=True),),
-        "gyro": (_p("delay_s", "s", 1e-5, 1.0, log=True),),
-        "mhd": (_p("delay_s", "s", 1e-6, 0.1, log=True),),
+        "accelerometer": (Param("delay_s", "s", 1e-5, 1.0, log=True),),
+        "gyro": (Param("delay_s", "s", 1e-5, 1.0, log=True),),
+        "mhd": (Param("delay_s", "s", 1e-6, 0.1, log=True),),
     }
 
     def transform_input(self, p, rec, u):
@@ -99,9 +118,9 @@ class LowpassBandwidth(Effect):
     increasing = False
     competitors = ("time_delay",)
     ranges = {  # QA-2000 > 300 Hz but DMM/ADC filters reach 0.01 Hz; FOG ~100-1000 Hz; MHD 8 kHz
-        "accelerometer": (_p("bandwidth_hz", "Hz", 0.01, 1e3, log=True),),
-        "gyro": (_p("bandwidth_hz", "Hz", 0.1, 1e3, log=True),),
-        "mhd": (_p("bandwidth_hz", "Hz", 1.0, 2e4, log=True),),
+        "accelerometer": (Param("bandwidth_hz", "Hz", 0.01, 1e3, log=True),),
+        "gyro": (Param("bandwidth_hz", "Hz", 0.1, 1e3, log=True),),
+        "mhd": (Param("bandwidth_hz", "Hz", 1.0, 2e4, log=True),),
     }
 
     def transform_input(self, p, rec, u):
@@ -126,7 +145,7 @@ class HighpassRolloff(Effect):
     signature = "time: droop after input steps (output returns to bias); frequency: loss below corner_hz, phase lead"
     stage = "input"
     kinds = ("mhd",)
-    ranges = {"mhd": (_p("corner_hz", "Hz", 1e-3, 100.0, log=True),)}  # MHD preset corner 2.5 Hz
+    ranges = {"mhd": (Param("corner_hz", "Hz", 1e-3, 100.0, log=True),)}  # MHD preset corner 2.5 Hz
 
     def transform_input(self, p, rec, u):
         f = p["corner_hz"]
@@ -147,11 +166,12 @@ class DeadZone(Effect):
     inputs = ("input",)
     main_param = "half_width"
     signature = "input: residual = −clip(input, ±half_width): a step of size half_width at zero input"
+    separating = {"quantization": "apply slow ramps through zero at several levels: the dead zone sits at zero only"}
     stage = "input"
     kinds = ("accelerometer", "gyro")
     ranges = {  # QA-2000 threshold ≲ 1 µg; FOG read-out thresholds up to ~0.01-1 deg/s when faulty
-        "accelerometer": (_p("half_width", "g", 1e-7, 1e-2, log=True),),
-        "gyro": (_p("half_width", "deg/s", 1e-5, 1.0, log=True),),
+        "accelerometer": (Param("half_width", "g", 1e-7, 1e-2, log=True),),
+        "gyro": (Param("half_width", "deg/s", 1e-5, 1.0, log=True),),
     }
 
     def transform_input(self, p, rec, u):
@@ -177,12 +197,12 @@ class Saturation(Effect):
     # an accelerometer's noise, so its threshold is resolved to 1e-12 in log(limit)
     threshold_log_tol = 1e-12
     ranges = {  # QA-2000 ±60 g but a tumble's read-out range can be ±1.2 g; FOG ±490 deg/s
-        "accelerometer": (_p("limit", "g", 0.05, 100.0, log=True),),
-        "gyro": (_p("limit", "deg/s", 1.0, 2000.0, log=True),),
-        "mhd": (_p("limit", "deg/s", 1.0, 2000.0, log=True),),
+        "accelerometer": (Param("limit", "g", 0.05, 100.0, log=True),),
+        "gyro": (Param("limit", "deg/s", 1.0, 2000.0, log=True),),
+        "mhd": (Param("limit", "deg/s", 1.0, 2000.0, log=True),),
     }
 
-    def _transform(self, p, rec, y):
+    def transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])
 
     def draw(self, rng, rec, *, kind=None, noise_sd=None, at_snr=None):
@@ -190,7 +210,6 @@ class Saturation(Effect):
         range): a part of the excursions clips, never most of the signal — the snr of clipping
         rises too steeply with depth for the generic snr-band rule to leave a usable interval.
         ``at_snr``: the limit where clipping has exactly that snr (the generic rule)."""
-        from bench.discovery.effects_base import DRAW_SNR_FACTOR, MIN_SNR, guess_kind, noise_sd_of
         if at_snr is not None:
             return super().draw(rng, rec, kind=kind, noise_sd=noise_sd, at_snr=at_snr)
         kind = kind or guess_kind(rec)
@@ -212,7 +231,7 @@ class Saturation(Effect):
         return max(q.low, 0.3 * top), max(min(q.high, top), q.low * 1.01)
 
 
-class Quantization(Effect):
+class Quantization(HistogramEffect):
     id = "quantization"
     description = "output resolution: readings on a grid of step (ADC/DMM digits, FOG angle pulses per sample)"
     form = "y → step · round(y / step)"
@@ -220,14 +239,15 @@ class Quantization(Effect):
     main_param = "step"
     signature = "histogram: output values on a lattice of spacing step; error bounded by step/2 (white if step ≪ noise)"
     stage = "output"
+    mean_depends_on_noise = True  # a reading's mean is the dithered quantizer E[Q(x + n)]
     draw_span_main = 5.0  # steps of 3-17 noise sd: a visible lattice, not a staircase hiding the signal
     ranges = {  # DMM 6½ digits on a 1 V range ≈ 1 µg; FOG 0.1″ pulse at 100 Hz ≈ 3e-3 deg/s
-        "accelerometer": (_p("step", "g", 1e-8, 1e-3, log=True),),
-        "gyro": (_p("step", "deg/s", 1e-6, 0.1, log=True),),
-        "mhd": (_p("step", "deg/s", 1e-5, 1.0, log=True),),
+        "accelerometer": (Param("step", "g", 1e-8, 1e-3, log=True),),
+        "gyro": (Param("step", "deg/s", 1e-6, 0.1, log=True),),
+        "mhd": (Param("step", "deg/s", 1e-5, 1.0, log=True),),
     }
 
-    def _transform(self, p, rec, y):
+    def transform(self, p, rec, y):
         s = p["step"]
         return y.copy() if s == 0 else s * np.round(y / s)
 
@@ -268,3 +288,26 @@ class Quantization(Effect):
         q = self.param("step", kind)
         sd = float(np.std(np.diff(rec.y))) / math.sqrt(2) or q.low
         return max(q.low, sd), min(q.high, 30 * sd)
+
+    def fit_histogram(self, y: np.ndarray, noise_sd: float, folds: np.ndarray, kind: str) -> HistogramFit:
+        """Readings on a lattice (:mod:`bench.discovery.lattice`): the step by the lattice's
+        visibility, its Rayleigh-tail p-value, and the held-out visibility excess as the score;
+        no lattice found: the smallest step, score 0, p = 1."""
+        q = self.params_for(kind)[0]
+        fit = lattice.fit_lattice(y, noise_sd, q.low, q.high)
+        if not np.isfinite(fit.step):
+            return HistogramFit({q.name: q.low}, {q.name: float("nan")}, 0.0, 1.0)
+        score = lattice.heldout_score(y, noise_sd, folds, q.low, q.high)
+        return HistogramFit({q.name: float(np.clip(fit.step, q.low, q.high))}, {q.name: fit.step_std},
+                            score, float(fit.p_value))
+
+    def size_noise_sd(self, p: Params, reading_sd: float) -> float:
+        """The noise before the quantizer: the calibrated white level includes the steps' own
+        s²/12 (kept at least 5 % of it)."""
+        return math.sqrt(max(reading_sd ** 2 - p["step"] ** 2 / 12, (0.05 * reading_sd) ** 2))
+
+    def colours_residual(self, p: Mapping[str, float], noise_sd: float) -> bool:
+        """A step above :data:`COARSE_STEP_SD` white-noise sd: readings are Q(signal + noise) with
+        little dither, the residual around E[Q] is a deterministic function of the signal (its
+        colour follows the input's)."""
+        return p["step"] > COARSE_STEP_SD * float(noise_sd)

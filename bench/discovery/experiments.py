@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.discovery.data import Record
-from bench.discovery.effects import KINDS
+from bench.discovery.effects_base import KINDS
 
 DEFAULTS = {"accelerometer": (7200, 1.0), "gyro": (20000, 10.0), "mhd": (30000, 500.0)}
 
@@ -46,9 +46,10 @@ def _dwell_path(t: np.ndarray, levels: np.ndarray, slew_per_s: float) -> np.ndar
         kv += [levels[i - 1], levels[i]]
     kt.append(t[-1] + 1.0)
     kv.append(levels[-1])
-    kt = np.asarray(kt)
-    kt = np.maximum.accumulate(kt + np.arange(kt.size) * 1e-9 * max(dur, 1.0))  # zero-length moves: keep knots increasing
-    return np.interp(t, kt, np.asarray(kv, float))
+    knots = np.asarray(kt)
+    # zero-length moves: keep knots increasing
+    knots = np.maximum.accumulate(knots + np.arange(knots.size) * 1e-9 * max(dur, 1.0))
+    return np.interp(t, knots, np.asarray(kv, float))
 
 
 def _temperature(t: np.ndarray, rng: np.random.Generator, start_c: float, swing_c: float,

@@ -15,7 +15,8 @@ suits transient regressors better than Newey–West's score products) at the ban
 ``hac_bandwidth`` (4 × the residual's correlation length), mapped from log coordinates by the
 delta method. Measured 2σ coverage (200 seeds, 1800 samples): 95-96 % on white noise, 88-90 % on
 white + Gauss–Markov (τ = 20 samples; the white formula gave 30 %) — the taper and the fit's
-projection still shorten the long-lag correlation a little. With ``stationary=False`` ``hac_covariance`` equals statsmodels'
+projection still shorten the long-lag correlation a little. With ``stationary=False``
+``hac_covariance`` equals statsmodels'
 ``OLS(...).fit(cov_type="HAC", cov_kwds={"maxlags": L, "use_correction": True})``.
 """
 
@@ -29,6 +30,8 @@ from scipy import fft as sp_fft
 from scipy import optimize
 
 from bench.discovery.data import Record
+from bench.discovery.effects_base import Effect
+from bench.discovery.model import BASE_RANGES, Model
 
 #: Bartlett lag = this × the residual's correlation length (see hac_bandwidth).
 BANDWIDTH_FACTOR = 4
@@ -134,11 +137,6 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, max_lag: int, rows: np
     return bread @ meat @ bread * (n / max(n - k, 1))
 
 
-def _periodic(q) -> bool:
-    """A phase parameter spanning one full turn."""
-    return q.unit == "rad" and "phase" in q.name and q.high - q.low >= 2 * math.pi - 1e-9
-
-
 @dataclass(frozen=True)
 class Fit:
     """An effect fitted together with bias and scale factor."""
@@ -153,14 +151,14 @@ class Fit:
 
 
 class CandidateFitter:
-    """Fits effect ``effect_id`` (appended to ``model``) to ``rec`` on row masks."""
+    """Fits ``effect`` (appended to ``model``) to ``rec`` on row masks."""
 
-    def __init__(self, model, rec: Record, effect, effect_id: str, *, noise_is_floor: bool = True):
+    def __init__(self, model: Model, rec: Record, effect: Effect, *, noise_is_floor: bool = True):
         """``noise_is_floor``: ``model.base.noise_sd`` is the residual floor measured without the
         effect (the naming step), so an output transform's own noise share is taken out of it
         (``Effect.pre_transform_sd``: the rounding error for quantization) before its dithered
         prediction; False when it is already the noise sd before the transform."""
-        self.model, self.rec, self.effect, self.id = model, rec, effect, effect_id
+        self.model, self.rec, self.effect = model, rec, effect
         self.noise_is_floor = noise_is_floor
         self.kind = model.base.kind
         self.qs = effect.params_for(self.kind)
@@ -185,19 +183,17 @@ class CandidateFitter:
         p = {}
         for q, v in zip(self.qs, x[self.n_base:]):
             val = math.exp(v) if q.log else float(v)
-            if _periodic(q):  # a phase wraps: the optimiser must not stall at ±π
+            if q.periodic:  # a phase wraps: the optimiser must not stall at ±π
                 val = (val + math.pi) % (2 * math.pi) - math.pi
             p[q.name] = float(np.clip(val, q.low, q.high))
         return p, bias, sf
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
-
         rng = BASE_RANGES[self.kind]
         base = [rng["bias"], rng["scale_factor"]][: self.n_base]
-        lo = [b[0] for b in base] + [-8 * math.pi if _periodic(q) else math.log(q.low) if q.log else q.low
+        lo = [b[0] for b in base] + [-8 * math.pi if q.periodic else math.log(q.low) if q.log else q.low
                                      for q in self.qs]
-        hi = [b[1] for b in base] + [8 * math.pi if _periodic(q) else math.log(q.high) if q.log else q.high
+        hi = [b[1] for b in base] + [8 * math.pi if q.periodic else math.log(q.high) if q.log else q.high
                                      for q in self.qs]
         return np.array(lo), np.array(hi)
 
@@ -213,7 +209,7 @@ class CandidateFitter:
         base = replace(self.model.base, bias=bias, scale_factor=sf)
         if self.noise_is_floor and self.effect.stage == "output":
             base = replace(base, noise_sd=self.effect.pre_transform_sd(p, base.noise_sd))
-        return replace(self.model, base=base).with_effect(self.id, p)
+        return replace(self.model, base=base).with_effect(self.effect.id, p)
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         return self.model_at(x).predict(self.rec)
@@ -257,6 +253,9 @@ class CandidateFitter:
             c = float(np.sum(res.fun ** 2))
             if np.isfinite(c) and c < best_cost:
                 best_x, best_cost = res.x, c
+        if best_x is None:
+            raise ValueError(f"{self.effect.id}: no start of the fit gives a finite residual "
+                             f"({len(starts)} starts); allowed: at least one start inside the bounds")
         p, bias, sf = self.unpack(best_x)
         std = self._std(best_x, rows, best_cost)
         return Fit(p, std, bias, sf, best_cost, best_x, bool(np.isfinite(best_cost)))

@@ -4,9 +4,10 @@ A quantized output has no waveform of its own when the step is below the noise (
 white, variance s²/12), so it is judged on its histogram signature instead:
 
 * lattice visibility V(s) = |mean exp(2πi·d/s)| over the non-zero successive differences d of
-  the readings within 8 white sds (moves of the input excluded) (1 when every reading is on a lattice of s, whatever its offset; differences are
-  a few steps, so V is smooth in s, where the readings themselves — thousands of steps from
-  zero — would make it a comb far too narrow to scan);
+  the readings within 8 white sds (moves of the input excluded) (1 when every reading is on a
+  lattice of s, whatever its offset; differences are a few steps, so V is smooth in s, where the
+  readings themselves — thousands of steps from zero — would make it a comb far too narrow to
+  scan);
 * bound under "no quantization": for y = signal + Gaussian noise of sd σ (the calibrated white
   level), |E exp(2πi·d/s)| ≤ exp(−4π²σ²/s²) whatever the signal; a quantized output has
   σ² ≥ s²/12 so its bound is ≤ exp(−4π²/12) ≈ 0.04 while V = 1;

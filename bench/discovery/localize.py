@@ -33,6 +33,7 @@ alarms (benchmarks/bench_unexplained.py, 400 records each, n = 300 / 3000 / 3000
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import numpy as np
 from scipy import fft as sp_fft
@@ -42,7 +43,9 @@ from bench.analysis.allan import averaging_factors
 from bench.analysis.allan_stats import edf_greenhall
 from bench.discovery.data import Record
 from bench.discovery.findings import INPUT_COLUMNS, Band, InputCorrelation, Jump, Localization, Segment, TauRange
+from bench.discovery.model import Model
 from bench.discovery.significance import welch_dof, welch_nperseg, white_floor
+from bench.discovery.whiten import innovations
 
 
 def _check(residual, rec: Record, noise_sd: float) -> np.ndarray:
@@ -170,7 +173,8 @@ def jumps(r: np.ndarray, t_s: np.ndarray, noise_sd: float, alpha: float = 0.01, 
     return tuple(Jump(float(t_s[i]), float(r[i]), float(z[i])) for i in sorted(idx))
 
 
-def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
+def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
+    """Sample autocorrelation of ``x`` at lags 0..max_lag (mean removed; zeros for a constant)."""
     x = x - x.mean()
     n = x.size
     size = sp_fft.next_fast_len(2 * n, real=True)  # ≥ 2n: linear, not circular; 2n may be prime-heavy
@@ -186,7 +190,7 @@ def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01, *,
     innovations: an effect β·v of the output shows in them as β·transform(v))."""
     n = r.size
     max_lag = min(n - 1, max(10, n // 20))
-    acf_r = _acf(r, max_lag)
+    acf_r = autocorrelation(r, max_lag)
     cands = []
     for name in INPUT_COLUMNS:
         if not rec.logged(name) and not (name == "t_on"):
@@ -213,7 +217,7 @@ def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01, *,
         if sv == 0 or sr == 0:
             continue
         rho = float(np.dot(rc, vc) / (sr * sv))
-        acf_v = _acf(v, max_lag)
+        acf_v = autocorrelation(v, max_lag)
         infl = 1.0 + 2.0 * float(np.sum(acf_v[1:] * acf_r[1:]))
         n_eff = float(np.clip(n / max(infl, 1e-9), 3.0, n))
         z = rho * np.sqrt(n_eff - 2) / np.sqrt(max(1 - rho ** 2, 1e-12))
@@ -249,7 +253,8 @@ def localize(rec: Record, residual, noise_sd: float, *, alpha: float = 0.01,
 N_FAMILIES = 6
 
 
-def unexplained_structure(rec: Record, residual, model, *, alpha: float = 0.05) -> tuple[str, ...]:
+def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
+                          alpha: float = 0.05) -> tuple[str, ...]:
     """Where ``residual`` (= rec.y − model.predict(rec), sensor unit) departs from the model's
     noise: descriptions of time segments, jumps, spectral lines/bands, Allan τ ranges and input
     correlations; empty when there is none.
@@ -264,9 +269,6 @@ def unexplained_structure(rec: Record, residual, model, *, alpha: float = 0.05) 
     test allows for that (F / Student / averaged tails instead of χ² / normal); only excess
     structure counts; the six test families share ``alpha`` (Bonferroni), so on a series that
     is white all of it is reported with probability ≤ ``alpha``."""
-    from bench.discovery.effects import CATALOGUE  # noqa: PLC0415 (effects import the models)
-    from bench.discovery.whiten import innovations  # noqa: PLC0415
-
     r = np.asarray(residual, dtype=float)
     _check(r, rec, 1.0)
     if not 0 < alpha < 1:
@@ -274,8 +276,11 @@ def unexplained_structure(rec: Record, residual, model, *, alpha: float = 0.05) 
     if rec.n < 32:
         return ()
     r = r - r.mean()
-    sto = [(eid, p) for eid, p in model.effects if CATALOGUE[eid].stochastic]
+    sto = model.stochastic_effects()
     rate = rec.rate_hz
+    transform: Callable[[np.ndarray], np.ndarray] | None = None
+    prefix = ""
+    x = r
     if sto:
         # the white level is re-estimated beside the model's stochastic spectrum: a level that
         # counted a short-τ GM's high-frequency power as white would colour the innovations
@@ -284,11 +289,10 @@ def unexplained_structure(rec: Record, residual, model, *, alpha: float = 0.05) 
             white = float(model.base.noise_sd)
         x = innovations(r, rate, white, sto)
 
-        def transform(v):
+        def whiten(v: np.ndarray) -> np.ndarray:
             return innovations(v - v.mean(), rate, white, sto)
+        transform = whiten
         prefix = "in the Kalman innovations under the model's noise: "
-    else:
-        x, transform, prefix = r, None, ""
     sd, dof = white_floor(x, rate)
     if not (np.isfinite(sd) and sd > 0):
         return ()

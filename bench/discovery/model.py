@@ -32,7 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from bench.discovery.data import Record
-from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD, KINDS, effect
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import DEFAULT_NOISE_SD, KINDS, Effect, reference_input
+from bench.discovery.effects_noise import StochasticEffect
 
 #: Allowed base-parameter ranges per kind (sensor unit): a raw QA-2000 bias < 4 mg (allow 50 mg),
 #: a FOG's ±1 deg/s (3600 deg/h), an MHD offset; scale factor normalised near 1; noise sd ≥ 0.
@@ -65,7 +67,8 @@ class BaseModel:
             raise ValueError(f"base.kind = {self.kind!r}; allowed: {list(KINDS)}")
         for name, (lo, hi) in BASE_RANGES[self.kind].items():
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not (lo <= float(v) <= hi):
+            if (isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating))
+                    or not (lo <= float(v) <= hi)):
                 raise ValueError(f"base.{name} = {v!r} outside the allowed range [{lo}, {hi}] for a {self.kind}")
             object.__setattr__(self, name, float(v))
         r = self.rate_hz
@@ -91,14 +94,14 @@ class Model:
     base: BaseModel
     effects: tuple[tuple[str, dict], ...] = field(default=())
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         checked = []
         seen: dict[str, int] = {}
         for i, item in enumerate(self.effects):
             if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[1], dict)):
                 raise ValueError(f"effects[{i}] = {item!r}; allowed: (effect_id, {{param: value}})")
             eid, params = item
-            e = effect(eid)
+            e = CATALOGUE.effect(eid)
             if eid in seen:  # one entry per effect: a second copy would double its term
                 raise ValueError(f"effects[{i}]: effect {eid!r} is listed twice (also effects[{seen[eid]}]); "
                                  f"allowed: each effect once, with all its parameters")
@@ -112,6 +115,14 @@ class Model:
     @property
     def effect_ids(self) -> tuple[str, ...]:
         return tuple(eid for eid, _ in self.effects)
+
+    def entries(self) -> list[tuple[Effect, dict]]:
+        """Each effect of the model (the catalogue's entry) with its parameters, in order."""
+        return [(CATALOGUE[eid], p) for eid, p in self.effects]
+
+    def stochastic_effects(self) -> list[tuple[StochasticEffect, dict]]:
+        """The model's random processes with their parameters, in order."""
+        return [(e, p) for e, p in self.entries() if isinstance(e, StochasticEffect)]
 
     def with_effect(self, effect_id: str, params: dict) -> Model:
         """This model with one more effect (validated against the kind's ranges)."""
@@ -137,7 +148,7 @@ class Model:
         new = replace(b, rate_hz=rate_hz)  # validates the rate
         if b.rate_hz is None or b.rate_hz == new.rate_hz:
             return Model(new, self.effects)
-        sd = b.noise_sd * math.sqrt(new.rate_hz / b.rate_hz)
+        sd = b.noise_sd * math.sqrt(float(rate_hz) / b.rate_hz)
         return Model(replace(new, noise_sd=sd), self.effects)
 
     def residual_sd(self) -> float:
@@ -145,9 +156,9 @@ class Model:
         ``noise_sd`` passed through the output transforms' ``residual_var`` (quantization adds
         its rounding share); the inverse of ``with_noise_floor``."""
         v = self.base.noise_sd ** 2
-        for eid, p in self.effects:
-            if CATALOGUE[eid].stage == "output":
-                v = CATALOGUE[eid].residual_var(p, math.sqrt(v))
+        for e, p in self.entries():
+            if e.stage == "output":
+                v = e.residual_var(p, math.sqrt(v))
         return math.sqrt(v)
 
     def with_noise_floor(self, floor_sd: float) -> Model:
@@ -184,27 +195,27 @@ class Model:
 
     def _run(self, rec: Record, root: int | None) -> np.ndarray:
         b = self.base
-        u = rec.input if rec.logged("input") else np.zeros(rec.n)
-        staged = [(i, eid, CATALOGUE[eid], p) for i, (eid, p) in enumerate(self.effects)]
-        for _, _, e, p in staged:
+        u = reference_input(rec)
+        staged = self.entries()
+        for e, p in staged:
             if e.stage == "input":
                 e.check_inputs(rec)
                 u = e.transform_input(p, rec, u)
         y = b.bias + b.scale_factor * u
-        for i, eid, e, p in staged:
+        for i, (e, p) in enumerate(staged):
             if e.stage != "additive":
                 continue
             e.check_inputs(rec)
-            if not e.stochastic:
-                y = y + e._term(p, rec)
+            if not isinstance(e, StochasticEffect):
+                y = y + e.term(p, rec)
             elif root is not None:
-                y = y + e._noise(p, rec, _stream(root, f"{i}:{eid}"))
+                y = y + e.noise(p, rec, _stream(root, f"{i}:{e.id}"))
         if root is not None and b.noise_sd > 0:
             y = y + b.noise_sd * _stream(root, "white").standard_normal(rec.n)
-        for _, _, e, p in staged:
+        for e, p in staged:
             if e.stage == "output":
                 # a reading is the transformed noisy signal: predict its mean, simulate it
-                y = e._transform(p, rec, y) if root is not None else e.expected_transform(p, rec, y, b.noise_sd)
+                y = e.transform(p, rec, y) if root is not None else e.expected_transform(p, rec, y, b.noise_sd)
         return y
 
 

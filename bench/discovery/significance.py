@@ -3,8 +3,9 @@
 Pure numpy/scipy; residuals in the sensor unit, rates in Hz, τ in s.
 
 Held-out scoring (never shuffled samples): the record is cut into ``n_blocks`` (48)
-contiguous blocks — short enough that a start-up transient spans several of them; fold 0 holds out the even blocks, fold 1 the odd ones (interleaved, so both folds see
-the start-up and the end of the record). A candidate is fitted on a fold's training blocks and
+contiguous blocks — short enough that a start-up transient spans several of them; fold 0 holds
+out the even blocks, fold 1 the odd ones (interleaved, so both folds see the start-up and the
+end of the record). A candidate is fitted on a fold's training blocks and
 scored on its held-out blocks; the score is the out-of-sample variance reduction
 ``1 − Σ SSE_test(candidate) / Σ SSE_test(nuisance only)`` over both folds (every sample held
 out once). Under "no effect" it is ≤ 0 on average: an over-fitted shape does not carry over.
@@ -31,8 +32,13 @@ from scipy import optimize, signal, stats
 
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.timeseries_diag import default_lb_lags, ljung_box
+from bench.discovery.effects_noise import Processes
+from bench.discovery.whiten import noise_psd
 
 N_BLOCKS = 48
+#: Smallest p-value reported: a χ² or Rayleigh tail below it underflows to 0.0 in floating point;
+#: "p < 1e-300" is what such a value means.
+P_FLOOR = 1e-300
 #: the bootstrap keeps autocorrelation up to n / BOOT_BLOCKS lags
 BOOT_BLOCKS = 32
 
@@ -177,6 +183,15 @@ def bootstrap_p_value(r: np.ndarray, x_nuis: np.ndarray, x_cand: list[np.ndarray
     return (1.0 + exceed) / (n_rep + 1.0)
 
 
+def jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
+    """Std error of Σnum/Σden by deleting one block at a time (num, den per block)."""
+    k = num.size
+    if k < 3:
+        return float("nan")
+    loo = (num.sum() - num) / np.where(den.sum() - den > 0, den.sum() - den, np.nan)
+    return float(np.sqrt((k - 1) / k * np.nansum((loo - np.nanmean(loo)) ** 2)))
+
+
 def benjamini_hochberg(p_values, alpha: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
     """BH step-up: (rejected mask, adjusted p-values) in the input order."""
     p = np.asarray(p_values, dtype=float)
@@ -235,17 +250,15 @@ def welch_dof(n: int, nperseg: int) -> float:
 FLOOR_DOF_PER_SAMPLE = 0.35
 
 
-def white_floor(x: np.ndarray, rate_hz: float, stochastic_effects=()) -> tuple[float, float]:
+def white_floor(x: np.ndarray, rate_hz: float, stochastic_effects: Processes = ()) -> tuple[float, float]:
     """(white-noise sd, dof of its variance) from the upper half of the Welch PSD of ``x``
     (median, bias-corrected): immune to slow structure and to a few spectral lines. The dof
     ν (σ̂²/σ² ~ χ²_ν/ν on white noise) lets a test allow for the floor being estimated.
 
-    ``stochastic_effects`` ((id, params) as in ``Model.effects``, GM / random walk): their PSD
+    ``stochastic_effects`` ((effect, params), ``Model.stochastic_effects()``): their PSD
     is part of the model's spectrum, so the white level is the one at which the median of
     PSD/(white + theirs) over those bins is the χ² median — a short-τ Gauss–Markov puts power
     in the upper half that a plain median would count as white."""
-    from bench.discovery.whiten import noise_psd  # noqa: PLC0415
-
     x = np.asarray(x, float)
     nperseg = welch_nperseg(x.size)
     f, p = signal.welch(x, fs=rate_hz, window="hann", nperseg=nperseg, detrend="constant")

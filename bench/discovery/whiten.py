@@ -2,14 +2,11 @@
 stochastic effects (Kalman filter). White, unit-variance samples when the model is right, so the
 white-noise localization tests apply to them whatever colour the model's noise has.
 
-State space (one state per stochastic effect, sample interval dt = 1/rate_hz):
-
-* ``gauss_markov`` {sigma, tau_s}: x_k = φ·x_{k−1} + σ·√(1−φ²)·w_k, φ = e^{−dt/τ}; starts
-  stationary (variance σ²), as :mod:`bench.discovery.effects_noise` simulates it;
-* ``rate_random_walk`` {k_per_rs}: x_k = x_{k−1} + K·√dt·w_k; its level at the first sample is
-  not known once the bias is calibrated, so it starts with the variance the walk reaches over
-  the record (K²·T) — the first innovations are then a little under unit variance, never over;
-* observation: r_k = Σ x_k + v_k, v white of sd ``white_sd``.
+State space (sample interval dt = 1/rate_hz): each stochastic effect's states from its
+``state_space`` hook (:class:`bench.discovery.effects_noise.StateBlock`: diagonal, x_k = φ·x_{k−1}
++ e_k, var e = q, variance p0 at the first sample — a Gauss–Markov starts stationary, a random
+walk with the variance it reaches over the record); observation: r_k = Σ x_k + v_k, v white of
+sd ``white_sd``.
 
 Innovation e_k = r_k − E[r_k | r_<k], standardized by its variance S_k. The filter is linear
 in the residual: ``innovations(a·r1 + b·r2) = a·innovations(r1) + b·innovations(r2)``, so a
@@ -24,8 +21,7 @@ import math
 import numba
 import numpy as np
 
-#: stochastic effect ids this filter models
-SUPPORTED = ("gauss_markov", "rate_random_walk")
+from bench.discovery.effects_noise import Processes, StochasticEffect
 
 
 @numba.njit(cache=True)
@@ -64,34 +60,28 @@ def _filter(y, phi, q, p0, r_var):  # pragma: no cover - compiled
     return out
 
 
-def _states(rate_hz: float, n: int, effects) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _states(rate_hz: float, n: int, effects: Processes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The model's noise as diagonal states: each effect's ``state_space`` block, in order."""
     dt = 1.0 / rate_hz
-    phi, q, p0 = [], [], []
-    for eid, p in effects:
-        if eid == "gauss_markov":
-            sigma, tau = float(p["sigma"]), float(p["tau_s"])
-            if not (math.isfinite(sigma) and sigma >= 0 and math.isfinite(tau) and tau > 0):
-                raise ValueError(f"gauss_markov sigma = {sigma!r}, tau_s = {tau!r}; allowed: sigma >= 0, tau_s > 0")
-            f = math.exp(-dt / tau)
-            phi.append(f)
-            q.append(sigma ** 2 * (1.0 - f * f))
-            p0.append(sigma ** 2)
-        elif eid == "rate_random_walk":
-            k = float(p["k_per_rs"])
-            if not (math.isfinite(k) and k >= 0):
-                raise ValueError(f"rate_random_walk k_per_rs = {k!r}; allowed: a finite number >= 0")
-            phi.append(1.0)
-            q.append(k * k * dt)
-            p0.append(k * k * dt * n)
-        else:
-            raise ValueError(f"stochastic effect {eid!r}; allowed: {SUPPORTED}")
+    phi: list[float] = []
+    q: list[float] = []
+    p0: list[float] = []
+    for eff, p in effects:
+        if not isinstance(eff, StochasticEffect):
+            raise ValueError(f"effect {getattr(eff, 'id', eff)!r} is not stochastic; allowed: the model's "
+                             "stochastic effects (StochasticEffect)")
+        block = eff.state_space(p, dt, n)
+        phi += block.phi
+        q += block.q
+        p0 += block.p0
     return np.array(phi, float), np.array(q, float), np.array(p0, float)
 
 
-def noise_psd(f_hz, rate_hz: float, stochastic_effects=()) -> np.ndarray:
+def noise_psd(f_hz: np.ndarray, rate_hz: float, stochastic_effects: Processes = ()) -> np.ndarray:
     """One-sided PSD (unit²/Hz) at ``f_hz`` of the sampled stochastic effects (no white part):
-    GM σ²(1−φ²)/|1−φe^{−iω}|², random walk K²·dt/|1−e^{−iω}|², ω = 2πf/fs, times 2/fs —
-    on the scale where white noise of sd σ has 2σ²/fs."""
+    Σ over their states q/|1−φe^{−iω}|² (a Gauss–Markov σ²(1−φ²)/|1−φe^{−iω}|², a random walk
+    K²·dt/|1−e^{−iω}|²), ω = 2πf/fs, times 2/fs — on the scale where white noise of sd σ has
+    2σ²/fs."""
     f = np.asarray(f_hz, float)
     phi, q, _ = _states(float(rate_hz), 1, list(stochastic_effects))
     w = 2 * np.pi * f / rate_hz
@@ -102,10 +92,11 @@ def noise_psd(f_hz, rate_hz: float, stochastic_effects=()) -> np.ndarray:
     return out * 2.0 / rate_hz
 
 
-def innovations(residual, rate_hz: float, white_sd: float, stochastic_effects=()) -> np.ndarray:
+def innovations(residual: np.ndarray, rate_hz: float, white_sd: float,
+                stochastic_effects: Processes = ()) -> np.ndarray:
     """Standardized one-step innovations of ``residual`` (sensor unit, uniform samples at
-    ``rate_hz``) under white noise of sd ``white_sd`` plus ``stochastic_effects`` — (id, params)
-    pairs as in ``Model.effects``, ids in :data:`SUPPORTED`. Without stochastic effects this is
+    ``rate_hz``) under white noise of sd ``white_sd`` plus ``stochastic_effects`` — (effect,
+    params) pairs (``Model.stochastic_effects()``). Without stochastic effects this is
     ``residual / white_sd``."""
     r = np.asarray(residual, dtype=float)
     if r.ndim != 1 or r.size == 0:

@@ -2,11 +2,10 @@
 
 :func:`discover` runs, on a :class:`~bench.discovery.data.Record` and a starting model:
 
-a. :func:`calibrate` — bounded least squares of all the model's parameters (bias, scale factor
-   when the input is logged and varies, and every parameter of the deterministic effects
-   already in it, from their current values); the white-noise sd is re-estimated from the residual's high-frequency floor (median of the
-   Welch PSD over the upper half of the band, median-bias corrected), so the floor is the
-   data's, not a default's;
+a. :func:`bench.discovery.calibration.calibrate` — bounded least squares of all the model's
+   parameters (bias, scale factor when the input is logged and varies, and every parameter of
+   the waveform effects already in it, from their current values); the white-noise sd from the
+   residual's high-frequency floor;
 b. :func:`bench.discovery.localize.localize` of the residual;
 c. :func:`bench.discovery.naming.name_effect` over the catalogue;
 d. add the named effect with its fitted parameters, re-calibrate, and measure the gap before
@@ -24,187 +23,20 @@ Pure: record and model in, a :class:`Discovery` out (no files; the CLI writes th
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from bench.discovery.calibration import calibrate
+from bench.discovery.candidates import Naming
 from bench.discovery.data import Record
-from bench.discovery.localize import Localization, localize, unexplained_structure
-from bench.discovery.naming import Naming, name_effect
-from bench.discovery.significance import Gap, gap_metrics, white_floor
-
-
-def _effect(eid: str):
-    from bench.discovery.effects import CATALOGUE  # noqa: PLC0415
-
-    return CATALOGUE[eid]
-
-
-#: Effects whose parameters calibrate leaves as named: stochastic ones have no waveform, and a
-#: quantizer's prediction is piecewise constant in its step (judged on the histogram instead).
-_HISTOGRAM_JUDGED = ("quantization",)
-
-
-def _sf_free(rec: Record) -> bool:
-    """Scale factor is fitted only when the input is logged and varies: with a constant input
-    bias and scale factor are one offset (not separable)."""
-    return rec.varies("input")
-
-
-def _slots(model, rec: Record) -> list[tuple[str, int | None, object]]:
-    """(what, effect index or None, Param or base name) of every parameter calibrate fits
-    (calibrate appends ("noise", measured floor, "noise_sd") for a quantized model)."""
-    slots = [("base", None, "bias")]
-    if _sf_free(rec):
-        slots.append(("base", None, "scale_factor"))
-    for i, (eid, _) in enumerate(model.effects):
-        eff = _effect(eid)
-        if eff.stochastic or eid in _HISTOGRAM_JUDGED:
-            continue
-        for q in eff.params_for(model.base.kind):
-            slots.append(("effect", i, q))
-    return slots
-
-
-def _periodic(q) -> bool:
-    return q.unit == "rad" and "phase" in q.name and q.high - q.low >= 2 * np.pi - 1e-9
-
-
-def _coords(model, slots) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(x, lower, upper, scale): optimiser coordinates (log parameters in log) and bounds."""
-    from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
-
-    x, lo, hi, sc = [], [], [], []
-    for what, i, q in slots:
-        if what == "noise":  # log sd, from a thousandth of the measured floor ``i`` up to it
-            x.append(np.log(max(float(model.base.noise_sd), 1e-3 * i)))
-            lo.append(np.log(1e-3 * i))
-            hi.append(np.log(i))
-            sc.append(0.3)
-            continue
-        if what == "base":
-            a, b = BASE_RANGES[model.base.kind][q]
-            x.append(float(getattr(model.base, q)))
-            lo.append(a)
-            hi.append(b)
-            sc.append(max(float(model.base.noise_sd), 1e-12) if q == "bias" else 1e-4)
-            continue
-        v = float(model.effects[i][1][q.name])
-        if q.log:
-            x.append(np.log(v))
-            lo.append(np.log(q.low))
-            hi.append(np.log(q.high))
-            sc.append(0.3)
-        elif _periodic(q):  # a phase wraps: no wall at ±π for the optimiser
-            x.append(v)
-            lo.append(-8 * np.pi)
-            hi.append(8 * np.pi)
-            sc.append(0.1)
-        else:
-            x.append(v)
-            lo.append(q.low)
-            hi.append(q.high)
-            sc.append(max(abs(v), (q.high - q.low) * 1e-4, 1e-300))
-    return np.array(x), np.array(lo), np.array(hi), np.array(sc)
-
-
-def _at(model, slots, x: np.ndarray):
-    """The model with the optimiser coordinates ``x`` (effect values clipped to their ranges)."""
-    base = {}
-    effects = [(eid, dict(p)) for eid, p in model.effects]
-    for (what, i, q), v in zip(slots, x):
-        if what == "noise":
-            base[q] = float(np.exp(v))
-            continue
-        if what == "base":
-            base[q] = float(v)
-            continue
-        val = float(np.exp(v)) if q.log else float(v)
-        if _periodic(q):
-            val = (val + np.pi) % (2 * np.pi) - np.pi
-        effects[i][1][q.name] = float(np.clip(val, q.low, q.high))
-    from bench.discovery.model import Model  # noqa: PLC0415
-
-    return Model(replace(model.base, **base), tuple(effects))
-
-
-def white_floor_sd(residual: np.ndarray, rate_hz: float) -> float:
-    """White-noise sd from the upper half of the residual's Welch PSD (median, bias-corrected):
-    immune to slow structure (drift, warm-up, temperature) and to a few spectral lines
-    (:func:`bench.discovery.significance.white_floor`)."""
-    return float(white_floor(np.asarray(residual, float), rate_hz)[0])
-
-
-def _check_base(model, rec: Record, bias: float, sf: float) -> None:
-    """ValueError when an unconstrained base fit lands outside its range (never a silent clip)."""
-    from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
-
-    rng = BASE_RANGES[model.base.kind]
-    for name, v in (("bias", bias), ("scale_factor", sf)):
-        lo, hi = rng[name]
-        if not (lo <= v <= hi) or not np.isfinite(v):
-            raise ValueError(f"calibrated {name} = {v:.6g} outside the allowed range [{lo}, {hi}] for a "
-                             f"{model.base.kind}: wrong unit or missing input column?")
-
-
-def calibrate(model, rec: Record, *, noise: bool = True, max_nfev: int = 200):
-    """The model with ALL its parameters fitted to ``rec`` by bounded least squares (issue 7,
-    step a: bias, scale factor when the input is logged and varies, and every parameter of the
-    deterministic effects already in it — time constants, frequencies, delays too, so a frozen
-    shape misfit does not linger in the residual as colour), starting from the current values,
-    each bounded by its range; with ``noise``, the white-noise sd is set to the residual's
-    high-frequency floor. Stochastic effects and the quantization step keep their values.
-
-    Bias and scale factor are first solved linearly (unconstrained); outside the kind's range
-    that is a ValueError naming the value (a wrong unit or a missing input column), never a clip."""
-    from scipy import optimize  # noqa: PLC0415
-
-    from bench.discovery.model import BASE_RANGES  # noqa: PLC0415
-
-    sf_free = _sf_free(rec)
-    rest = model.predict(rec) - model.base.bias - (model.base.scale_factor * rec.input if sf_free else 0.0)
-    cols = [np.ones(rec.n)] + ([rec.input] if sf_free else [])
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols), rec.y - rest, rcond=None)
-    bias = float(coef[0])
-    sf = float(coef[1]) if sf_free else float(model.base.scale_factor)
-    _check_base(model, rec, bias, sf)
-    model = model.with_base(bias=bias, scale_factor=sf)
-    slots = _slots(model, rec)
-    # through a quantizer the prediction E[Q(x + n)] depends on the noise before it: that sd is
-    # a parameter of the prediction, fitted with the rest (the conditional mean minimises the
-    # squared error, so least squares finds it), starting from the measured floor's inversion
-    quantized = noise and any(eid in _HISTOGRAM_JUDGED for eid, _ in model.effects)
-    if quantized:
-        floor = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz)
-        floor = float(min(floor, BASE_RANGES[model.base.kind]["noise_sd"][1]))
-        if floor > 0 and np.isfinite(floor):
-            model = model.with_noise_floor(floor)
-            slots.append(("noise", floor, "noise_sd"))
-    if len(slots) > (2 if sf_free else 1):  # effects with parameters: the joint nonlinear fit
-        x0, lo, hi, sc = _coords(model, slots)
-        x0 = np.clip(x0, lo, hi)
-        y = rec.y
-        fun = lambda x: y - _at(model, slots, x).predict(rec)
-        try:
-            res = optimize.least_squares(fun, x0, bounds=(lo, hi), x_scale=sc, max_nfev=max_nfev, method="trf")
-            if np.sum(res.fun ** 2) < np.sum(fun(x0) ** 2):
-                model = _at(model, slots, res.x)
-        except (ValueError, np.linalg.LinAlgError):
-            pass  # keep the linear calibration
-        b = model.base
-        for name in ("bias", "scale_factor"):
-            lo_b, hi_b = BASE_RANGES[b.kind][name]
-            v = getattr(b, name)
-            if min(v - lo_b, hi_b - v) <= 1e-9 * (hi_b - lo_b):
-                raise ValueError(f"calibrated {name} = {v:.6g} at the edge of the allowed range [{lo_b}, {hi_b}] "
-                                 f"for a {b.kind}: wrong unit or missing input column?")
-    if noise and not any(w == "noise" for w, _, _ in slots):
-        sd = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz)
-        sd = float(min(sd, BASE_RANGES[model.base.kind]["noise_sd"][1]))
-        if sd > 0 and np.isfinite(sd):
-            # the measured floor holds a quantizer's rounding too: the noise before it is less
-            model = model.with_noise_floor(sd)
-    return model
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.findings import Localization
+from bench.discovery.fitting import CandidateFitter
+from bench.discovery.localize import localize, unexplained_structure
+from bench.discovery.model import Model
+from bench.discovery.naming import name_effect
+from bench.discovery.significance import Gap, gap_metrics
 
 
 @dataclass(frozen=True)
@@ -245,8 +77,8 @@ class Discovery:
     ``rms_final`` the residual rms in that unit; the full before/after table (Allan, spectral,
     whiteness) of each step is under ``effects[i].gap_table``."""
 
-    initial_model: object
-    final_model: object
+    initial_model: Model
+    final_model: Model
     steps: tuple[Step, ...]
     unexplained: tuple[str, ...]
     gap_initial: Gap
@@ -270,19 +102,19 @@ class Discovery:
                 "last_naming": self.final_naming.to_dict()}
 
 
-def model_noise(model, rec: Record, seed: int) -> np.ndarray:
+def model_noise(model: Model, rec: Record, seed: int) -> np.ndarray:
     """One realisation of the model's own noise (white + its stochastic effects) on rec's grid."""
     return model.simulate(rec, np.random.default_rng(seed)) - model.predict(rec)
 
 
-def gap_of(model, rec: Record, seed: int) -> tuple[Gap, float, float, np.ndarray]:
+def gap_of(model: Model, rec: Record, seed: int) -> tuple[Gap, float, float, np.ndarray]:
     """(gap table, residual rms, model-noise rms, residual) of ``model`` on ``rec``."""
     r = rec.y - model.predict(rec)
-    # a random process's rms varies between realisations, and a quantizer's rounding error
-    # depends on where the signal sits between levels: both floors come from simulating the
-    # model on this stimulus (several realisations), not from a formula
-    stoch = any(_effect(eid).stochastic or eid in _HISTOGRAM_JUDGED for eid, _ in model.effects)
-    if stoch:
+    # a random process's rms varies between realisations, and a histogram-judged effect's (a
+    # quantizer's rounding error) depends on where the signal sits between levels: with any
+    # effect that is not a waveform the floor comes from simulating the model on this stimulus
+    # (several realisations), not from a formula
+    if not all(e.waveform for e, _ in model.entries()):
         noises = [model_noise(model, rec, seed + k) for k in range(8)]
         floor = float(np.sqrt(np.mean([np.mean(x ** 2) for x in noises])))
         g = gap_metrics(r, model.residual_sd(), rec.rate_hz, noises[0], floor)
@@ -292,23 +124,19 @@ def gap_of(model, rec: Record, seed: int) -> tuple[Gap, float, float, np.ndarray
     return g, float(np.sqrt(np.mean(r ** 2))), floor, r
 
 
-def _structure(model, rec: Record, r: np.ndarray) -> Localization:
+def _structure(model: Model, rec: Record, r: np.ndarray) -> Localization:
     return localize(rec, r - r.mean(), model.residual_sd())
 
 
-def _step_std(model, rec: Record, naming_std: dict) -> dict:
+def _step_std(model: Model, rec: Record, naming_std: dict) -> dict:
     """Std of the last effect's parameters at the re-calibrated model (the naming fit's std
-    belonged to other values of the other parameters); the naming's for stochastic and
-    histogram-judged effects."""
-    from bench.discovery.fitting import CandidateFitter  # noqa: PLC0415
-    from bench.discovery.model import Model  # noqa: PLC0415
-
-    eid, p = model.effects[-1]
-    eff = _effect(eid)
-    if eff.stochastic or eid in _HISTOGRAM_JUDGED:
+    belonged to other values of the other parameters); the naming's for an effect that is not
+    a waveform (a random process, a histogram-judged effect)."""
+    eff, p = model.entries()[-1]
+    if not eff.waveform:
         return dict(naming_std)
     # the model's noise_sd is already the noise before any quantizer (with_noise_floor)
-    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, eid, noise_is_floor=False)
+    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, noise_is_floor=False)
     x = f.pack(p, model.base.bias, model.base.scale_factor)
     return dict(f.fit([x], max_nfev=1).params_std)
 
@@ -317,18 +145,16 @@ def _fmt(v: float) -> str:
     return f"{v:.3g}"
 
 
-def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, seed: int = 0,
+def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 0.05, seed: int = 0,
              n_rep: int = 999, only: tuple[str, ...] | None = None,
              progress: Callable[[str], None] | None = None) -> Discovery:
     """Run the loop a..e on ``rec`` from ``model``; see the module docstring. ``progress``:
     called with a short human message before each candidate fit and after each step."""
-    if not isinstance(max_effects, int) or not 0 <= max_effects <= 19:
-        raise ValueError(f"max_effects = {max_effects!r}; allowed: an integer in [0, 19]")
+    if not isinstance(max_effects, int) or not 0 <= max_effects <= len(CATALOGUE):
+        raise ValueError(f"max_effects = {max_effects!r}; allowed: an integer in [0, {len(CATALOGUE)}]")
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
     say = progress or (lambda _msg: None)
-    from bench.discovery.effects import CATALOGUE  # noqa: PLC0415
-
     skipped = [eid for eid, e in CATALOGUE.items() if e.needs_uniform and model.base.kind in e.kinds]
     if skipped and not rec.is_uniform():
         notes = [f"{', '.join(skipped)} not tried: the sample intervals vary by more than 0.1 % of the median "
@@ -340,10 +166,13 @@ def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, s
     g0, rms0, floor, r0 = gap_of(model, rec, seed)
     steps = []
     gap_cur, rms_cur, r_cur = g0, rms0, r0
-    naming = None
-    for it in range(max_effects + 1):  # always ends by a break, loc describing r_cur
+    it = 0
+    while True:  # ends by a break (at it == max_effects at the latest), loc and naming describing r_cur
         loc = _structure(model, rec, r_cur)
-        step_say = (lambda msg, _it=it: say(f"step {_it + 1}: {msg}"))
+
+        def step_say(msg: str, _it: int = it) -> None:
+            say(f"step {_it + 1}: {msg}")
+
         naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
                              progress=step_say)
         if naming.best is None:
@@ -359,6 +188,7 @@ def discover(rec: Record, model, *, max_effects: int = 4, alpha: float = 0.05, s
                           gap_cur, g1, rms_cur, rms1, naming, loc, r_cur, r1))
         say(f"step {it + 1}: named {best.id}, rms {_fmt(rms_cur)} → {_fmt(rms1)}")
         model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
+        it += 1
     # what no catalogue effect explained: the residual (white model) or its Kalman innovations
     # (stochastic model) against the model's own noise, family-wise at alpha
     unexplained = unexplained_structure(rec, r_cur, model, alpha=alpha)

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from bench.app.cli import main
-from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import DEFAULT_NOISE_SD
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, read_model, write_model
 

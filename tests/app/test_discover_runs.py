@@ -87,8 +87,6 @@ def test_accelerometer_static_record_is_in_g_with_one_g_applied(store):
 
 
 def test_unmappable_run_and_unknown_stream_are_one_line_exit_2(store, tmp_path, capsys):
-    from procedures.tumble import TumbleParameters  # noqa: F401 (a tumble run holds no time record)
-
     path, runs = store
     rc = main(["--store", str(path), "discover", "--run", runs["gyro_noise"][0], "--stream", "nope"])
     err = capsys.readouterr().err

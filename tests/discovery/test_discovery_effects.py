@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.discovery.data import Record
-from bench.discovery.effects import CATALOGUE, DRAW_SNR_FACTOR, KINDS, MIN_SNR, effect, effects_for
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import DRAW_SNR_FACTOR, KINDS, MIN_SNR
 from bench.discovery.effects_transforms import expected_quantized
 from bench.discovery.experiments import make_experiment
 
@@ -29,7 +30,7 @@ def records():
 
 
 def _pairs():
-    return [(k, e.id) for k in KINDS for e in effects_for(k)]
+    return [(k, e.id) for k in KINDS for e in CATALOGUE.for_kind(k)]
 
 
 def test_catalogue_has_the_issue_ids_in_order_and_complete_metadata():
@@ -44,7 +45,7 @@ def test_catalogue_has_the_issue_ids_in_order_and_complete_metadata():
             for q in e.params_for(kind):
                 assert q.low < q.high and q.floor >= 0 and (q.low > 0 or not q.log)
     with pytest.raises(ValueError, match="unknown effect id 'nope'"):
-        effect("nope")
+        CATALOGUE.effect("nope")
     with pytest.raises(ValueError, match="does not apply to kind 'mhd'"):
         CATALOGUE["g_sensitivity"].params_for("mhd")
 
@@ -307,7 +308,7 @@ def test_experiments_log_what_their_kind_needs_and_are_deterministic():
         b = make_experiment(kind, np.random.default_rng(1), n=2000)
         np.testing.assert_array_equal(a.input, b.input)
         assert a.t_on_s[0] == 0 and a.is_uniform()
-        for e in effects_for(kind):
+        for e in CATALOGUE.for_kind(kind):
             e.check_inputs(a)
     g = make_experiment("gyro", np.random.default_rng(2))
     assert np.max(np.abs(g.input)) == pytest.approx(100.0) and np.min(np.abs(g.input)) == 0.0

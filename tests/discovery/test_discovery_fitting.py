@@ -62,7 +62,7 @@ def test_stationary_hac_equals_the_dense_toeplitz_sandwich():
     j = np.column_stack([np.ones(n), np.exp(-np.arange(n) / 40.0), rng.standard_normal(n)])
     e = _gm(rng, n, 1.0, 8.0) + 0.5 * rng.standard_normal(n)
     ez = e - e.mean()
-    gam = np.array([ez[l:] @ ez[: n - l] / n for l in range(n)])
+    gam = np.array([ez[k:] @ ez[: n - k] / n for k in range(n)])
     w = np.clip(1 - np.arange(n) / (lag + 1.0), 0, None)
     gam = gam + (gam[0] + 2 * np.sum(w[1:] * gam[1:])) / (n - lag - 1)  # demeaning's bias undone
     sigma = toeplitz(gam * w)
@@ -106,14 +106,13 @@ def _coverage(eid: str, truth_params: dict, start: dict, main: str, gm: dict | N
     truth = Model(BaseModel("accelerometer", 1e-3, 1.0, 5e-6)).with_effect(eid, truth_params)
     if gm:
         truth = truth.with_effect("gauss_markov", gm)
-    est, sds = [], []
+    fits = []
     for s in range(seeds):
         rec = rec0.replace(y=truth.simulate(rec0, np.random.default_rng(1000 + s)))
-        f = CandidateFitter(Model(truth.base), rec, CATALOGUE[eid], eid)
+        f = CandidateFitter(Model(truth.base), rec, CATALOGUE[eid])
         fit = f.fit([f.pack(start, 1e-3, 1.0)])
-        est.append(fit.params[main])
-        sds.append(fit.params_std[main])
-    est, sds = np.array(est), np.array(sds)
+        fits.append((fit.params[main], fit.params_std[main]))
+    est, sds = np.array(fits).T
     return est, sds, float(np.mean(np.abs(est - truth_params[main]) / sds < 2))
 
 

@@ -12,20 +12,21 @@ from scipy import stats
 
 from bench.discovery import localize as loc
 from bench.discovery.data import Record
+from bench.discovery.effects import CATALOGUE
 from bench.discovery.model import Model, base_model
 from bench.discovery.significance import welch_nperseg, white_floor
 from bench.discovery.whiten import innovations
 
 SD = 5e-6
 RATE_HZ = 10.0
-GM = ("gauss_markov", {"sigma": 1e-5, "tau_s": 3.0})
-RW = ("rate_random_walk", {"k_per_rs": 2e-6})
+GM = (CATALOGUE["gauss_markov"], {"sigma": 1e-5, "tau_s": 3.0})
+RW = (CATALOGUE["rate_random_walk"], {"k_per_rs": 2e-6})
 
 
 def _model(*effects):
     m = Model(base_model("accelerometer")).with_base(noise_sd=SD)
-    for eid, p in effects:
-        m = m.with_effect(eid, p)
+    for eff, p in effects:
+        m = m.with_effect(eff.id, p)
     return m
 
 
@@ -136,7 +137,7 @@ def test_white_floor_dof_matches_its_spread():
 def test_short_tau_gm_with_a_white_level_that_counted_it_gives_few_false_alarms():
     # the workflow's white level comes from the upper-half PSD, where a τ = 0.5 s GM at 10 Hz
     # adds ~40 % power: innovations with that level would be coloured (60 % false alarms)
-    m = _model(("gauss_markov", {"sigma": 1e-5, "tau_s": 0.5}))
+    m = _model((CATALOGUE["gauss_markov"], {"sigma": 1e-5, "tau_s": 0.5}))
     rec = _record(3000)
     hits = 0
     for s in range(40):
@@ -146,7 +147,7 @@ def test_short_tau_gm_with_a_white_level_that_counted_it_gives_few_false_alarms(
     assert hits <= stats.binom.ppf(0.95, 40, 0.05)
 
 
-@pytest.mark.parametrize("eff", [("gauss_markov", {"sigma": 1e-5, "tau_s": 0.5}), RW])
+@pytest.mark.parametrize("eff", [(CATALOGUE["gauss_markov"], {"sigma": 1e-5, "tau_s": 0.5}), RW], ids=["gm", "rw"])
 def test_white_floor_beside_stochastic_effects_recovers_the_white_level(eff):
     m = _model(eff)
     rec = _record(20000)
@@ -154,7 +155,7 @@ def test_white_floor_beside_stochastic_effects_recovers_the_white_level(eff):
     plain, _ = white_floor(r, RATE_HZ)
     aware, _ = white_floor(r, RATE_HZ, [eff])
     assert abs(aware / SD - 1) < 0.05
-    if eff[0] == "gauss_markov":
+    if eff[0].id == "gauss_markov":
         assert plain / SD > 1.1  # the plain median counts the GM's upper-half power as white
 
 
@@ -164,7 +165,7 @@ def test_white_floor_beside_stochastic_effects_recovers_the_white_level(eff):
 def test_innovations_of_the_models_noise_are_white_unit_variance(effects):
     m = _model(*effects)
     rec = _record(20000)
-    e = innovations(_noise(m, rec, 11), RATE_HZ, SD, m.effects)
+    e = innovations(_noise(m, rec, 11), RATE_HZ, SD, m.stochastic_effects())
     assert abs(np.var(e[200:]) - 1) < 0.05
     for lag in (1, 2, 5, 30):
         assert abs(np.corrcoef(e[200:-lag], e[200 + lag:])[0, 1]) < 4 / np.sqrt(e.size)
@@ -186,11 +187,14 @@ def test_innovations_without_stochastic_effects_are_the_scaled_residual():
     assert np.array_equal(innovations(r, 1.0, 2.0, ()), r / 2.0)
 
 
-@pytest.mark.parametrize("bad", [("quantization", {"step": 1.0}), ("gauss_markov", {"sigma": 1.0, "tau_s": 0.0}),
-                                 ("rate_random_walk", {"k_per_rs": -1.0})])
-def test_innovations_reject_bad_effects(bad):
-    with pytest.raises(ValueError):
-        innovations(np.zeros(10), 1.0, 1.0, [bad])
+@pytest.mark.parametrize("eid,params,match", [
+    ("quantization", {"step": 1.0}, "'quantization' is not stochastic"),
+    ("gauss_markov", {"sigma": 1.0, "tau_s": 0.0}, r"gauss_markov sigma = 1.0, tau_s = 0.0; allowed"),
+    ("rate_random_walk", {"k_per_rs": -1.0}, r"rate_random_walk k_per_rs = -1.0; allowed"),
+])
+def test_innovations_reject_bad_effects(eid, params, match):
+    with pytest.raises(ValueError, match=match):
+        innovations(np.zeros(10), 1.0, 1.0, [(CATALOGUE[eid], params)])
 
 
 def test_innovations_reject_bad_arguments():

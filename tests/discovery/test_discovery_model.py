@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from scipy.special import ndtr
 
 from bench.discovery.data import Record
-from bench.discovery.effects import CATALOGUE, KINDS, effects_for
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import KINDS
 from bench.discovery.effects_transforms import expected_quantized
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, base_model, model_from_toml, model_to_toml, read_model, write_model
@@ -82,7 +83,8 @@ def test_model_rejects_effects_outside_the_kind():
     m = Model(base_model("accelerometer"))
     with pytest.raises(ValueError, match="'g_sensitivity' does not apply to a accelerometer"):
         m.with_effect("g_sensitivity", {"coef_per_g": 1e-4})
-    with pytest.raises(ValueError, match=r"k2_nonlinearity.k2_per_u = 0.5 outside the allowed range \[-0.001, 0.001\] 1/g"):
+    with pytest.raises(ValueError,
+                       match=r"k2_nonlinearity.k2_per_u = 0.5 outside the allowed range \[-0.001, 0.001\] 1/g"):
         m.with_effect("k2_nonlinearity", {"k2_per_u": 0.5})
     with pytest.raises(ValueError, match=r"unknown parameter\(s\) \['k9'\]"):
         m.with_effect("k2_nonlinearity", {"k2_per_u": 1e-5, "k9": 1.0})
@@ -191,7 +193,7 @@ def models(draw):
     lo_b, hi_b = {"accelerometer": (-0.05, 0.05), "gyro": (-1.0, 1.0), "mhd": (-100.0, 100.0)}[kind]
     base = BaseModel(kind, draw(st.floats(lo_b, hi_b)), draw(st.floats(0.5, 2.0)), draw(st.floats(0.0, 0.1)))
     effects = []
-    for e in draw(st.lists(st.sampled_from(effects_for(kind)), max_size=5, unique_by=lambda e: e.id)):
+    for e in draw(st.lists(st.sampled_from(CATALOGUE.for_kind(kind)), max_size=5, unique_by=lambda e: e.id)):
         effects.append((e.id, {q.name: draw(st.floats(q.low, q.high)) for q in e.params_for(kind)}))
     rate = draw(st.one_of(st.none(), st.floats(1e-3, 1e6)))
     return Model(replace(base, rate_hz=rate), tuple(effects))

@@ -10,13 +10,20 @@ from hypothesis import strategies as st
 from scipy import signal
 
 from bench.discovery import significance as sig
+from bench.discovery.calibration import calibrate, white_floor_sd
 from bench.discovery.data import Record
-from bench.discovery.effects import CATALOGUE, DEFAULT_NOISE_SD
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import DEFAULT_NOISE_SD
+from bench.discovery.effects_terms import LinearDrift
 from bench.discovery.experiments import make_experiment
+from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import localize
 from bench.discovery.model import BaseModel, Model, base_model
+from bench.discovery.separating import separating_experiment
 from bench.discovery.stochastic import fit_stochastic
-from bench.discovery.workflow import calibrate, discover, white_floor_sd
+from bench.discovery.workflow import discover
+
+GM, RW = CATALOGUE["gauss_markov"], CATALOGUE["rate_random_walk"]
 
 
 def _white_record(seed: int, n: int = 3000, rate: float = 10.0) -> Record:
@@ -126,11 +133,11 @@ def test_gauss_markov_recovered_from_spectrum():
     n, dt, tau, s = 8000, 0.1, 3.0, 0.6
     phi = np.exp(-dt / tau)
     x = signal.lfilter([1], [1, -phi], rng.normal(0, s * np.sqrt(1 - phi ** 2), n))
-    fit = fit_stochastic(x + rng.normal(0, 1, n), dt, "gauss_markov")
+    fit = fit_stochastic(x + rng.normal(0, 1, n), dt, GM)
     assert fit.p_value < 1e-6
-    assert abs(fit.tau_s - tau) <= 3 * fit.tau_std_s
-    assert abs(fit.sigma - s) <= 3 * fit.sigma_std
-    assert fit_stochastic(rng.normal(0, 1, n), dt, "gauss_markov").p_value > 1e-3
+    assert abs(fit.params["tau_s"] - tau) <= 3 * fit.params_std["tau_s"]
+    assert abs(fit.params["sigma"] - s) <= 3 * fit.params_std["sigma"]
+    assert fit_stochastic(rng.normal(0, 1, n), dt, GM).p_value > 1e-3
 
 
 def test_white_floor_ignores_slow_structure_and_a_line():
@@ -198,13 +205,14 @@ def test_discover_names_both_hidden_effects_and_nothing_else_with_progress():
 
 
 def test_separating_experiments_name_the_inputs_or_the_known_recipe():
-    from bench.discovery.separating import separating_experiment
-
     assert "temperature independently of time since power-on" in separating_experiment(
-        "warmup_exponential", "temperature_bias", CATALOGUE)
+        "warmup_exponential", "temperature_bias")
+    # declared on one effect of the pair, it holds either way round
+    assert separating_experiment("temperature_bias", "warmup_exponential").startswith(
+        "temperature_bias vs warmup_exponential: vary temperature independently")
     assert "vary cross_input independently of vib" in separating_experiment(
-        "misalignment", "vibration_rectification", CATALOGUE)
-    assert "repeat the record" in separating_experiment("k2_nonlinearity", "gauss_markov", CATALOGUE)
+        "misalignment", "vibration_rectification")
+    assert "repeat the record" in separating_experiment("k2_nonlinearity", "gauss_markov")
 
 
 # ---- audit regressions ------------------------------------------------------------------
@@ -238,46 +246,40 @@ def test_calibrate_refits_nonlinear_parameters_of_effects_in_the_model():
 
 
 def test_min_effect_that_raises_fails_closed():
-    from bench.discovery.naming import _big_enough
-
-    class Boom:
-        main_param = "a"
-        increasing = True
-
+    class Boom(LinearDrift):
         def min_effect(self, *a, **k):
             raise ValueError("cannot judge")
 
     rec, _ = _hidden("accelerometer", (), 0, 300)
-    big, thr = _big_enough(Boom(), "accelerometer", {"a": 1e9}, rec, 1e-6)
+    assert LinearDrift().big_enough({"slope_per_s": 1e-6}, rec, 1e-6, kind="accelerometer")[0] is True
+    big, thr = Boom().big_enough({"slope_per_s": 1e-6}, rec, 1e-6, kind="accelerometer")
     assert big is False and np.isnan(thr)
 
 
 def test_step_std_is_recomputed_at_the_recalibrated_model():
-    from bench.discovery.fitting import CandidateFitter
-
     rec, _ = _hidden("accelerometer", ("linear_drift",), 0, 1500)
     d = discover(rec, Model(base_model("accelerometer")), max_effects=1, seed=0, n_rep=99,
                  only=("linear_drift", "warmup_exponential", "temperature_bias"))
     (step,) = d.steps
     m = d.final_model
-    f = CandidateFitter(Model(m.base), rec, CATALOGUE["linear_drift"], "linear_drift")
+    f = CandidateFitter(Model(m.base), rec, CATALOGUE["linear_drift"])
     x = f.pack(m.effects[0][1], m.base.bias, m.base.scale_factor)
     want = f.fit([x], max_nfev=1).params_std
     assert step.params_std == pytest.approx(want, rel=1e-9)
     assert step.params == m.effects[0][1]
 
 
-def test_stochastic_p_value_is_calibrated_on_the_models_own_noise():
+def test_stochastic_p_value_is_calibrated_on_the_models_own_noise() -> None:
     # 20 draws of the calibrated base model's own noise: each stochastic candidate's LR p-value
     # falls below 5 % in about 5 % of them
     rec = make_experiment("accelerometer", np.random.default_rng(0), n=1500)
     m = Model(base_model("accelerometer"))
-    ps = {"gauss_markov": [], "rate_random_walk": []}
+    ps: dict[str, list[float]] = {"gauss_markov": [], "rate_random_walk": []}
     for s in range(20):
         r = m.simulate(rec, np.random.default_rng(s)) - m.predict(rec)
-        for eid, kind in (("gauss_markov", "gauss_markov"), ("rate_random_walk", "random_walk")):
+        for eid in ps:
             # the candidate's p-value is this fit's (floored): without the held-out score's cost
-            ps[eid].append(fit_stochastic(r - r.mean(), rec.dt_s, kind, bootstrap=False).p_value)
+            ps[eid].append(fit_stochastic(r - r.mean(), rec.dt_s, CATALOGUE[eid], bootstrap=False).p_value)
     for eid, p in ps.items():
         assert np.mean(np.array(p) < 0.05) <= 0.1, (eid, p)
 
@@ -288,8 +290,8 @@ def test_random_walk_std_covers_the_truth():
     z = []
     for _ in range(12):
         r = np.cumsum(rng.normal(0, k, n)) + rng.normal(0, 5e-6, n)
-        f = fit_stochastic(r - r.mean(), 1.0, "random_walk")
-        kk, sd = np.sqrt(f.q), 0.5 * f.q_std / np.sqrt(f.q)
+        f = fit_stochastic(r - r.mean(), 1.0, RW)
+        kk, sd = f.params["k_per_rs"], f.params_std["k_per_rs"]
         z.append((kk - k) / sd)
     assert np.mean(np.abs(z) < 2) >= 0.75
     assert abs(np.mean(z)) < 1.0  # no gross bias
@@ -298,7 +300,7 @@ def test_random_walk_std_covers_the_truth():
 def test_p_value_never_underflows_to_zero():
     rng = np.random.default_rng(2)
     r = np.cumsum(rng.normal(0, 1.0, 4000)) + rng.normal(0, 0.01, 4000)
-    assert fit_stochastic(r - r.mean(), 1.0, "random_walk").p_value == 1e-300
+    assert fit_stochastic(r - r.mean(), 1.0, RW).p_value == 1e-300
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -337,13 +339,11 @@ def test_a_stochastic_candidate_on_the_models_own_noise_is_significant_at_its_le
     for seed in range(seeds):
         rng = np.random.default_rng(seed)
         r = rng.normal(0, 1, n) + np.cumsum(rng.normal(0, 0.01, n))  # white + a weak walk
-        fr = fit_stochastic(r - r.mean(), dt, "random_walk")  # bias-corrected, as the workflow names it
-        known = [("rate_random_walk", {"k_per_rs": np.sqrt(fr.q / dt)})]
-        false_gm += fit_stochastic(r - r.mean(), dt, "gauss_markov", known=known).p_value < 0.05
+        fr = fit_stochastic(r - r.mean(), dt, RW)  # bias-corrected, as the workflow names it
+        false_gm += fit_stochastic(r - r.mean(), dt, GM, known=[(RW, fr.params)]).p_value < 0.05
         r = rng.normal(0, 1, n) + _gm_series(rng, n, dt, 0.5, 5.0)  # white + a GM
-        fg = fit_stochastic(r - r.mean(), dt, "gauss_markov")
-        known = [("gauss_markov", {"sigma": fg.sigma, "tau_s": fg.tau_s})]
-        false_rw += fit_stochastic(r - r.mean(), dt, "random_walk", known=known, bootstrap=False).p_value < 0.05
+        fg = fit_stochastic(r - r.mean(), dt, GM)
+        false_rw += fit_stochastic(r - r.mean(), dt, RW, known=[(GM, fg.params)], bootstrap=False).p_value < 0.05
     assert false_gm <= 5 and false_rw <= 5, (false_gm, false_rw)  # ≈ 2 expected of 40 each
 
 
@@ -353,9 +353,8 @@ def test_a_gauss_markov_on_top_of_a_known_walk_is_still_found():
     for seed in range(20):
         rng = np.random.default_rng(100 + seed)
         r = rng.normal(0, 1, n) + np.cumsum(rng.normal(0, 0.02, n)) + _gm_series(rng, n, dt, 0.4, 2.0)
-        fr = fit_stochastic(r - r.mean(), dt, "random_walk", bootstrap=False)
-        known = [("rate_random_walk", {"k_per_rs": np.sqrt(fr.q / dt)})]
-        found += fit_stochastic(r - r.mean(), dt, "gauss_markov", known=known).p_value < 0.05
+        fr = fit_stochastic(r - r.mean(), dt, RW, bootstrap=False)
+        found += fit_stochastic(r - r.mean(), dt, GM, known=[(RW, fr.params)]).p_value < 0.05
     assert found >= 16, found  # 18/20 now; 7/20 with the walk's parameters held fixed
 
 

@@ -84,6 +84,7 @@ def read_measured(path: str) -> Record:
 
 def discover_command(args) -> int:
     from bench.app.reports.discovery_report import write_discovery_report
+    from bench.discovery.effects import CATALOGUE
     from bench.discovery.model import Model, base_model, read_model, write_model
     from bench.discovery.workflow import discover
 
@@ -99,8 +100,8 @@ def discover_command(args) -> int:
             raise ValueError(f"--sensor {args.sensor} contradicts the model file's kind {model.base.kind!r}")
     else:
         model = Model(base_model(args.sensor or run_kind or "accelerometer"))
-    if not 0 <= args.max_effects <= 19:
-        raise ValueError(f"--max-effects {args.max_effects}; allowed: 0..19")
+    if not 0 <= args.max_effects <= len(CATALOGUE):
+        raise ValueError(f"--max-effects {args.max_effects}; allowed: 0..{len(CATALOGUE)} (the catalogue's size)")
     if rec.n < 64:
         raise ValueError(f"{label}: {rec.n} samples; discover needs at least 64")
     if not rec.is_uniform(rtol=0.05):

@@ -68,15 +68,17 @@ def _plots(t: np.ndarray, before: np.ndarray, after: np.ndarray, noise_sd: float
 
 
 def _gap_table(before, after) -> str:
-    rows = [["residual rms / model noise", _fmt(before.rms_ratio), _fmt(after.rms_ratio)],
-            ["Allan distance (decades, rms)", _fmt(before.allan_distance), _fmt(after.allan_distance)],
-            ["spectral distance (dB, rms)", _fmt(before.spectral_distance_db), _fmt(after.spectral_distance_db)],
-            ["whiteness (Ljung–Box p)", _fmt(before.whiteness_p, 3), _fmt(after.whiteness_p, 3)]]
+    rows: list[list[object]] = [
+        ["residual rms / model noise", _fmt(before.rms_ratio), _fmt(after.rms_ratio)],
+        ["Allan distance (decades, rms)", _fmt(before.allan_distance), _fmt(after.allan_distance)],
+        ["spectral distance (dB, rms)", _fmt(before.spectral_distance_db), _fmt(after.spectral_distance_db)],
+        ["whiteness (Ljung–Box p)", _fmt(before.whiteness_p, 3), _fmt(after.whiteness_p, 3)]]
     return html_table(["gap", "before", "after"], rows)
 
 
 def _candidates_table(naming) -> str:
-    rows, bold = [], set()
+    rows: list[list[object]] = []
+    bold = set()
     for i, c in enumerate(naming.candidates):
         if naming.best is not None and c.id == naming.best.id:
             bold.add(i)
@@ -89,8 +91,8 @@ def _candidates_table(naming) -> str:
 
 def _model_table(model) -> str:
     b = model.base
-    rows = [["base", "bias", _fmt(b.bias, 6)], ["base", "scale_factor", _fmt(b.scale_factor, 8)],
-            ["base", "noise_sd (white, per sample)", _fmt(b.noise_sd, 4)]]
+    rows: list[list[object]] = [["base", "bias", _fmt(b.bias, 6)], ["base", "scale_factor", _fmt(b.scale_factor, 8)],
+                                ["base", "noise_sd (white, per sample)", _fmt(b.noise_sd, 4)]]
     rows += [[eid, k, _fmt(v, 6)] for eid, p in model.effects for k, v in p.items()]
     return html_table(["part", "parameter", "value"], rows)
 
