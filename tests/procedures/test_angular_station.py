@@ -62,7 +62,6 @@ def test_frf_recovers_the_drawn_sensors(frf_run):
 
 def test_frf_points_carry_uncertainties_that_cover_the_true_response(frf_run):
     from bench.analysis.fusion_models import SensorModel
-    from sim.physics.rate_sensor_lti import Section, cascade  # noqa: F401 - the sim's own model
 
     outcome, truth, store = frf_run
     points = store.results(outcome.run_id)["frf.points"]
