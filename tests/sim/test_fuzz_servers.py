@@ -233,9 +233,8 @@ def wire_valid(name: str) -> list[tuple[str, int]]:
 
 
 @pytest.fixture(scope="module")
-def station():
-    with SimulatedStation() as sim:
-        yield sim
+def station(served_station):
+    return served_station
 
 
 def _power_gyro(sim) -> None:
