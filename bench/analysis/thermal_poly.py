@@ -26,10 +26,14 @@ The default picks by **BIC**. With the 5 – 9 temperatures of a sweep, leaving 
 point turns its prediction into an extrapolation whose error grows as (ΔT)^n: one end
 point decides the LOO score, which then swings between orders from draw to draw. BIC uses
 the uncertainties the tumble or rate table states, which the end points do not dominate.
-Measured on the tests' independent generator (units with cubic terms at the noise level,
-7 temperatures): BIC chose the true order more often than LOO and its compensated residual
-over a second temperature profile was no larger (figures in docs/METHODS.md,
-"Calibration over temperature"). ``criterion="loo"`` picks by cross-validation instead.
+Measured on the tests' independent generator (1000 units, 7 temperatures −40 … +70 °C, cubic
+terms in half of them, often near the noise): BIC chose the true order for 81.7 % of units,
+LOO for 79.4 %; the selected curve's TC covered its truth at 2σ for 90.8 % (BIC) and 88.6 %
+(LOO); the residual on a second temperature profile was the same for both (docs/METHODS.md,
+``python -m tests.analysis.thermal_coverage``). ``criterion="loo"`` picks by cross-validation
+instead. Figures derived from the curve (a temperature coefficient) carry the doubt about the
+order through :meth:`TemperaturePolynomial.averaged`: BIC-weighted over the candidate orders,
+the TC's 2σ coverage on the same draws is 96.2 %.
 """
 
 from __future__ import annotations

@@ -201,7 +201,8 @@ def test_two_sigma_coverage_of_the_temperature_coefficients_over_drawn_units():
         b = (rng.normal(0, 1e-3), rng.normal(0, 1) * scale, rng.normal(0, 1) * scale / 100,
              rng.normal(0, 1) * scale / 3e4 * (rng.uniform() < 0.5))
         sf0 = rng.uniform(1.2, 1.46)
-        s = (sf0, sf0 * rng.normal(0, 40e-6), sf0 * rng.normal(0, 1e-7), sf0 * rng.normal(0, 2e-9) * (rng.uniform() < 0.5))
+        s = (sf0, sf0 * rng.normal(0, 40e-6), sf0 * rng.normal(0, 1e-7),
+             sf0 * rng.normal(0, 2e-9) * (rng.uniform() < 0.5))
         pb = sweep_points(b, SWEEP_C, rng.uniform(0.5e-6, 3e-6), rng.uniform(0, 0.2), 2 * i)
         ps = sweep_points(s, SWEEP_C, sf0 * rng.uniform(1e-6, 5e-6), rng.uniform(0, 0.2), 2 * i + 1)
         cal = calibrate_over_temperature([
