@@ -136,9 +136,15 @@ def _start(t: np.ndarray, start_s) -> float:
 def soak_status(t_s, temp_c, criterion: SoakCriterion, *, start_s: float | None = None) -> SoakStatus:
     """Is the unit stable at its last reading? ``t_s`` (s, increasing) and ``temp_c`` (°C):
     the unit's sensor so far; ``start_s``: when the set point was commanded (default the
-    first reading). Reads only the trailing window."""
-    t, y = _series(t_s, temp_c)
-    return _judge(t, y, t.size - 1, _start(t, start_s), criterion)
+    first reading). Reads, and checks, only the trailing window and the first reading."""
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(temp_c, dtype=float)
+    if t.ndim != 1 or t.shape != y.shape or t.size == 0:
+        raise ValueError(f"t_s and temp_c must be 1-D of one length ≥ 1, got shapes {t.shape} and {y.shape}")
+    first = max(0, int(np.searchsorted(t, t[-1] - criterion.window_s, side="left")) - 1)
+    tw, yw = _series(t[first:], y[first:])
+    start = _start(np.r_[_series(t[:1], y[:1])[0], tw], start_s)
+    return _judge(tw, yw, tw.size - 1, start, criterion)
 
 
 def find_soak(t_s, temp_c, criterion: SoakCriterion, *, start_s: float | None = None) -> SoakResult:
