@@ -7,7 +7,8 @@ block means of ``block_s``::
     y = p(T_e) + h·s/2 + k·Ṫ + noise,      T_e = T lagged by τ:  τ·dT_e/dt = T − T_e
 
 * p — the **bias-vs-temperature curve** (order 0 … 3 about ``reference_c``, BIC), at zero
-  rate and mid-way between the branches;
+  rate and mid-way between the branches, in the element's temperature T_e (the sensor's
+  when τ = 0);
 * s = +1 on an up branch, −1 on a down branch — the branch flips at each extremum of T
   (found with a ``reversal_band_c`` dead band, so sensor noise cannot flip it); h, the
   **thermal hysteresis**, is the up-minus-down offset at equal temperature and zero rate;
@@ -273,7 +274,7 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     of one length. ``order`` fixes the curve's order (0 … 3; None: BIC). ``block_s`` (0, 3600]
     the averaging block; ``rate_window_s`` [2·block_s, record/4] the rate's window;
     ``reversal_band_c`` (0, 20] the dead band for reversals; ``settle_s`` [0, record/4] left
-    out after each reversal (default ``rate_window_s``); ``lag_s`` the element's lag behind
+    out after each reversal (default 600 s, or a quarter of the record); ``lag_s`` the element's lag behind
     the sensor in s, [0, 1e5], or None to fit it within [0, ``lag_max_s``];
     ``min_separation`` (0, 1), ``steady_tolerance`` (0, 1) and ``steady_window_s``
     [rate_window_s, record/4] the identifiability check.
@@ -320,6 +321,9 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     for s in starts[1:]:
         settling |= (tb >= tb[s]) & (tb < tb[s] + settle)
     used = (state != 0) & ~settling
+    if not (np.any(used & (state > 0)) and np.any(used & (state < 0))):
+        raise ValueError(f"after leaving out settle_s = {settle:g} s after each reversal, no up or no down "
+                         "branch remains: a longer record or a shorter settle_s")
     steady = used & _steady(tb, rate, steady_w, steady_tol * np.abs(rate[used]).max())
     segments = _segments(tb, temp, rate, state, starts, steady)
 
