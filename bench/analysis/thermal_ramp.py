@@ -363,15 +363,15 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
                 "(a lag of the element behind the sensor acts as a rate term unless the curve bends): "
                 "fixed at 0, the rate term carries it")
     x = design.columns(chosen, lag_value)
-    fit = drift_gls.gls(x, yb, used, noise)
+    nodes, weights = drift_gls.noise_quadrature(x, yb, used, noise)
+    fit = drift_gls.gls_integrated(x, yb, used, noise, nodes, weights)
     cov, lag_std = fit.covariance, None
     if fixed_lag is None and "lag_s" not in not_separable:
         # τ's uncertainty from the whitened Jacobian with its column added (linearised at τ̂)
         jac = np.column_stack([x, _lag_jacobian(design, chosen, lag_value, fit.coefficients)])
-        full = drift_gls.gls(jac, yb - x @ fit.coefficients, used, noise)
-        cov_full = full.covariance * (fit.sigma / full.sigma) ** 2
-        lag_std = math.sqrt(cov_full[-1, -1])
-        cov = cov_full[:-1, :-1]
+        full = drift_gls.gls_integrated(jac, yb - x @ fit.coefficients, used, noise, nodes, weights)
+        lag_std = math.sqrt(full.covariance[-1, -1])
+        cov = full.covariance[:-1, :-1]
     n_poly = chosen + 1
     coef = fit.coefficients
     curve = PolynomialCurve(ref, coef[:n_poly].copy(), cov[:n_poly, :n_poly].copy())

@@ -173,16 +173,20 @@ def test_calibration_reports_bias_tc_and_scale_factor_tc_in_ppm():
 
 @settings(max_examples=30, deadline=None)
 @given(bias_coefs, st.floats(0.5e-6, 5e-6), st.floats(0.0, 0.3), st.integers(0, 2**31 - 1))
-def test_recovered_bias_tc_lies_within_its_stated_uncertainty(coef, std, temp_std, seed):
-    """Per drawn unit: the TC at 25 °C within 4σ (a 6e-5 event for a calibrated σ), the curve
-    at every calibration temperature within 4σ of the truth."""
+def test_the_full_order_fit_recovers_every_coefficient_within_its_uncertainty(coef, std, temp_std, seed):
+    """Per drawn unit, the cubic fit (the model holds the truth): every coefficient, the TC
+    and the curve within 4σ (a 6e-5 event each for a calibrated σ, the temperature's own
+    noise entering through the effective variance). The order *chosen* by BIC is not held to
+    this per unit: a cubic the data cannot see bends the slope of a lower order (hypothesis
+    finds such units), which is what the BIC-averaged TC's population coverage answers below."""
     pts = sweep_points(coef, SWEEP_C, std, temp_std, seed)
     q = calibrate_quantity(QuantityPoints("k0", "bias", "g", pts.temperature_c, pts.value, pts.std,
-                                          temperature_std_c=pts.temperature_std_c))
+                                          temperature_std_c=pts.temperature_std_c), order=3)
+    z = (q.fit.coefficients - np.array(coef)) / np.sqrt(np.diag(q.fit.covariance))
+    assert np.all(np.abs(z) <= 4.0), z
     tc = q.temperature_coefficient
-    assert abs(tc.value - coef[1]) <= 4 * tc.std
-    curve = q.fit.evaluate(pts.temperature_c)
-    truth = poly(coef, pts.temperature_c)
+    assert tc == q.temperature_coefficient_selected and abs(tc.value - coef[1]) <= 4 * tc.std
+    curve, truth = q.fit.evaluate(pts.temperature_c), poly(coef, pts.temperature_c)
     assert np.all(np.abs(curve - truth) <= 4 * q.fit.std(pts.temperature_c))
 
 

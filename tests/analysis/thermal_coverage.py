@@ -1,6 +1,6 @@
 """Coverage figures of the thermal analysis, measured on the tests' own generator.
 
-    .venv/bin/python -m tests.analysis.thermal_coverage [--quick]
+    .venv/bin/python -m tests.analysis.thermal_coverage [--quick] [--only order|compensation|ramp|repeatability]
 
 Prints what docs/METHODS.md ("Calibration over temperature") states: the order choice (BIC
 against leave-one-out), 2σ coverage of the temperature coefficients (selected curve and
@@ -102,11 +102,12 @@ def compensated_residual(n: int) -> None:
 def ramp(n: int) -> None:
     rng = np.random.default_rng(13)
     prog = Program.cycles(25.0, -40.0, 70.0, (1.0, 2.0))
-    z: dict[str, list[float]] = {"hysteresis": [], "rate_sensitivity": []}
+    z: dict[str, list[float]] = {"hysteresis": [], "rate_sensitivity": [], "curve at 60 °C": []}
     for i in range(n):
         h, k = rng.uniform(-40e-6, 40e-6), rng.uniform(-30e-6, 30e-6)
         white = rng.uniform(2e-6, 10e-6)
-        unit = ThermalUnit(bias_coef=(1e-3, rng.uniform(1e-6, 4e-5), rng.uniform(-1e-7, 1e-7)), hysteresis=h,
+        coef = (1e-3, rng.uniform(1e-6, 4e-5), rng.uniform(-1e-7, 1e-7))
+        unit = ThermalUnit(bias_coef=coef, hysteresis=h,
                            rate_coef=k, tau_case_s=rng.uniform(120.0, 600.0), white_sd=white,
                            ar1_sd=white * rng.uniform(0.0, 0.1), ar1_phi=0.995, sensor_noise_c=0.01)
         d = simulate_ramp(unit, prog, 10.0, seed=i)
@@ -115,10 +116,12 @@ def ramp(n: int) -> None:
             continue
         z["hysteresis"].append((r.hysteresis.value - h) / r.hysteresis.std)
         z["rate_sensitivity"].append((r.rate_sensitivity.value - k) / r.rate_sensitivity.std)
+        at60 = r.curve.value_at(60.0)
+        z["curve at 60 °C"].append((at60.value - coef[0] - coef[1] * 35.0 - coef[2] * 35.0**2) / (at60.std or 1.0))
     print(f"thermal ramp over {n} units (two rates, 1 and 2 °C/min, white + Gauss-Markov drift):")
     for name, values in z.items():
         v = np.array(values)
-        print(f"  {name}: separated in {v.size}/{n}; 2σ coverage {np.mean(np.abs(v) <= 2):.3f}; "
+        print(f"  {name}: estimated in {v.size}/{n}; 2σ coverage {np.mean(np.abs(v) <= 2):.3f}; "
               f"z mean {v.mean():+.2f}, sd {v.std():.2f}")
 
 
@@ -137,9 +140,14 @@ def repeatability(n: int) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="a tenth of the draws")
+    p.add_argument("--only", choices=("order", "compensation", "ramp", "repeatability"), default=None)
     args = p.parse_args()
     scale = 10 if args.quick else 1
-    for fn, n in ((order_choice, 1000), (compensated_residual, 500), (ramp, 100), (repeatability, 10000)):
+    sections = {"order": (order_choice, 1000), "compensation": (compensated_residual, 500), "ramp": (ramp, 200),
+                "repeatability": (repeatability, 10000)}
+    for name, (fn, n) in sections.items():
+        if args.only not in (None, name):
+            continue
         t0 = time.perf_counter()
         fn(n // scale)
         print(f"  ({time.perf_counter() - t0:.1f} s)")
