@@ -42,6 +42,9 @@ Model-free beside it, the **branch difference curve**: separate polynomials (the
 order) of the sensor temperature for the up and the down branch, their difference over the
 temperatures both branches covered.
 
+The record (block means, rate, branches, steady blocks) is prepared by
+:mod:`bench.analysis.thermal_ramp_record`.
+
 Uncertainties: the residual of a long static record is coloured (bias instability, drift),
 so the fit is a feasible GLS under an AR noise model (:mod:`bench.analysis.ar_gls`); blocks
 within ``settle_s`` after a reversal (the branch in transition) and before the first branch
@@ -60,24 +63,20 @@ from bench.analysis import drift_gls
 from bench.analysis.drift_gls import NoiseModel
 from bench.analysis.thermal_inputs import TEMPERATURE_LIMITS_C, check_int, check_real
 from bench.analysis.thermal_poly import MAX_ORDER, PolynomialCurve, polynomial_rows
+from bench.analysis.thermal_ramp_record import (
+    RampSegment,
+    block_means,
+    branch_states,
+    local_slope,
+    ramp_rates,
+    ramp_segments,
+    steady_blocks,
+)
 from bench.analysis.trend import Estimate
 
 MIN_BLOCKS = 40
 _GRID_POINTS = 41
 _LAG_GRID = 10
-
-
-@dataclass(frozen=True)
-class RampSegment:
-    """A branch between two reversals of the sensor temperature: ``direction`` +1 up, −1 down;
-    ``rate_c_per_min`` the mean rate over its steady blocks (None: none steady)."""
-
-    start_s: float
-    end_s: float
-    direction: int
-    temperature_from_c: float
-    temperature_to_c: float
-    rate_c_per_min: float | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,72 +130,6 @@ class ThermalRampResult:
                 "bic_by_order": {str(k): v for k, v in self.bic_by_order.items()},
                 "noise": self.noise.to_dict(), "noise_sigma": self.noise_sigma, "dof": self.dof,
                 "block_s": self.block_s}
-
-
-# --------------------------------------------------------------------------- the record
-
-
-def _blocks(t, y, temp, block_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Block means; blocks with under half the usual count (edges, gaps) are dropped."""
-    idx = np.floor((t - t[0]) / block_s).astype(np.int64)
-    counts = np.bincount(idx)
-    full = counts >= 0.5 * np.median(counts[counts > 0])
-    means = [np.bincount(idx, v)[full] / counts[full] for v in (t, y, temp)]
-    return means[0], means[1], means[2]
-
-
-def _local_slope(t: np.ndarray, y: np.ndarray, half_width_s: float) -> np.ndarray:
-    """Slope of the least-squares line through the points within ±half_width_s (per s)."""
-    lo = np.searchsorted(t, t - half_width_s, side="left")
-    hi = np.searchsorted(t, t + half_width_s, side="right")
-    u = t - t[0]
-    cs = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones_like(u), u, y, u * u, u * y)]
-    n, su, sy, suu, suy = (c[hi] - c[lo] for c in cs)
-    den = suu - su * su / n
-    with np.errstate(invalid="ignore", divide="ignore"):
-        slope = (suy - su * sy / n) / den
-    return np.where(den > 0, slope, 0.0)
-
-
-def _branches(temp: np.ndarray, band: float) -> tuple[np.ndarray, list[int]]:
-    """Branch state per block (+1 up, −1 down, 0 until the first branch is known) and the
-    branch starts: where the first branch became known, then each extremum of T (a
-    reversal). A direction is taken, and a reversal confirmed, once T has moved ``band`` from
-    the extreme."""
-    n = temp.size
-    starts: list[int] = []
-    directions: list[int] = []
-    direction, i_min, i_max, ext = 0, 0, 0, 0
-    for i in range(1, n):
-        if direction == 0:
-            i_min = i if temp[i] < temp[i_min] else i_min
-            i_max = i if temp[i] > temp[i_max] else i_max
-            # The state before the record is unknown: the first branch counts from the block
-            # where the temperature has moved ``band`` from its extreme, not from the extreme.
-            if temp[i] - temp[i_min] >= band:
-                direction, ext = 1, i
-                starts.append(i)
-            elif temp[i_max] - temp[i] >= band:
-                direction, ext = -1, i
-                starts.append(i)
-            if direction:
-                directions.append(direction)
-            continue
-        if direction * (temp[i] - temp[ext]) > 0:
-            ext = i  # further in the current direction
-        elif direction * (temp[ext] - temp[i]) >= band:
-            # A reversal: it happened when T last stood within band/4 of the extreme (on a
-            # dwell at the extreme, the noise's own maximum would be anywhere in it).
-            near = direction * (temp[ext:i] - temp[ext]) >= -band / 4
-            starts.append(ext + int(np.flatnonzero(near)[-1]))
-            direction = -direction
-            directions.append(direction)
-            ext = i
-    state = np.zeros(n, dtype=int)
-    for k, (first, d) in enumerate(zip(starts, directions)):
-        last = starts[k + 1] if k + 1 < len(starts) else n - 1
-        state[first + 1:last + 1] = d  # the extremum closes the branch that reached it
-    return state, starts
 
 
 def lag_filter(t: np.ndarray, temp: np.ndarray, lag_s: float) -> np.ndarray:
@@ -307,12 +240,12 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     steady_tol = check_real("steady_tolerance", steady_tolerance, 0.0, 1.0, low_open=True)
     steady_w = check_real("steady_window_s", steady_window_s, window, max(span / 4, window))
 
-    tb, yb, temp = _blocks(t, y_raw, temp_raw, block)
+    tb, yb, temp = block_means(t, y_raw, temp_raw, block)
     if tb.size < MIN_BLOCKS:
         raise ValueError(f"the record gives {tb.size} blocks of {block:g} s; at least {MIN_BLOCKS} are needed "
                          "(a shorter block_s or a longer record)")
-    rate = 60.0 * _local_slope(tb, temp, window / 2)
-    state, starts = _branches(temp, band)
+    rate = 60.0 * local_slope(tb, temp, window / 2)
+    state, starts = branch_states(temp, band)
     directions = {int(d) for d in state if d != 0}
     if directions != {1, -1}:
         raise ValueError(f"the temperature never reverses by more than reversal_band_c = {band:g} °C "
@@ -324,8 +257,8 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     if not (np.any(used & (state > 0)) and np.any(used & (state < 0))):
         raise ValueError(f"after leaving out settle_s = {settle:g} s after each reversal, no up or no down "
                          "branch remains: a longer record or a shorter settle_s")
-    steady = used & _steady(tb, rate, steady_w, steady_tol * np.abs(rate[used]).max())
-    segments = _segments(tb, temp, rate, state, starts, steady)
+    steady = used & steady_blocks(tb, rate, steady_w, steady_tol * np.abs(rate[used]).max())
+    segments = ramp_segments(tb, temp, rate, state, starts, steady)
 
     half = state / 2.0
     base = np.column_stack([polynomial_rows(temp - ref, MAX_ORDER), half])
@@ -378,9 +311,9 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     offset_row = np.zeros(coef.size)
     offset_row[n_poly] = 1.0
     hysteresis = rate_sens = None
-    ramp_rates = _ramp_rates(rate, state, used)
+    rates_up_down = ramp_rates(rate, state, used)
     if with_rate:
-        offset_row[n_poly + 1] = ramp_rates[0] - ramp_rates[1]
+        offset_row[n_poly + 1] = rates_up_down[0] - rates_up_down[1]
     if separable:
         hysteresis = Estimate(float(coef[n_poly]), math.sqrt(cov[n_poly, n_poly]))
         rate_sens = Estimate(float(coef[n_poly + 1]), math.sqrt(cov[n_poly + 1, n_poly + 1]))
@@ -389,44 +322,13 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     resid = yb - x @ coef
     return ThermalRampResult(
         curve=curve, hysteresis=hysteresis, rate_sensitivity=rate_sens,
-        lag_s=Estimate(float(lag_value), lag_std), branch_offset=branch_offset, ramp_rates_c_per_min=ramp_rates,
+        lag_s=Estimate(float(lag_value), lag_std), branch_offset=branch_offset, ramp_rates_c_per_min=rates_up_down,
         not_separable=not_separable,
         separation_rate=float(sep_rate), separation_lag=sep_lag, branch_difference_t_c=grid,
         branch_difference=diff, branch_difference_std=diff_std, branch_difference_mean=diff_mean,
         segments=segments, order=chosen, bic_by_order=bic, noise=fit.noise, noise_sigma=fit.sigma,
         dof=fit.dof, block_s=block, block_t_s=tb, block_output=yb, block_temperature_c=temp,
         block_rate_c_per_min=rate, block_branch=state, block_used=used, block_residual=resid)
-
-
-def _steady(tb: np.ndarray, rate: np.ndarray, half_width_s: float, tolerance: float) -> np.ndarray:
-    """Blocks whose rate, and the rates ``half_width_s`` before and after, agree within
-    ``tolerance`` (°C/min); blocks nearer the record's ends are not steady."""
-    before = np.interp(tb - half_width_s, tb, rate)
-    after = np.interp(tb + half_width_s, tb, rate)
-    inside = (tb - half_width_s >= tb[0]) & (tb + half_width_s <= tb[-1])
-    spread = np.maximum.reduce([before, after, rate]) - np.minimum.reduce([before, after, rate])
-    return inside & (spread <= tolerance)
-
-
-def _segments(tb, temp, rate, state, starts, steady) -> tuple[RampSegment, ...]:
-    bounds = starts + [tb.size - 1]
-    out = []
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        d = int(state[min(a + 1, tb.size - 1)])
-        sel = np.zeros(tb.size, dtype=bool)
-        sel[a:b + 1] = True
-        sel &= steady
-        r = float(np.mean(rate[sel])) if np.any(sel) else None
-        out.append(RampSegment(float(tb[a]), float(tb[b]), d, float(temp[a]), float(temp[b]), r))
-    return tuple(out)
-
-
-def _ramp_rates(rate: np.ndarray, state: np.ndarray, used: np.ndarray) -> tuple[float, float]:
-    """Median rate (°C/min) of the up and of the down blocks, dwells (|rate| under a tenth of
-    the largest) left out."""
-    moving = used & (np.abs(rate) >= 0.1 * np.abs(rate[used]).max())
-    up, dn = rate[moving & (state > 0)], rate[moving & (state < 0)]
-    return (float(np.median(up)) if up.size else 0.0, float(np.median(dn)) if dn.size else 0.0)
 
 
 def _branch_difference(tb, temp, yb, state, used, order, ref, noise):

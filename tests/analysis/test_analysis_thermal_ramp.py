@@ -14,6 +14,7 @@ from scipy.linalg import toeplitz
 from bench.analysis import drift_gls
 from bench.analysis.drift_gls import NoiseModel
 from bench.analysis.thermal_ramp import analyze_thermal_ramp, lag_filter
+from bench.analysis.thermal_ramp_record import branch_states, steady_blocks
 from tests.analysis.thermal_truth import Program, ThermalUnit, poly, simulate_ramp
 
 TWO_RATES = Program.cycles(25.0, -40.0, 70.0, (1.0, 2.0))
@@ -64,6 +65,25 @@ def test_reml_finds_the_drift_and_leaves_white_noise_white():
     fit = drift_gls.fit_noise(x, x @ [1.0, 0.3] + drift + rng.normal(0, 1, n), mask)
     assert fit.phi == pytest.approx(0.98, abs=0.01) and fit.ratio == pytest.approx(9.0, rel=0.35)
     assert drift_gls.fit_noise(x, x @ [1.0, 0.3] + rng.normal(0, 1, n), mask).white_only
+
+
+def test_branches_hold_through_a_dwell_and_start_when_the_move_is_known():
+    """Soak at 25, up to 70, dwell 1 h, down to −40: the up branch lasts through the dwell (the
+    reversal is where the dwell ends, not the noise's maximum inside it), nothing before the
+    first move counts, and only settled blocks are steady."""
+    t = np.arange(0.0, 5 * 3600.0 + 110 * 60.0, 60.0)
+    temp = np.interp(t, [0, 3600, 3600 + 45 * 60, 7200 + 45 * 60, 7200 + 155 * 60], [25, 25, 70, 70, -40])
+    temp = temp + np.random.default_rng(0).normal(0, 0.02, t.size)
+    state, starts = branch_states(temp, 0.5)
+    assert np.all(state[t < 3600.0] == 0)
+    dwell_end = 7200.0 + 45 * 60
+    assert abs(t[starts[1]] - dwell_end) <= 180.0
+    assert np.all(state[(t > 3700.0) & (t < dwell_end - 180.0)] == 1)
+    assert np.all(state[t > dwell_end + 180.0] == -1)
+    rate = np.gradient(temp, t) * 60.0
+    steady = steady_blocks(t, rate, 600.0, 0.1)
+    assert not steady[np.searchsorted(t, dwell_end)]  # the turn is not steady
+    assert steady[np.searchsorted(t, dwell_end + 3600.0)]  # the middle of the down ramp is
 
 
 def test_lag_filter_follows_a_ramp_by_its_time_constant():
