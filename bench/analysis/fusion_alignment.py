@@ -4,7 +4,10 @@ A pair recorded on one time column may still be off in time: each sensor's sampl
 run fast or slow against the reference's (a few to a hundred ppm: over a minute, a drift of
 milliseconds, tens of degrees at the LF sensor's corner) and each may report late (latency,
 an unmodelled pole far above the band).  :func:`fit_and_align`, on the stretch it is given
-(the tuning part: the reference of the judged part is never used):
+(the tuning part: the reference of the judged part is never used), with each sensor's
+outliers (spikes, dropouts: > 8 robust σ from its tone fit) replaced by that fit
+(:func:`~bench.analysis.fusion_metrics.without_outliers`) — they are left in the record the
+fusion sees:
 
 1. a quick FRF of each sensor against the reference at the tones (least-squares phasors);
 2. each sensor's clock rate error, from the phase drift of the highest tone it passes
@@ -32,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.analysis.frf_timebase import TimeBase, apply_time_base, estimate_time_base, resample
-from bench.analysis.fusion_metrics import tone_fit, tone_noise_std
+from bench.analysis.fusion_metrics import tone_fit, tone_noise_std, without_outliers
 from bench.analysis.fusion_models import TransferFit, fit_transfer_function
 
 MIN_TONES = 4  # a first-order high- or low-pass with a delay needs this many FRF points (second order: 6)
@@ -102,8 +105,14 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
     if tones.size < MIN_TONES:
         raise ValueError(f"{tones.size} tones; at least {MIN_TONES} are needed to fit a sensor with a delay")
     part = slice(None) if fit_part is None else fit_part
-    tp, rp, hp, lp = t[part], ref[part], hf[part], lf[part]
+    tp, rp = t[part], ref[part]
     notes: list[str] = []
+    cleaned, mask = without_outliers(tp, np.column_stack([hf[part], lf[part]]), tones)
+    hp, lp = cleaned[:, 0], cleaned[:, 1]
+    outliers = mask.sum(axis=0)
+    if np.any(outliers):
+        notes.append(f"outliers left out of the models' identification: {int(outliers[0])} HF and "
+                     f"{int(outliers[1])} LF samples (> 8 robust σ from the tone fit)")
     g_hf, g_lf = _frf(tp, rp, tp, hp, tones, rate_hz)[0], _frf(tp, rp, tp, lp, tones, rate_hz)[0]
     passed_hf = tones[np.abs(g_hf) >= 0.5 * np.max(np.abs(g_hf))]
     passed_lf = tones[np.abs(g_lf) >= 0.5 * np.abs(g_lf[0])]

@@ -41,7 +41,7 @@ between samples: interpolating it linearly scales a tone at ``f`` by ``sinc²(f/
 fs/40, −3 % at fs/10), so the model's prediction of the LF reading carries that droop and the
 innovation would not be free of the signal.  The model is therefore driven by the HF input
 through :func:`inverse_foh_droop`, a symmetric 5-tap filter that undoes that droop to fourth
-order (residual ``O((f/fs)⁶)``: 2·10⁻⁵ at fs/10).  It colours the HF noise only above the
+order (residual ``O((f/fs)⁶)``: 10⁻⁴ at fs/10, 2·10⁻⁶ at fs/20).  It colours the HF noise only above the
 band where the LF reading sees it (its gain is 1 + O((f/fs)²)), so the noise model stays white;
 it looks two samples ahead, so the filter's output at sample ``k`` is the state updated with
 the readings up to ``k − 2`` predicted to ``k`` on the raw HF input (the HF path still has
@@ -64,9 +64,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 from scipy.optimize import minimize
+from scipy.signal import decimate
 
 from bench.analysis import fusion_complementary_kernel as kernel
 from bench.analysis.fusion import AdaptiveNoise, check_series, white_noise_var
+from bench.analysis.fusion_metrics import tone_residual
 from bench.analysis.fusion_models import SensorModel
 
 #: taps (centre, ±1, ±2) of the symmetric filter undoing the first-order hold's sinc² droop to 4th order
@@ -75,6 +77,8 @@ LOOK_AHEAD = 2  # samples the inverse-droop filter looks ahead: the filter's out
 # behind the model's last update
 CHECKPOINT_EVERY = 2048  # samples between the smoother's checkpoints (memory: this × n² floats)
 STEADY_TOL = 1e-10  # the gain is frozen once P moves by less than this fraction of itself (fixed R)
+ML_RATE_PER_LF_CORNER = 20.0  # the likelihood is taken at this many times the LF corner (decimated)
+MIN_ML_SAMPLES = 4096  # ... on at least this many samples
 ML_MAX_SAMPLES = 1 << 17  # the likelihood is taken over at most this many samples (the first)
 RATIO_SPAN = 12.0  # the ML search keeps each log variance ratio within ±RATIO_SPAN of its start (e¹²≈1.6e5)
 
@@ -186,22 +190,39 @@ def inverse_foh_droop(y) -> np.ndarray:
     return out
 
 
+def near_inverse_droop(y) -> np.ndarray:
+    """Two stand-ins for :func:`inverse_foh_droop` that look less far ahead, for the last samples
+    before the one the causal filter outputs (rows: the 3-tap ``y − (Δ²y)/12`` centred on each
+    sample, which looks one ahead; the same second difference taken one sample back, which looks
+    none).  Second-order accurate: what is left is small because it only carries the state over
+    two samples."""
+    y = np.asarray(y, dtype=float)
+    out = np.vstack([y, y])
+    if y.size >= 3:
+        d2 = y[:-2] - 2 * y[1:-1] + y[2:]  # second difference centred on samples 1 … N−2
+        out[0, 1:-1] -= d2 / 12
+        out[1, 2:] -= d2 / 12
+    return out
+
+
 def initial_state(hf_model: SensorModel, lf_model: SensorModel, hf: np.ndarray, lf: np.ndarray,
-                  noise: ComplementaryNoise) -> tuple[np.ndarray, np.ndarray]:
-    """Prior of sample 0: the rate from the first LF reading, both sensors at rest at that rate,
-    the offset at the HF record's mean (a high-pass passes no DC); variances as wide as the
-    record's spread."""
+                  noise: ComplementaryNoise, rate_hz: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Prior of sample 0 from the start of the record only (the filter stays causal): the rate
+    from the first LF reading, both sensors at rest at that rate, the offset at the HF
+    readings' mean over one period of the HF corner (a high-pass passes no DC; the whole record
+    without ``rate_hz``); variances as wide as that stretch's spread."""
     m1, m2 = hf_model.order, lf_model.order
     n = m1 + m2 + 2
     k1, k2 = hf_model.gain, lf_model.gain
-    offset = float(np.mean(hf))
+    head = hf.size if rate_hz is None else min(hf.size, max(16, int(rate_hz / hf_model.corner_hz)))
+    offset = float(np.mean(hf[:head]))
     w0 = float(lf[0]) / k2
     x0 = np.zeros(n)
     x0[0] = w0 - (float(hf[0]) - offset) / k1
     x0[m1] = w0
     x0[n - 1] = offset
-    spread = float(np.var(hf / k1) + np.var(lf / k2)) + 1e-300
-    p0 = np.diag(np.concatenate([np.full(m1 + m2, spread), [noise.hf_var, float(np.var(hf)) + noise.hf_var]]))
+    spread = float(np.var(hf[:head] / k1) + np.var(lf[:head] / k2)) + 1e-300
+    p0 = np.diag(np.concatenate([np.full(m1 + m2, spread), [noise.hf_var, float(np.var(hf[:head])) + noise.hf_var]]))
     return x0, p0
 
 
@@ -229,7 +250,7 @@ def complementary_kalman(hf, lf, ts_s: float, hf_model: SensorModel, lf_model: S
     Document B's adaptive R (module docstring).  Compiled: 10⁶ samples in well under a second."""
     hf, lf = check_series(hf, lf)
     system = complementary_system(hf_model, lf_model, ts_s)
-    x0, p0 = initial_state(hf_model, lf_model, hf, lf, noise)
+    x0, p0 = initial_state(hf_model, lf_model, hf, lf, noise, 1.0 / ts_s)
     u = hf / hf_model.gain
     if lf_noise is None:
         r_lo = r_hi = float(noise.lf_var)
@@ -240,7 +261,7 @@ def complementary_kalman(hf, lf, ts_s: float, hf_model: SensorModel, lf_model: S
     args = (system.phi, system.row_kind, system.g0, system.g1, system.q(noise), system.h)
     u_model = inverse_foh_droop(u)
     rate, nu, s, r, interval, ck_x, ck_p, k_steady, p, gain = kernel.complementary_forward(
-        u_model, u, lf, *args, system.h_rate, r_lo, r_hi, a, b, lf_noise is not None, tuple(x0.tolist()), p0,
+        u_model, u, near_inverse_droop(u), lf, *args, system.h_rate, r_lo, r_hi, a, b, lf_noise is not None, tuple(x0.tolist()), p0,
         CHECKPOINT_EVERY, STEADY_TOL, LOOK_AHEAD)
     smoothed = None
     if smooth:
@@ -253,8 +274,9 @@ def complementary_kalman(hf, lf, ts_s: float, hf_model: SensorModel, lf_model: S
 @dataclass(frozen=True)
 class NoiseFit:
     """Maximum-likelihood noise of :func:`fit_complementary_noise`: the estimate, ``-2 log L``
-    per sample at it, the start it came from, the number of likelihood evaluations and whether
-    the optimiser met its tolerance (``at_bound``: a ratio ended at its search limit)."""
+    per sample at it, the start it came from, the number of likelihood evaluations, whether
+    the optimiser met its tolerance (``at_bound``: a ratio ended at its search limit) and the
+    decimation the likelihood was taken at."""
 
     noise: ComplementaryNoise
     neg2_loglik_per_sample: float
@@ -263,17 +285,40 @@ class NoiseFit:
     evaluations: int
     converged: bool
     at_bound: bool
+    decimation: int = 1
 
     def to_dict(self) -> dict:
         return {"noise": self.noise.to_dict(), "neg2_loglik_per_sample": float(self.neg2_loglik_per_sample),
                 "n_samples": int(self.n_samples), "start": self.start.to_dict(), "evaluations": int(self.evaluations),
                 "converged": bool(self.converged), "at_bound": bool(self.at_bound),
+                "decimation": int(self.decimation),
                 "method": "maximum likelihood of the LF innovations (scale concentrated out, Nelder-Mead on "
                           "log(lf_var/hf_var), log(offset_rw·Ts/hf_var))"}
 
 
+def likelihood_decimation(rate_hz: float, lf_model: SensorModel, n_samples: int) -> int:
+    """How much :func:`fit_complementary_noise` decimates a record before its likelihood: down to
+    ``ML_RATE_PER_LF_CORNER`` times the LF corner (where the sensors' noise levels decide the
+    weighting), keeping at least ``MIN_ML_SAMPLES`` samples; a power of two."""
+    factor = max(1, min(int(rate_hz // (ML_RATE_PER_LF_CORNER * lf_model.corner_hz)), n_samples // MIN_ML_SAMPLES))
+    return 1 << (factor.bit_length() - 1)
+
+
+def decimate_pair(hf: np.ndarray, lf: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
+    """Both records low-passed (zero-phase FIR, the same for both: the sensors' models still
+    relate them) and decimated by ``factor`` (a power of two), in stages of at most 8."""
+    if factor < 1 or factor & (factor - 1):
+        raise ValueError(f"factor {factor} must be a power of two ≥ 1")
+    while factor > 1:
+        step = min(factor, 8)
+        hf, lf = (decimate(y, step, ftype="fir", zero_phase=True) for y in (hf, lf))
+        factor //= step
+    return hf, lf
+
+
 def fit_complementary_noise(hf, lf, ts_s: float, hf_model: SensorModel, lf_model: SensorModel, *,
-                            start: ComplementaryNoise | None = None) -> NoiseFit:
+                            start: ComplementaryNoise | None = None, factor: int | None = None,
+                            tones_hz=None, t_s=None) -> NoiseFit:
     """Maximum-likelihood estimate of :class:`ComplementaryNoise` from the records themselves
     (no reference needed): the filter's innovations ``ν_k`` with variances ``S_k`` give
     ``−2 log L = Σ (log 2πS_k + ν_k²/S_k)``.  Scaling all three variances (and the prior) by λ
@@ -281,9 +326,32 @@ def fit_complementary_noise(hf, lf, ts_s: float, hf_model: SensorModel, lf_model
     (``λ̂ = mean(ν²/S)``) and Nelder–Mead searches the two log ratios ``lf_var/hf_var`` and
     ``offset_rw·Ts/hf_var``, started from the best of a coarse grid about ``start`` (default:
     each record's second-difference white-noise variance, offset drift 10⁻³ of the HF noise
-    per second).  The likelihood is taken over the first ``ML_MAX_SAMPLES`` samples (2¹⁷: the
-    variances' relative standard error is then well under 1 %)."""
+    per second).
+
+    **Where the likelihood looks.**  The variances the filter needs are the sensors' noise
+    levels at the frequencies where it blends them (up to a few times the LF corner); a white
+    model fitted over the whole band would be skewed by noise that is not white up there (LF
+    frames at a lower rate resampled, a converter's aperture).  So both records are first
+    decimated by ``factor`` (default :func:`likelihood_decimation`: to 20× the LF corner,
+    :func:`decimate_pair`), the likelihood taken over the first ``ML_MAX_SAMPLES`` decimated
+    samples (2¹⁷: the variances' relative standard error is then well under 1 %), and the
+    variances returned as white noise of the same density at the full rate (× ``factor``).
+
+    **Known tones** (``tones_hz``, e.g. the table's profile): their least-squares fit (at the
+    samples' instants ``t_s``, default ``k·ts_s``: a clock-corrected record's are not) is taken
+    out of both records first, so that what the likelihood sees is the sensors' noise and not
+    the tones through the slight mismatch of any discrete model (which it would call noise)."""
     hf, lf = check_series(hf, lf)
+    if tones_hz is not None and len(tones_hz):
+        t = np.arange(hf.size) * ts_s if t_s is None else np.asarray(t_s, dtype=float)
+        if t.size != hf.size:
+            raise ValueError(f"t_s has {t.size} samples and hf {hf.size}; they must match")
+        hf, lf = tone_residual(t, np.column_stack([hf, lf]), np.asarray(tones_hz, dtype=float)).T
+    if factor is None:
+        factor = likelihood_decimation(1.0 / ts_s, lf_model, hf.size)
+    if factor > 1:
+        hf, lf = decimate_pair(hf, lf, factor)
+        ts_s = ts_s * factor
     hf, lf = hf[:ML_MAX_SAMPLES], lf[:ML_MAX_SAMPLES]
     if start is None:
         k1, k2 = hf_model.gain, lf_model.gain
@@ -291,7 +359,7 @@ def fit_complementary_noise(hf, lf, ts_s: float, hf_model: SensorModel, lf_model
         lf0 = max(white_noise_var(lf), 1e-30 * k2 * k2)
         start = ComplementaryNoise(hf0, lf0, 1e-3 * hf0)
     unit = ComplementaryNoise(1.0, start.lf_var / start.hf_var, start.offset_rw / start.hf_var)
-    x0, p0_start = initial_state(hf_model, lf_model, hf, lf, start)
+    x0, p0_start = initial_state(hf_model, lf_model, hf, lf, start, 1.0 / ts_s)
     p0_unit = p0_start / start.hf_var
     u = inverse_foh_droop(hf / hf_model.gain)
     x0t = tuple(x0.tolist())
@@ -325,5 +393,5 @@ def fit_complementary_noise(hf, lf, ts_s: float, hf_model: SensorModel, lf_model
     at_bound = bool(np.any(np.isclose(rho, lo) | np.isclose(rho, hi)))
     _, sum_nis, count = unit_run(rho)  # the scale λ at the optimum
     lam = sum_nis / count
-    noise = ComplementaryNoise(lam, lam * math.exp(rho[0]), lam * math.exp(rho[1]) / ts_s)
-    return NoiseFit(noise, float(sol.fun), int(count), start, evaluations, bool(sol.success), at_bound)
+    noise = ComplementaryNoise(factor * lam, factor * lam * math.exp(rho[0]), lam * math.exp(rho[1]) / ts_s)
+    return NoiseFit(noise, float(sol.fun), int(count), start, evaluations, bool(sol.success), at_bound, factor)

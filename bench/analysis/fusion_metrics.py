@@ -37,6 +37,36 @@ def tone_fit(t_s, y, freqs_hz) -> tuple[np.ndarray, np.ndarray]:
     return coef[1:1 + f.size] - 1j * coef[1 + f.size:1 + 2 * f.size], y - design @ coef
 
 
+def without_outliers(t_s, y, freqs_hz, threshold: float = 8.0) -> tuple[np.ndarray, np.ndarray]:
+    """``y`` (a series or columns of series) with its outliers — samples whose residual from the
+    least-squares tone fit exceeds ``threshold`` robust standard deviations (1.4826·MAD) —
+    replaced by the fit, the fit then redone without them; and the outlier mask.  For
+    identifying sensors (FRF, noise levels) on records with spikes or dropouts, whose few
+    huge samples would otherwise leak into every tone and every variance."""
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(y, dtype=float)
+    cols = y.reshape(y.shape[0], -1)
+    f = np.asarray(freqs_hz, dtype=float)
+    arg = 2 * np.pi * np.outer(t - t[0], f)
+    design = np.column_stack([np.ones_like(t), np.cos(arg), np.sin(arg)])
+    out, mask = cols.copy(), np.zeros(cols.shape, dtype=bool)
+    for j in range(cols.shape[1]):
+        keep = np.ones(t.size, dtype=bool)
+        for _ in range(2):
+            d = design[keep]
+            coef = np.linalg.solve(d.T @ d, d.T @ cols[keep, j])
+            fit = design @ coef
+            r = cols[:, j] - fit
+            mad = 1.4826 * float(np.median(np.abs(r[keep] - np.median(r[keep]))))
+            bad = np.abs(r) > threshold * mad if mad > 0 else np.zeros(t.size, dtype=bool)
+            if not np.any(bad) or np.array_equal(~bad, keep) or bad.sum() > t.size // 4:
+                break
+            keep = ~bad
+        mask[:, j] = ~keep
+        out[~keep, j] = fit[~keep]
+    return out.reshape(y.shape), mask.reshape(y.shape)
+
+
 def sine_phasors(t_s, y, freqs_hz) -> np.ndarray:
     """Complex amplitudes ``Aᵢ`` (``y ≈ c + Σ |Aᵢ| cos(2πfᵢt + arg Aᵢ)``) by one joint LS fit;
     ``y`` may hold several series as columns (then one row of phasors per tone, column per series)."""

@@ -36,6 +36,7 @@ from scipy.optimize import least_squares
 
 KINDS = ("highpass", "lowpass")
 DISCRETIZATIONS = ("euler", "zoh")
+CORNER_STARTS = (1.0, 0.3, 3.0)  # the fit starts from the −3 dB crossing and from these multiples of it
 ORDER_GAIN_FACTOR = 2.0  # a higher order is kept only if it divides the relative RMS misfit by this
 
 
@@ -154,7 +155,8 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
     ``fit_delay``: the model becomes ``G(jω)·e^{−jωτ}`` with a **signed** delay ``τ`` (s;
     positive = the sensor lags the reference: latency, an unmodelled far pole ≈ ``1/(2πf_p)``,
     or a timestamp offset, which may have either sign), started from the phase slope at the
-    top of the band (:func:`_phase_slope_delay`) and from 0, keeping the better.
+    top of the band (:func:`_phase_slope_delay`) and from 0, keeping the better; the corner is
+    started from the −3 dB crossing and from ``CORNER_STARTS`` multiples of it.
 
     **Order rule**: start at order 1; order ``n+1`` replaces ``n`` only if
     its relative RMS misfit is below ``1/ORDER_GAIN_FACTOR`` (half) of order ``n``'s — one
@@ -211,11 +213,13 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
 
         best = None
         for tau0 in taus0:
-            x0 = [math.log(abs(k0)), math.log(fc0)] + ([math.log(math.sqrt(0.5))] if order == 2 else [])
-            x0 += [tau0 / delay_scale] if fit_delay else []
-            sol = least_squares(misfit, x0, method="lm")
-            if best is None or sol.cost < best.cost:
-                best = sol
+            for corner_factor in CORNER_STARTS:  # a noisy −3 dB crossing can start far off: several starts
+                x0 = [math.log(abs(k0)), math.log(fc0 * corner_factor)]
+                x0 += [math.log(math.sqrt(0.5))] if order == 2 else []
+                x0 += [tau0 / delay_scale] if fit_delay else []
+                sol = least_squares(misfit, x0, method="lm")
+                if best is None or sol.cost < best.cost:
+                    best = sol
         zeta = math.exp(best.x[2]) if order == 2 else math.sqrt(0.5)
         fits[order] = SensorModel(kind, order, math.exp(best.x[1]), math.copysign(math.exp(best.x[0]), k0), zeta)
         delays[order] = float(best.x[-1] * delay_scale) if fit_delay else 0.0

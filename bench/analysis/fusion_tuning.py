@@ -231,13 +231,19 @@ class SettingsTuning:
                                 "feasible": bool(sc.feasible)} for st, sc in self.candidates]}
 
 
-def tune_settings(scorer: ToneScorer, settings: list, run) -> SettingsTuning:
+def tune_settings(scorer: ToneScorer, settings: list, run, rms_only: bool = False) -> SettingsTuning:
     """Score ``run(**s)`` (a rate over the scorer's stretch) for every dict ``s`` of
-    ``settings`` and :func:`choose` one."""
+    ``settings`` and :func:`choose` one (``rms_only``: the lowest RMS error, for a method whose
+    setting trades noise against noise and not against lag, as a complementary filter's
+    crossover does)."""
     if not settings:
         raise ValueError("no settings to tune over")
     scores = [scorer.score(run(**st)) for st in settings]
-    index, rule = choose(scores)
+    if rms_only:
+        index = min(range(len(scores)), key=lambda i: (scores[i].rms_error, i))
+        rule = "lowest RMS error"
+    else:
+        index, rule = choose(scores)
     return SettingsTuning(dict(settings[index]), list(zip(settings, scores)), rule)
 
 
