@@ -28,9 +28,10 @@ record *tunes* and the rest (after ``settle_s``) *judges*:
 4. **recommended**: among the methods whose RMS error is no worse than the best of each sensor
    alone and the complementary filter (the baselines that need no model of the signal), those
    whose excess is within two standard errors at every tone, the lowest RMS error; if none is,
-   the lowest worst excess (:func:`~bench.analysis.fusion_tuning.choose`).  The judged part is
-   where the choice is made, so the recommended method's figures there carry the (small)
-   optimism of a choice among nine.
+   the lowest worst excess counted in standard errors
+   (:func:`~bench.analysis.fusion_tuning.choose`).  The judged part is where the choice is
+   made, so the recommended method's figures there carry the (small) optimism of a choice
+   among nine.
 
 **Without a reference** nothing can be judged: every method runs with settings from the data
 alone (Document B's defaults, the crossover at ``√(f_h·f_l)``, the complementary noise by
@@ -186,10 +187,13 @@ def recommend(judgement: Judgement) -> tuple[str, str]:
     rms = {k: judgement.rms_error[k] if math.isfinite(judgement.rms_error[k]) else math.inf for k in names}
     bar = min((rms[k] for k in BASELINES if k in rms), default=math.inf)
     names = [k for k in names if rms[k] <= bar]
-    scores = [_Choice(rms[k], judgement.worst_excess_pct(k), judgement.feasible[k]) for k in names]
+    # the fallback ranks by the worst excess in its own standard errors: the rule's own measure
+    scores = [_Choice(rms[k], judgement.worst_excess_sigma(k), judgement.feasible[k]) for k in names]
     index, rule = choose(scores)
+    rule = rule.replace("within tolerance", "within 2 standard errors").replace("worst excess",
+                                                                               "worst excess in standard errors")
     return names[index], ("among the methods no worse in RMS than the best of each sensor and the complementary "
-                          "filter: " + rule.replace("within tolerance", "within 2 standard errors"))
+                          "filter: " + rule)
 
 
 @dataclass
@@ -391,18 +395,17 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
                               "lf_r": float(params.lf_noise.nominal)}
 
     # complementary filter
+    cf_tuning: SettingsTuning | None = None
     if crossover_hz is None and scorer is not None:
         cf_model = FusionModel(hf_model, lf_model, 1.0)
-        cf_tuning: SettingsTuning | None = tune_settings(
+        cf_tuning = tune_settings(
             scorer, crossover_grid(hf_model.corner_hz, lf_model.corner_hz, rate_hz),
             lambda crossover_hz: fu.complementary_filter(hf[tune], lf[tune], rate_hz, cf_model, crossover_hz),
             rms_only=True)
         crossover_hz = float(cf_tuning.chosen["crossover_hz"])
-    else:
-        cf_tuning = None
-        crossover_hz = float(crossover_hz) if crossover_hz is not None else math.sqrt(hf_model.corner_hz
-                                                                                      * lf_model.corner_hz)
-    settings["complementary"] = {"crossover_hz": crossover_hz,
+    elif crossover_hz is None:
+        crossover_hz = math.sqrt(hf_model.corner_hz * lf_model.corner_hz)
+    settings["complementary"] = {"crossover_hz": float(crossover_hz),
                                  "tuning": None if cf_tuning is None else cf_tuning.to_dict()}
 
     # complementary Kalman filter: noise by maximum likelihood, adaptive R on top chosen by the rule
@@ -413,16 +416,15 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
         noise_fit = fc.fit_complementary_noise(hf[tune], lf[tune], ts, hf_model, lf_model)
     cnoise = noise_fit.noise
     settings["complementary_kf"] = settings["complementary_smoother"] = {"noise": cnoise.to_dict()}
+    ad_tuning: SettingsTuning | None = None
+    adaptive = {"upper_factor": fu.UPPER_FACTOR, "inflate": fu.INFLATE}
     if scorer is not None:
-        ad_tuning: SettingsTuning | None = tune_settings(
+        ad_tuning = tune_settings(
             scorer, list(ADAPTIVE_SETTINGS),
             lambda upper_factor, inflate: fc.complementary_kalman(
                 hf[tune], lf[tune], ts, hf_model, lf_model, cnoise,
                 lf_noise=fu.AdaptiveNoise.from_noise(cnoise.lf_var, 0.0, upper_factor, inflate)).rate)
         adaptive = dict(ad_tuning.chosen)
-    else:
-        ad_tuning = None
-        adaptive = {"upper_factor": fu.UPPER_FACTOR, "inflate": fu.INFLATE}
     lf_adaptive = fu.AdaptiveNoise.from_noise(cnoise.lf_var, 0.0, adaptive["upper_factor"], adaptive["inflate"])
     settings["complementary_kf_adaptive"] = settings["complementary_smoother_adaptive"] = {
         "noise": cnoise.to_dict(), "lf_noise": lf_adaptive.to_dict(),

@@ -261,8 +261,8 @@ def complementary_kalman(hf, lf, ts_s: float, hf_model: SensorModel, lf_model: S
     args = (system.phi, system.row_kind, system.g0, system.g1, system.q(noise), system.h)
     u_model = inverse_foh_droop(u)
     rate, nu, s, r, interval, ck_x, ck_p, k_steady, p, gain = kernel.complementary_forward(
-        u_model, u, near_inverse_droop(u), lf, *args, system.h_rate, r_lo, r_hi, a, b, lf_noise is not None, tuple(x0.tolist()), p0,
-        CHECKPOINT_EVERY, STEADY_TOL, LOOK_AHEAD)
+        u_model, u, near_inverse_droop(u), lf, *args, system.h_rate, r_lo, r_hi, a, b, lf_noise is not None,
+        tuple(x0.tolist()), p0, CHECKPOINT_EVERY, STEADY_TOL, LOOK_AHEAD)
     smoothed = None
     if smooth:
         s_steady = float(s[k_steady]) if k_steady < s.size else 0.0

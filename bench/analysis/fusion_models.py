@@ -211,15 +211,14 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
             r = (model - g) / scale
             return np.concatenate([r.real, r.imag])
 
-        best = None
+        sols = []
         for tau0 in taus0:
             for corner_factor in CORNER_STARTS:  # a noisy −3 dB crossing can start far off: several starts
                 x0 = [math.log(abs(k0)), math.log(fc0 * corner_factor)]
                 x0 += [math.log(math.sqrt(0.5))] if order == 2 else []
                 x0 += [tau0 / delay_scale] if fit_delay else []
-                sol = least_squares(misfit, x0, method="lm")
-                if best is None or sol.cost < best.cost:
-                    best = sol
+                sols.append(least_squares(misfit, x0, method="lm"))
+        best = min(sols, key=lambda sol: sol.cost)
         zeta = math.exp(best.x[2]) if order == 2 else math.sqrt(0.5)
         fits[order] = SensorModel(kind, order, math.exp(best.x[1]), math.copysign(math.exp(best.x[0]), k0), zeta)
         delays[order] = float(best.x[-1] * delay_scale) if fit_delay else 0.0

@@ -77,8 +77,8 @@ def test_compiled_filter_and_smoother_equal_the_textbook_recursions(hf_order, lf
     u = hf / hf_model.gain
     um = fc.inverse_foh_droop(u)
     q = system.q(noise)
-    args = (um, u, fc.near_inverse_droop(u), lf, system.phi, system.row_kind, system.g0, system.g1, q, system.h, system.h_rate, 1e-4, 1e-4,
-            np.zeros(3), np.zeros(3), False, tuple(x0), p0, 256)
+    args = (um, u, fc.near_inverse_droop(u), lf, system.phi, system.row_kind, system.g0, system.g1, q, system.h,
+            system.h_rate, 1e-4, 1e-4, np.zeros(3), np.zeros(3), False, tuple(x0), p0, 256)
     ref_rate, ref_smooth = textbook(um, u, lf, system, q, 1e-4, x0, p0)
     for tol in (0.0, fc.STEADY_TOL):
         rate, nu, s, r, iv, ck_x, ck_p, k_steady, p, gain = kernel.complementary_forward(*args, tol, 0)

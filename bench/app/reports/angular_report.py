@@ -292,9 +292,12 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
                  "worst excess over the better sensor", "within 2σ at every tone"],
                 rows, bold_rows={methods.index(recommended)} if recommended in methods else frozenset()))
         f = analysis["tones_hz"]
-        tone_rows: list[list[object]] = [[_fmt(fk)] + [f"{analysis['amplitude_error_pct'][m][i]:+.3g} / "
-                                                       f"{analysis['phase_error_deg'][m][i]:+.3g}" for m in methods]
-                                         for i, fk in enumerate(f)]
+        tone_rows: list[list[object]] = []
+        for i, fk in enumerate(f):
+            cells: list[object] = [_fmt(fk)]
+            cells += [f"{analysis['amplitude_error_pct'][m][i]:+.3g} / {analysis['phase_error_deg'][m][i]:+.3g}"
+                      for m in methods]
+            tone_rows.append(cells)
         parts.append("<h3>Per tone: amplitude error (%) / phase error (deg)</h3>"
                      + html_table(["tone (Hz)"] + [_label(m) for m in methods], tone_rows))
         nis_rows: list[list[object]] = [[k, _fmt(v["mean"]), f"{_fmt(v['lower'])}..{_fmt(v['upper'])}",
