@@ -36,7 +36,8 @@ from scipy.optimize import least_squares
 
 KINDS = ("highpass", "lowpass")
 DISCRETIZATIONS = ("euler", "zoh")
-CORNER_STARTS = (1.0, 0.3, 3.0)  # the fit starts from the −3 dB crossing and from these multiples of it
+CORNER_STARTS = (1.0, 0.3, 3.0)
+LOG_LIMIT = 60.0  # log-parameters are clipped here inside the misfit (e⁶⁰ ≈ 10²⁶)  # the fit starts from the −3 dB crossing and from these multiples of it
 ORDER_GAIN_FACTOR = 2.0  # a higher order is kept only if it divides the relative RMS misfit by this
 
 
@@ -204,8 +205,9 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
     fits, residuals, delays, costs = {}, {}, {}, {}
     for order in range(1, max_order + 1):
         def misfit(p, order=order):
-            zeta = math.exp(p[2]) if order == 2 else 1.0
-            model = _response(f, kind, order, math.exp(p[1]), math.copysign(math.exp(p[0]), k0), zeta)
+            lp = np.clip(p[:3], -LOG_LIMIT, LOG_LIMIT)  # a wild step from a far start must not overflow
+            zeta = math.exp(lp[2]) if order == 2 else 1.0
+            model = _response(f, kind, order, math.exp(lp[1]), math.copysign(math.exp(lp[0]), k0), zeta)
             if fit_delay:
                 model = model * np.exp(-2j * np.pi * f * p[-1] * delay_scale)
             r = (model - g) / scale
@@ -218,7 +220,8 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
                 x0 += [math.log(math.sqrt(0.5))] if order == 2 else []
                 x0 += [tau0 / delay_scale] if fit_delay else []
                 sols.append(least_squares(misfit, x0, method="lm"))
-        best = min(sols, key=lambda sol: sol.cost)
+        best = min((sol for sol in sols if np.all(np.abs(sol.x[:3 if order == 2 else 2]) < LOG_LIMIT)),
+                   key=lambda sol: sol.cost, default=min(sols, key=lambda sol: sol.cost))
         zeta = math.exp(best.x[2]) if order == 2 else math.sqrt(0.5)
         fits[order] = SensorModel(kind, order, math.exp(best.x[1]), math.copysign(math.exp(best.x[0]), k0), zeta)
         delays[order] = float(best.x[-1] * delay_scale) if fit_delay else 0.0

@@ -12,8 +12,10 @@ form from the table's motion; this file does not).  Different code, different di
   run from a pre-roll so its start transient has died, then decimated: the LF sensor either
   samples its output or averages it over each interval (an integrating converter), the HF
   sensor samples it;
-* noise (white, a given fraction of the signal's RMS), offsets, spikes (single-sample outliers)
-  and dropouts (stretches where the reading falls to its offset) are added to the samples.
+* noise (white, a given fraction of the signal's RMS), the HF sensor's output offset, spikes
+  (single-sample outliers) and dropouts (stretches where the reading falls to its offset) are
+  added to the samples (no LF bias: a bench removes it before fusing — the rig from its static
+  segment — and any left is a constant rate to every method alike, the HF sensor seeing no DC).
 
 :func:`draw_spec` draws a pair's regime from its seed (corner ratio 3–300, sample rate
 1–20 kHz, tones up to a fifth of the sample rate or a third of the HF sensor's upper pole,
@@ -103,7 +105,7 @@ def draw_spec(seed: int, max_samples: int = MAX_SAMPLES) -> PairSpec:
     hf_upper = _log_uniform(rng, 0.3 * fs, 1.5 * fs) if rng.uniform() < 0.5 else None
     f_top = min(0.2 * fs, hf_upper / 3 if hf_upper else math.inf)
     f_bottom = max(f_lowest, fh / 4)
-    n_tones = int(rng.integers(5, 10))
+    n_tones = int(rng.integers(6, 11))  # a second-order sensor with a delay needs six FRF points
     grid = np.geomspace(f_bottom, f_top, n_tones)
     jitter = np.exp(rng.uniform(-0.08, 0.08, n_tones) * math.log(f_top / f_bottom) / max(n_tones - 1, 1))
     freqs = np.clip(np.sort(grid * jitter), f_bottom, f_top)
@@ -144,13 +146,15 @@ def draw_spec(seed: int, max_samples: int = MAX_SAMPLES) -> PairSpec:
                 False, hf_spikes, hf_drops)
     lf = Sensor("lowpass", int(rng.integers(1, 3)), fl, rng.uniform(0.5, 1.0), lf_gain, None,
                 rng.uniform(0.0, 2e-3), rng.choice([-1.0, 1.0]) * rng.uniform(5, 100) if lf_skew else 0.0,
-                regime["lf_noise_rel"] * rms * lf_gain, 1e-3 * rms * lf_gain * rng.uniform(-1, 1),
+                # no LF bias: a bench takes it out before fusing (the rig's static segment); what is
+                # left is a constant rate to every method alike, since the HF sensor sees no DC
+                regime["lf_noise_rel"] * rms * lf_gain, 0.0 * rng.uniform(-1, 1),
                 bool(rng.uniform() < 0.5), lf_spikes, lf_drops)
     tones = tuple((float(f), float(a), float(p)) for f, a, p in zip(freqs, amps, phases))
     return PairSpec(seed, float(fs), float(n / fs), tones, hf, lf, regime)
 
 
-def _analog(sensor: Sensor) -> tuple[np.ndarray, np.ndarray]:
+def analog_prototype(sensor: Sensor) -> tuple[np.ndarray, np.ndarray]:
     """Numerator and denominator (descending powers of s) of the sensor's analog prototype."""
     wc = 2 * math.pi * sensor.corner_hz
     den = np.array([1 / wc, 1.0] if sensor.order == 1 else [1 / wc ** 2, 2 * sensor.zeta / wc, 1.0])
@@ -183,7 +187,7 @@ def _record(spec: PairSpec, sensor: Sensor, rng: np.random.Generator) -> np.ndar
     k = np.arange(-pre * OVERSAMPLE, n * OVERSAMPLE)
     # the sensor's clock: its nominal instant k/fine is really taken at (1 + ppm)·k/fine; it reads late by delay
     t_true = (k / fine) * (1 + sensor.clock_ppm * 1e-6) - sensor.delay_s
-    b, a = bilinear(*_analog(_prewarped(sensor, fine)), fine)
+    b, a = bilinear(*analog_prototype(_prewarped(sensor, fine)), fine)
     x = spec.rate(t_true)
     y = lfilter(b, a, x, zi=lfilter_zi(b, a) * x[0])[0]
     y = y[pre * OVERSAMPLE:]

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from bench.analysis.fusion_analysis import BASELINES, analyze_fusion
-from tests.analysis.fusion_pairs import _analog, draw_spec, judge, make_pair
+from tests.analysis.fusion_pairs import analog_prototype, draw_spec, judge, make_pair
 
 
 def test_the_generator_imports_nothing_of_the_bench_or_the_simulator():
@@ -42,7 +42,7 @@ def test_generated_sensors_respond_as_their_analog_prototypes(seed):
     coef = np.linalg.lstsq(design, np.column_stack([rec["ref"], rec["hf"], rec["lf"]]), rcond=None)[0]
     phasor = coef[1::2] - 1j * coef[2::2]
     for col, sensor in ((1, spec.hf), (2, spec.lf)):
-        num, den = _analog(sensor)
+        num, den = analog_prototype(sensor)
         s = 2j * np.pi * f
         expected = np.polyval(num, s) / np.polyval(den, s)
         measured = phasor[:, col] / phasor[:, 0]

@@ -279,17 +279,20 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
             ex, sd = excess_over_best(analysis, method)
             with np.errstate(divide="ignore", invalid="ignore"):
                 z = np.where(sd > 0, ex / sd, np.where(ex > 0, np.inf, 0.0))
+            sensor_ok = (analysis.get("feasible_sensor") or {}).get(method)
             rows.append([_label(method) + (" (recommended)" if method == recommended else ""), _fmt(rms[method]),
                          _fmt(float(amp.max())), _fmt(float(ph.max())),
                          f"{float(ex.max()):+.3g} pp ({float(z.max()):.3g}σ)",
-                         "yes" if bool(np.all(ex <= 2 * sd)) else "no"])
+                         ("yes" if bool(np.all(ex <= 2 * sd)) else "no") + " / "
+                         + ("—" if sensor_ok is None else "yes" if sensor_ok else "no")])
         settings = "".join(f"<li>{html.escape(line)}</li>" for line in _settings_text(analysis))
         parts.append("<h2>4. Every method against the reference</h2><p>" + html.escape(
             f"Recommended: {_label(recommended)} — {analysis.get('recommendation_rule', '')}.") + "</p>"
             + (f"<ul>{settings}</ul>" if settings else "")
             + f"<img src='{png}'>" + html_table(
                 ["method", "RMS error (deg/s)", "max |amplitude error| (%)", "max |phase error| (deg)",
-                 "worst excess over the better sensor", "within 2σ at every tone"],
+                 "worst excess over the better sensor",
+                 "within 2σ at every tone: of the excess / of the sensor's own error"],
                 rows, bold_rows={methods.index(recommended)} if recommended in methods else frozenset()))
         f = analysis["tones_hz"]
         tone_rows: list[list[object]] = []
