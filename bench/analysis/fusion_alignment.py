@@ -16,8 +16,9 @@ fusion sees:
    standard errors: correcting noise would add a drift);
 3. on the rate-corrected time axes, the FRF again and each sensor's transfer function with a
    pure delay (:func:`~bench.analysis.fusion_models.fit_transfer_function`, order ≤ 2; order 1
-   with fewer than six tones), each
-   FRF point weighted by its standard uncertainty (from both series' noise at the tone);
+   with fewer than six tones), each FRF point weighted by its standard uncertainty (from both
+   series' noise at the tone); for the HF sensor also with a first-order pole above the tones,
+   kept if it halves the misfit — then undone on the HF record (:func:`undo_upper_pole`);
 4. the HF samples kept as they are on their corrected instants less the HF delay; the LF
    record (its instants corrected and moved back by its delay) and the reference resampled
    onto them (:func:`~bench.analysis.frf_timebase.resample`, band-limited), the ends that
@@ -36,11 +37,13 @@ import numpy as np
 
 from bench.analysis.frf_timebase import TimeBase, apply_time_base, estimate_time_base, resample
 from bench.analysis.fusion_metrics import tone_fit, tone_noise_std, without_outliers
-from bench.analysis.fusion_models import TransferFit, fit_transfer_function
+from bench.analysis.fusion_models import ORDER_GAIN_FACTOR, TransferFit, fit_transfer_function
 
 MIN_TONES = 4  # a first-order high- or low-pass with a delay needs this many FRF points (second order: 6)
 CLOCK_BLOCK_S = 5.0  # longest clock block (s); at least ten periods of the tone
 MIN_CLOCK_BLOCKS = 3
+UPPER_POLE_HALF_WIDTH = 8  # taps each side of the derivative filter that undoes an HF upper pole
+UPPER_POLE_BAND = 0.25  # ... designed to be exact (1e-6) up to this fraction of the sample rate
 CLOCK_SIGNIFICANCE = 3.0  # a clock rate error is corrected only beyond this many standard errors
 
 
@@ -77,6 +80,33 @@ def _frf(t_ref, ref, t_y, y, tones, rate_hz: float) -> tuple[np.ndarray, np.ndar
     rel = np.hypot(tone_noise_std(r_y, rate_hz, tones) / np.abs(a_y), tone_noise_std(r_ref, rate_hz, tones)
                    / np.abs(a_ref))
     return g, np.maximum(np.abs(g) * rel, 1e-12 * np.abs(g))
+
+
+def derivative_taps(half_width: int = UPPER_POLE_HALF_WIDTH, band: float = UPPER_POLE_BAND) -> np.ndarray:
+    """Antisymmetric taps ``d_m`` (m = 1…``half_width``) of a derivative filter
+    ``ẏ_k ≈ fs·Σ d_m (y_{k+m} − y_{k−m})``: least squares on the relative error of its response
+    ``2 Σ d_m sin mθ`` against ``θ`` up to ``band``·fs (1.4·10⁻⁶ at 8 taps to fs/4)."""
+    theta = np.linspace(1e-3, 2 * np.pi * band, 400)
+    design = np.column_stack([2 * np.sin(m * theta) for m in range(1, half_width + 1)]) / theta[:, None]
+    return np.linalg.lstsq(design, np.ones_like(theta), rcond=None)[0]
+
+
+def undo_upper_pole(y, upper_hz: float, rate_hz: float) -> np.ndarray:
+    """``y`` with a first-order pole at ``upper_hz`` undone: ``y + ẏ/(2π f_u)`` (the derivative by
+    :func:`derivative_taps`, looking ``UPPER_POLE_HALF_WIDTH`` samples ahead; the ends, where
+    it would run off the record, keep the two-point difference)."""
+    y = np.asarray(y, dtype=float)
+    if not (math.isfinite(upper_hz) and upper_hz > 0):
+        raise ValueError(f"upper_hz {upper_hz} must be a finite value > 0")
+    taps = derivative_taps()
+    half = taps.size
+    dy = np.gradient(y) * rate_hz
+    if y.size > 2 * half:
+        inner = np.zeros(y.size - 2 * half)
+        for m, d in enumerate(taps, start=1):
+            inner += d * (y[half + m:y.size - half + m] - y[half - m:y.size - half - m])
+        dy[half:-half] = inner * rate_hz
+    return y + dy / (2 * math.pi * upper_hz)
 
 
 def _clock(t, ref, y, f_hz: float, notes: list, name: str) -> TimeBase | None:
@@ -125,9 +155,21 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
     fits = {}
     for name, kind, ty, y in (("hf", "highpass", t_hf[part], hp), ("lf", "lowpass", t_lf[part], lp)):
         g, sd = _frf(tp, rp, ty, y, tones, rate_hz)
-        fits[name] = fit_transfer_function(tones, g, kind, max_order=2 if tones.size >= 6 else 1, fit_delay=True,
-                                           weights=1.0 / sd)
+        order = 2 if tones.size >= 6 else 1
+        fits[name] = fit_transfer_function(tones, g, kind, max_order=order, fit_delay=True, weights=1.0 / sd)
+        if name == "hf" and tones.size >= 2 * order + 3:
+            # the HF sensor's own bandwidth limit, if the FRF shows one: a pole above the tones that
+            # explains at least half of the misfit (left out, it bends the fitted gain and corner)
+            upper = fit_transfer_function(tones, g, kind, max_order=order, fit_delay=True, weights=1.0 / sd,
+                                          upper_pole=True)
+            if (upper.upper_hz is not None and tones.max() < upper.upper_hz < 0.5 * rate_hz
+                    and upper.residual < fits[name].residual / ORDER_GAIN_FACTOR):
+                fits[name] = upper
     hf_fit, lf_fit = fits["hf"], fits["lf"]
+    if hf_fit.upper_hz is not None:
+        hf = undo_upper_pole(hf, hf_fit.upper_hz, rate_hz)
+        notes.append(f"HF upper pole at {hf_fit.upper_hz:.4g} Hz measured and undone "
+                     f"(a {UPPER_POLE_HALF_WIDTH}-sample look-ahead filter)")
     t_base = t_hf - hf_fit.delay_s
     t_lf = t_lf - lf_fit.delay_s
     lo = max(t_lf[0], t[0])
