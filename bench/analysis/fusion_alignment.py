@@ -162,7 +162,7 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
             # explains at least half of the misfit (left out, it bends the fitted gain and corner)
             upper = fit_transfer_function(tones, g, kind, max_order=order, fit_delay=True, weights=1.0 / sd,
                                           upper_pole=True)
-            if (upper.upper_hz is not None and tones.max() < upper.upper_hz < 0.5 * rate_hz
+            if (upper.upper_hz is not None and tones.max() < upper.upper_hz
                     and upper.residual < fits[name].residual / ORDER_GAIN_FACTOR):
                 fits[name] = upper
     hf_fit, lf_fit = fits["hf"], fits["lf"]
