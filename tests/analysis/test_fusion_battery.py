@@ -1,5 +1,5 @@
 """The robustness battery's generator checked on its own, and a small fixed-seed subset of the
-battery (the full ≥ 50 pairs run in ``benchmarks/bench_fusion_battery.py``).
+battery (the full ≥ 50 pairs run in ``benchmarks/fusion_battery.py``).
 
 The generator (``tests/analysis/fusion_pairs.py``) is the judge's ground truth, so it is tested
 against the analog prototypes it claims to simulate, and for its independence from the code it

@@ -1,7 +1,7 @@
 """The fusion robustness battery: ``bench analyze fusion``'s recommendation on HF/LF pairs drawn
 over regimes by an independent generator, graded against the exact rate.
 
-    .venv/bin/python benchmarks/bench_fusion_battery.py [--cases 60] [--first 0] [--max-samples 400000]
+    .venv/bin/python benchmarks/fusion_battery.py [--cases 60] [--first 0] [--max-samples 400000]
         [--json FILE] [--quiet]
 
 Each pair (``tests/analysis/fusion_pairs.py``: corner ratio 3–300, sample rate 1–20 kHz, tones
