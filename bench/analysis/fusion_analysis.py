@@ -361,7 +361,6 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
         source = "default"
         notes.append(f"sensor models are defaults (HF high-pass {DEFAULT_HF.corner_hz:g} Hz, LF low-pass "
                      f"{DEFAULT_LF.corner_hz:g} Hz); pass models or a ref")
-    assert hf_model is not None and lf_model is not None
     settle = int(round(settle_s * rate_hz))
     judged_from = n_tune + settle
     if ref is not None and tones is not None:

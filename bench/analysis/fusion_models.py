@@ -36,8 +36,8 @@ from scipy.optimize import least_squares
 
 KINDS = ("highpass", "lowpass")
 DISCRETIZATIONS = ("euler", "zoh")
-CORNER_STARTS = (1.0, 0.3, 3.0)
-LOG_LIMIT = 60.0  # log-parameters are clipped here inside the misfit (e⁶⁰ ≈ 10²⁶)  # the fit starts from the −3 dB crossing and from these multiples of it
+CORNER_STARTS = (1.0, 0.3, 3.0)  # the fit starts from the −3 dB crossing and from these multiples of it
+LOG_LIMIT = 60.0  # log-parameters are clipped here inside the misfit (e⁶⁰ ≈ 10²⁶)
 ORDER_GAIN_FACTOR = 2.0  # a higher order is kept only if it divides the relative RMS misfit by this
 
 
