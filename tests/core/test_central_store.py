@@ -11,8 +11,9 @@ import psycopg
 import pytest
 
 from bench.core.store import RunStore
-from bench.core.store.central import CentralStore, is_central_url, masked
+from bench.core.store.central import CentralStore
 from bench.core.store.forward import package, queued, sync
+from bench.core.store.reader import is_central_url, masked
 
 
 def write_run(store: RunStore, serial: str, n: int = 1000, *, status: str = "passed",

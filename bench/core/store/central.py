@@ -40,19 +40,9 @@ from .model import (
     from_json,
     to_json,
 )
+from .reader import is_central_url, masked
 
-URL_SCHEMES = ("postgresql://", "postgres://")
 _UUID = re.compile(r"[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{4}-[0-9a-fA-F]{12}")
-
-
-def is_central_url(location: object) -> bool:
-    """True for a PostgreSQL URL (the central store), False for a SQLite path."""
-    return isinstance(location, str) and location.startswith(URL_SCHEMES)
-
-
-def masked(url: str) -> str:
-    """``url`` with any password replaced by ``***`` (for messages and records)."""
-    return re.sub(r"(://[^:/@]+):[^@]*@", r"\1:***@", url)
 
 
 class DigestConflictError(RuntimeError):
@@ -104,7 +94,7 @@ class CentralStore:
         if not connect_timeout_s > 0:
             raise ValueError(f"connect_timeout_s={connect_timeout_s!r} must be > 0")
         self.url = url
-        self.location = masked(url)
+        self._location = masked(url)
         self._conn = psycopg.connect(url, autocommit=True,
                                      connect_timeout=max(1, math.ceil(connect_timeout_s)))
         try:
@@ -112,6 +102,11 @@ class CentralStore:
         except BaseException:
             self._conn.close()
             raise
+
+    @property
+    def location(self) -> str:
+        """The URL, password masked."""
+        return self._location
 
     def __repr__(self) -> str:
         return f"CentralStore({self.location!r})"
