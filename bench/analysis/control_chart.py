@@ -80,12 +80,17 @@ def western_electric(values: npt.ArrayLike, centre: float, sigma: float) -> tupl
     return tuple(found)
 
 
-def individuals_chart(values: npt.ArrayLike) -> ControlChart:
-    """Individuals chart of ``values`` in time order (at least 2, finite)."""
+def individuals_chart(values: npt.ArrayLike, baseline: int | None = None) -> ControlChart:
+    """Individuals chart of ``values`` in time order (at least 2, finite).  ``baseline``: the
+    centre and sigma come from the first ``baseline`` values only (phase I: limits from a
+    period known to be in control, every value judged against them); default all."""
     x = _finite_1d(values, "values", 2)
-    moving_range = np.abs(np.diff(x)).mean()
+    if baseline is not None and not 2 <= baseline <= x.size:
+        raise ValueError(f"baseline={baseline!r} not in 2..{x.size} (the number of values)")
+    base = x[:baseline]
+    moving_range = np.abs(np.diff(base)).mean()
     sigma = moving_range / D2_MOVING_RANGE
-    centre = float(x.mean())
+    centre = float(base.mean())
     if sigma == 0:
         return ControlChart("individuals", x, centre, centre, centre, 0.0, ())
     return ControlChart("individuals", x, centre, centre - 3 * sigma, centre + 3 * sigma, float(sigma),

@@ -75,8 +75,11 @@ def test_a_stable_normal_process_rarely_flags_and_a_shift_is_caught():
     x = rng.normal(0, 1, 400)
     stable = individuals_chart(x)
     assert abs(stable.sigma - 1) < 0.1 and len(stable.flagged) < 0.05 * x.size
-    shifted = individuals_chart(np.concatenate([x[:200], x[200:] + 2.0]))
+    shifted = individuals_chart(np.concatenate([x[:200], x[200:] + 2.0]), baseline=200)
     assert {r for i, r in shifted.violations if i >= 200} >= {2, 3, 4}
+    assert shifted.centre == pytest.approx(x[:200].mean())
+    with pytest.raises(ValueError, match="baseline=1 not in 2..400"):
+        individuals_chart(x, baseline=1)
 
 
 def test_decision_risk_counts_and_a_perfect_instrument_needs_no_guard_band():
