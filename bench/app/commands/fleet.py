@@ -77,17 +77,15 @@ def fleet_yield(args) -> int:
 
     with _central(args) as central:
         counts = yield_counts(central, args.by, model=args.model)
-    rows = []
+    rows: list[dict[str, Any]] = []
+    lines = [f"{args.by:<28} {'passed':>7} {'failed':>7} {'aborted':>8} {'yield':>8}  95 % (Wilson)"]
     for c in counts:
         y = wilson_interval(c.passed, c.passed + c.failed)
         rows.append({"group": c.group, "passed": c.passed, "failed": c.failed, "aborted": c.aborted,
                      "yield": y.to_dict()})
-    lines = [f"{args.by:<28} {'passed':>7} {'failed':>7} {'aborted':>8} {'yield':>8}  95 % (Wilson)"]
-    for r in rows:
-        y = r["yield"]
-        shown = "—" if y["p"] is None else f"{100 * y['p']:.1f} %"
-        lines.append(f"{r['group']:<28} {r['passed']:>7} {r['failed']:>7} {r['aborted']:>8} "
-                     f"{shown:>8}  [{100 * y['low']:.1f}, {100 * y['high']:.1f}]")
+        shown = "—" if c.passed + c.failed == 0 else f"{100 * y.p:.1f} %"
+        lines.append(f"{c.group:<28} {c.passed:>7} {c.failed:>7} {c.aborted:>8} "
+                     f"{shown:>8}  [{100 * y.low:.1f}, {100 * y.high:.1f}]")
     if not rows:
         lines.append("no acceptance runs in the central store yet")
     doc = {"by": args.by, "model": args.model, "groups": rows}
