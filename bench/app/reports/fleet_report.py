@@ -57,13 +57,16 @@ def yield_page(doc: dict[str, Any]) -> str:
 
 def _draw(ax, chart: ControlChart, label: str, low: float | None = None,
           high: float | None = None) -> None:
+    """Points, centre line, control limits, the rule zones (±1σ, ±2σ; not for ranges), the
+    spec limits and the flagged points."""
     x = np.arange(chart.values.size)
     ax.plot(x, chart.values, "o-", ms=3, lw=0.8, label=label)
     for level, style in ((chart.centre, "-"), (chart.lcl, "--"), (chart.ucl, "--")):
         ax.axhline(level, color="k", ls=style, lw=0.8)
-    for k in (1, 2):
+    for k in (1, 2) if chart.kind != "range" else ():
         for sign in (-1, 1):
             ax.axhline(chart.centre + sign * k * chart.sigma, color="0.6", ls=":", lw=0.6)
+    ax.xaxis.get_major_locator().set_params(integer=True)
     for limit in (low, high):
         if limit is not None:
             ax.axhline(limit, color="tab:red", lw=1.0)
