@@ -68,8 +68,11 @@ def package(store: RunStore, run_id: str) -> RunPackage:
 
 def manifest(store: RunStore, run_id: str) -> str:
     """sha256 of the run's attachment list (names and contents' hashes)."""
-    listing = sorted((a.name, a.sha256) for a in store.attachments(run_id))
-    return hashlib.sha256(json.dumps(listing).encode()).hexdigest()
+    return _manifest(sorted((a.name, a.sha256) for a in store.attachments(run_id)))
+
+
+def _manifest(listing: list[tuple[str, str]]) -> str:
+    return hashlib.sha256(json.dumps([list(item) for item in listing]).encode()).hexdigest()
 
 
 @dataclass
@@ -99,11 +102,9 @@ class SyncReport:
 def queued(store: RunStore, target: str) -> list[str]:
     """Finished runs the central store ``target`` has not acknowledged as they are now."""
     done = store.forwarded(target)
-    out = []
-    for run_id in store.finished_run_ids():
-        if run_id not in done or done[run_id][1] != manifest(store, run_id):
-            out.append(run_id)
-    return out
+    attachments = store.attachment_index()  # one query, not one per run
+    return [run_id for run_id in store.finished_run_ids()
+            if run_id not in done or done[run_id][1] != _manifest(attachments.get(run_id, []))]
 
 
 def sync(store: RunStore, url: str, *, retry_for_s: float = 0.0, connect_timeout_s: float = 5.0,

@@ -376,6 +376,17 @@ class RunStore:
                                 "ORDER BY started_utc, rowid").fetchall()
         return [r[0] for r in rows]
 
+    def attachment_index(self) -> dict[str, list[tuple[str, str]]]:
+        """Every run's attachments as ``(name, sha256)`` by name, in one query (what the
+        forwarding compares with what it sent)."""
+        with self._read_snapshot() as conn:
+            rows = conn.execute("SELECT run_id, name, sha256 FROM attachments "
+                                "ORDER BY run_id, name").fetchall()
+        index: dict[str, list[tuple[str, str]]] = {}
+        for run_id, name, sha in rows:
+            index.setdefault(run_id, []).append((name, sha))
+        return index
+
     def unforwarded_run_ids(self) -> list[str]:
         """Finished runs no central store has acknowledged, oldest first."""
         with self._read_snapshot() as conn:
