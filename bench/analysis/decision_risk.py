@@ -140,15 +140,20 @@ def decision_risk(measured: npt.ArrayLike, true: npt.ArrayLike, low: float | Non
 
 
 def overall_risk(accepted: npt.ArrayLike, conforming: npt.ArrayLike,
+                 undecidable: npt.ArrayLike | None = None,
                  confidence: float = 0.95) -> tuple[Proportion, Proportion]:
-    """(PFA, PFR) of the whole test: a unit accepted (every measurement) while some parameter
-    is nonconforming, or rejected while every parameter conforms."""
+    """(PFA, PFR) of the whole test over all units: a unit accepted (every measurement) while
+    some scored parameter is nonconforming, or rejected while every scored parameter conforms.
+    ``undecidable`` marks units rejected on a measurement that has no true value: whether
+    that rejection was false cannot be told, so they are never counted as false rejects."""
     a, c = np.asarray(accepted, dtype=bool), np.asarray(conforming, dtype=bool)
-    if a.shape != c.shape or a.ndim != 1:
-        raise ValueError(f"accepted and conforming must be 1-D of one length, got {a.shape}, {c.shape}")
+    u = np.zeros(a.shape, bool) if undecidable is None else np.asarray(undecidable, dtype=bool)
+    if a.shape != c.shape or a.shape != u.shape or a.ndim != 1:
+        raise ValueError(f"accepted, conforming and undecidable must be 1-D of one length, got "
+                         f"{a.shape}, {c.shape}, {u.shape}")
     n = a.size
     return (wilson_interval(int((a & ~c).sum()), n, confidence),
-            wilson_interval(int((~a & c).sum()), n, confidence))
+            wilson_interval(int((~a & c & ~u).sum()), n, confidence))
 
 
 __all__ = ["Z540_TARGET", "DecisionRisk", "decision_risk", "inside", "model_rates", "overall_risk"]

@@ -125,13 +125,15 @@ class RiskReport:
     overall_false_reject: Proportion
     unscored: dict[str, str]
     verdicts: tuple[str, ...]
+    rejected_unscored: int = 0      # units rejected on a measurement with no true value
 
     def to_dict(self) -> dict[str, Any]:
         return {"spec": self.spec, "model": self.model, "units": self.units, "seed": self.root_seed,
                 "yield": self.yield_.to_dict(), "aborted": self.aborted,
                 "measurements": {k: v.to_dict() for k, v in self.per_measurement.items()},
                 "overall": {"false_accept": self.overall_false_accept.to_dict(),
-                            "false_reject": self.overall_false_reject.to_dict()},
+                            "false_reject": self.overall_false_reject.to_dict(),
+                            "rejected_on_unscored": self.rejected_unscored},
                 "unscored": self.unscored, "verdicts": list(self.verdicts)}
 
 
@@ -156,11 +158,14 @@ def assess(spec: UnitSpec, root_seed: int, units: Sequence[dict[str, Any]],
         per[m.name] = decision_risk(measured, true, m.low, m.high, target=target)
         conforming &= inside(true, m.low, m.high)
     accepted = np.array([u["status"] == "passed" for u in judged])
-    fa, fr = overall_risk(accepted, conforming)
+    # rejected on a measurement with no true value (or a station guard): not scoreable
+    undecidable = np.array([any(m.get("outcome") == "fail" for name, m in u["measurements"].items()
+                                if name not in per) for u in judged])
+    fa, fr = overall_risk(accepted, conforming, undecidable)
     return RiskReport(spec.source, spec.model, len(results), root_seed,
                       wilson_interval(int(accepted.sum()), len(judged)),
                       len(results) - len(judged), per, fa, fr, unscored,
-                      tuple(u["status"] for u in results))
+                      tuple(u["status"] for u in results), int(undecidable.sum()))
 
 
 def run_on_dask(spec_path: str, units: int, root_seed: int, store_path: str, *,

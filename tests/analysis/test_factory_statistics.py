@@ -110,3 +110,5 @@ def test_guard_band_meets_the_target_in_closed_form():
 def test_overall_risk():
     fa, fr = overall_risk([True, True, False, False], [True, False, True, False])
     assert fa.successes == 1 and fr.successes == 1 and fa.trials == 4
+    _, fr = overall_risk([False, False], [True, True], undecidable=[True, False])
+    assert fr.successes == 1  # the unit rejected on an unscored measurement is not counted

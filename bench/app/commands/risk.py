@@ -98,7 +98,8 @@ def risk_lines(report) -> list[str]:
                      f"{r.false_reject.successes:>4} {r.error_sd:>10.3g} {100 * r.pfa_model:>9.3f}% "
                      f"{100 * r.pfr_model:>9.3f}% {r.guard_band:>11.4g}  {need}")
     lines.append(f"whole test: false accept {_pct(report.overall_false_accept)}, "
-                 f"false reject {_pct(report.overall_false_reject)}")
+                 f"false reject {_pct(report.overall_false_reject)}; "
+                 f"{report.rejected_unscored} unit(s) rejected on unscored measurements")
     for name, why in report.unscored.items():
         lines.append(f"  not scored: {name} — {why}")
     return lines
