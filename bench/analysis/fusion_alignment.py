@@ -11,7 +11,9 @@ fusion sees:
 
 1. a quick FRF of each sensor against the reference at the tones (least-squares phasors);
 2. each sensor's clock rate error, from the phase drift of the highest tone it passes
-   (:func:`~bench.analysis.frf_timebase.estimate_time_base`, blocks of at least ten periods),
+   (:func:`~bench.analysis.frf_timebase.estimate_time_base`, blocks of at least ten periods;
+   the other tones fitted out of both series first, :func:`only_tone` — left in, they leak
+   into blocks a few of their periods long and the rate's uncertainty grows 20×),
    when the stretch holds at least three blocks and the error is significant (beyond three
    standard errors: correcting noise would add a drift);
 3. on the rate-corrected time axes, the FRF again and each sensor's transfer function with a
@@ -144,7 +146,23 @@ def undo_interval_mean(y) -> np.ndarray:
     return out
 
 
-def _clock(t, ref, y, f_hz: float, notes: list, name: str) -> TimeBase | None:
+def only_tone(t_s, y, tones_hz, f_hz: float) -> np.ndarray:
+    """``y`` less every tone of ``tones_hz`` but ``f_hz`` (one joint least-squares fit over the
+    record): the clock's per-block sine fits at ``f_hz`` then see its noise, not the other
+    tones leaking into blocks a few of their periods long."""
+    tones = np.asarray(tones_hz, dtype=float)
+    others = tones[~np.isclose(tones, f_hz)]
+    if others.size == 0:
+        return np.asarray(y, dtype=float)
+    t = np.asarray(t_s, dtype=float)
+    phasors, residual = tone_fit(t, y, tones)
+    kept = phasors[np.isclose(tones, f_hz)].sum()
+    arg = 2 * np.pi * f_hz * (t - t[0])
+    return residual + kept.real * np.cos(arg) - kept.imag * np.sin(arg)
+
+
+def _clock(t, ref, y, tones, f_hz: float, notes: list, name: str) -> TimeBase | None:
+    ref, y = only_tone(t, ref, tones, f_hz), only_tone(t, y, tones, f_hz)
     span = float(t[-1] - t[0])
     block = max(10.0 / f_hz, min(CLOCK_BLOCK_S, span / 4))
     if span < MIN_CLOCK_BLOCKS * block:
@@ -183,7 +201,7 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
     passed_lf = tones[np.abs(g_lf) >= 0.5 * np.abs(g_lf[0])]
     clocks = {}
     for name, y, passed in (("hf", hp, passed_hf), ("lf", lp, passed_lf)):
-        clocks[name] = _clock(tp, rp, y, float(passed.max()) if passed.size else float(tones.min()), notes, name)
+        clocks[name] = _clock(tp, rp, y, tones, float(passed.max()) if passed.size else float(tones.min()), notes, name)
     epoch = float(t[0])
     t_hf = t if clocks["hf"] is None else apply_time_base(t, clocks["hf"], epoch_s=epoch)
     t_lf = t if clocks["lf"] is None else apply_time_base(t, clocks["lf"], epoch_s=epoch)
