@@ -186,8 +186,12 @@ class ChamberAir:
 
     def first_crossing(self, level_c: float, above: bool, t_from: float, horizon_s: float) -> float | None:
         """The first time in [t_from, t_from + horizon_s] at which the current segment's air
-        crosses ``level_c`` upward (``above``) or downward, else None (a scan, then bisection)."""
+        crosses ``level_c`` upward (``above``) or downward, else None (a scan, then bisection).
+        A ramp's segment is valid only until the ramp ends: the scan stops there (the next
+        segment is scanned when it starts)."""
         sig = self._signals[-1]
+        if self._ramp_end_s > t_from:
+            horizon_s = min(horizon_s, self._ramp_end_s - t_from)
         n = 2048
         ts = t_from + np.linspace(0.0, horizon_s, n + 1)
         vals = sig.at(ts)[:, 0] - level_c
