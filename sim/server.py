@@ -32,7 +32,7 @@ import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, Protocol, cast
 
 from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
@@ -257,7 +257,7 @@ class _GatedModbusHandler(ServerRequestHandler):
     def callback_connected(self) -> None:
         super().callback_connected()
         if self._gate is not None and not self._gate.admit(self):
-            self.transport.abort()  # reconnects refused for now, or the instrument is off
+            cast(asyncio.Transport, self.transport).abort()  # reconnects refused now, or powered off
 
     def callback_disconnected(self, exc: Exception | None) -> None:
         if self._gate is not None:

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import DataType, SimData, SimDevice
@@ -93,12 +93,14 @@ class WatlowF4T:
             "limit_error": lambda: cm.ALARM_NONE, "limit_clear": lambda: cm.IGNORE,
         }
         for n, alarm in enumerate(self.alarms, start=1):
-            self._getters.update({
-                f"alarm{n}_type": lambda a=alarm: a.kind, f"alarm{n}_sides": lambda: cm.SIDES_BOTH,
-                f"alarm{n}_high_c": lambda a=alarm: a.high_c, f"alarm{n}_low_c": lambda a=alarm: a.low_c,
-                f"alarm{n}_hysteresis_c": lambda a=alarm: a.hysteresis_c,
-                f"alarm{n}_latching": lambda a=alarm: a.latching, f"alarm{n}_clear": lambda: cm.IGNORE,
-                f"alarm{n}_state": lambda a=alarm: self._alarm_state(a)})
+            self._getters.update(self._alarm_getters(n, alarm))
+
+    def _alarm_getters(self, n: int, alarm: _Alarm) -> dict[str, Callable[[], float | int | str]]:
+        return {f"alarm{n}_type": lambda: alarm.kind, f"alarm{n}_sides": lambda: cm.SIDES_BOTH,
+                f"alarm{n}_high_c": lambda: alarm.high_c, f"alarm{n}_low_c": lambda: alarm.low_c,
+                f"alarm{n}_hysteresis_c": lambda: alarm.hysteresis_c,
+                f"alarm{n}_latching": lambda: alarm.latching, f"alarm{n}_clear": lambda: cm.IGNORE,
+                f"alarm{n}_state": lambda: self._alarm_state(alarm)}
 
     # -- what the controller computes -------------------------------------------------------
     @property
@@ -305,10 +307,18 @@ class WatlowF4T:
                 f"alarm{n}_low_c": _alarm_setter(alarm, "low_c", None),
                 f"alarm{n}_hysteresis_c": _alarm_setter(alarm, "hysteresis_c", None),
                 f"alarm{n}_latching": _alarm_setter(alarm, "latching", (cm.LATCHING, cm.NON_LATCHING)),
-                f"alarm{n}_clear": lambda v, a=alarm: (self._clear_alarm(a) if v == cm.CLEAR else None)
-                if v in (cm.CLEAR, cm.IGNORE) else False,
+                f"alarm{n}_clear": self._alarm_clearer(alarm),
             })
         return out
+
+    def _alarm_clearer(self, alarm: _Alarm) -> Callable[[Any], bool | None]:
+        def clear(v: int) -> bool | None:
+            if v not in (cm.CLEAR, cm.IGNORE):
+                return False
+            if v == cm.CLEAR:
+                self._clear_alarm(alarm)
+            return None
+        return clear
 
     # -- the Modbus view --------------------------------------------------------------------
     def simdevice(self) -> SimDevice:
@@ -347,7 +357,8 @@ class WatlowF4T:
         for reg in covered:  # what the client reads back is what the controller holds
             off = reg.address - start_address
             registers[off:off + reg.words] = self.read(reg.name)
-            values[reg.address - address:reg.address - address + reg.words] = registers[off:off + reg.words]
+            cast(list[int], values)[reg.address - address:reg.address - address + reg.words] = \
+                registers[off:off + reg.words]
         return None
 
 

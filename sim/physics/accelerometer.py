@@ -376,7 +376,7 @@ class QuartzAccelerometer:
         if f.shape != (t.size, 3):
             raise ValueError(f"f_iapo_g must have shape ({t.size}, 3), got {f.shape}")
         g_units = indicated_acceleration_g(self.params, f)
-        k1 = self.params.k1_a_per_g
+        k1: float | np.ndarray = self.params.k1_a_per_g
         if self._powered:
             thermal = self._thermal_state(t)
             g_units = g_units + self._bias_g(t, self._t_on, self._run_bias_g, thermal)

@@ -11,8 +11,8 @@ order, hysteresis, Shupe ∝ dT_coil/dt: ``GyroParams.thermal_bias_dps``) + g-se
 + flicker (Gauss-Markov sum) + rate random walk; the scale factor is multiplied by
 ``GyroParams.scale_factor_ratio`` of the coil temperature.  The unit is two thermal nodes
 (``sim.physics.thermal_unit``): the case, where the frame's temperature sensor sits, and the
-coil, heated by the unit's dissipation; their ambient is the room or the chamber air. Parameters, conventions and sources:
-``sim/physics/gyro_params.py``; manufacturing spread and limits:
+coil, heated by the unit's dissipation; their ambient is the room or the chamber air.
+Parameters, conventions and sources: ``sim/physics/gyro_params.py``; manufacturing spread and limits:
 ``sim/physics/gyro_population.py``.
 
 How each term enters the interval's angle (degrees):
