@@ -283,6 +283,12 @@ class _GatedModbusServer(ModbusTcpServer):
     def callback_new_connection(self) -> _GatedModbusHandler:
         return _GatedModbusHandler(self, self._gate_of())
 
+    @property
+    def sockets(self) -> tuple[Any, ...]:
+        """The listening sockets (as an asyncio server has them)."""
+        listening: Any = self.transport
+        return tuple(listening.sockets) if listening is not None else ()
+
 
 class ModbusTcp(Transport):
     """A Modbus TCP instrument (a chamber controller's Ethernet port, 502 on the real one):
@@ -300,8 +306,7 @@ class ModbusTcp(Transport):
                      gate: Callable[[], ConnectionGate | None]) -> tuple[Listener, int]:
         server = _GatedModbusServer(device, host, port, gate)
         await server.serve_forever(background=True)
-        listening: Any = server.transport  # the asyncio server pymodbus started
-        return server, int(listening.sockets[0].getsockname()[1])
+        return server, int(server.sockets[0].getsockname()[1])
 
 
 def _close(writer: asyncio.StreamWriter, gate: ConnectionGate | None) -> None:
