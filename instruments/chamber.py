@@ -53,7 +53,7 @@ REGISTER_NAMES = {
 
 # -- Watlow option values -------------------------------------------------------------------
 AUTO, OFF = 10, 62
-RAMP_OFF, RAMP_SET_POINT = 62, 85
+RAMP_OFF, RAMP_SET_POINT, RAMP_BOTH = 62, 85, 13
 PER_MINUTE = 57
 UNITS_C = 15
 CLEAR = 129
@@ -250,8 +250,9 @@ class WatlowF4TChamber:
         return rate if self._read(RAMP_SCALE, 1)[0] == PER_MINUTE else rate / 60.0
 
     def set_ramp(self, rate_c_per_min: float | None) -> None:
-        """Ramp later set point changes at ``rate_c_per_min`` (None: step them). The chamber's
-        own heating and cooling rates still bound the air."""
+        """Ramp later set point changes, and the start from standby, at ``rate_c_per_min``
+        (ramp action Both; None: step them).  The chamber's own heating and cooling rates
+        still bound the air."""
         if rate_c_per_min is None:
             self._write(RAMP_ACTION, [RAMP_OFF])
             return
@@ -261,7 +262,7 @@ class WatlowF4TChamber:
             raise ValueError(f"{self.name}: ramp rate {rate_c_per_min!r} °C/min not in {lo:g}..{hi:g} °C/min")
         self._write(RAMP_SCALE, [PER_MINUTE])
         self._write(RAMP_RATE, float_to_words(float(rate_c_per_min)))
-        self._write(RAMP_ACTION, [RAMP_SET_POINT])
+        self._write(RAMP_ACTION, [RAMP_BOTH])
 
     # -- run / stop -----------------------------------------------------------------------
     @property

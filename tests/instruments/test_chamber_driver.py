@@ -79,10 +79,12 @@ def test_run_to_a_set_point_and_settle_on_the_bench_clock(sim, chamber):
     assert not chamber.running and chamber.process_value_c == pytest.approx(23.0)
     chamber.set_ramp(2.0)
     assert chamber.ramp_rate_c_per_min == pytest.approx(2.0)
-    chamber.run()
     chamber.set_set_point(-40.0)
-    assert chamber.running and chamber.set_point_c == -40.0
     t0 = sim.world.now
+    chamber.run()  # the ramp applies to the start from standby too (ramp action Both)
+    assert chamber.running and chamber.set_point_c == -40.0
+    wait_of(sim)(600.0)
+    assert chamber.working_set_point_c == pytest.approx(23.0 - 20.0, abs=1e-3)
     status = chamber.wait_until_settled(wait_of(sim), tolerance_c=0.2, hold_s=300.0, timeout_s=4 * 3600)
     assert abs(status.process_value_c + 40.0) <= 0.2 and status.running and not status.alarm_active
     took = sim.world.now - t0

@@ -55,8 +55,9 @@ def test_the_driver_uses_the_documented_numbers(name):
 
 
 def test_the_driver_and_the_simulator_agree_on_the_option_values():
-    assert (drv.AUTO, drv.OFF, drv.RAMP_OFF, drv.RAMP_SET_POINT, drv.PER_MINUTE, drv.CLEAR, drv.UNITS_C) == \
-        (cm.AUTO, cm.OFF, cm.RAMP_OFF, cm.RAMP_SET_POINT, cm.PER_MINUTE, cm.CLEAR, cm.UNITS_C)
+    assert (drv.AUTO, drv.OFF, drv.RAMP_OFF, drv.RAMP_SET_POINT, drv.RAMP_BOTH, drv.PER_MINUTE, drv.CLEAR,
+            drv.UNITS_C) == (cm.AUTO, cm.OFF, cm.RAMP_OFF, cm.RAMP_SET_POINT, cm.RAMP_BOTH, cm.PER_MINUTE,
+                             cm.CLEAR, cm.UNITS_C)
     assert {v: k for k, v in drv.ALARM_STATES.items()} == {
         "startup": cm.ALARM_STARTUP, "none": cm.ALARM_NONE, "blocked": cm.ALARM_BLOCKED,
         "low": cm.ALARM_LOW, "high": cm.ALARM_HIGH, "error": cm.ALARM_ERROR}
