@@ -5,6 +5,7 @@ and the station's chamber air as the units' ambient."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from sim.physics.thermal_chamber import ChamberAir
 from sim.station import SimulatedStation
 from sim.world import World
 
-QUIET_ACC = dict(white_density_g_per_rthz=0.0, gm_sigma_g=(), gm_tau_s=(), warmup_amplitude_g=0.0,
+QUIET_ACC: dict[str, Any] = dict(white_density_g_per_rthz=0.0, gm_sigma_g=(), gm_tau_s=(), warmup_amplitude_g=0.0,
                  drift_g_per_s=0.0, bias_tc_g_per_c=0.0, self_heating_delta_c=0.0)
 IA_UP = np.array([[1.0, 0.0, 0.0]])
 
