@@ -238,7 +238,8 @@ class SerialGyro:
     # -- the stream ---------------------------------------------------------------------------
     def start(self) -> None:
         """``$START``: frames follow the reply, first sequence 0."""
-        self.config  # noqa: B018 - the rate and scale factor are needed to convert frames
+        if self._config is None:  # the rate and scale factor are needed to convert frames
+            self.read_config()
         self._command("$START", "$OK,START")
         self._decoder.reset()
         self._decoder.expect_start()

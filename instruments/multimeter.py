@@ -16,7 +16,7 @@ Conventions
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
+from collections.abc import Generator
 from dataclasses import dataclass
 from typing import Any
 
@@ -398,7 +398,7 @@ class Keysight34465A(SCPIInstrument):
         initiate: bool = True,
         min_poll_s: float = 0.01,
         stall_timeout_s: float | None = None,
-    ) -> Iterator[np.ndarray]:
+    ) -> Generator[np.ndarray, None, None]:
         """Stream the configured timed trace as float64 chunks while it is acquired.
 
         Yields chunks of exactly ``chunk_points`` readings (the last one may be shorter),
@@ -426,7 +426,7 @@ class Keysight34465A(SCPIInstrument):
 
     def _stream(
         self, plan: TracePlan, chunk: int, wait: Wait, initiate: bool, poll: float, stall: float
-    ) -> Iterator[np.ndarray]:
+    ) -> Generator[np.ndarray, None, None]:
         self._use_binary_readings()
         if initiate:
             self.initiate()

@@ -20,7 +20,7 @@ The Protocols are deliberately not ``runtime_checkable``: on Python 3.11 an
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Generator, Mapping, Sequence
 from enum import IntEnum
 from typing import Any, Protocol
 
@@ -128,7 +128,7 @@ class TimedTraceMultimeter(SafeInstrument, Protocol):
     def stream_trace(
         self, chunk_points: int = ..., *, wait: Wait, initiate: bool = ...,
         min_poll_s: float = ..., stall_timeout_s: float | None = ...,
-    ) -> Iterator[np.ndarray]: ...
+    ) -> Generator[np.ndarray, None, None]: ...
 
 
 class SupplyChannel(Protocol):

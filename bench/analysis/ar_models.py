@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import fft as sp_fft
 from scipy import stats
+from statsmodels.tsa.adfvalues import mackinnonp
 
 from bench.analysis import timeseries as ts
 
@@ -78,8 +79,6 @@ def kpss_level(x: np.ndarray) -> StationarityTest:
 def adf_constant(x: np.ndarray, lags: int) -> StationarityTest:
     """Augmented Dickey–Fuller with a constant and ``lags`` lagged differences, as
     statsmodels ``adfuller(x, maxlag=lags, autolag=None, regression="c")``."""
-    from statsmodels.tsa.adfvalues import mackinnonp  # noqa: PLC0415 (heavy import)
-
     x = np.asarray(x, dtype=float)
     dx = np.diff(x)
     m = dx.size - lags  # regression rows: Δx_t for t = lags+1 .. n-1

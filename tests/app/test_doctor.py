@@ -9,16 +9,15 @@ import socket
 import pytest
 
 from bench.app.cli import main
-from sim.station import INSTRUMENTS, SimulatedStation
+from sim.station import INSTRUMENTS
 
 #: what doctor checks on the built-in station: every instrument of its table, then its clock
 CHECKED = [row.name for row in INSTRUMENTS] + ["clock"]
 
 
 @pytest.fixture(scope="module")
-def sim():
-    with SimulatedStation() as station:
-        yield station
+def sim(served_station):
+    return served_station
 
 
 def _closed_port() -> int:

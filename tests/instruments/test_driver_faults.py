@@ -73,7 +73,7 @@ def rig():
 def test_a_stalled_instrument_times_out_naming_instrument_and_command(rig):
     rig.fault('SIM:FAUL:STAL "dmm"')
     with pytest.raises(InstrumentTimeoutError) as info:
-        rig.dmm.nplc  # noqa: B018 - a setting readback: idempotent, so retried
+        _ = rig.dmm.nplc  # a setting readback: idempotent, so retried
     text = str(info.value)
     assert "dmm" in text and "VOLT:DC:NPLC?" in text and "3 attempts" in text and "\n" not in text
     with pytest.raises(InstrumentTimeoutError, match=r"SYST:ERR\?.* after 'ABOR'.*1 attempt\)"):
@@ -120,7 +120,7 @@ def test_a_dropped_connection_is_reopened_for_an_idempotent_query(rig):
 def test_reconnects_refused_for_a_while_end_in_a_named_error(rig):
     rig.fault('SIM:FAUL:DROP "supply",100')
     with pytest.raises((InstrumentTimeoutError, InstrumentConnectionError), match="supply"):
-        rig.supply.ch[2].voltage_setpoint_v  # noqa: B018
+        _ = rig.supply.ch[2].voltage_setpoint_v
     rig.wait(101)
     assert rig.supply.ch[2].voltage_setpoint_v == 0.0
 
@@ -169,7 +169,7 @@ def test_power_loss_drops_the_supply_outputs_and_the_instrument_comes_back_reset
     rig.fault('SIM:FAUL:POW "supply"')
     assert not rig.station.supply.channels[2].output
     with pytest.raises((InstrumentTimeoutError, InstrumentConnectionError), match="supply"):
-        rig.supply.ch[2].output_enabled  # noqa: B018
+        _ = rig.supply.ch[2].output_enabled
     rig.fault('SIM:FAUL:CLE ALL')
     assert rig.supply.ch[2].voltage_setpoint_v == 0.0  # *RST state after power-up
     assert rig.supply.query("SYST:ERR?").startswith("+0")

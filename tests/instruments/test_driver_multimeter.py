@@ -4,6 +4,7 @@ REAL,64 reading blocks, streaming, and the pyvisa-sim vocabulary."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -21,9 +22,10 @@ FORMAT_COMMANDS = ["FORM REAL,64", "FORM:BORD SWAP", "SYST:ERR?"]
 
 
 def make_dmm(options: str = "DIG,MEM", lfr: str = "+50", idn: str = IDN,
-             **replies: Any) -> tuple[Keysight34465A, FakeResource]:
+             replies: Mapping[str, Any] | None = None) -> tuple[Keysight34465A, FakeResource]:
+    """A driver on a fake resource answering the identity queries and ``replies`` (header → reply)."""
     fake = FakeResource(replies={"*IDN?": idn, "*OPT?": options, "SYST:LFR?": lfr, "*OPC?": "1",
-                                 **replies})
+                                 **(replies or {})})
     dmm = Keysight34465A(fake)
     fake.written.clear()
     return dmm, fake
@@ -91,7 +93,7 @@ def test_nplc_allowed_set_depends_on_dig_option() -> None:
 
 
 def test_getters_parse_the_documented_replies() -> None:
-    dmm, fake = make_dmm(**{
+    dmm, fake = make_dmm(replies={
         "VOLT:DC:NPLC?": "+1.00000000E+01", "VOLT:DC:ZERO:AUTO?": "0",
         "TRIG:COUN?": "+5.00000000E+00",
         "FUNC?": '"VOLT"', "VOLT:DC:RANG:AUTO?": "1", "DISP:TEXT?": '"Hello"', "TRIG:SOUR?": "IMM",
@@ -143,7 +145,7 @@ def test_configure_timed_trace_writes_one_group() -> None:
 
 
 def test_failed_trace_configuration_is_not_remembered() -> None:
-    dmm, fake = make_dmm(**{"READ?": pack_real64_block([0.5])})
+    dmm, fake = make_dmm(replies={"READ?": pack_real64_block([0.5])})
     fake.error_queue.append('-221,"Settings conflict"')
     with pytest.raises(InstrumentError):
         dmm.configure_timed_trace(100, 0.1)
@@ -206,7 +208,7 @@ finite = st.floats(min_value=-1e37, max_value=1e37, allow_nan=False, width=64)
 @settings(max_examples=60, deadline=None)
 def test_read_and_remove_decodes_real64_blocks_exactly(values: list[float]) -> None:
     n = len(values)
-    dmm, fake = make_dmm(**{f"R? {n}": pack_real64_block(values)})
+    dmm, fake = make_dmm(replies={f"R? {n}": pack_real64_block(values)})
     readings = dmm.read_and_remove(n)
     assert fake.written == FORMAT_COMMANDS + [f"R? {n}"]
     assert readings.astype("<f8").tobytes() == np.array(values, dtype="<f8").tobytes()
@@ -214,7 +216,7 @@ def test_read_and_remove_decodes_real64_blocks_exactly(values: list[float]) -> N
 
 def test_fetch_all_and_read_flag_overloads_as_nan() -> None:
     raw = [1.5, 9.9e37, -9.9e37, 9.91e37, -2.25e-6]
-    dmm, fake = make_dmm(**{"FETC?": pack_real64_block(raw), "READ?": pack_real64_block([9.9e37])})
+    dmm, fake = make_dmm(replies={"FETC?": pack_real64_block(raw), "READ?": pack_real64_block([9.9e37])})
     readings = dmm.fetch_all()
     assert np.isnan(readings).tolist() == [False, True, True, True, False]
     assert readings[0] == 1.5 and readings[4] == -2.25e-6
@@ -223,7 +225,7 @@ def test_fetch_all_and_read_flag_overloads_as_nan() -> None:
 
 
 def test_measure_dc_voltage_expects_one_reading() -> None:
-    dmm, _ = make_dmm(**{"READ?": pack_real64_block([1.25])})
+    dmm, _ = make_dmm(replies={"READ?": pack_real64_block([1.25])})
     assert dmm.measure_dc_voltage() == 1.25
     dmm.resource.replies["READ?"] = pack_real64_block([1.0, 2.0])
     with pytest.raises(InstrumentReplyError):
@@ -231,7 +233,7 @@ def test_measure_dc_voltage_expects_one_reading() -> None:
 
 
 def test_reset_forgets_the_binary_format() -> None:
-    dmm, fake = make_dmm(**{"READ?": pack_real64_block([0.5])})
+    dmm, fake = make_dmm(replies={"READ?": pack_real64_block([0.5])})
     dmm.measure_dc_voltage()
     dmm.reset()
     dmm.measure_dc_voltage()
@@ -241,13 +243,13 @@ def test_reset_forgets_the_binary_format() -> None:
 @pytest.mark.parametrize("reply, value", [("+1.73730000E-03 VDC", 1.7373e-3),
                                           ("-2.5E+00 VDC", -2.5)])
 def test_last_reading(reply: str, value: float) -> None:
-    dmm, fake = make_dmm(**{"DATA:LAST?": reply})
+    dmm, fake = make_dmm(replies={"DATA:LAST?": reply})
     assert dmm.last_reading() == value
     assert fake.written == ["DATA:LAST?"]
 
 
 def test_read_available_drains_what_is_there() -> None:
-    dmm, fake = make_dmm(**{"R? 3": pack_real64_block([1.0, 2.0, 3.0])})
+    dmm, fake = make_dmm(replies={"R? 3": pack_real64_block([1.0, 2.0, 3.0])})
     fake.replies["DATA:POIN?"] = "+0"
     assert dmm.read_available().size == 0
     fake.replies["DATA:POIN?"] = "+3"
@@ -258,7 +260,7 @@ def test_read_available_drains_what_is_there() -> None:
 
 
 def test_snapshot_records_identity_options_and_settings() -> None:
-    dmm, _ = make_dmm(**{"FUNC?": '"VOLT"', "VOLT:DC:RANG?": "+1.0E+01", "VOLT:DC:RANG:AUTO?": "0",
+    dmm, _ = make_dmm(replies={"FUNC?": '"VOLT"', "VOLT:DC:RANG?": "+1.0E+01", "VOLT:DC:RANG:AUTO?": "0",
                          "VOLT:DC:NPLC?": "+1.0E+00",
                          "VOLT:DC:ZERO:AUTO?": "0", "TRIG:SOUR?": "IMM", "TRIG:COUN?": "+1",
                          "TRIG:DEL?": "+0.0E+00", "SAMP:SOUR?": "TIM", "SAMP:TIM?": "+1.0E-02",
@@ -270,12 +272,13 @@ def test_snapshot_records_identity_options_and_settings() -> None:
 
 
 def test_last_reading_overload_is_nan() -> None:
-    assert math.isnan(make_dmm(**{"DATA:LAST?": "+9.90000000E+37 VDC"})[0].last_reading())
+    assert math.isnan(make_dmm(replies={"DATA:LAST?": "+9.90000000E+37 VDC"})[0].last_reading())
 
 
 def test_read_and_remove_bounds() -> None:
     dmm, fake = make_dmm(options="0")
-    for bad in (0, 50_001, 2.5):
+    bad_counts: tuple[Any, ...] = (0, 50_001, 2.5)  # a caller's mistakes, a fraction among them
+    for bad in bad_counts:
         with pytest.raises(ValueError):
             dmm.read_and_remove(bad)
     assert fake.written == []
@@ -342,7 +345,7 @@ def test_stream_trace_aborts_when_the_consumer_stops_early() -> None:
 
 
 def test_stream_trace_times_out_when_no_readings_arrive() -> None:
-    dmm, fake = make_dmm(**{"DATA:POIN?": "+0"})
+    dmm, fake = make_dmm(replies={"DATA:POIN?": "+0"})
     dmm.configure_timed_trace(10, 0.01, nplc=0.2)
     waited: list[float] = []
     with pytest.raises(TimeoutError):
@@ -352,7 +355,7 @@ def test_stream_trace_times_out_when_no_readings_arrive() -> None:
 
 
 def test_stream_trace_reports_a_full_reading_memory() -> None:
-    dmm, fake = make_dmm(options="0", **{"DATA:POIN?": "+50000"})
+    dmm, fake = make_dmm(options="0", replies={"DATA:POIN?": "+50000"})
     dmm.configure_timed_trace(100_000, 1e-3, nplc=0.02)
     with pytest.raises(RuntimeError, match="reading memory full"):
         next(dmm.stream_trace(10_000, wait=lambda s: None))
@@ -367,8 +370,9 @@ def test_stream_trace_validates_before_the_wire() -> None:
     fake.written.clear()
     with pytest.raises(ValueError, match=r"\[1, 25000\]"):
         dmm.stream_trace(25_001, wait=lambda s: None)
+    no_wait: Any = None  # a caller that forgot the bench clock
     with pytest.raises(ValueError):
-        dmm.stream_trace(10, wait=None)
+        dmm.stream_trace(10, wait=no_wait)
     assert fake.written == []
 
 

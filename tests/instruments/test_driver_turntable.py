@@ -163,7 +163,7 @@ def test_stop_all_reaches_every_axis_even_if_one_fails() -> None:
     assert fake.written == [":STOP 1", "SYST:ERR?", "SYST:ERR?", ":STOP 2", "SYST:ERR?"]
 
 
-def test_stop_all_survives_an_io_failure() -> None:
+def test_stop_all_survives_an_io_failure(monkeypatch: pytest.MonkeyPatch) -> None:
     table, fake = make_table()
     original = fake.write
 
@@ -172,7 +172,7 @@ def test_stop_all_survives_an_io_failure() -> None:
             raise OSError("connection reset")
         return original(message)
 
-    fake.write = flaky_write  # type: ignore[method-assign]
+    monkeypatch.setattr(fake, "write", flaky_write)
     failures = table.stop_all()
     assert [f.axis for f in failures] == [1] and isinstance(failures[0].error, OSError)
     assert ":STOP 2" in fake.written

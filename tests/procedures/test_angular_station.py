@@ -19,7 +19,7 @@ from procedures.frf import FrfParameters, FrfTest, safe_amplitude_dps
 from procedures.fusion import FusionParameters, FusionTest, tone_demand
 from procedures.running import alone
 from sim.devices.fog_serial import FogSerialDevice
-from sim.station import SimStationConfig, SimulatedStation
+from sim.station import SimStationConfig
 from sim.station_angular import draw_rig
 
 SEED = 3
@@ -62,7 +62,6 @@ def test_frf_recovers_the_drawn_sensors(frf_run):
 
 def test_frf_points_carry_uncertainties_that_cover_the_true_response(frf_run):
     from bench.analysis.fusion_models import SensorModel
-    from sim.physics.rate_sensor_lti import Section, cascade  # noqa: F401 - the sim's own model
 
     outcome, truth, store = frf_run
     points = store.results(outcome.run_id)["frf.points"]
@@ -146,17 +145,16 @@ def test_interlock_during_the_frf_aborts_and_keeps_what_was_acquired(tmp_path):
     assert store.load(outcome.run_id, "frf_ref")["t_s"].size > 0
 
 
-def test_lf_frame_clock_and_dmm_timebase_run_off_nominal() -> None:
-    with SimulatedStation(SimStationConfig(seed=1, lf_sensor={"frame_clock_error_ppm": 100.0})) as sim:
-        line: FogSerialDevice = sim.angular.lf_line
-        assert line.clock_ppm == 100.0
-        line.rate_hz = 1000
-        line._start()
-        assert line._frames_due(10.0) == math.floor(10.0 * 1000 * (1 + 100e-6))
-    with SimulatedStation(SimStationConfig(seed=1, dmm_timebase_ppm=-50.0)) as sim:
-        dmm = sim.angular.dmm
-        dmm.samp_source, dmm.samp_timer_s = "TIMER", 2.0  # longer than a reading: the timer sets it
-        assert dmm.interval_s == pytest.approx(2.0 * (1 - 50e-6), rel=1e-12)
+def test_lf_frame_clock_and_dmm_timebase_run_off_nominal(station_factory) -> None:
+    # devices driven directly, not served
+    line: FogSerialDevice = station_factory(seed=1, lf_sensor={"frame_clock_error_ppm": 100.0}).angular.lf_line
+    assert line.clock_ppm == 100.0
+    line.rate_hz = 1000
+    line._start()
+    assert line._frames_due(10.0) == math.floor(10.0 * 1000 * (1 + 100e-6))
+    dmm = station_factory(seed=1, dmm_timebase_ppm=-50.0).angular.dmm
+    dmm.samp_source, dmm.samp_timer_s = "TIMER", 2.0  # longer than a reading: the timer sets it
+    assert dmm.interval_s == pytest.approx(2.0 * (1 - 50e-6), rel=1e-12)
 
 
 @settings(max_examples=20, deadline=None)

@@ -15,6 +15,11 @@
 
 from __future__ import annotations
 
+import random
+import socket
+import threading
+import time
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
@@ -30,7 +35,9 @@ from sim.physics.motion import DualAxisTable
 from sim.physics.shaker import Shaker
 from sim.scpi import ScpiDevice
 from sim.scpi.errors import ERROR_MESSAGES, esr_bit_for
+from sim.station import SimulatedStation
 from sim.world import World
+from tests.sim.fuzz_wire import GyroFuzzClient, ScpiFuzzClient, Tally, gyro_line, scpi_message
 
 
 def _dmm(world):
@@ -213,13 +220,6 @@ def test_scpi_state_machine(kind):
 
 
 # -- (b) byte-level fuzzing over real TCP ------------------------------------------------------
-import random  # noqa: E402
-import socket  # noqa: E402
-import threading  # noqa: E402
-import time  # noqa: E402
-
-from sim.station import SimulatedStation  # noqa: E402
-from tests.sim.fuzz_wire import GyroFuzzClient, ScpiFuzzClient, Tally, gyro_line, scpi_message  # noqa: E402
 
 COMMON_VALID = [("*IDN?", 1), ("*ESR?", 1), ("*STB?", 1), ("*OPC?", 1), ("*ESE 4", 0),
                 ("*SRE?", 1), ("SYST:ERR?", 1)]
@@ -233,9 +233,8 @@ def wire_valid(name: str) -> list[tuple[str, int]]:
 
 
 @pytest.fixture(scope="module")
-def station():
-    with SimulatedStation() as sim:
-        yield sim
+def station(served_station):
+    return served_station
 
 
 def _power_gyro(sim) -> None:

@@ -14,8 +14,6 @@ from pathlib import Path
 import pytest
 import yaml
 
-from sim.station import SimStationConfig, SimulatedStation
-
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs" / "vocabulary"
 YAML_DIR = ROOT / "sim" / "visa_yaml"
@@ -56,8 +54,8 @@ def short_header(pattern: str, optional_nodes: bool = False) -> str:
 
 
 @pytest.fixture(scope="module")
-def station():
-    return SimulatedStation(SimStationConfig(seed=3))  # devices driven directly, not served
+def station(station_factory):
+    return station_factory(seed=3)  # devices driven directly, not served
 
 
 COMMON = read_table(DOCS / "README.md")

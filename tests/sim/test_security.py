@@ -24,9 +24,8 @@ EVIL = "__import__('os').system('touch {flag}')"
 
 
 @pytest.fixture(scope="module")
-def station():
-    with SimulatedStation() as sim:
-        yield sim
+def station(served_station):
+    return served_station
 
 
 # -- listening address ---------------------------------------------------------------------

@@ -10,7 +10,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sim.devices.dmm import LEVEL_WAIT_S, Multimeter
-from sim.station import SimStationConfig, SimulatedStation
 from sim.world import World
 
 TRACE = ":VOLT:RANG 10;:VOLT:NPLC 0.02;:SAMP:SOUR TIM;:SAMP:TIM 0.001;:TRIG:DEL 0"
@@ -32,8 +31,8 @@ def ramp_meter(seed=0):
 
 
 @pytest.fixture
-def station():
-    return SimulatedStation(SimStationConfig(seed=5))  # devices driven directly
+def station(station_factory):
+    return station_factory(seed=5)  # devices driven directly
 
 
 def test_pretrigger_keeps_the_newest_readings_and_the_rest_follow_the_trigger():

@@ -5,12 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.station import SimStationConfig, SimulatedStation
-
 
 @pytest.fixture
-def station():
-    return SimulatedStation(SimStationConfig(seed=1))  # not served: devices driven directly
+def station(station_factory):
+    return station_factory(seed=1)  # not served: devices driven directly
 
 
 def ask(dev, text):

@@ -10,7 +10,7 @@ import pytest
 
 from sim.faults import PARAMETERS
 from sim.server import MODBUS, SCPI, SERIAL, ByteStreamDevice
-from sim.station import INSTRUMENTS, SimulatedStation, StationInstrument
+from sim.station import INSTRUMENTS, StationInstrument
 
 #: the hooks each device fault kind needs (sim.devices.lifecycle)
 HOOKS = {"power": ("power_off", "power_on"), "interlock": ("trip_interlock",),
@@ -34,8 +34,8 @@ DOCUMENTED_KINDS = {
 
 
 @pytest.fixture(scope="module")
-def station():
-    return SimulatedStation()  # not started: devices and fault layer only
+def station(station_factory):
+    return station_factory()  # not started: devices and fault layer only
 
 
 def test_names_are_unique_and_the_fault_targets_are_the_table(station):
@@ -101,8 +101,8 @@ def test_server_sim_control_and_listing_follow_the_table(sim_station):
     assert listed == ",".join(f'"{row.name}"' for row in INSTRUMENTS)
 
 
-def test_power_cycles_every_device_through_its_hooks():
-    station = SimulatedStation()
+def test_power_cycles_every_device_through_its_hooks(station_factory):
+    station = station_factory()
     faults = station.faults
     station.supply.process(b"APPL CH1,5,1;:OUTP ON,(@1)")  # the gyro powered
     station.supply.push_error(-222, "left over")
@@ -121,8 +121,8 @@ def test_power_cycles_every_device_through_its_hooks():
     assert station.angular.lf_line.state == "STOPPED" and station.gyro_line.state == "OFF"
 
 
-def test_overload_and_interlock_hooks_do_what_the_fault_table_says():
-    station = SimulatedStation()
+def test_overload_and_interlock_hooks_do_what_the_fault_table_says(station_factory):
+    station = station_factory()
     faults = station.faults
     faults.inject("overload", "dmm_mhd", volts=-50.0)
     assert faults.active() == {"dmm_mhd": ["overload"]} and station.angular.dmm.overloaded

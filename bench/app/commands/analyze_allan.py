@@ -51,7 +51,8 @@ def sample_rate_hz(t_s: np.ndarray) -> float:
     dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.flatnonzero(dt <= 0)[0])
-        raise ValueError(f"time is not strictly increasing at sample index {k + 1} ({t[k]:.9g} s then {t[k + 1]:.9g} s)")
+        raise ValueError(f"time is not strictly increasing at sample index {k + 1} "
+                         f"({t[k]:.9g} s then {t[k + 1]:.9g} s)")
     step = float(t[-1] - t[0]) / (t.size - 1)
     deviation = np.abs(dt / step - 1.0)
     k = int(np.argmax(deviation))

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
+from numpy.typing import DTypeLike
 
 #: Every status a run can have; ``running`` is the only one that is not final.
 STATUSES = ("running", "completed", "passed", "failed", "aborted")
@@ -137,10 +138,10 @@ def check_attachment_name(name: object) -> str:
     return name
 
 
-def check_column_dtype(dtype: object, where: str) -> np.dtype:
+def check_column_dtype(dtype: DTypeLike, where: str) -> np.dtype:
     """Return the little-endian storage dtype for ``dtype`` or raise naming the allowed kinds."""
     try:
-        dt = np.dtype(dtype)  # type: ignore[call-overload]
+        dt = np.dtype(dtype)
     except TypeError as exc:
         raise TypeError(f"{where}: {dtype!r} is not a numpy dtype") from exc
     if dt.kind not in COLUMN_KINDS:
