@@ -21,6 +21,7 @@ from procedures.fusion import FusionTest
 from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.ratetable import RateTableCalibration
 from procedures.startup import StartupAcquisition
+from procedures.thermal_sweep import GyroThermalSweep, ThermalSweep
 from procedures.tumble import TumbleCalibration
 from procedures.turn_on import GyroTurnOnTest, TurnOnTest
 from procedures.vibration import VibrationTest
@@ -36,6 +37,8 @@ CATALOGUE = Catalogue.of(
     VibrationTest,           # vibration: Document C's test
     FrfTest,                 # frf: the angular rig (Document B)
     FusionTest,              # fusion: the angular rig (Document B)
+    ThermalSweep,            # thermal_sweep: calibration over temperature (chamber)
+    GyroThermalSweep,        # gyro_thermal_sweep
     renamed={"startup": "turn_on", "gyro_startup": "gyro_turn_on"},
 )
 
