@@ -21,6 +21,7 @@ from procedures.fusion import FusionTest
 from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.ratetable import RateTableCalibration
 from procedures.startup import StartupAcquisition
+from procedures.thermal_ramp import GyroThermalRamp, ThermalRamp
 from procedures.thermal_sweep import GyroThermalSweep, ThermalSweep
 from procedures.tumble import TumbleCalibration
 from procedures.turn_on import GyroTurnOnTest, TurnOnTest
@@ -39,6 +40,8 @@ CATALOGUE = Catalogue.of(
     FusionTest,              # fusion: the angular rig (Document B)
     ThermalSweep,            # thermal_sweep: calibration over temperature (chamber)
     GyroThermalSweep,        # gyro_thermal_sweep
+    ThermalRamp,             # thermal_ramp: hysteresis and rate sensitivity (chamber)
+    GyroThermalRamp,         # gyro_thermal_ramp
     renamed={"startup": "turn_on", "gyro_startup": "gyro_turn_on"},
 )
 
