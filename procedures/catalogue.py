@@ -25,6 +25,7 @@ from procedures.thermal_ramp import GyroThermalRamp, ThermalRamp
 from procedures.thermal_sweep import GyroThermalSweep, ThermalSweep
 from procedures.tumble import TumbleCalibration
 from procedures.turn_on import GyroTurnOnTest, TurnOnTest
+from procedures.turn_on_repeatability import GyroTurnOnRepeatabilityTest, TurnOnRepeatabilityTest
 from procedures.vibration import VibrationTest
 
 CATALOGUE = Catalogue.of(
@@ -42,6 +43,8 @@ CATALOGUE = Catalogue.of(
     GyroThermalSweep,        # gyro_thermal_sweep
     ThermalRamp,             # thermal_ramp: hysteresis and rate sensitivity (chamber)
     GyroThermalRamp,         # gyro_thermal_ramp
+    TurnOnRepeatabilityTest,      # turn_on_repeatability: power cycles in the chamber
+    GyroTurnOnRepeatabilityTest,  # gyro_turn_on_repeatability
     renamed={"startup": "turn_on", "gyro_startup": "gyro_turn_on"},
 )
 
