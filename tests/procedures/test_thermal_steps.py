@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from bench.analysis.thermal_compensation_file import compensation_from_toml
+from bench.app.reports.thermal_plots import thermal_sweep_section
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
@@ -99,6 +100,9 @@ def test_a_linear_unit_s_temperature_coefficients_are_recovered_and_its_file_ver
     assert got["sf_residual"].value < 4 * got["sf_residual"].uncertainty + 2.0
     soak = store.load(outcome.run_id, "thermal_soak")
     assert soak["t_s"].size > 20 and np.all(np.diff(soak["t_s"]) > 0)
+    # the report's figure: the quantities over temperature and the verification residuals
+    title, png, caption = thermal_sweep_section(store, outcome.run_id, store.results(outcome.run_id), tmp_path)
+    assert (tmp_path / png).stat().st_size > 10_000 and "k0: TC" in caption and "thermal_compensation.toml" in caption
 
 
 def test_the_ramp_step_separates_hysteresis_from_rate_sensitivity_with_two_rates(tmp_path):
