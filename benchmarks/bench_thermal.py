@@ -1,6 +1,6 @@
 """Speed of the thermal simulation: 20 hours of chamber profile, both units powered.
 
-    .venv/bin/python benchmarks/bench_thermal.py [--hours 20] [--skip-wire]
+    .venv/bin/python benchmarks/bench_thermal.py [--hours 20] [--skip-wire] [--calibration]
 
 The profile is a thermal calibration's: seven set points −40 … +70 °C, a 2 °C/min ramp to
 each, a soak, then back to the lab (≈ 20 h of chamber time, which a real chamber also takes).
@@ -15,6 +15,10 @@ each, a soak, then back to the lab (≈ 20 h of chamber time, which a real chamb
    (``WatlowF4TChamber``), the units powered from the supply (SCPI), every 10 min the
    accelerometer's temperature read by ``dmm_temp`` and the chamber's status, every hour
    2 s of gyro frames.
+3. ``--calibration``: the thermal acceptance of each unit (``bench acceptance --spec
+   bench/specs/qa2000-thermal.toml`` and ``fog-tactical-thermal.toml``, in-process: sweep,
+   compensation file and verification, ramps, turn-on repeatability), its wall time beside
+   the chamber time it simulates — the time a real chamber takes for the same profile.
 """
 
 from __future__ import annotations
@@ -173,14 +177,48 @@ def wire(hours: float) -> None:
           f"start) = {sim_s / wall:,.0f}x real time (a real chamber takes the {sim_s / 3600:.1f} h)")
 
 
+def calibration() -> None:
+    import tempfile
+    from pathlib import Path
+
+    from bench.app.station import Station, builtin_sim_config
+    from bench.core.procedure import execute
+    from bench.core.spec import load_spec
+    from bench.core.store import RunStore
+    from procedures.acceptance import AcceptanceTest
+    from procedures.catalogue import CATALOGUE
+
+    root = Path(__file__).resolve().parents[1] / "bench" / "specs"
+    with tempfile.TemporaryDirectory() as tmp:
+        store = RunStore(Path(tmp) / "bench.sqlite")
+        runs = (("qa2000-thermal.toml", "QA-SIM-0005"), ("fog-tactical-thermal.toml", "FOG-SIM-0005"))
+        for spec_file, serial in runs:
+            spec = load_spec(root / spec_file, CATALOGUE)
+            t0 = time.perf_counter()
+            with Station(builtin_sim_config(), seed=1, unit_serial=serial, unit_kind=spec.kind) as st:
+                start = time.perf_counter()
+                outcome = execute(AcceptanceTest(spec), st, store, unit_serial=serial, seed=1)
+                wall = time.perf_counter() - start
+                sim_s = st.clock.now()
+            total = time.perf_counter() - t0
+            temps = store.load(outcome.run_id, "thermal_points")["set_point_c"].size
+            print(f"thermal acceptance {spec_file} ({serial}): {outcome.status}, {temps} temperatures, "
+                  f"{sim_s / 3600:.1f} h of chamber time in {wall:.1f} s wall ({total:.1f} s with the station's "
+                  f"start) = {sim_s / wall:,.0f}x real time (a real chamber: the {sim_s / 3600:.1f} h)")
+        store.close()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, default=20.0)
     ap.add_argument("--skip-wire", action="store_true")
+    ap.add_argument("--calibration", action="store_true", help="also the thermal acceptance of both units")
     args = ap.parse_args()
     physics(args.hours)
     if not args.skip_wire:
         wire(args.hours)
+    if args.calibration:
+        calibration()
 
 
 if __name__ == "__main__":
