@@ -119,16 +119,16 @@ def physics(hours: float) -> None:
     world2 = World(1)
     air2 = ChamberAir(world2)
     bodies = [TwoNodeBody(pa, air2), TwoNodeBody(pg, air2)]
-    for b in bodies:
-        b.set_power(0.0, True)
+    for body in bodies:
+        body.set_power(0.0, True)
     k = 0
     for sp, hold in steps:
         air2.command(True, sp, RAMP_C_PER_MIN)
         end = world2.now + hold
         while k < t_read.size and t_read[k] < end:
             world2.advance_to(max(world2.now, t_read[k]))
-            for b in bodies:
-                b.nodes_c([world2.now])
+            for body in bodies:
+                body.nodes_c([world2.now])
             k += 1
         world2.advance_to(end)
     ours = time.perf_counter() - t2
