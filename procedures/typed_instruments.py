@@ -22,6 +22,7 @@ from instruments.protocols import (
     PositionRateTable,
     PowerSupply,
     RandomVibrationTable,
+    ThermalChamber,
     TimedTraceMultimeter,
 )
 
@@ -66,4 +67,9 @@ def angular_table(ctx: Context, name: str = "angular_table") -> AngularTable:
     return _instrument(ctx, name)
 
 
-__all__ = ["multimeter", "power_supply", "turntable", "frame_gyro", "shaker", "angular_table"]
+def chamber(ctx: Context, name: str = "chamber") -> ThermalChamber:
+    """The temperature chamber's controller the unit (and its table) stands in."""
+    return _instrument(ctx, name)
+
+
+__all__ = ["multimeter", "power_supply", "turntable", "frame_gyro", "shaker", "angular_table", "chamber"]
