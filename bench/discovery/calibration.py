@@ -49,15 +49,15 @@ def _slots(model: Model, rec: Record) -> list[_Slot]:
     slots = [_Slot("base", "bias")]
     if _sf_free(rec):
         slots.append(_Slot("base", "scale_factor"))
-    for i, (eff, _) in enumerate(model.entries()):
+    for i, (eff, p) in enumerate(model.entries()):
         if not eff.waveform:
             continue
-        for q in eff.params_for(model.base.kind):
+        for q in eff.free_params(p, model.base.kind):
             slots.append(_Slot("effect", q.name, i, q))
     return slots
 
 
-def _coords(model: Model, slots: list[_Slot]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _coords(model: Model, slots: list[_Slot], rec: Record) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(x, lower, upper, scale): optimiser coordinates (log parameters in log) and bounds."""
     x, lo, hi, sc = [], [], [], []
     for s in slots:
@@ -88,10 +88,11 @@ def _coords(model: Model, slots: list[_Slot]) -> tuple[np.ndarray, np.ndarray, n
             hi.append(8 * np.pi)
             sc.append(0.1)
         else:
+            own = model.entries()[s.index][0].coordinate_scale(q, rec)
             x.append(v)
             lo.append(q.low)
             hi.append(q.high)
-            sc.append(max(abs(v), (q.high - q.low) * 1e-4, 1e-300))
+            sc.append(own if own is not None else max(abs(v), (q.high - q.low) * 1e-4, 1e-300))
     return np.array(x), np.array(lo), np.array(hi), np.array(sc)
 
 
@@ -163,7 +164,7 @@ def calibrate(model: Model, rec: Record, *, noise: bool = True, max_nfev: int = 
             model = model.with_noise_floor(floor)
             slots.append(_Slot("noise", "noise_sd", floor=floor))
     if len(slots) > (2 if sf_free else 1):  # effects with parameters: the joint nonlinear fit
-        x0, lo, hi, sc = _coords(model, slots)
+        x0, lo, hi, sc = _coords(model, slots, rec)
         x0 = np.clip(x0, lo, hi)
         y = rec.y
         start = model

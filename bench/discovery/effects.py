@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping, Sequence
 
 from bench.discovery.effects_base import KINDS, Effect
-from bench.discovery.effects_noise import GaussMarkov, RateRandomWalk
+from bench.discovery.effects_noise import AngleQuantization, FlickerNoise, GaussMarkov, RateRandomWalk
 from bench.discovery.effects_terms import (
     GSensitivity,
     K2Nonlinearity,
@@ -119,5 +119,5 @@ CATALOGUE = Catalogue((
     WarmupExponential, LinearDrift, TemperatureBias, TemperatureScaleFactor, K2Nonlinearity,
     K3Nonlinearity, ScaleFactorAsymmetry, Misalignment, GSensitivity, Quantization, DeadZone,
     Saturation, SinusoidalInterference, GaussMarkov, RateRandomWalk, TimeDelay, LowpassBandwidth,
-    HighpassRolloff, VibrationRectification,
+    HighpassRolloff, VibrationRectification, FlickerNoise, AngleQuantization,
 ))

@@ -140,10 +140,17 @@ class Effect:
     whose residual floor the gap then simulates), ``mean_depends_on_noise`` (an output transform
     whose mean reading depends on the noise before it: calibration fits the noise sd with it).
 
-    Hooks the naming step asks: ``big_enough`` (the size gate; ``size_noise_sd`` the sd it is
-    judged against), ``identifiable`` (can the record resolve these parameters at all),
+    Hooks the naming step asks: ``applies_to`` (does the record carry what it needs: its logged
+    columns, varying), ``big_enough`` (the size gate; ``size_noise_sd`` the sd it is judged
+    against), ``identifiable`` (can the record resolve these parameters at all),
     ``colours_residual`` (once in the model, does it leave residual colour no random-process
-    null describes)."""
+    null describes), ``localized`` (a deterministic explanation placed in time by what the
+    record logs — a jump, a warm-up when power-on is logged: tested before any catch-all),
+    ``catch_all`` (a process or trend that can absorb any slow structure: named only on the
+    evidence of its own signature), ``relaxed_basis`` (columns of a freer version of its shape:
+    if they still explain the residual once it is in the model, its shape does not hold and it
+    is not named). The fit asks ``free_params`` (which parameters a fit moves; a jump's unused
+    slots stay put) and ``coordinate_scale`` (the optimiser's scale of a parameter on rec)."""
 
     id: str = ""
     description: str = ""
@@ -164,6 +171,7 @@ class Effect:
     draw_span_main: float = DRAW_SPAN
     threshold_log_tol: float = 1e-3  # bisection width (log of the main parameter) of a threshold
     needs_uniform: bool = False  # a sampled filter: every interval within 0.1 % of the median
+    catch_all: bool = False  # absorbs any slow structure: named on the evidence of its signature only
 
     def __init__(self, look_alikes: Sequence[Effect] = ()) -> None:
         """``look_alikes``: the competitor effects themselves (the catalogue passes them); an
@@ -229,6 +237,31 @@ class Effect:
         if missing:
             raise ValueError(f"effect {self.id!r}: missing parameter(s) {missing}; required: {list(names)}")
         return {q.name: q.check(p[q.name], self.id) for q in (self.params_for(kind) if kind else self.params)}
+
+    def free_params(self, p: Mapping[str, float], kind: str) -> tuple[Param, ...]:
+        """The parameters a fit moves from the values ``p`` (default: all of the kind's)."""
+        return self.params_for(kind)
+
+    def coordinate_scale(self, q: Param, rec: Record) -> float | None:
+        """The optimiser's scale of parameter ``q`` on rec (None: the fitter's default, a
+        thousandth of the range; a jump's time has the sample interval)."""
+        return None
+
+    def applies_to(self, rec: Record) -> bool:
+        """True when rec carries what the effect needs: every logged column of ``inputs`` present
+        and varying (an input held constant is one with the bias; ``t``/``t_on`` always are)."""
+        return all(n in ("t", "t_on") or rec.varies(n) for n in self.inputs)
+
+    def localized(self, rec: Record) -> bool:
+        """True when rec places this effect in time by what it logs (a jump; a warm-up once
+        power-on is logged): such an explanation is tested before any catch-all."""
+        return False
+
+    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
+        """(columns, what they are) of a freer version of this effect's shape at ``p`` on rec —
+        what would still explain the residual if its shape were wrong (harmonics and amplitude
+        changes of a line, higher powers of its input) — or None when it has none."""
+        return None
 
     def check_inputs(self, rec: Record) -> None:
         for name in self.inputs:
@@ -491,7 +524,7 @@ class Effect:
             a, b = max(thr, lo_mag), min(hi_mag, far)
         else:
             a, b = max(lo_mag, far), min(thr, hi_mag)
-        c_lo, c_hi = self.main_draw_clip(rec, kind)
+        c_lo, c_hi = self.main_draw_clip(rec, kind, sd)
         a, b = max(a, c_lo), min(b, c_hi)
         if not (0 < a <= b):
             raise ValueError(f"{self.id}: no {self.main_param} inside [{q.low}, {q.high}] {q.unit} is "
@@ -516,9 +549,9 @@ class Effect:
             out[q.name] = math.exp(rng.uniform(math.log(lo), math.log(hi))) if q.log else rng.uniform(lo, hi)
         return out
 
-    def main_draw_clip(self, rec: Record, kind: str) -> tuple[float, float]:
-        """Extra limits on the drawn main magnitude (override: e.g. a saturation limit not far
-        below the signal)."""
+    def main_draw_clip(self, rec: Record, kind: str, noise_sd: float) -> tuple[float, float]:
+        """Extra limits on the drawn main magnitude on rec with white ``noise_sd`` (override: e.g.
+        an angle quantizer whose readings would sit on a visible lattice)."""
         return 0.0, math.inf
 
     def finish_draw(self, rng: np.random.Generator, rec: Record, kind: str, p: Params) -> Params:
@@ -526,10 +559,13 @@ class Effect:
         return p
 
     # ---- fit starts -------------------------------------------------------------------
-    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[Params]:
-        """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first): the
-        :data:`N_STARTS` best points of a grid over its nonlinear parameters (:func:`grid_starts`)."""
-        return grid_starts(self, rec, residual, kind or guess_kind(rec))
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
+                   rows: np.ndarray | None = None) -> list[Params]:
+        """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first) on the
+        samples ``rows`` (default all; the others are not looked at): the :data:`N_STARTS` best
+        points of a grid over its nonlinear parameters (:func:`grid_starts`)."""
+        r = np.asarray(residual, float) if rows is None else np.where(rows, residual, 0.0)
+        return grid_starts(self, rec, r, kind or guess_kind(rec))
 
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
         q = self.param(self.main_param, kind)

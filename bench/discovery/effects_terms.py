@@ -69,6 +69,7 @@ class LinearDrift(Effect):
     form = "y += slope_per_s · (t − t[0])"
     inputs = ("t",)
     main_param = "slope_per_s"
+    catch_all = True  # a straight line absorbs the slow part of any wander
     signature = ("time: a ramp across the whole record; Allan: +1 slope at the longest tau; spectrum: 1/f² at the "
                  "lowest bins")
     separating = {
@@ -276,11 +277,13 @@ class SinusoidalInterference(Effect):
             return 2.0 / rec.duration_s, 0.5 * rec.rate_hz
         return q.low, q.high
 
-    def fit_starts(self, rec, residual, *, kind=None):
-        """The three strongest periodogram lines of the residual (uniform records: FFT with a
-        Hann window; else a Lomb-Scargle grid), amplitude and phase by least squares."""
+    def fit_starts(self, rec, residual, *, kind=None, rows=None):
+        """The three strongest periodogram lines of the residual on ``rows`` (others zero; uniform
+        records: FFT with a Hann window; else a Lomb-Scargle grid), amplitude and phase by least
+        squares."""
         kind = kind or guess_kind(rec)
-        r = project_out(np.asarray(residual, float), base_regressors(rec))
+        r = np.asarray(residual, float) if rows is None else np.where(rows, residual, 0.0)
+        r = project_out(r, base_regressors(rec))
         f_lo, f_hi = self.drawable_range(self.param("freq_hz", kind), rec, kind)
         tt = rec.t_s - rec.t_s[0]
         if rec.is_uniform():

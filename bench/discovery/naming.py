@@ -66,8 +66,7 @@ def applicable(model: Model, rec: Record) -> list[Effect]:
     for eff in CATALOGUE.values():
         if eff.id in have or model.base.kind not in eff.kinds or (eff.needs_uniform and not rec.is_uniform()):
             continue
-        # an input held constant cannot show an effect of it (it is one with the bias)
-        if all(n in ("t", "t_on") or (rec.logged(n) and np.ptp(rec.column(n)) > 0) for n in eff.inputs):
+        if eff.applies_to(rec):
             out.append(eff)
     return out
 
@@ -91,22 +90,24 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
                  err_b: np.ndarray, rng: np.random.Generator, n_rep: int) -> Trial:
     """Full-record fit (reported params), fold fits (held-out score), bootstrap p-value."""
     kind = model.base.kind
-    f = CandidateFitter(model, rec, effect)
     b0, s0 = float(model.base.bias), float(model.base.scale_factor)
-    starts = [f.pack(p, b0, s0) for p in effect.fit_starts(rec, r, kind=kind)]
-    full = f.fit(starts)
+    # the effect's starts share the parameters a fit moves (effect.free_params of the first)
+    starts = effect.fit_starts(rec, r, kind=kind)
+    f = CandidateFitter(model, rec, effect, template=starts[0] if starts else None)
+    full = f.fit([f.pack(p, b0, s0) for p in starts])
     err_c = np.zeros(rec.n)
     cols = []
     for k in (0, 1):
         te = folds == k
         # starts from the training blocks alone: a shape (a frequency, a time constant) chosen
         # with the held-out samples in view would leak them into the held-out score
-        starts_k = [f.pack(p, b0, s0) for p in effect.fit_starts(rec, np.where(te, 0.0, r), kind=kind)[:2]]
-        fk = f.fit(starts_k, rows=~te, max_nfev=40)
-        pred = f.predict(fk.x)
+        starts_k = effect.fit_starts(rec, r, kind=kind, rows=~te)[:2]
+        fk_fitter = CandidateFitter(model, rec, effect, template=starts_k[0] if starts_k else None)
+        fk = fk_fitter.fit([fk_fitter.pack(p, b0, s0) for p in starts_k], rows=~te, max_nfev=40)
+        pred = fk_fitter.predict(fk.x)
         err_c[te] = (rec.y - pred)[te] ** 2
-        g = pred - f.predict_without(fk.x)
-        cols.append(np.column_stack([g, f.jacobian(fk.x)]))
+        g = pred - fk_fitter.predict_without(fk.x)
+        cols.append(np.column_stack([g, fk_fitter.jacobian(fk.x)]))
     score = 1.0 - err_c.sum() / err_b.sum() if err_b.sum() > 0 else 0.0
     x_nuis = base_regressors(rec)
     lin = float("nan")

@@ -271,7 +271,7 @@ def white_floor(x: np.ndarray, rate_hz: float, stochastic_effects: Processes = (
     effects = list(stochastic_effects)
     if not effects or plain <= 0:
         return float(np.sqrt(plain)), dof
-    known = noise_psd(fu, rate_hz, effects)
+    known = noise_psd(fu, rate_hz, effects, x.size)
 
     def excess(log_var):  # median ratio − χ² median: decreasing in the white variance
         return float(np.median(upper / (2.0 * np.exp(log_var) / rate_hz + known))) - med

@@ -136,7 +136,7 @@ def _step_std(model: Model, rec: Record, naming_std: dict) -> dict:
     if not eff.waveform:
         return dict(naming_std)
     # the model's noise_sd is already the noise before any quantizer (with_noise_floor)
-    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, noise_is_floor=False)
+    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, noise_is_floor=False, template=p)
     x = f.pack(p, model.base.bias, model.base.scale_factor)
     return dict(f.fit([x], max_nfev=1).params_std)
 

@@ -18,7 +18,9 @@ from bench.discovery.experiments import make_experiment
 ISSUE_IDS = ["warmup_exponential", "linear_drift", "temperature_bias", "temperature_scale_factor",
              "k2_nonlinearity", "k3_nonlinearity", "scale_factor_asymmetry", "misalignment", "g_sensitivity",
              "quantization", "dead_zone", "saturation", "sinusoidal_interference", "gauss_markov",
-             "rate_random_walk", "time_delay", "lowpass_bandwidth", "highpass_rolloff", "vibration_rectification"]
+             "rate_random_walk", "time_delay", "lowpass_bandwidth", "highpass_rolloff", "vibration_rectification",
+             # issue 15
+             "flicker_noise", "angle_quantization"]
 NOISE = {"accelerometer": 5e-6, "gyro": 3e-3, "mhd": 0.06}
 # Short experiments keep the suite fast; every applicable effect must still be drawable on them.
 SHORT = {"accelerometer": (3600, 1.0), "gyro": (6000, 10.0), "mhd": (20000, 500.0)}
