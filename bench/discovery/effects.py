@@ -23,6 +23,7 @@ from collections.abc import Iterator, Mapping, Sequence
 
 from bench.discovery.effects_base import KINDS, Effect
 from bench.discovery.effects_noise import AngleQuantization, FlickerNoise, GaussMarkov, RateRandomWalk
+from bench.discovery.effects_steps import BiasJump
 from bench.discovery.effects_terms import (
     GSensitivity,
     K2Nonlinearity,
@@ -36,6 +37,7 @@ from bench.discovery.effects_terms import (
     VibrationRectification,
     WarmupExponential,
 )
+from bench.discovery.effects_thermal import TemperatureRate, ThermalHysteresis, ThermalTwoNode
 from bench.discovery.effects_transforms import (
     DeadZone,
     HighpassRolloff,
@@ -119,5 +121,7 @@ CATALOGUE = Catalogue((
     WarmupExponential, LinearDrift, TemperatureBias, TemperatureScaleFactor, K2Nonlinearity,
     K3Nonlinearity, ScaleFactorAsymmetry, Misalignment, GSensitivity, Quantization, DeadZone,
     Saturation, SinusoidalInterference, GaussMarkov, RateRandomWalk, TimeDelay, LowpassBandwidth,
-    HighpassRolloff, VibrationRectification, FlickerNoise, AngleQuantization,
+    HighpassRolloff, VibrationRectification,
+    # issue 15
+    FlickerNoise, BiasJump, AngleQuantization, ThermalTwoNode, TemperatureRate, ThermalHysteresis,
 ))

@@ -111,6 +111,22 @@ def noise_sd_of(rec: Record, kind: str) -> float:
     return s if s > 0 else DEFAULT_NOISE_SD[kind]
 
 
+def legendre_columns(x: np.ndarray, degrees: Sequence[int]) -> np.ndarray:
+    """Legendre polynomials of ``x`` mapped onto [−1, 1], one column per degree (a smooth
+    function of a logged column, for a relaxed basis)."""
+    x = np.asarray(x, float)
+    span = float(np.ptp(x))
+    u = (2 * (x - float(np.min(x))) / span - 1) if span > 0 else np.zeros_like(x)
+    return np.column_stack([np.polynomial.legendre.Legendre.basis(d)(u) for d in degrees])
+
+
+def input_shape_basis(rec: Record) -> tuple[np.ndarray, str]:
+    """A smooth function of the input beyond K2/K3/asymmetry: Legendre degrees 2-6 and |input|."""
+    u = rec.column("input")
+    return (np.column_stack([legendre_columns(u, (2, 3, 4, 5, 6)), np.abs(u)]),
+            "polynomials of the input of degree 2-6 and |input|")
+
+
 def reference_input(rec: Record) -> np.ndarray:
     """The applied input, or zeros when none was logged (the output then is bias alone)."""
     return rec.input.copy() if rec.input is not None else np.zeros(rec.n)
@@ -238,8 +254,9 @@ class Effect:
             raise ValueError(f"effect {self.id!r}: missing parameter(s) {missing}; required: {list(names)}")
         return {q.name: q.check(p[q.name], self.id) for q in (self.params_for(kind) if kind else self.params)}
 
-    def free_params(self, p: Mapping[str, float], kind: str) -> tuple[Param, ...]:
-        """The parameters a fit moves from the values ``p`` (default: all of the kind's)."""
+    def free_params(self, p: Mapping[str, float], kind: str, rec: Record) -> tuple[Param, ...]:
+        """The parameters a fit on rec moves from the values ``p``, with the bounds it keeps them
+        in (default: all of the kind's, in their physical ranges)."""
         return self.params_for(kind)
 
     def coordinate_scale(self, q: Param, rec: Record) -> float | None:
@@ -340,26 +357,36 @@ class Effect:
     def direction_matching(self, delta: np.ndarray, rec: Record, q: np.ndarray, kind: str) -> np.ndarray:
         """This effect's signature (projected away from the orthonormal columns ``q``, unit norm)
         that best matches ``delta`` (already orthogonal to q) up to a scale — what it could absorb
-        of another effect's: all-linear effects have one direction; otherwise a 13-point log grid
-        of the main parameter over its resolvable range, then 8 golden-section steps."""
+        of another effect's: all-linear effects have one direction; otherwise a 13-point grid of
+        its shape parameter (the main parameter when nonlinear, else its one nonlinear
+        parameter) over its resolvable range, then 8 golden-section steps."""
         if kind not in self.ranges:
             kind = self.kinds[0]
         y0 = self.reference_output(rec)
         base = self.reference_params(rec, kind)
+        if self.param(self.main_param, kind).linear:
+            base[self.main_param] = 1.0  # the direction is scale-free; the reference may be 0
+        shape = self.shape_param(kind)
 
-        def direction(v: float) -> np.ndarray:
-            d = project_q(self.apply(self.with_main(base, v), rec, y0) - y0, q)
+        def direction(v: float | None) -> np.ndarray:
+            p = dict(base)
+            if shape is not None and v is not None:
+                p[shape.name] = v
+            d = project_q(self.apply(p, rec, y0) - y0, q)
             nrm = math.sqrt(vdot(d, d))
             return d / nrm if nrm > 0 else d
 
-        if all(p.linear for p in self.params_for(kind)):
-            return direction(1.0)
+        if shape is None or shape.linear:
+            return direction(None)
+        lo, hi = (self.main_grid_range(rec, kind) if shape.name == self.main_param
+                  else self.drawable_range(shape, rec, kind))
+        to_v, from_v = ((math.exp, math.log) if shape.log or shape.name == self.main_param
+                        else (float, float))
 
-        def fit(logv: float) -> float:  # captured fraction of delta (maximise)
-            return abs(vdot(direction(math.exp(logv)), delta))
+        def fit(c: float) -> float:  # captured fraction of delta (maximise)
+            return abs(vdot(direction(to_v(c)), delta))
 
-        lo, hi = self.main_grid_range(rec, kind)
-        grid = np.linspace(math.log(lo), math.log(hi), 13)
+        grid = np.linspace(from_v(lo), from_v(hi), 13)
         vals = [fit(g) for g in grid]
         i = int(np.argmax(vals))
         x0, x1 = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
@@ -375,7 +402,20 @@ class Effect:
                 x0, c, fc = c, d, fd
                 d = x0 + g * (x1 - x0)
                 fd = fit(d)
-        return direction(math.exp(0.5 * (x0 + x1)))
+        return direction(to_v(0.5 * (x0 + x1)))
+
+    def shape_param(self, kind: str) -> Param | None:
+        """The parameter whose value sets the shape of the signature (searched when matching
+        another effect's): the main parameter when it is nonlinear, else the one nonlinear
+        parameter; None when several or none are (the reference values are used)."""
+        qs = self.params_for(kind)
+        main = self.param(self.main_param, kind)
+        if not main.linear:
+            return main
+        nonlinear = [q for q in qs if not q.linear]
+        if len(nonlinear) == 1:
+            return nonlinear[0]
+        return main if not nonlinear else None
 
     def reference_params(self, rec: Record, kind: str) -> Params:
         """Typical values of every parameter for judging detectability on rec: geometric mean

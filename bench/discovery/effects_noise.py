@@ -253,12 +253,14 @@ class GaussMarkov(StochasticEffect):
 
     def estimate(self, r: np.ndarray, th: np.ndarray, cov: np.ndarray, dt_s: float, *,
                  alone: bool, bootstrap: bool) -> ComponentEstimate:
-        """σ = exp(th0/2), τ = −dt/ln φ with φ = logistic(th1); std by the delta method."""
+        """σ = exp(th0/2), τ = −dt/ln φ with φ = logistic(th1) (−ln φ = log1p(e^{−th1}): finite
+        where φ rounds to 1); std by the delta method."""
         s2, phi = np.exp(th[0]), 1.0 / (1.0 + np.exp(-th[1]))
         sigma = float(np.sqrt(s2))
-        tau = float(-dt_s / np.log(phi))
+        neg_log_phi = max(float(np.log1p(np.exp(-th[1]))), 1e-300)
+        tau = float(dt_s / neg_log_phi)
         d_sigma = 0.5 * sigma
-        d_tau = dt_s / np.log(phi) ** 2 * (1 - phi)  # dτ/dth1 = dt/(ln φ)² · (1/φ)·φ(1−φ)
+        d_tau = dt_s / neg_log_phi ** 2 * (1 - phi)  # dτ/dth1 = dt/(ln φ)² · (1/φ)·φ(1−φ)
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
         return ComponentEstimate({"sigma": sigma, "tau_s": tau},
                                  {"sigma": float(d_sigma * sd[0]), "tau_s": float(abs(d_tau) * sd[1])})
@@ -330,7 +332,8 @@ class RateRandomWalk(StochasticEffect):
             q, q_std = random_walk_q(r, N_BOOT_RW if bootstrap else 0)
         else:
             q = float(np.exp(th[0]))
-            q_std = float(q * np.sqrt(max(cov[0, 0], 0.0)))
+            with np.errstate(over="ignore", invalid="ignore"):  # a singular Hessian: infinite std
+                q_std = float(q * np.sqrt(max(cov[0, 0], 0.0)))
         k = math.sqrt(q / dt_s)
         k_std = 0.5 * q_std / max(math.sqrt(q * dt_s), 1e-300)
         return ComponentEstimate({"k_per_rs": k}, {"k_per_rs": k_std})
@@ -346,18 +349,19 @@ class RateRandomWalk(StochasticEffect):
 
 
 #: Flicker as Gauss–Markov states: two per decade of correlation time (ratio √10: the sum's
-#: spectrum ripples < 1 % about 1/f), from a quarter sample (white at the Nyquist frequency) to
-#: ten record lengths (flat below the lowest Fourier frequency).
+#: spectrum ripples < 1 % about 1/f), from the band's shortest correlation time (never below a
+#: quarter sample: white at the Nyquist frequency) to ten record lengths (flat below the lowest
+#: Fourier frequency).
 FLICKER_STATES_PER_DECADE = 2
 FLICKER_TAU_MIN_SAMPLES = 0.25
 FLICKER_TAU_MAX_RECORDS = 10.0
 
 
-def flicker_taus(dt_s: float, n: int) -> np.ndarray:
-    """Correlation times (s) of the Gauss–Markov states whose equal-variance sum is flicker over
-    a record of ``n`` samples at ``dt_s`` (see :data:`FLICKER_STATES_PER_DECADE`)."""
-    lo = FLICKER_TAU_MIN_SAMPLES * dt_s
-    hi = FLICKER_TAU_MAX_RECORDS * max(n, 2) * dt_s
+def flicker_taus(tau_min_s: float, dt_s: float, n: int) -> np.ndarray:
+    """Correlation times (s) of the Gauss–Markov states whose equal-variance sum is flicker from
+    ``tau_min_s`` over a record of ``n`` samples at ``dt_s`` (:data:`FLICKER_STATES_PER_DECADE`)."""
+    lo = max(float(tau_min_s), FLICKER_TAU_MIN_SAMPLES * dt_s)
+    hi = max(FLICKER_TAU_MAX_RECORDS * max(n, 2) * dt_s, 10 * lo)
     k = int(math.ceil(math.log10(hi / lo) * FLICKER_STATES_PER_DECADE)) + 1
     return np.geomspace(lo, hi, k)
 
@@ -365,37 +369,41 @@ def flicker_taus(dt_s: float, n: int) -> np.ndarray:
 class FlickerNoise(StochasticEffect):
     id = "flicker_noise"
     description = ("flicker (1/f) bias noise: the bias instability B of IEEE Std 952, realised as equal-variance "
-                   "Gauss–Markov states with correlation times spanning the record's band")
-    form = ("PSD S(f) = B²/(2π·f) (two-sided), i.e. B²/ω per sample; Σ_k GM(s, τ_k), τ_k log-spaced two per "
-            "decade from dt/4 to 10·T, s² = B²·ln(τ_{k+1}/τ_k)/π; y += Σ x_k")
+                   "Gauss–Markov states with correlation times from tau_min_s to beyond the record")
+    form = ("PSD S(f) = B²/(2π·f) (two-sided) below the corner 1/(2π·tau_min_s), falling as 1/f² above it: per "
+            "sample (2B²/(π·ω))·atan(ω_c/ω), ω_c = dt/tau_min_s; Σ_k GM(s, τ_k), τ_k log-spaced two per decade "
+            "from tau_min_s to 10·T, s² = B²·ln(τ_{k+1}/τ_k)/π; y += Σ x_k")
     inputs = ("t",)
     main_param = "b"
-    signature = "tau: a flat Allan floor 0.664·B (slope 0) over the band; spectrum 1/f; innovations white"
+    signature = ("tau: a flat Allan floor 0.664·B (slope 0) above ~tau_min_s; spectrum 1/f below its corner; "
+                 "innovations white")
     competitors = ("gauss_markov", "rate_random_walk")
     separating = {
         "gauss_markov": "a record much longer than the correlation time: Gauss–Markov's Allan curve falls as "
                         "1/√τ past its hump, flicker stays flat at 0.664·B",
         "rate_random_walk": "the Allan slope over the longest τ: flicker flat (0), a random walk rising (+1/2)",
     }
-    n_coords = 1  # log B² (per-sample level B²/ω)
+    n_coords = 2  # log B² (per-sample level B²/ω), log ω_c (the band's corner, rad/sample)
     ranges = {  # FOG bias instability 0.005-10 deg/h (1.4e-6 - 2.8e-3 deg/s); QA-2000-class µg flicker floors
-        "accelerometer": (Param("b", "g", 1e-9, 1e-3, log=True),),
-        "gyro": (Param("b", "deg/s", 1e-7, 0.1, log=True),),
-        "mhd": (Param("b", "deg/s", 1e-6, 1.0, log=True),),
+        "accelerometer": (Param("b", "g", 1e-9, 1e-3, log=True), Param("tau_min_s", "s", 1e-4, 1e5, log=True)),
+        "gyro": (Param("b", "deg/s", 1e-7, 0.1, log=True), Param("tau_min_s", "s", 1e-4, 1e5, log=True)),
+        "mhd": (Param("b", "deg/s", 1e-6, 1.0, log=True), Param("tau_min_s", "s", 1e-5, 1e4, log=True)),
     }
 
-    def _terms(self, b: float, dt_s: float, n: int) -> tuple[np.ndarray, float]:
-        taus = flicker_taus(dt_s, n)
+    def _terms(self, p: Mapping[str, float], dt_s: float, n: int) -> tuple[np.ndarray, float]:
+        taus = flicker_taus(float(p["tau_min_s"]), dt_s, n)
         ratio = taus[1] / taus[0]
-        return taus, b * math.sqrt(math.log(ratio) / math.pi)
+        return taus, float(p["b"]) * math.sqrt(math.log(ratio) / math.pi)
 
     def noise(self, p: Params, rec: Record, rng: np.random.Generator) -> np.ndarray:
-        taus, s = self._terms(float(p["b"]), rec.dt_s, rec.n)
+        if p["b"] == 0:
+            return np.zeros(rec.n)
+        taus, s = self._terms(p, rec.dt_s, rec.n)
         dt = np.diff(rec.t_s)
         out = np.zeros(rec.n)
         for tau in taus:
             out += _gauss_markov(dt, rng.standard_normal(rec.n), s, float(tau))
-        return out if p["b"] > 0 else np.zeros(rec.n)
+        return out
 
     @staticmethod
     def avar(b: float) -> float:
@@ -403,8 +411,20 @@ class FlickerNoise(StochasticEffect):
         return 2 * math.log(2) / math.pi * b * b
 
     def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
+        """On the Allan variance of flicker at averaging times beyond its band's corner."""
         a = self.avar(float(p["b"]))
-        return _allan_z(lambda t: a, rec, noise_sd)
+        return _allan_z(lambda t: a if t >= 2 * float(p["tau_min_s"]) else 0.0, rec, noise_sd)
+
+    def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        if q.name == "tau_min_s":  # a quarter sample to a hundredth of the record: 1/f over ≥ 2 decades
+            lo = max(q.low, FLICKER_TAU_MIN_SAMPLES * rec.dt_s)
+            return lo, max(min(q.high, rec.duration_s / 100), lo * 1.01)
+        return q.low, q.high
+
+    def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
+        """Its band must span a decade inside the record (shortest correlation time under a
+        twentieth of it): narrower, it is one Gauss–Markov."""
+        return p.get("tau_min_s", 0.0) < rec.duration_s / 20
 
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
                    rows: np.ndarray | None = None) -> list[Params]:
@@ -415,31 +435,39 @@ class FlickerNoise(StochasticEffect):
         av = 0.5 * float(np.mean(np.diff(means) ** 2))
         q = self.params[0]
         b = math.sqrt(max(av, 0.0) / self.avar(1.0)) or q.low
-        return [{"b": float(np.clip(b * f, q.low, q.high))} for f in (1.0, 3.0, 1 / 3)]
+        return [{"b": float(np.clip(b * f, q.low, q.high)), "tau_min_s": rec.dt_s} for f in (1.0, 3.0, 1 / 3)]
 
-    # ---- spectral component: B²/ω per sample ----------------------------------------------
+    # ---- spectral component: (2B²/(πω))·atan(ω_c/ω) per sample (B²/ω below the corner) ----
     def spectrum(self, th: np.ndarray, c: np.ndarray, grad: bool) -> tuple[np.ndarray, list[np.ndarray]]:
-        level = np.exp(th[0]) / np.arccos(np.clip(c, -1.0, 1.0))
-        return level, ([level] if grad else [])
+        w = np.arccos(np.clip(c, -1.0, 1.0))
+        b2, wc = np.exp(th[0]), np.exp(th[1])
+        level = b2 * (2.0 / (np.pi * w)) * np.arctan(wc / w)
+        if not grad:
+            return level, []
+        return level, [level, b2 * (2.0 / np.pi) * wc / (w * w + wc * wc)]
 
     def coords(self, p: Mapping[str, float], dt_s: float) -> list[float]:
-        return [math.log(max(float(p["b"]), 1e-150) ** 2)]
+        return [math.log(max(float(p["b"]), 1e-150) ** 2), math.log(dt_s / float(p["tau_min_s"]))]
 
     def whittle_starts(self, v: float) -> list[np.ndarray]:
-        return [np.r_[np.log(v * 0.9), np.log(v * b)] for b in (1e-3, 3e-2)]
+        return [np.r_[np.log(v * 0.9), np.log(v * b), np.log(wc)] for b in (1e-3, 3e-2) for wc in (0.05, 10.0)]
 
     def estimate(self, r: np.ndarray, th: np.ndarray, cov: np.ndarray, dt_s: float, *,
                  alone: bool, bootstrap: bool) -> ComponentEstimate:
-        """B = exp(th0/2); std by the delta method."""
-        b = float(np.exp(0.5 * th[0]))
-        return ComponentEstimate({"b": b}, {"b": float(0.5 * b * math.sqrt(max(float(cov[0, 0]), 0.0)))})
+        """B = exp(th0/2), tau_min = dt/exp(th1); std by the delta method."""
+        with np.errstate(over="ignore", invalid="ignore"):  # a corner beyond Nyquist is unbounded
+            b = float(np.exp(0.5 * th[0]))
+            tau_min = float(dt_s * np.exp(-th[1]))
+            sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+            return ComponentEstimate({"b": b, "tau_min_s": tau_min},
+                                     {"b": float(0.5 * b * sd[0]), "tau_min_s": float(tau_min * sd[1])})
 
     def state_space(self, p: Mapping[str, float], dt_s: float, n: int) -> StateBlock:
         """The Gauss–Markov states of :meth:`noise`, each stationary at the first sample."""
-        b = float(p["b"])
-        if not (math.isfinite(b) and b >= 0):
-            raise ValueError(f"flicker_noise b = {b!r}; allowed: a finite number >= 0")
-        taus, s = self._terms(b, dt_s, n)
+        b, tau_min = float(p["b"]), float(p["tau_min_s"])
+        if not (math.isfinite(b) and b >= 0 and math.isfinite(tau_min) and tau_min > 0):
+            raise ValueError(f"flicker_noise b = {b!r}, tau_min_s = {tau_min!r}; allowed: b >= 0, tau_min_s > 0")
+        taus, s = self._terms(p, dt_s, n)
         phi = np.exp(-dt_s / taus)
         return StateBlock.diagonal(phi, s * s * (1.0 - phi * phi), np.full(taus.size, s * s))
 

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.signal import lombscargle
 
 from bench.discovery.data import Record
-from bench.discovery.effects_base import Effect, Param, guess_kind
+from bench.discovery.effects_base import Effect, Param, guess_kind, input_shape_basis, legendre_columns
 from bench.discovery.effects_linalg import base_regressors, project_out
 
 #: Reference temperature of the temperature effects, degC: a model file's coefficients then
@@ -49,6 +49,16 @@ class WarmupExponential(Effect):
                 Param("tau_s", "s", 0.1, 1e5, log=True)),
     }
 
+    def localized(self, rec):
+        """Placed in time once power-on is logged (``t_on``): tested before any catch-all."""
+        return rec.logged("t_on")
+
+    def relaxed_basis(self, p, rec):
+        t = rec.column("t_on")
+        tau = p["tau_s"]
+        return (np.column_stack([np.exp(-t / (tau / 4)), np.exp(-t / (4 * tau))]),
+                "exponentials of t_on at a quarter and four times tau_s")
+
     def term(self, p, rec):
         return p["amplitude"] * np.exp(-rec.column("t_on") / p["tau_s"])
 
@@ -82,6 +92,9 @@ class LinearDrift(Effect):
         "mhd": (Param("slope_per_s", "deg/s/s", -1e-3, 1e-3, linear=True, floor=1e-8),),
     }
 
+    def relaxed_basis(self, p, rec):
+        return legendre_columns(rec.t_s, (2, 3, 4, 5)), "polynomials of time of degree 2-5"
+
     def term(self, p, rec):
         return p["slope_per_s"] * (rec.t_s - rec.t_s[0])
 
@@ -102,6 +115,9 @@ class TemperatureBias(Effect):
         "mhd": (Param("coef_per_c", "deg/s/degC", -1e-2, 1e-2, linear=True, floor=1e-5),
                 Param("coef_per_c2", "deg/s/degC^2", -1e-3, 1e-3, linear=True)),
     }
+
+    def relaxed_basis(self, p, rec):
+        return legendre_columns(rec.column("temp"), (3, 4)), "temp³ and temp⁴ (Legendre)"
 
     def term(self, p, rec):
         dt = rec.column("temp") - T_REF_C
@@ -135,6 +151,11 @@ class TemperatureScaleFactor(Effect):
         "mhd": (Param("sf_coef_per_c", "1/degC", -1e-2, 1e-2, linear=True, floor=1e-6),),
     }
 
+    def relaxed_basis(self, p, rec):
+        dt = rec.column("temp") - T_REF_C
+        span = max(float(np.max(np.abs(dt))), 1.0)
+        return np.column_stack([rec.input * (dt / span) ** 2, rec.input ** 2 * dt / span]), "input·ΔT², input²·ΔT"
+
     def term(self, p, rec):
         return p["sf_coef_per_c"] * (rec.column("temp") - T_REF_C) * rec.input
 
@@ -155,6 +176,9 @@ class K2Nonlinearity(Effect):
         "mhd": (Param("k2_per_u", "1/(deg/s)", -1e-3, 1e-3, linear=True, floor=1e-8),),
     }
 
+    def relaxed_basis(self, p, rec):
+        return input_shape_basis(rec)
+
     def term(self, p, rec):
         return p["k2_per_u"] * rec.input ** 2
 
@@ -172,6 +196,9 @@ class K3Nonlinearity(Effect):
         "gyro": (Param("k3_per_u2", "1/(deg/s)^2", -1e-6, 1e-6, linear=True, floor=1e-14),),
         "mhd": (Param("k3_per_u2", "1/(deg/s)^2", -1e-5, 1e-5, linear=True, floor=1e-12),),
     }
+
+    def relaxed_basis(self, p, rec):
+        return input_shape_basis(rec)
 
     def term(self, p, rec):
         return p["k3_per_u2"] * rec.input ** 3
@@ -191,6 +218,9 @@ class ScaleFactorAsymmetry(Effect):
         "mhd": (Param("asymmetry", "1", -5e-2, 5e-2, linear=True, floor=1e-6),),
     }
 
+    def relaxed_basis(self, p, rec):
+        return input_shape_basis(rec)
+
     def term(self, p, rec):
         return 0.5 * p["asymmetry"] * np.abs(rec.input)
 
@@ -207,6 +237,9 @@ class Misalignment(Effect):
         "gyro": (Param("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
         "mhd": (Param("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
     }
+
+    def relaxed_basis(self, p, rec):
+        return legendre_columns(rec.column("cross_input"), (2, 3)), "cross_input of degree (2, 3) (Legendre)"
 
     def term(self, p, rec):
         return p["angle_rad"] * rec.column("cross_input")
@@ -226,6 +259,9 @@ class GSensitivity(Effect):
         "gyro": (Param("coef_per_g", "deg/s/g", -0.03, 0.03, linear=True, floor=3e-7),),
     }
 
+    def relaxed_basis(self, p, rec):
+        return legendre_columns(rec.column("accel"), (2, 3)), "accel of degree (2, 3) (Legendre)"
+
     def term(self, p, rec):
         return p["coef_per_g"] * rec.column("accel")
 
@@ -243,6 +279,9 @@ class VibrationRectification(Effect):
         "accelerometer": (Param("coef_per_g2", "g/g^2", -1e-3, 1e-3, linear=True, floor=1e-8),),
         "gyro": (Param("coef_per_g2", "deg/s/g^2", -0.03, 0.03, linear=True, floor=3e-7),),
     }
+
+    def relaxed_basis(self, p, rec):
+        return legendre_columns(rec.column("vib"), (1, 3, 4)), "vib of degree (1, 3, 4) (Legendre)"
 
     def term(self, p, rec):
         return p["coef_per_g2"] * rec.column("vib") ** 2
@@ -263,6 +302,19 @@ class SinusoidalInterference(Effect):
         "mhd": (Param("amplitude", "deg/s", 0.0, 10.0, floor=1e-4), Param("freq_hz", "Hz", 1e-4, 1e5, log=True),
                 Param("phase_rad", "rad", -math.pi, math.pi)),
     }
+
+    def relaxed_basis(self, p, rec):
+        """Harmonics 2 and 3 of its line, and its amplitude free in each sixth of the record
+        (a square or triangle wave, a chirp, bursts)."""
+        tt = rec.t_s - rec.t_s[0]
+        ph = 2 * np.pi * p["freq_hz"] * tt + p["phase_rad"]
+        cols = [f(k * ph) for k in (2, 3) for f in (np.sin, np.cos)]
+        edges = np.linspace(0, rec.n, 7).astype(int)
+        for a, b in zip(edges[:-2], edges[1:-1]):  # five of six: the sixth is the line itself
+            m = np.zeros(rec.n)
+            m[a:b] = 1.0
+            cols += [m * np.sin(ph), m * np.cos(ph)]
+        return np.column_stack(cols), "its 2nd and 3rd harmonics and its amplitude in each sixth of the record"
 
     def term(self, p, rec):
         return p["amplitude"] * np.sin(2 * np.pi * p["freq_hz"] * (rec.t_s - rec.t_s[0]) + p["phase_rad"])

@@ -28,6 +28,7 @@ from bench.discovery.effects_base import (
     Param,
     Params,
     guess_kind,
+    input_shape_basis,
     noise_sd_of,
 )
 
@@ -174,6 +175,11 @@ class DeadZone(Effect):
         "gyro": (Param("half_width", "deg/s", 1e-5, 1.0, log=True),),
     }
 
+    def relaxed_basis(self, p, rec):
+        if not rec.varies("input"):
+            return None
+        return input_shape_basis(rec)
+
     def transform_input(self, p, rec, u):
         return np.sign(u) * np.maximum(np.abs(u) - p["half_width"], 0.0)
 
@@ -201,6 +207,11 @@ class Saturation(Effect):
         "gyro": (Param("limit", "deg/s", 1.0, 2000.0, log=True),),
         "mhd": (Param("limit", "deg/s", 1.0, 2000.0, log=True),),
     }
+
+    def relaxed_basis(self, p, rec):
+        if not rec.varies("input"):
+            return None
+        return input_shape_basis(rec)
 
     def transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])

@@ -172,7 +172,7 @@ class CandidateFitter:
         self.kind = model.base.kind
         every = effect.params_for(self.kind)
         self.template = dict(template) if template is not None else {q.name: q.low for q in every}
-        self.qs = effect.free_params(self.template, self.kind) if template is not None else every
+        self.qs = effect.free_params(self.template, self.kind, rec) if template is not None else every
         self.with_sf = rec.varies("input")  # a constant input leaves the scale factor out
         self.n_base = 2 if self.with_sf else 1
         sd = max(float(model.base.noise_sd), 1e-300)

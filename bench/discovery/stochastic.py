@@ -136,7 +136,10 @@ def fit_stochastic(r: np.ndarray, dt_s: float, effect: Effect, start: np.ndarray
     white_sd = float(np.sqrt(np.exp(th[0])))
     own = slice(1, 1 + n_c)
     est = effect.estimate(r, th[own], cov[own, own], dt_s, alone=not known, bootstrap=bootstrap)
-    states = effect.state_space(est.params, dt_s, r.size)
+    # the predictor's states at the fitted values, kept inside the effect's widest ranges (a
+    # correlation time the record cannot bound may come out beyond them)
+    states = effect.state_space({q.name: float(np.clip(est.params[q.name], q.low, q.high)) for q in effect.params},
+                                dt_s, r.size)
     return StochasticFit(effect, white_sd, est.params, est.params_std, states, lr, p, tuple(th[:1 + n_c]))
 
 

@@ -20,7 +20,8 @@ ISSUE_IDS = ["warmup_exponential", "linear_drift", "temperature_bias", "temperat
              "quantization", "dead_zone", "saturation", "sinusoidal_interference", "gauss_markov",
              "rate_random_walk", "time_delay", "lowpass_bandwidth", "highpass_rolloff", "vibration_rectification",
              # issue 15
-             "flicker_noise", "angle_quantization"]
+             "flicker_noise", "bias_jump", "angle_quantization", "thermal_two_node", "temperature_rate",
+             "thermal_hysteresis"]
 NOISE = {"accelerometer": 5e-6, "gyro": 3e-3, "mhd": 0.06}
 # Short experiments keep the suite fast; every applicable effect must still be drawable on them.
 SHORT = {"accelerometer": (3600, 1.0), "gyro": (6000, 10.0), "mhd": (20000, 500.0)}

@@ -1,0 +1,215 @@
+"""Is an effect's own signature borne out by the record? (issue 15)
+
+A name is a claim about a shape. A catch-all — a random process or a drift, which can absorb
+any slow structure — is named only when its signature holds across the band where it claims
+to act, not because its likelihood beats the base model's; and any effect whose shape leaves
+structure where it acts (the harmonics of a square wave after a sinusoid, the curvature of a
+tanh after K3) is not named either: that structure is reported as unexplained instead.
+
+* :func:`process_evidence` — a random process, on the standardized Kalman innovations of the
+  residual under the model with it (:func:`bench.discovery.whiten.innovations`), which are white
+  when the process is right:
+
+  - *band*: where the process's spectrum exceeds the white floor, the innovations' periodogram
+    in log-spaced bins (at least :data:`BIN_MIN` ordinates each) against its overall level, a
+    χ² over the bins — excess or deficit: a 1/f process fitted as a 1/f² walk leaves a slope;
+  - *time*: segment means and mean squares, the CUSUM and single outlying innovations
+    (:func:`bench.discovery.localize.time_segments`, :func:`~bench.discovery.localize.jumps`):
+    a jump taken up by a walk leaves a run of one-signed innovations after it;
+  - *inputs*: correlation of the innovations with each logged column passed through the same
+    filter (:func:`~bench.discovery.localize.input_correlations`): a wander that follows a
+    logged quantity is not random.
+
+  The three families share ``alpha`` (Bonferroni).
+* :func:`shape_evidence` — a waveform with a ``relaxed_basis``: the held-out score of those
+  freer columns on the residual of the model with the effect, its p-value under the same null
+  as a candidate's (block bootstrap of the residual with the columns' fit taken out, or the
+  model's own noise when it has random processes) — for a catch-all (a drift) always the
+  model's own noise, since its claim is that the rest *is* that noise — and a size gate (the
+  columns' fit at least ``MIN_SNR`` against the floor). It fails when all three say so.
+
+An :class:`Evidence` records which effect, whether its signature holds, and where it does not.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from bench.discovery import significance as sig
+from bench.discovery.data import Record
+from bench.discovery.effects_base import MIN_SNR, Effect
+from bench.discovery.effects_linalg import base_regressors
+from bench.discovery.effects_noise import StochasticEffect
+from bench.discovery.localize import input_correlations, jumps, time_segments
+from bench.discovery.model import Model
+from bench.discovery.whiten import block_psd, innovations
+
+#: Least periodogram ordinates in a band bin of the spectral-shape test.
+BIN_MIN = 8
+#: Most bins of the spectral-shape test.
+MAX_BINS = 8
+#: Default level of an evidence test (per named effect).
+ALPHA = 0.01
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """Whether ``effect_id``'s own signature holds on the record; ``where``: what departs."""
+
+    effect_id: str
+    holds: bool
+    p_value: float
+    where: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        if self.holds:
+            return f"{self.effect_id}: its signature holds (p = {self.p_value:.2g})"
+        return f"{self.effect_id}: its signature does not hold (p = {self.p_value:.2g}): " + "; ".join(self.where)
+
+    def to_dict(self) -> dict:
+        return {"id": self.effect_id, "holds": self.holds, "p_value": self.p_value, "where": list(self.where)}
+
+
+def band_shape(x: np.ndarray, in_band: np.ndarray) -> tuple[float, str]:
+    """(p, description) of the χ² test that the periodogram of the standardized innovations
+    ``x`` is flat over the Fourier frequencies ``in_band`` (mask over j = 1 … n/2 − 1), against
+    its level over all of them; the bins are log-spaced with at least :data:`BIN_MIN` ordinates."""
+    n = x.size
+    spec = np.abs(np.fft.rfft(x - x.mean())) ** 2 / n
+    ords = spec[1:(n - 1) // 2 + 1]
+    level = float(np.mean(ords)) or 1.0
+    j = np.flatnonzero(in_band[:ords.size])
+    if j.size < BIN_MIN:
+        return 1.0, ""
+    n_bins = int(min(MAX_BINS, j.size // BIN_MIN))
+    edges = np.unique(np.geomspace(j[0] + 1, j[-1] + 2, n_bins + 1).astype(int)) - 1
+    chi2, dof, worst = 0.0, 0, (0.0, 0, 0, 1.0)
+    start = 0
+    for b in range(1, edges.size):
+        sel = j[(j >= edges[start]) & (j < edges[b])]
+        if sel.size < BIN_MIN and b < edges.size - 1:
+            continue
+        start = b
+        if sel.size == 0:
+            continue
+        ratio = float(np.mean(ords[sel])) / level
+        z2 = (ratio - 1.0) ** 2 * sel.size
+        chi2 += z2
+        dof += 1
+        if z2 > worst[0]:
+            worst = (z2, int(sel[0]) + 1, int(sel[-1]) + 1, ratio)
+    if dof == 0:
+        return 1.0, ""
+    p = float(stats.chi2.sf(chi2, dof))
+    return p, (f"innovations' spectrum over Fourier bins {worst[1]}–{worst[2]} at {worst[3]:.2f}× their level "
+               f"(χ² {chi2:.1f} on {dof} bins)")
+
+
+def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *,
+                     alpha: float = ALPHA) -> Evidence:
+    """Does random process ``model.effects[index]`` hold on ``residual`` (= rec.y −
+    model.predict(rec))? See the module docstring (band, time, inputs; Bonferroni at alpha)."""
+    eff, p = model.entries()[index]
+    if not isinstance(eff, StochasticEffect):
+        raise ValueError(f"effect {eff.id!r} is not a random process; allowed: a StochasticEffect of the model")
+    r = np.asarray(residual, float) - float(np.mean(residual))
+    rate = rec.rate_hz
+    procs = model.stochastic_effects()
+    white = sig.white_floor(r, rate, procs)[0]
+    if not white > 0:
+        white = float(model.base.noise_sd) or float(np.std(r)) or 1.0
+    x = innovations(r, rate, white, procs)
+    a = alpha / 3.0
+    where: list[str] = []
+    ps: list[float] = []
+    # band: where its own spectrum exceeds the white floor
+    w = 2 * np.pi * np.arange(1, (rec.n - 1) // 2 + 1) / rec.n
+    own = block_psd(eff.state_space(p, rec.dt_s, rec.n), w)
+    p_band, what = band_shape(x, own > white ** 2)
+    ps.append(p_band)
+    if p_band < a:
+        where.append(what)
+    # time: segments, CUSUM, single innovations (Bonferroni over the three inside)
+    sd, dof = sig.white_floor(x, rate)
+    segs, cusum_p = time_segments(x, rec.t_s, sd, 16, a / 3, floor_dof=dof)
+    jmp = jumps(x, rec.t_s, sd, a / 3, floor_dof=dof)
+    ps.append(min(1.0, 3 * cusum_p))
+    if segs or jmp or cusum_p < a / 3:
+        where += [s.describe() for s in segs[:2]] + [j.describe() for j in jmp[:2]]
+        if cusum_p < a / 3:
+            where.append(f"the innovations' cumulative sum departs (CUSUM p = {cusum_p:.2g})")
+        ps.append(0.0)
+
+    def through_filter(v: np.ndarray) -> np.ndarray:
+        return innovations(v - v.mean(), rate, white, procs)
+    corr = input_correlations(x, rec, a, transform=through_filter)
+    if corr:
+        where += [c.describe() for c in corr]
+        ps.append(0.0)
+    p_all = float(min(1.0, 3 * min(ps))) if ps else 1.0
+    return Evidence(eff.id, not where, p_all, tuple(f"in the innovations under {eff.id}: " + s for s in where))
+
+
+def shape_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA,
+                   rng: np.random.Generator, n_rep: int = 999) -> Evidence:
+    """Does waveform ``model.effects[index]`` keep its shape on ``residual`` (= rec.y −
+    model.predict(rec))? Its ``relaxed_basis`` against the residual (module docstring); an
+    effect without one holds."""
+    eff, p = model.entries()[index]
+    relaxed = eff.relaxed_basis(p, rec)
+    if relaxed is None:
+        return Evidence(eff.id, True, 1.0)
+    cols, what = relaxed
+    r = np.asarray(residual, float)
+    x_nuis = base_regressors(rec)
+    folds = sig.block_folds(rec.n)
+    cols = np.asarray(cols, float).reshape(rec.n, -1)
+    observed = float(sig.heldout_linear_scores(r, x_nuis, [cols, cols], folds)[0])
+    if not observed > 0:
+        return Evidence(eff.id, True, 1.0)
+    design = np.column_stack([x_nuis, cols])
+    beta, *_ = np.linalg.lstsq(design, r, rcond=None)
+    fitted = cols @ beta[x_nuis.shape[1]:]
+    floor = float(sig.white_floor(r - fitted, rec.rate_hz, model.stochastic_effects())[0]) or float(np.std(r))
+    size = float(np.sqrt(np.sum((fitted - fitted.mean()) ** 2)) / floor) if floor > 0 else math.inf
+    if size < MIN_SNR:
+        return Evidence(eff.id, True, 1.0)
+    procs = model.stochastic_effects()
+    draw = None
+    if procs or eff.catch_all:
+        # a catch-all claims the rest is the model's noise: its null is that noise, at the floor
+        # measured beside the relaxed columns (a bootstrap of the residual would keep the very
+        # wander the catch-all is asked to rule out)
+        noisy = model.with_base(noise_sd=min(floor, float(model.base.noise_sd)) if procs else floor)
+        base = noisy.predict(rec)
+
+        def model_noise(m: int) -> np.ndarray:  # the model's own noise: white + its random processes
+            return np.column_stack([noisy.simulate(rec, rng) - base for _ in range(m)])
+        draw = model_noise
+    p_val = sig.bootstrap_p_value(r - fitted, x_nuis, [cols, cols], folds, observed, n_rep=n_rep, rng=rng,
+                                  draw=draw)
+    if p_val >= alpha:
+        return Evidence(eff.id, True, p_val)
+    return Evidence(eff.id, False, p_val,
+                    (f"{what} still explain the residual beside {eff.id} (held-out {observed:.3g} of its "
+                     f"variance, {size:.0f}× the floor)",))
+
+
+def evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA,
+             rng: np.random.Generator, n_rep: int = 999) -> Evidence:
+    """The evidence for ``model.effects[index]`` as its family asks: a random process on its
+    innovations, a waveform on its relaxed shape (:func:`process_evidence`, :func:`shape_evidence`)."""
+    eff = model.entries()[index][0]
+    if isinstance(eff, StochasticEffect):
+        return process_evidence(model, rec, index, residual, alpha=alpha)
+    return shape_evidence(model, rec, index, residual, alpha=alpha, rng=rng, n_rep=n_rep)
+
+
+def catch_all_params(effect: Effect, params: Mapping[str, float]) -> dict:
+    """The parameters of a candidate as the model stores them (clipped to the widest ranges)."""
+    return {q.name: float(np.clip(params[q.name], q.low, q.high)) for q in effect.params}
