@@ -49,6 +49,8 @@ class Naming:
     null: str = ("circular moving-block bootstrap of the residual with the candidate's fit taken out "
                  "(linearised regressors)")
     set_aside: tuple[str, ...] = ()
+    #: logged columns a set-aside catch-all's innovations still followed
+    followed_columns: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         return {"best": None if self.best is None else self.best.to_dict(),

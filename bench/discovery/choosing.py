@@ -15,6 +15,7 @@ import numpy as np
 from bench.discovery import stochastic as sto
 from bench.discovery.candidates import Trial
 from bench.discovery.data import Record
+from bench.discovery.effects_base import MIN_SNR
 from bench.discovery.evidence import Evidence
 from bench.discovery.model import Model
 from bench.discovery.significance import jackknife_ratio
@@ -107,15 +108,21 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
 
 
 def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray, n_blocks: int,
-                 kind: str) -> Trial | None:
+                 kind: str, noise_sd: float = 0.0) -> Trial | None:
     """Among deterministic named candidates whose held-out score is within one (paired, block
     jackknife) standard error of the best's, the one with the fewest parameters (Occam: a long
-    warm-up time constant is a drift on a short record)."""
+    warm-up time constant is a drift on a short record) — unless the best explains, in-sample,
+    more than ``MIN_SNR²·noise_sd²`` beyond it: what the richer shape adds is then an effect of
+    its own size (a two-node warm-up's fast node lives in the first blocks of the record, where
+    held-out blocks barely see it)."""
     if best is None or best.effect.stochastic or best.err_c is None or best.err_b is None:
         return best
 
     def n_par(c: Trial) -> int:
         return len(c.effect.params_for(kind))
+
+    def sse(c: Trial) -> float:
+        return float(np.sum((c.resid_full - c.resid_full.mean()) ** 2)) if c.resid_full is not None else math.inf
 
     pick = best
     for c in named:
@@ -124,6 +131,14 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
         d_num = np.bincount(blocks, c.err_c - best.err_c, n_blocks)
         den = np.bincount(blocks, best.err_b, n_blocks)
         se = jackknife_ratio(d_num, den)
-        if np.isfinite(se) and d_num.sum() / den.sum() <= se:
+        if not (np.isfinite(se) and d_num.sum() / den.sum() <= se):
+            continue
+        if noise_sd > 0 and sse(c) - sse(best) > MIN_SNR ** 2 * noise_sd ** 2:
+            continue
+        pick = c
+    # a named shape that holds the pick as a special case (Effect.nests) and adds more than the
+    # size gate to it in-sample is the better name, whatever the held-out blocks say
+    for c in named:
+        if pick.id in c.effect.nests and noise_sd > 0 and sse(pick) - sse(c) > MIN_SNR ** 2 * noise_sd ** 2:
             pick = c
     return pick

@@ -102,6 +102,11 @@ class Catalogue(Mapping[str, Effect]):
             raise ValueError(f"unknown sensor kind {kind!r}; allowed: {list(KINDS)}")
         return [e for e in self._effects.values() if kind in e.kinds]
 
+    def columns_used(self, kind: str) -> frozenset[str]:
+        """The logged columns some effect of ``kind`` reads (besides time): a dependence on any
+        other logged column is out of the catalogue."""
+        return frozenset(c for e in self.for_kind(kind) for c in e.inputs if c != "t")
+
     def look_alikes(self, effect_id: str) -> tuple[str, ...]:
         """Ids of the effects whose signature this one resembles (declared on either side)."""
         return tuple(e.id for e in self.effect(effect_id).look_alikes)

@@ -188,6 +188,9 @@ class Effect:
     threshold_log_tol: float = 1e-3  # bisection width (log of the main parameter) of a threshold
     needs_uniform: bool = False  # a sampled filter: every interval within 0.1 % of the median
     catch_all: bool = False  # absorbs any slow structure: named on the evidence of its signature only
+    #: ids of effects this one holds as a special case (a two-node transient holds a one-node one):
+    #: named over them when what it adds passes the size gate in-sample
+    nests: tuple[str, ...] = ()
 
     def __init__(self, look_alikes: Sequence[Effect] = ()) -> None:
         """``look_alikes``: the competitor effects themselves (the catalogue passes them); an

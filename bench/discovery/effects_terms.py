@@ -26,6 +26,15 @@ def _time_range(rec: Record, lo: float, hi: float, min_samples: float = 3.0, fra
     return max(lo, min_samples * rec.dt_s), max(min(hi, frac * rec.duration_s), max(lo, min_samples * rec.dt_s) * 1.01)
 
 
+def time_shape_basis(rec: Record, tau_s: float) -> tuple[np.ndarray, str]:
+    """A transient of other time constants (a quarter and four times tau_s) and slow structure
+    over the record (polynomials of time of degree 2-5): what a wrong start-up shape leaves."""
+    t = rec.column("t_on")
+    cols = np.column_stack([np.exp(-t / (tau_s / 4)), np.exp(-t / (4 * tau_s)),
+                            legendre_columns(rec.t_s, (2, 3, 4, 5))])
+    return cols, "exponentials of t_on at tau/4 and 4·tau and polynomials of time of degree 2-5"
+
+
 class WarmupExponential(Effect):
     id = "warmup_exponential"
     description = "start-up transient of the bias after power-on (thermal settling of the sensor and electronics)"
@@ -54,10 +63,7 @@ class WarmupExponential(Effect):
         return rec.logged("t_on")
 
     def relaxed_basis(self, p, rec):
-        t = rec.column("t_on")
-        tau = p["tau_s"]
-        return (np.column_stack([np.exp(-t / (tau / 4)), np.exp(-t / (4 * tau))]),
-                "exponentials of t_on at a quarter and four times tau_s")
+        return time_shape_basis(rec, p["tau_s"])
 
     def term(self, p, rec):
         return p["amplitude"] * np.exp(-rec.column("t_on") / p["tau_s"])

@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 
 import numba
 import numpy as np
 
 from bench.discovery.data import Record
-from bench.discovery.effects_base import Effect, Param, Params, guess_kind
+from bench.discovery.effects_base import Effect, Param, Params, guess_kind, legendre_columns
 from bench.discovery.effects_linalg import base_regressors, orthonormal, project_out, project_q, vdot
 from bench.discovery.effects_terms import WarmupExponential
 
@@ -37,6 +38,7 @@ class ThermalTwoNode(Effect):
                  "derivative against log t_on); correlates with t_on")
     # not a declared look-alike: a two-node transient holds every warm-up (fraction 0), so a
     # warm-up's snr distinct from it would be nil; its own snr counts what one node cannot absorb
+    nests = ("warmup_exponential",)
     separating = {"warmup_exponential": "record until the slow node settles (several tau_slow_s), or log the "
                                         "case temperature: one exponential leaves a hump in log t_on"}
     ranges = {  # as warmup_exponential's amplitudes; time constants from seconds (die) to hours (mount)
@@ -83,6 +85,12 @@ class ThermalTwoNode(Effect):
         lo, hi = self.drawable_range(self.param("tau_fast_s", kind), rec, kind)
         fast = math.sqrt(lo * hi)
         return {"amplitude": 0.0, "fraction_slow": 0.5, "tau_fast_s": fast, "tau_slow_s": 10 * fast}
+
+    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
+        t = rec.column("t_on")
+        cols = np.column_stack([np.exp(-t / (p["tau_fast_s"] / 4)), np.exp(-t / (4 * p["tau_slow_s"])),
+                                legendre_columns(rec.t_s, (2, 3, 4, 5))])
+        return cols, "exponentials of t_on at tau_fast/4 and 4·tau_slow and polynomials of time of degree 2-5"
 
     def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
         """The part of the transient one exponential cannot absorb (the best warm-up direction
@@ -220,6 +228,20 @@ class ThermalHysteresis(Effect):
         if not rec.logged("temp"):
             return False
         return min(reversal_swings(rec.column("temp"))) >= MIN_REVERSAL_C
+
+    def free_params(self, p: Mapping[str, float], kind: str, rec: Record) -> tuple[Param, ...]:
+        """The width is fitted below the smaller of the record's rise and fall: a play wider than
+        the swing never changes branch, and its output is then linear in temperature."""
+        if not rec.logged("temp"):
+            return self.params_for(kind)
+        top = min(reversal_swings(rec.column("temp")))
+        return tuple(replace(q, high=max(min(q.high, 0.8 * top), q.low * 1.01)) if q.name == "width_c" else q
+                     for q in self.params_for(kind))
+
+    def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
+        """The play must change branch with room to spare: a width over half the smaller of the
+        rise and fall is a temperature bias on this record."""
+        return rec.logged("temp") and p.get("width_c", math.inf) <= 0.5 * min(reversal_swings(rec.column("temp")))
 
     def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
         if q.name == "width_c" and rec.logged("temp"):

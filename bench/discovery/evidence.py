@@ -22,11 +22,11 @@ tanh after K3) is not named either: that structure is reported as unexplained in
 
   The three families share ``alpha`` (Bonferroni).
 * :func:`shape_evidence` — a waveform with a ``relaxed_basis``: the held-out score of those
-  freer columns on the residual of the model with the effect, its p-value under the same null
-  as a candidate's (block bootstrap of the residual with the columns' fit taken out, or the
-  model's own noise when it has random processes) — for a catch-all (a drift) always the
-  model's own noise, since its claim is that the rest *is* that noise — and a size gate (the
-  columns' fit at least ``MIN_SNR`` against the floor). It fails when all three say so.
+  freer columns on the residual of the model with the effect, its p-value against the model's
+  own noise (white at the floor, plus its random processes — naming the effect claims the rest
+  *is* that noise; a bootstrap of the residual would keep whatever the shape leaves and call it
+  typical), and a size gate (the columns' fit at least ``MIN_SNR`` against the floor). It fails
+  when all three say so.
 
 An :class:`Evidence` records which effect, whether its signature holds, and where it does not.
 """
@@ -34,7 +34,6 @@ An :class:`Evidence` records which effect, whether its signature holds, and wher
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,8 +41,8 @@ from scipy import stats
 
 from bench.discovery import significance as sig
 from bench.discovery.data import Record
-from bench.discovery.effects_base import MIN_SNR, Effect
-from bench.discovery.effects_linalg import base_regressors
+from bench.discovery.effects_base import MIN_SNR
+from bench.discovery.effects_linalg import base_regressors, orthonormal, project_out
 from bench.discovery.effects_noise import StochasticEffect
 from bench.discovery.localize import input_correlations, jumps, time_segments
 from bench.discovery.model import Model
@@ -65,6 +64,8 @@ class Evidence:
     holds: bool
     p_value: float
     where: tuple[str, ...] = ()
+    #: logged columns the innovations still follow (a random process's evidence)
+    columns: tuple[str, ...] = ()
 
     def describe(self) -> str:
         if self.holds:
@@ -72,7 +73,8 @@ class Evidence:
         return f"{self.effect_id}: its signature does not hold (p = {self.p_value:.2g}): " + "; ".join(self.where)
 
     def to_dict(self) -> dict:
-        return {"id": self.effect_id, "holds": self.holds, "p_value": self.p_value, "where": list(self.where)}
+        return {"id": self.effect_id, "holds": self.holds, "p_value": self.p_value, "where": list(self.where),
+                "columns": list(self.columns)}
 
 
 def band_shape(x: np.ndarray, in_band: np.ndarray) -> tuple[float, str]:
@@ -152,14 +154,39 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
         where += [c.describe() for c in corr]
         ps.append(0.0)
     p_all = float(min(1.0, 3 * min(ps))) if ps else 1.0
-    return Evidence(eff.id, not where, p_all, tuple(f"in the innovations under {eff.id}: " + s for s in where))
+    return Evidence(eff.id, not where, p_all, tuple(f"in the innovations under {eff.id}: " + s for s in where),
+                    tuple(sorted({c.column for c in corr})))
+
+
+def _projection_p(q: np.ndarray, observed: float, draw, n_rep: int, chunk: int = 100,
+                  stop_after: int = 10) -> float:
+    """Monte-Carlo p of ``observed`` = ‖qᵀr‖² against ``draw(m)``'s columns, sequential both ways
+    as :func:`significance.bootstrap_p_value` (stop after ``stop_after`` exceedances; stop at
+    the floor once the observed value is :data:`significance.CLEAR_Z` null sds out)."""
+    exceed, done = 0, 0
+    nulls: list[np.ndarray] = []
+    while done < n_rep:
+        m = min(chunk, n_rep - done)
+        null = np.sum(np.einsum("ik,im->km", q, draw(m)) ** 2, axis=0)
+        nulls.append(null)
+        exceed += int(np.sum(null >= observed))
+        done += m
+        if exceed >= stop_after:
+            return exceed / done
+        if exceed == 0 and done >= 2 * chunk and done < n_rep:
+            every = np.concatenate(nulls)
+            sd = float(np.std(every))
+            if sd > 0 and (observed - float(np.mean(every))) / sd > sig.CLEAR_Z:
+                return 1.0 / (n_rep + 1.0)
+    return (1.0 + exceed) / (n_rep + 1.0)
 
 
 def shape_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA,
                    rng: np.random.Generator, n_rep: int = 999) -> Evidence:
     """Does waveform ``model.effects[index]`` keep its shape on ``residual`` (= rec.y −
-    model.predict(rec))? Its ``relaxed_basis`` against the residual (module docstring); an
-    effect without one holds."""
+    model.predict(rec))? The variance its ``relaxed_basis`` explains in the residual (in-sample:
+    a held-out score cannot see a transient inside one block) against the same on the model's
+    own noise, with a size gate (module docstring); an effect without a relaxed basis holds."""
     eff, p = model.entries()[index]
     relaxed = eff.relaxed_basis(p, rec)
     if relaxed is None:
@@ -167,37 +194,65 @@ def shape_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, 
     cols, what = relaxed
     r = np.asarray(residual, float)
     x_nuis = base_regressors(rec)
-    folds = sig.block_folds(rec.n)
-    cols = np.asarray(cols, float).reshape(rec.n, -1)
-    observed = float(sig.heldout_linear_scores(r, x_nuis, [cols, cols], folds)[0])
-    if not observed > 0:
+    cols = np.column_stack([project_out(c, x_nuis) for c in np.asarray(cols, float).reshape(rec.n, -1).T])
+    q = orthonormal(cols)
+    if q.shape[1] == 0:
         return Evidence(eff.id, True, 1.0)
-    design = np.column_stack([x_nuis, cols])
-    beta, *_ = np.linalg.lstsq(design, r, rcond=None)
-    fitted = cols @ beta[x_nuis.shape[1]:]
+    coef = q.T @ r
+    observed = float(coef @ coef)
+    fitted = q @ coef
     floor = float(sig.white_floor(r - fitted, rec.rate_hz, model.stochastic_effects())[0]) or float(np.std(r))
-    size = float(np.sqrt(np.sum((fitted - fitted.mean()) ** 2)) / floor) if floor > 0 else math.inf
+    size = math.sqrt(observed) / floor if floor > 0 else math.inf
     if size < MIN_SNR:
         return Evidence(eff.id, True, 1.0)
+    # the null is the model's own noise (white at the floor measured beside the relaxed columns,
+    # plus its random processes): naming an effect claims that, with it in the model, the rest
+    # is that noise. A bootstrap of the residual would keep whatever the effect's shape leaves
+    # (the other two bursts of three, the wander beside a drift) and call it typical.
     procs = model.stochastic_effects()
-    draw = None
-    if procs or eff.catch_all:
-        # a catch-all claims the rest is the model's noise: its null is that noise, at the floor
-        # measured beside the relaxed columns (a bootstrap of the residual would keep the very
-        # wander the catch-all is asked to rule out)
-        noisy = model.with_base(noise_sd=min(floor, float(model.base.noise_sd)) if procs else floor)
-        base = noisy.predict(rec)
+    noisy = model.with_base(noise_sd=min(floor, float(model.base.noise_sd)) if procs else floor)
 
-        def model_noise(m: int) -> np.ndarray:  # the model's own noise: white + its random processes
-            return np.column_stack([noisy.simulate(rec, rng) - base for _ in range(m)])
-        draw = model_noise
-    p_val = sig.bootstrap_p_value(r - fitted, x_nuis, [cols, cols], folds, observed, n_rep=n_rep, rng=rng,
-                                  draw=draw)
+    def draw(m: int) -> np.ndarray:  # the model's own noise: white + its random processes
+        return np.column_stack([noisy.simulate_noise(rec, rng) for _ in range(m)])
+    p_val = _projection_p(q, observed, draw, n_rep)
     if p_val >= alpha:
         return Evidence(eff.id, True, p_val)
     return Evidence(eff.id, False, p_val,
-                    (f"{what} still explain the residual beside {eff.id} (held-out {observed:.3g} of its "
-                     f"variance, {size:.0f}× the floor)",))
+                    (f"{what} still explain the residual beside {eff.id} ({size:.0f}× the floor, p = {p_val:.2g})",))
+
+
+#: Circular shifts of the rotation test (the shortest a twentieth of the record).
+N_ROTATIONS = 199
+
+
+def beyond_leftover(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA) -> Evidence:
+    """Is waveform ``model.effects[index]`` significant beyond the structure the model leaves
+    unexplained? Its contribution (the model's prediction with it less without it: one fixed
+    column, base regressors projected out) is projected on the residual plus itself, against the
+    same after circular shifts of that series by a twentieth of the record or more (a rotation
+    test: the leftover keeps its whole shape — spectrum, where in time its parts are — and loses
+    its alignment with the effect). A large unexplained structure (a chirp, a stepped supply)
+    correlates with some catalogue regressor by chance; against white noise that is significant,
+    against its own rotations it is not."""
+    eff, _ = model.entries()[index]
+    without = Model(model.base, model.effects[:index] + model.effects[index + 1:])
+    x_nuis = base_regressors(rec)
+    c = project_out(model.predict(rec) - without.predict(rec), x_nuis)
+    norm = math.sqrt(float(c @ c))
+    if norm == 0:
+        return Evidence(eff.id, False, 1.0, (f"{eff.id} contributes nothing on this record",))
+    c = c / norm
+    z = project_out(np.asarray(residual, float), x_nuis) + c * norm
+    observed = float(c @ z) ** 2
+    n = rec.n
+    shifts = np.unique(np.linspace(n // 20, n - n // 20, N_ROTATIONS).astype(int))
+    null = np.array([float(c @ np.roll(z, int(k))) ** 2 for k in shifts])
+    p_val = float((1 + np.sum(null >= observed)) / (1 + null.size))
+    if p_val < alpha:
+        return Evidence(eff.id, True, p_val)
+    return Evidence(eff.id, False, p_val,
+                    (f"{eff.id} is no more than the unexplained structure gives by chance (its projection is "
+                     f"reached by {int(np.sum(null >= observed))} of {null.size} circular shifts of the data)",))
 
 
 def evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA,
@@ -209,7 +264,3 @@ def evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alp
         return process_evidence(model, rec, index, residual, alpha=alpha)
     return shape_evidence(model, rec, index, residual, alpha=alpha, rng=rng, n_rep=n_rep)
 
-
-def catch_all_params(effect: Effect, params: Mapping[str, float]) -> dict:
-    """The parameters of a candidate as the model stores them (clipped to the widest ranges)."""
-    return {q.name: float(np.clip(params[q.name], q.low, q.high)) for q in effect.params}

@@ -214,6 +214,26 @@ class Model:
                 add = add + e.term(p, rec)
         return u, add
 
+    def simulate_noise(self, rec: Record, rng) -> np.ndarray:
+        """``simulate(rec, rng) − predict(rec)``: one realisation of the model's own noise (white +
+        its random processes), the same numbers for the same rng; without an output stage it is
+        drawn alone, not as a difference of two full predictions (a null of many replicates)."""
+        if isinstance(rng, (int, np.integer)):
+            rng = np.random.default_rng(int(rng))
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng = {rng!r}; allowed: a numpy Generator or an int seed")
+        if self.has_output_stage():
+            return self.simulate(rec, rng) - self.predict(rec)
+        root = int(rng.integers(0, 2 ** 63))
+        y = np.zeros(rec.n)
+        for i, (e, p) in enumerate(self.entries()):
+            if e.stage == "additive" and isinstance(e, StochasticEffect):
+                e.check_inputs(rec)
+                y = y + e.noise(p, rec, _stream(root, f"{i}:{e.id}"))
+        if self.base.noise_sd > 0:
+            y = y + self.base.noise_sd * _stream(root, "white").standard_normal(rec.n)
+        return y
+
     def _run(self, rec: Record, root: int | None) -> np.ndarray:
         b = self.base
         staged = self.entries()

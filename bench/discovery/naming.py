@@ -116,10 +116,9 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
         lin = float(sig.heldout_linear_scores(r, x_nuis, cols, folds)[0])
         draw: Callable[[int], np.ndarray] | None = None
         if model.stochastic_effects():
-            base = model.predict(rec)  # once: each draw is only the model's noise around it
 
             def model_noise(m: int) -> np.ndarray:  # the model's own noise: white + its stochastic effects
-                return np.column_stack([model.simulate(rec, rng) - base for _ in range(m)])
+                return np.column_stack([model.simulate_noise(rec, rng) for _ in range(m)])
             draw = model_noise
         # the null's residual is the record's with the candidate's fit taken out: it keeps the
         # noise's autocorrelation but not the effect itself — a block holding a start-up
@@ -192,11 +191,13 @@ def judge(trial: Trial, significant: bool, q_value: float, model: Model, rec: Re
 
 
 def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0, n_rep: int = 999,
-                n_blocks: int = sig.N_BLOCKS, only: tuple[str, ...] | None = None,
+                n_blocks: int = sig.N_BLOCKS, only: tuple[str, ...] | None = None, catch_alls: bool = True,
                 progress: Callable[[str], None] | None = None) -> Naming:
     """Fit every applicable candidate to ``rec.y − model.predict(rec)``; see module docstring.
-    ``only``: restrict to these ids (tests, quick runs); ``progress``: called with a short
-    message (``"gauss_markov (5/17)"``) before each candidate's fit."""
+    ``only``: restrict to these ids (tests, quick runs); ``catch_alls`` False: no catch-all is
+    tried (the slow structure is known to follow a logged column no effect explains);
+    ``progress``: called with a short message (``"gauss_markov (5/17)"``) before each
+    candidate's fit."""
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
     rng = np.random.default_rng(seed)
@@ -209,6 +210,8 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         effects = [e for e in effects if not e.stochastic]  # no valid spectral null on its residual
     if only is not None:
         effects = [e for e in effects if e.id in only]
+    if not catch_alls:
+        effects = [e for e in effects if not e.catch_all]
     kind = model.base.kind
     trials = []
     for k, eff in enumerate(effects):
@@ -226,7 +229,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     candidates = tuple(c for _, c in judged)
     named = [t for t, c in judged if c.named]
     det_pick = parsimonious(next((t for t in named if not t.effect.stochastic), None), named, blocks, n_blocks,
-                            kind)
+                            kind, reading_sd)
     named = ([det_pick] if det_pick is not None else []) + [t for t in named if t is not det_pick]
 
     def det_p_under(s: Trial, d: Trial) -> float:
@@ -234,10 +237,9 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         if d.cols is None or not np.isfinite(d.lin):
             return 1.0
         m_s = model.with_effect(s.id, s.params)
-        base = m_s.predict(rec)
 
         def draw(m: int) -> np.ndarray:
-            return np.column_stack([m_s.simulate(rec, rng) - base for _ in range(m)])
+            return np.column_stack([m_s.simulate_noise(rec, rng) for _ in range(m)])
         return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw)
 
     def signature_of(t: Trial) -> Evidence:
@@ -251,8 +253,10 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     # (a realisation of a walk is as trendy as 1 % of walks about 1 % of the time)
     best, rejected = choose(named, model, rec, kind, det_p_under, alpha / max(len(trials), 1), signature_of)
     set_aside = tuple(ev.describe() for ev in rejected)
+    followed = tuple(sorted({c for ev in rejected for c in ev.columns}))
     if best is None or best.err_c is None or best.err_b is None:
-        return Naming(candidates, None if best is None else _public(judged, best), (), (), set_aside=set_aside)
+        return Naming(candidates, None if best is None else _public(judged, best), (), (), set_aside=set_aside,
+                      followed_columns=followed)
     comps, seps = [], []
     for t, c in judged:
         if t.id == best.id or c.score <= 0:
@@ -266,7 +270,8 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         if np.isfinite(se) and diff <= 2 * se:
             comps.append(t.id)
             seps.append(separating_experiment(best.id, t.id))
-    return Naming(candidates, _public(judged, best), tuple(comps), tuple(seps), set_aside=set_aside)
+    return Naming(candidates, _public(judged, best), tuple(comps), tuple(seps), set_aside=set_aside,
+                  followed_columns=followed)
 
 
 def _public(judged: list[tuple[Trial, Candidate]], trial: Trial) -> Candidate:

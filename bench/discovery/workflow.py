@@ -35,7 +35,7 @@ from bench.discovery.calibration import calibrate
 from bench.discovery.candidates import Naming
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
-from bench.discovery.evidence import evidence
+from bench.discovery.evidence import beyond_leftover, evidence
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import localize, unexplained_structure
@@ -112,7 +112,7 @@ class Discovery:
 
 def model_noise(model: Model, rec: Record, seed: int) -> np.ndarray:
     """One realisation of the model's own noise (white + its stochastic effects) on rec's grid."""
-    return model.simulate(rec, np.random.default_rng(seed)) - model.predict(rec)
+    return model.simulate_noise(rec, np.random.default_rng(seed))
 
 
 def gap_of(model: Model, rec: Record, seed: int) -> tuple[Gap, float, float, np.ndarray]:
@@ -175,6 +175,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
     steps = []
     gap_cur, rms_cur, r_cur = g0, rms0, r0
     it = 0
+    unused_followed: set[str] = set()
     while True:  # ends by a break (at it == max_effects at the latest), loc and naming describing r_cur
         loc = _structure(model, rec, r_cur)
 
@@ -182,7 +183,14 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
             say(f"step {_it + 1}: {msg}")
 
         naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
-                             progress=step_say)
+                             catch_alls=not unused_followed, progress=step_say)
+        # a catch-all whose innovations follow a logged column no catalogue effect reads: the
+        # slow structure is that column's, out of the catalogue — no catch-all is named for it
+        new_cols = sorted(set(naming.followed_columns) - CATALOGUE.columns_used(model.base.kind) - unused_followed)
+        if new_cols:
+            unused_followed.update(new_cols)
+            notes.append(f"the slow structure follows {', '.join(new_cols)}, which no catalogue effect reads: "
+                         "no random process or drift is named for it")
         if naming.best is None:
             say(f"step {it + 1}: nothing significant; stopping")
             break
@@ -206,6 +214,11 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         named_ids = {st.effect_id for st in steps}
         evs = [evidence(model, rec, i, r_cur, rng=audit_rng, n_rep=n_rep)
                for i, eid in enumerate(model.effect_ids) if eid in named_ids]
+        if unexplained_structure(rec, r_cur, model, alpha=alpha):
+            # structure is left: a waveform must be significant beyond it, not only beyond white
+            evs += [beyond_leftover(model, rec, i, r_cur)
+                    for i, (e, _) in enumerate(model.entries())
+                    if e.id in named_ids and e.waveform and not e.stochastic]
         failing = [ev for ev in evs if not ev.holds]
         if not failing:
             break
