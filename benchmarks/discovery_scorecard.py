@@ -169,9 +169,11 @@ def _mark(c: dict) -> str:
     return f"{mark} named {c['named']} gap {c['gap_final']:.3f} recovered {c['recovered']}"
 
 
-def run_jobs(jobs: list[tuple], n_jobs: int) -> list[dict]:
-    """Run the cases (in ``n_jobs`` processes), printing each as it finishes, in job order."""
-    out = []
+def run_jobs(jobs: list[tuple], n_jobs: int, json_path: str | None = None) -> list[dict]:
+    """Run the cases (in ``n_jobs`` processes), printing each as it finishes, in job order, and
+    rewriting ``json_path`` (when given) after each: a run stopped early can still be reported
+    (``--report FILE``)."""
+    out: list[dict] = []
 
     def show(job, c):
         fn, args = job
@@ -180,8 +182,10 @@ def run_jobs(jobs: list[tuple], n_jobs: int) -> list[dict]:
         if c is None:
             print(f"{label} seed {args[2]}: not drawable on this record (skipped)", flush=True)
             return
-        print(f"{label} seed {args[2]}: {_mark(c)} ({c['seconds']:.1f} s)", flush=True)
+        print(f"[{len(out) + 1}/{len(jobs)}] {label} seed {args[2]}: {_mark(c)} ({c['seconds']:.1f} s)", flush=True)
         out.append(c)
+        if json_path:
+            Path(json_path).write_text(json.dumps(out, indent=1, default=float))
 
     if n_jobs <= 1:
         for job in jobs:
@@ -200,27 +204,33 @@ def effect_ids(kind: str, subset: str | None) -> list[str]:
 
 
 def scorecard_jobs(args) -> list[tuple]:
-    jobs: list[tuple] = []
+    """Every case, in rounds: each row's first records (every kind, effect and shape; three
+    triples and clean records, two pairs) before any row's next, so a run stopped early is a
+    balanced sample of all rows."""
+    jobs: list[tuple[int, tuple]] = []
+
+    def add(round_: int, job: tuple) -> None:
+        jobs.append((round_, job))
     for kind in args.kinds.split(","):
         ids = effect_ids(kind, args.effects)
         for gen, seeds in (("catalogue", args.seeds), ("independent", args.independent_seeds)):
             for eid in ids:
                 for seed in range(seeds):
-                    jobs.append(("single", (kind, (eid,), seed, args.n, None, gen)))
+                    add(seed, ("single", (kind, (eid,), seed, args.n, None, gen)))
         rng = np.random.default_rng(12345)
         det = [e for e in ids if not CATALOGUE[e].stochastic]
         for k in range(args.pairs if len(det) >= 2 else 0):
             pair = tuple(str(e) for e in rng.choice(det, 2, replace=False))
-            jobs.append(("single", (kind, pair, 1000 + k, args.n, None, "catalogue")))
+            add(k // 2, ("single", (kind, pair, 1000 + k, args.n, None, "catalogue")))
         for k in range(args.triples):
-            jobs.append(("single", (kind, draw_triple(kind, ids, rng), 3000 + k, args.n, None, "catalogue")))
+            add(k // 3, ("single", (kind, draw_triple(kind, ids, rng), 3000 + k, args.n, None, "catalogue")))
         for gen in ("catalogue", "independent"):
             for k in range(args.clean):
-                jobs.append(("single", (kind, (), 2000 + k, args.n, None, gen)))
+                add(k // 3, ("single", (kind, (), 2000 + k, args.n, None, gen)))
         for shape in SHAPES:
             for seed in range(args.open):
-                jobs.append(("open", (kind, shape, seed, args.n)))
-    return jobs
+                add(seed, ("open", (kind, shape, seed, args.n)))
+    return [job for _, job in sorted(jobs, key=lambda rj: rj[0])]
 
 
 def draw_triple(kind: str, ids: list[str], rng: np.random.Generator) -> tuple[str, ...]:
@@ -276,13 +286,13 @@ def main(argv=None) -> int:
         jobs = [("single", (kind, (eid,), seed, args.n, ratio * MIN_SNR, "catalogue"))
                 for kind in args.kinds.split(",") for eid in effect_ids(kind, args.effects)
                 for ratio in ratios for seed in range(args.seeds)]
-        cases = run_jobs(jobs, args.jobs)
+        cases = run_jobs(jobs, args.jobs, args.json)
         report_power(cases, ratios)
         print(f"total {time.perf_counter() - t_start:.0f} s; records of {args.n} samples")
         if args.json:
             Path(args.json).write_text(json.dumps(cases, indent=1, default=float))
         return 0
-    cases = run_jobs(scorecard_jobs(args), args.jobs)
+    cases = run_jobs(scorecard_jobs(args), args.jobs, args.json)
     report(cases)
     print(f"total {time.perf_counter() - t_start:.0f} s; records of {args.n} samples, {args.jobs} process(es)")
     if args.json:
