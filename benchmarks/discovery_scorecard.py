@@ -203,34 +203,44 @@ def effect_ids(kind: str, subset: str | None) -> list[str]:
             and (subset is None or e in subset.split(","))]
 
 
+#: order of the rows within a round: the open-world rows first, singles of both generators side
+#: by side (issue 15's new effects first), pairs last
+ROW_ORDER = ("open", "triple", "clean", "single-new", "single", "pair")
+
+
 def scorecard_jobs(args) -> list[tuple]:
     """Every case, in rounds: each row's first records (every kind, effect and shape; three
     triples and clean records, two pairs) before any row's next, so a run stopped early is a
-    balanced sample of all rows."""
-    jobs: list[tuple[int, tuple]] = []
+    balanced sample; within a round the rows in ROW_ORDER, the kinds interleaved, and each
+    effect's catalogue and independent records side by side (a cut leaves both generators on the
+    same effects)."""
+    jobs: list[tuple[tuple[int, int, int, int], tuple]] = []
+    kinds = args.kinds.split(",")
 
-    def add(round_: int, job: tuple) -> None:
-        jobs.append((round_, job))
-    for kind in args.kinds.split(","):
+    def add(round_: int, row: str, kind: str, k: int, job: tuple) -> None:
+        jobs.append(((round_, ROW_ORDER.index(row), k, kinds.index(kind)), job))
+    for kind in kinds:
         ids = effect_ids(kind, args.effects)
         for gen, seeds in (("catalogue", args.seeds), ("independent", args.independent_seeds)):
-            for eid in ids:
+            for i, eid in enumerate(ids):
                 for seed in range(seeds):
-                    add(seed, ("single", (kind, (eid,), seed, args.n, None, gen)))
+                    add(seed, "single-new" if eid in NEW_EFFECTS else "single", kind, 2 * i + (gen != "catalogue"),
+                        ("single", (kind, (eid,), seed, args.n, None, gen)))
         rng = np.random.default_rng(12345)
         det = [e for e in ids if not CATALOGUE[e].stochastic]
         for k in range(args.pairs if len(det) >= 2 else 0):
             pair = tuple(str(e) for e in rng.choice(det, 2, replace=False))
-            add(k // 2, ("single", (kind, pair, 1000 + k, args.n, None, "catalogue")))
+            add(k // 2, "pair", kind, k, ("single", (kind, pair, 1000 + k, args.n, None, "catalogue")))
         for k in range(args.triples):
-            add(k // 3, ("single", (kind, draw_triple(kind, ids, rng), 3000 + k, args.n, None, "catalogue")))
-        for gen in ("catalogue", "independent"):
+            add(k // 3, "triple", kind, k, ("single", (kind, draw_triple(kind, ids, rng), 3000 + k, args.n, None,
+                                                       "catalogue")))
+        for j, gen in enumerate(("catalogue", "independent")):
             for k in range(args.clean):
-                add(k // 3, ("single", (kind, (), 2000 + k, args.n, None, gen)))
-        for shape in SHAPES:
+                add(k // 3, "clean", kind, 2 * k + j, ("single", (kind, (), 2000 + k, args.n, None, gen)))
+        for i, shape in enumerate(SHAPES):
             for seed in range(args.open):
-                add(seed, ("open", (kind, shape, seed, args.n)))
-    return [job for _, job in sorted(jobs, key=lambda rj: rj[0])]
+                add(seed, "open", kind, i, ("open", (kind, shape, seed, args.n)))
+    return [job for _, job in sorted(jobs, key=lambda kj: kj[0])]
 
 
 def draw_triple(kind: str, ids: list[str], rng: np.random.Generator) -> tuple[str, ...]:
