@@ -153,21 +153,6 @@ def block_bootstrap(r: np.ndarray, block_len: int, n_rep: int, rng: np.random.Ge
     return out.T  # (n, n_rep) view of row-contiguous replicates: LinearScorer reads rows
 
 
-def phase_surrogates(r: np.ndarray, n_rep: int, rng: np.random.Generator) -> np.ndarray:
-    """(n, n_rep) surrogates of ``r`` with its periodogram and random Fourier phases (Theiler et
-    al. 1992): every autocorrelation of the series kept, slow ones too, and its alignment with
-    time and with every logged input destroyed — the null of "this structure is coloured noise"."""
-    r = np.asarray(r, float)
-    n = r.size
-    spec = np.fft.rfft(r - r.mean())
-    phases = rng.uniform(0, 2 * np.pi, (n_rep, spec.size))
-    phases[:, 0] = 0.0
-    if n % 2 == 0:
-        phases[:, -1] = 0.0  # the Nyquist term stays real
-    out = np.fft.irfft(np.abs(spec)[None, :] * np.exp(1j * phases), n, axis=1)
-    return out.T
-
-
 def default_block_len(n: int) -> int:
     """n / BOOT_BLOCKS samples: correlation up to that lag survives the bootstrap."""
     return max(1, n // BOOT_BLOCKS)
