@@ -20,6 +20,7 @@ from scipy import optimize
 
 from bench.discovery.data import Record
 from bench.discovery.effects_base import Param
+from bench.discovery.effects_noise import Processes
 from bench.discovery.model import BASE_RANGES, Model
 from bench.discovery.significance import white_floor
 
@@ -49,15 +50,15 @@ def _slots(model: Model, rec: Record) -> list[_Slot]:
     slots = [_Slot("base", "bias")]
     if _sf_free(rec):
         slots.append(_Slot("base", "scale_factor"))
-    for i, (eff, _) in enumerate(model.entries()):
+    for i, (eff, p) in enumerate(model.entries()):
         if not eff.waveform:
             continue
-        for q in eff.params_for(model.base.kind):
+        for q in eff.free_params(p, model.base.kind, rec):
             slots.append(_Slot("effect", q.name, i, q))
     return slots
 
 
-def _coords(model: Model, slots: list[_Slot]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _coords(model: Model, slots: list[_Slot], rec: Record) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(x, lower, upper, scale): optimiser coordinates (log parameters in log) and bounds."""
     x, lo, hi, sc = [], [], [], []
     for s in slots:
@@ -88,10 +89,11 @@ def _coords(model: Model, slots: list[_Slot]) -> tuple[np.ndarray, np.ndarray, n
             hi.append(8 * np.pi)
             sc.append(0.1)
         else:
+            own = model.entries()[s.index][0].coordinate_scale(q, rec)
             x.append(v)
             lo.append(q.low)
             hi.append(q.high)
-            sc.append(max(abs(v), (q.high - q.low) * 1e-4, 1e-300))
+            sc.append(own if own is not None else max(abs(v), (q.high - q.low) * 1e-4, 1e-300))
     return np.array(x), np.array(lo), np.array(hi), np.array(sc)
 
 
@@ -115,11 +117,12 @@ def _at(model: Model, slots: list[_Slot], x: np.ndarray) -> Model:
     return Model(replace(model.base, **base), tuple(effects))
 
 
-def white_floor_sd(residual: np.ndarray, rate_hz: float) -> float:
+def white_floor_sd(residual: np.ndarray, rate_hz: float, stochastic_effects: Processes = ()) -> float:
     """White-noise sd from the upper half of the residual's Welch PSD (median, bias-corrected):
-    immune to slow structure (drift, warm-up, temperature) and to a few spectral lines
-    (:func:`bench.discovery.significance.white_floor`)."""
-    return float(white_floor(np.asarray(residual, float), rate_hz)[0])
+    immune to slow structure (drift, warm-up, temperature) and to a few spectral lines; beside
+    the model's random processes, whose spectrum there is theirs, not white (white angle noise
+    lives at the top of the band) (:func:`bench.discovery.significance.white_floor`)."""
+    return float(white_floor(np.asarray(residual, float), rate_hz, stochastic_effects)[0])
 
 
 def _check_base(model: Model, bias: float, sf: float) -> None:
@@ -157,13 +160,13 @@ def calibrate(model: Model, rec: Record, *, noise: bool = True, max_nfev: int = 
     # squared error, so least squares finds it), starting from the measured floor's inversion
     dithered = noise and any(e.mean_depends_on_noise for e, _ in model.entries())
     if dithered:
-        floor = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz)
+        floor = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz, model.stochastic_effects())
         floor = float(min(floor, BASE_RANGES[model.base.kind]["noise_sd"][1]))
         if floor > 0 and np.isfinite(floor):
             model = model.with_noise_floor(floor)
             slots.append(_Slot("noise", "noise_sd", floor=floor))
     if len(slots) > (2 if sf_free else 1):  # effects with parameters: the joint nonlinear fit
-        x0, lo, hi, sc = _coords(model, slots)
+        x0, lo, hi, sc = _coords(model, slots, rec)
         x0 = np.clip(x0, lo, hi)
         y = rec.y
         start = model
@@ -185,7 +188,7 @@ def calibrate(model: Model, rec: Record, *, noise: bool = True, max_nfev: int = 
                 raise ValueError(f"calibrated {name} = {v:.6g} at the edge of the allowed range [{lo_b}, {hi_b}] "
                                  f"for a {b.kind}: wrong unit or missing input column?")
     if noise and not any(s.what == "noise" for s in slots):
-        sd = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz)
+        sd = white_floor_sd(rec.y - model.predict(rec), rec.rate_hz, model.stochastic_effects())
         sd = float(min(sd, BASE_RANGES[model.base.kind]["noise_sd"][1]))
         if sd > 0 and np.isfinite(sd):
             # the measured floor holds a quantizer's rounding too: the noise before it is less

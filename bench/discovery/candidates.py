@@ -39,18 +39,24 @@ class Candidate:
 @dataclass(frozen=True)
 class Naming:
     """All candidates (best score first), the named best (or None), close competitors and how
-    to separate them."""
+    to separate them; ``set_aside``: catch-alls that would have been chosen but whose own
+    signature does not hold on the record (why, and where)."""
 
     candidates: tuple[Candidate, ...]
     best: Candidate | None
     competitors: tuple[str, ...]
     separating: tuple[str, ...]
-    null: str = "circular moving-block bootstrap of the residual (linearised regressors)"
+    null: str = ("circular moving-block bootstrap of the residual with the candidate's fit taken out "
+                 "(linearised regressors)")
+    set_aside: tuple[str, ...] = ()
+    #: logged columns a set-aside catch-all's innovations still followed
+    followed_columns: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         return {"best": None if self.best is None else self.best.to_dict(),
                 "competitors": list(self.competitors), "separating_experiments": list(self.separating),
-                "candidates": [c.to_dict() for c in self.candidates], "null": self.null}
+                "candidates": [c.to_dict() for c in self.candidates], "null": self.null,
+                "set_aside": list(self.set_aside)}
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,7 +1,9 @@
 """Choosing the best among the named candidates (step c of the workflow, after
-:mod:`.naming` has fitted and judged each one): deterministic first, a stochastic candidate only
-on evidence that the colour is a random process and not a missing waveform (:func:`choose`);
-Occam among deterministic ones within a standard error (:func:`parsimonious`)."""
+:mod:`.naming` has fitted and judged each one): a catch-all only on the evidence of its own
+signature (:func:`choose`); deterministic first, localized explanations before any process, a
+stochastic candidate only on evidence that the colour is a random process and not a missing
+waveform (:func:`preferred`); Occam among deterministic ones within a standard error
+(:func:`parsimonious`)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,8 @@ import numpy as np
 from bench.discovery import stochastic as sto
 from bench.discovery.candidates import Trial
 from bench.discovery.data import Record
+from bench.discovery.effects_base import MIN_SNR
+from bench.discovery.evidence import Evidence
 from bench.discovery.model import Model
 from bench.discovery.significance import jackknife_ratio
 
@@ -22,10 +26,38 @@ SURVIVE_FRACTION = 0.1
 
 
 def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
-           det_p_under: Callable[[Trial, Trial], float] | None = None, alpha: float = 0.05) -> Trial | None:
+           det_p_under: Callable[[Trial, Trial], float] | None = None, alpha: float = 0.05,
+           holds: Callable[[Trial], Evidence] | None = None) -> tuple[Trial | None, tuple[Evidence, ...]]:
+    """The best of the named candidates and the catch-alls set aside on the way.
+
+    A catch-all (``Effect.catch_all``: a random process, a drift) is named only on the evidence
+    of its own signature: ``holds(trial)`` (:mod:`.evidence`) — a catch-all that would be chosen
+    but whose signature does not hold is set aside (its evidence returned) and the choice made
+    again among the others; when none is left, nothing is named (its structure is reported as
+    unexplained). Among the rest, :func:`preferred`."""
+    remaining = list(named)
+    rejected: list[Evidence] = []
+    while remaining:
+        pick = preferred(remaining, model, rec, kind, det_p_under, alpha)
+        if pick is None:
+            break
+        if holds is not None and pick.effect.catch_all:
+            ev = holds(pick)
+            if not ev.holds:
+                rejected.append(ev)
+                remaining = [t for t in remaining if t is not pick]
+                continue
+        return pick, tuple(rejected)
+    return None, tuple(rejected)
+
+
+def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
+              det_p_under: Callable[[Trial, Trial], float] | None = None, alpha: float = 0.05) -> Trial | None:
     """Deterministic first: the highest held-out score among the named deterministic candidates
-    (then :func:`parsimonious`). A named stochastic candidate (best BIC gain of its spectral fit)
-    replaces it only if all hold:
+    (then :func:`parsimonious`). A localized one (``Effect.localized``: a jump, a warm-up once
+    power-on is logged) is tested first: a random process replaces it only when it is not
+    significant against a null that includes the process. Any other is replaced by a named
+    stochastic candidate (best BIC gain of its spectral fit) only if all hold:
 
     * it explains more: its BIC gain over the model's noise (Whittle likelihood ratio −
       ln(n/2)·parameters) exceeds the deterministic one's on the same likelihood (the white +
@@ -56,6 +88,10 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     if not sto_ or d.resid_full is None:
         return d
     s = sto_[0]
+    if d.effect.localized(rec):
+        if det_p_under is None or det_p_under(s, d) < alpha:
+            return d
+        return s
     known = model.stochastic_effects()
     r0 = rec.y - model.predict(rec)
     lr_d = 2.0 * (sto.white_nll(r0, rec.dt_s, known) - sto.white_nll(d.resid_full, rec.dt_s, known))
@@ -72,15 +108,21 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
 
 
 def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray, n_blocks: int,
-                 kind: str) -> Trial | None:
+                 kind: str, noise_sd: float = 0.0) -> Trial | None:
     """Among deterministic named candidates whose held-out score is within one (paired, block
     jackknife) standard error of the best's, the one with the fewest parameters (Occam: a long
-    warm-up time constant is a drift on a short record)."""
+    warm-up time constant is a drift on a short record) — unless the best explains, in-sample,
+    more than ``MIN_SNR²·noise_sd²`` beyond it: what the richer shape adds is then an effect of
+    its own size (a two-node warm-up's fast node lives in the first blocks of the record, where
+    held-out blocks barely see it)."""
     if best is None or best.effect.stochastic or best.err_c is None or best.err_b is None:
         return best
 
     def n_par(c: Trial) -> int:
         return len(c.effect.params_for(kind))
+
+    def sse(c: Trial) -> float:
+        return float(np.sum((c.resid_full - c.resid_full.mean()) ** 2)) if c.resid_full is not None else math.inf
 
     pick = best
     for c in named:
@@ -89,6 +131,14 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
         d_num = np.bincount(blocks, c.err_c - best.err_c, n_blocks)
         den = np.bincount(blocks, best.err_b, n_blocks)
         se = jackknife_ratio(d_num, den)
-        if np.isfinite(se) and d_num.sum() / den.sum() <= se:
+        if not (np.isfinite(se) and d_num.sum() / den.sum() <= se):
+            continue
+        if noise_sd > 0 and sse(c) - sse(best) > MIN_SNR ** 2 * noise_sd ** 2:
+            continue
+        pick = c
+    # a named shape that holds the pick as a special case (Effect.nests) and adds more than the
+    # size gate to it in-sample is the better name, whatever the held-out blocks say
+    for c in named:
+        if pick.id in c.effect.nests and noise_sd > 0 and sse(pick) - sse(c) > MIN_SNR ** 2 * noise_sd ** 2:
             pick = c
     return pick

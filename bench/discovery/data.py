@@ -3,7 +3,9 @@
 Units: ``t_s`` in s; ``y`` in the sensor unit (g for accelerometers, deg/s for gyros and the
 MHD sensor); ``input`` and ``cross_input`` in the same unit as the applied quantity (g or
 deg/s); ``temp_c`` in degC; ``t_on_s`` in s since power-on; ``vib_grms`` in g rms;
-``accel_g`` the specific force along a gyro's input axis in g (what ``g_sensitivity`` acts on).
+``accel_g`` the specific force along a gyro's input axis in g (what ``g_sensitivity`` acts on);
+``supply_v`` the sensor's supply voltage in V (logged by the bench; no catalogue effect uses it,
+so a dependence on it is reported as unexplained structure, never named).
 
 CSV columns (header names) and the field each fills:
 
@@ -18,6 +20,7 @@ column         field            meaning
 ``t_on``       ``t_on_s``       time since power-on, s (absent: ``t - t[0]``)
 ``vib``        ``vib_grms``     vibration level, g rms
 ``accel``      ``accel_g``      specific force along a gyro's axis, g
+``supply``     ``supply_v``     supply voltage, V
 =============  ===============  =================================================
 """
 
@@ -32,13 +35,14 @@ import numpy as np
 # CSV header name -> Record field.
 CSV_COLUMNS: dict[str, str] = {
     "t": "t_s", "y": "y", "input": "input", "cross_input": "cross_input", "temp": "temp_c",
-    "t_on": "t_on_s", "vib": "vib_grms", "accel": "accel_g",
+    "t_on": "t_on_s", "vib": "vib_grms", "accel": "accel_g", "supply": "supply_v",
 }
 # Physically plausible ranges of the logged columns: outside them the file is wrong, not the unit.
 _RANGES: dict[str, tuple[float, float]] = {
     "temp_c": (-100.0, 200.0),
     "t_on_s": (0.0, np.inf),
     "vib_grms": (0.0, 1000.0),
+    "supply_v": (-1000.0, 1000.0),
 }
 
 
@@ -59,6 +63,7 @@ class Record:
     vib_grms: np.ndarray | None = None
     cross_input: np.ndarray | None = None
     accel_g: np.ndarray | None = None
+    supply_v: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         t = _as_column("t", self.t_s, None)
@@ -136,7 +141,7 @@ class Record:
 
     def column(self, name: str) -> np.ndarray:
         """The column ``name`` ("t", "y", "input", "cross_input", "temp", "t_on", "vib",
-        "accel" or the field name). ``t_on`` falls back to ``t - t[0]``; a column that was not
+        "accel", "supply" or the field name). ``t_on`` falls back to ``t - t[0]``; a column that was not
         logged raises ValueError naming it and the logged ones."""
         f = _field(name)
         v = getattr(self, f)

@@ -22,7 +22,8 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping, Sequence
 
 from bench.discovery.effects_base import KINDS, Effect
-from bench.discovery.effects_noise import GaussMarkov, RateRandomWalk
+from bench.discovery.effects_noise import AngleQuantization, FlickerNoise, GaussMarkov, RateRandomWalk
+from bench.discovery.effects_steps import BiasJump
 from bench.discovery.effects_terms import (
     GSensitivity,
     K2Nonlinearity,
@@ -36,6 +37,7 @@ from bench.discovery.effects_terms import (
     VibrationRectification,
     WarmupExponential,
 )
+from bench.discovery.effects_thermal import TemperatureRate, ThermalHysteresis, ThermalTwoNode
 from bench.discovery.effects_transforms import (
     DeadZone,
     HighpassRolloff,
@@ -100,6 +102,11 @@ class Catalogue(Mapping[str, Effect]):
             raise ValueError(f"unknown sensor kind {kind!r}; allowed: {list(KINDS)}")
         return [e for e in self._effects.values() if kind in e.kinds]
 
+    def columns_used(self, kind: str) -> frozenset[str]:
+        """The logged columns some effect of ``kind`` reads (besides time): a dependence on any
+        other logged column is out of the catalogue."""
+        return frozenset(c for e in self.for_kind(kind) for c in e.inputs if c != "t")
+
     def look_alikes(self, effect_id: str) -> tuple[str, ...]:
         """Ids of the effects whose signature this one resembles (declared on either side)."""
         return tuple(e.id for e in self.effect(effect_id).look_alikes)
@@ -120,4 +127,6 @@ CATALOGUE = Catalogue((
     K3Nonlinearity, ScaleFactorAsymmetry, Misalignment, GSensitivity, Quantization, DeadZone,
     Saturation, SinusoidalInterference, GaussMarkov, RateRandomWalk, TimeDelay, LowpassBandwidth,
     HighpassRolloff, VibrationRectification,
+    # issue 15
+    FlickerNoise, BiasJump, AngleQuantization, ThermalTwoNode, TemperatureRate, ThermalHysteresis,
 ))

@@ -111,6 +111,22 @@ def noise_sd_of(rec: Record, kind: str) -> float:
     return s if s > 0 else DEFAULT_NOISE_SD[kind]
 
 
+def legendre_columns(x: np.ndarray, degrees: Sequence[int]) -> np.ndarray:
+    """Legendre polynomials of ``x`` mapped onto [−1, 1], one column per degree (a smooth
+    function of a logged column, for a relaxed basis)."""
+    x = np.asarray(x, float)
+    span = float(np.ptp(x))
+    u = (2 * (x - float(np.min(x))) / span - 1) if span > 0 else np.zeros_like(x)
+    return np.column_stack([np.polynomial.legendre.Legendre.basis(d)(u) for d in degrees])
+
+
+def input_shape_basis(rec: Record) -> tuple[np.ndarray, str]:
+    """A smooth function of the input beyond K2/K3/asymmetry: Legendre degrees 2-6 and |input|."""
+    u = rec.column("input")
+    return (np.column_stack([legendre_columns(u, (2, 3, 4, 5, 6)), np.abs(u)]),
+            "polynomials of the input of degree 2-6 and |input|")
+
+
 def reference_input(rec: Record) -> np.ndarray:
     """The applied input, or zeros when none was logged (the output then is bias alone)."""
     return rec.input.copy() if rec.input is not None else np.zeros(rec.n)
@@ -140,10 +156,17 @@ class Effect:
     whose residual floor the gap then simulates), ``mean_depends_on_noise`` (an output transform
     whose mean reading depends on the noise before it: calibration fits the noise sd with it).
 
-    Hooks the naming step asks: ``big_enough`` (the size gate; ``size_noise_sd`` the sd it is
-    judged against), ``identifiable`` (can the record resolve these parameters at all),
+    Hooks the naming step asks: ``applies_to`` (does the record carry what it needs: its logged
+    columns, varying), ``big_enough`` (the size gate; ``size_noise_sd`` the sd it is judged
+    against), ``identifiable`` (can the record resolve these parameters at all),
     ``colours_residual`` (once in the model, does it leave residual colour no random-process
-    null describes)."""
+    null describes), ``localized`` (a deterministic explanation placed in time by what the
+    record logs — a jump, a warm-up when power-on is logged: tested before any catch-all),
+    ``catch_all`` (a process or trend that can absorb any slow structure: named only on the
+    evidence of its own signature), ``relaxed_basis`` (columns of a freer version of its shape:
+    if they still explain the residual once it is in the model, its shape does not hold and it
+    is not named). The fit asks ``free_params`` (which parameters a fit moves; a jump's unused
+    slots stay put) and ``coordinate_scale`` (the optimiser's scale of a parameter on rec)."""
 
     id: str = ""
     description: str = ""
@@ -164,6 +187,10 @@ class Effect:
     draw_span_main: float = DRAW_SPAN
     threshold_log_tol: float = 1e-3  # bisection width (log of the main parameter) of a threshold
     needs_uniform: bool = False  # a sampled filter: every interval within 0.1 % of the median
+    catch_all: bool = False  # absorbs any slow structure: named on the evidence of its signature only
+    #: ids of effects this one holds as a special case (a two-node transient holds a one-node one):
+    #: named over them when what it adds passes the size gate in-sample
+    nests: tuple[str, ...] = ()
 
     def __init__(self, look_alikes: Sequence[Effect] = ()) -> None:
         """``look_alikes``: the competitor effects themselves (the catalogue passes them); an
@@ -229,6 +256,32 @@ class Effect:
         if missing:
             raise ValueError(f"effect {self.id!r}: missing parameter(s) {missing}; required: {list(names)}")
         return {q.name: q.check(p[q.name], self.id) for q in (self.params_for(kind) if kind else self.params)}
+
+    def free_params(self, p: Mapping[str, float], kind: str, rec: Record) -> tuple[Param, ...]:
+        """The parameters a fit on rec moves from the values ``p``, with the bounds it keeps them
+        in (default: all of the kind's, in their physical ranges)."""
+        return self.params_for(kind)
+
+    def coordinate_scale(self, q: Param, rec: Record) -> float | None:
+        """The optimiser's scale of parameter ``q`` on rec (None: the fitter's default, a
+        thousandth of the range; a jump's time has the sample interval)."""
+        return None
+
+    def applies_to(self, rec: Record) -> bool:
+        """True when rec carries what the effect needs: every logged column of ``inputs`` present
+        and varying (an input held constant is one with the bias; ``t``/``t_on`` always are)."""
+        return all(n in ("t", "t_on") or rec.varies(n) for n in self.inputs)
+
+    def localized(self, rec: Record) -> bool:
+        """True when rec places this effect in time by what it logs (a jump; a warm-up once
+        power-on is logged): such an explanation is tested before any catch-all."""
+        return False
+
+    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
+        """(columns, what they are) of a freer version of this effect's shape at ``p`` on rec —
+        what would still explain the residual if its shape were wrong (harmonics and amplitude
+        changes of a line, higher powers of its input) — or None when it has none."""
+        return None
 
     def check_inputs(self, rec: Record) -> None:
         for name in self.inputs:
@@ -307,26 +360,36 @@ class Effect:
     def direction_matching(self, delta: np.ndarray, rec: Record, q: np.ndarray, kind: str) -> np.ndarray:
         """This effect's signature (projected away from the orthonormal columns ``q``, unit norm)
         that best matches ``delta`` (already orthogonal to q) up to a scale — what it could absorb
-        of another effect's: all-linear effects have one direction; otherwise a 13-point log grid
-        of the main parameter over its resolvable range, then 8 golden-section steps."""
+        of another effect's: all-linear effects have one direction; otherwise a 13-point grid of
+        its shape parameter (the main parameter when nonlinear, else its one nonlinear
+        parameter) over its resolvable range, then 8 golden-section steps."""
         if kind not in self.ranges:
             kind = self.kinds[0]
         y0 = self.reference_output(rec)
         base = self.reference_params(rec, kind)
+        if self.param(self.main_param, kind).linear:
+            base[self.main_param] = 1.0  # the direction is scale-free; the reference may be 0
+        shape = self.shape_param(kind)
 
-        def direction(v: float) -> np.ndarray:
-            d = project_q(self.apply(self.with_main(base, v), rec, y0) - y0, q)
+        def direction(v: float | None) -> np.ndarray:
+            p = dict(base)
+            if shape is not None and v is not None:
+                p[shape.name] = v
+            d = project_q(self.apply(p, rec, y0) - y0, q)
             nrm = math.sqrt(vdot(d, d))
             return d / nrm if nrm > 0 else d
 
-        if all(p.linear for p in self.params_for(kind)):
-            return direction(1.0)
+        if shape is None or shape.linear:
+            return direction(None)
+        lo, hi = (self.main_grid_range(rec, kind) if shape.name == self.main_param
+                  else self.drawable_range(shape, rec, kind))
+        to_v, from_v = ((math.exp, math.log) if shape.log or shape.name == self.main_param
+                        else (float, float))
 
-        def fit(logv: float) -> float:  # captured fraction of delta (maximise)
-            return abs(vdot(direction(math.exp(logv)), delta))
+        def fit(c: float) -> float:  # captured fraction of delta (maximise)
+            return abs(vdot(direction(to_v(c)), delta))
 
-        lo, hi = self.main_grid_range(rec, kind)
-        grid = np.linspace(math.log(lo), math.log(hi), 13)
+        grid = np.linspace(from_v(lo), from_v(hi), 13)
         vals = [fit(g) for g in grid]
         i = int(np.argmax(vals))
         x0, x1 = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
@@ -342,7 +405,20 @@ class Effect:
                 x0, c, fc = c, d, fd
                 d = x0 + g * (x1 - x0)
                 fd = fit(d)
-        return direction(math.exp(0.5 * (x0 + x1)))
+        return direction(to_v(0.5 * (x0 + x1)))
+
+    def shape_param(self, kind: str) -> Param | None:
+        """The parameter whose value sets the shape of the signature (searched when matching
+        another effect's): the main parameter when it is nonlinear, else the one nonlinear
+        parameter; None when several or none are (the reference values are used)."""
+        qs = self.params_for(kind)
+        main = self.param(self.main_param, kind)
+        if not main.linear:
+            return main
+        nonlinear = [q for q in qs if not q.linear]
+        if len(nonlinear) == 1:
+            return nonlinear[0]
+        return main if not nonlinear else None
 
     def reference_params(self, rec: Record, kind: str) -> Params:
         """Typical values of every parameter for judging detectability on rec: geometric mean
@@ -491,7 +567,7 @@ class Effect:
             a, b = max(thr, lo_mag), min(hi_mag, far)
         else:
             a, b = max(lo_mag, far), min(thr, hi_mag)
-        c_lo, c_hi = self.main_draw_clip(rec, kind)
+        c_lo, c_hi = self.main_draw_clip(rec, kind, sd)
         a, b = max(a, c_lo), min(b, c_hi)
         if not (0 < a <= b):
             raise ValueError(f"{self.id}: no {self.main_param} inside [{q.low}, {q.high}] {q.unit} is "
@@ -516,9 +592,9 @@ class Effect:
             out[q.name] = math.exp(rng.uniform(math.log(lo), math.log(hi))) if q.log else rng.uniform(lo, hi)
         return out
 
-    def main_draw_clip(self, rec: Record, kind: str) -> tuple[float, float]:
-        """Extra limits on the drawn main magnitude (override: e.g. a saturation limit not far
-        below the signal)."""
+    def main_draw_clip(self, rec: Record, kind: str, noise_sd: float) -> tuple[float, float]:
+        """Extra limits on the drawn main magnitude on rec with white ``noise_sd`` (override: e.g.
+        an angle quantizer whose readings would sit on a visible lattice)."""
         return 0.0, math.inf
 
     def finish_draw(self, rng: np.random.Generator, rec: Record, kind: str, p: Params) -> Params:
@@ -526,10 +602,13 @@ class Effect:
         return p
 
     # ---- fit starts -------------------------------------------------------------------
-    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[Params]:
-        """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first): the
-        :data:`N_STARTS` best points of a grid over its nonlinear parameters (:func:`grid_starts`)."""
-        return grid_starts(self, rec, residual, kind or guess_kind(rec))
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
+                   rows: np.ndarray | None = None) -> list[Params]:
+        """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first) on the
+        samples ``rows`` (default all; the others are not looked at): the :data:`N_STARTS` best
+        points of a grid over its nonlinear parameters (:func:`grid_starts`)."""
+        r = np.asarray(residual, float) if rows is None else np.where(rows, residual, 0.0)
+        return grid_starts(self, rec, r, kind or guess_kind(rec))
 
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
         q = self.param(self.main_param, kind)

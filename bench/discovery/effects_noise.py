@@ -11,10 +11,11 @@ everything the workflow needs of it, so no other module knows which processes ex
 * its Whittle spectral component (:mod:`bench.discovery.whittle`): ``n_coords`` log
   coordinates, ``spectrum`` (per-sample level spectrum and its derivatives), ``coords`` (the
   model's parameters in those coordinates), ``whittle_starts`` and ``estimate`` (the fitted
-  coordinates back to parameters ± std, and the one-state predictor the held-out score runs);
+  coordinates back to parameters ± std);
   ``nonstationary`` (a walk: once it is in the model candidates are judged on first differences);
-* ``state_space`` — its contribution to the model's noise as diagonal state-space states (the
-  Kalman whitening of :mod:`bench.discovery.whiten`, and the model's noise PSD);
+* ``state_space`` — its contribution to the model's noise as a block of state-space states
+  (:class:`StateBlock`: the Kalman whitening of :mod:`bench.discovery.whiten`, the held-out
+  one-step predictor, and the model's noise PSD);
 * ``identifiable`` — whether the record can resolve the fitted parameters at all.
 """
 
@@ -37,25 +38,52 @@ from bench.discovery.whittle import periodogram
 N_BOOT_RW = 60
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StateBlock:
-    """A process as independent per-sample states x_k = φ·x_{k−1} + e_k (var e = q), each added
-    to the output; ``p0`` the variance of each at the first sample."""
+    """A process as per-sample states ``x_k = F·x_{k−1} + e_k`` (cov e = ``q``) seen in the
+    output as ``h·x_k``; ``p0`` the states' covariance at the first sample. Most processes are
+    independent scalar states each added to the output (:meth:`diagonal`); a moving average (white
+    angle noise, the difference of two successive angle errors) needs a non-diagonal ``f``."""
 
-    phi: tuple[float, ...]
-    q: tuple[float, ...]
-    p0: tuple[float, ...]
+    f: np.ndarray
+    q: np.ndarray
+    h: np.ndarray
+    p0: np.ndarray
+
+    def __post_init__(self) -> None:
+        f = np.atleast_2d(np.asarray(self.f, float))
+        m = f.shape[0]
+        arrays = {"f": f, "q": np.atleast_2d(np.asarray(self.q, float)),
+                  "p0": np.atleast_2d(np.asarray(self.p0, float))}
+        for name, a in arrays.items():
+            if a.shape != (m, m) or not np.all(np.isfinite(a)):
+                raise ValueError(f"StateBlock.{name} has shape {a.shape}; allowed: finite ({m}, {m})")
+        h = np.asarray(self.h, float).reshape(-1)
+        if h.shape != (m,) or not np.all(np.isfinite(h)):
+            raise ValueError(f"StateBlock.h has shape {h.shape}; allowed: finite ({m},)")
+        for name, a in (*arrays.items(), ("h", h)):
+            object.__setattr__(self, name, a)
+
+    @classmethod
+    def diagonal(cls, phi: Sequence[float] | np.ndarray, q: Sequence[float] | np.ndarray,
+                 p0: Sequence[float] | np.ndarray) -> StateBlock:
+        """Independent states x_k = φ·x_{k−1} + e_k (var e = q), each added to the output."""
+        return cls(np.diag(np.asarray(phi, float)), np.diag(np.asarray(q, float)), np.ones(len(phi)),
+                   np.diag(np.asarray(p0, float)))
+
+    @property
+    def m(self) -> int:
+        """Number of states."""
+        return int(self.h.size)
 
 
 @dataclass(frozen=True)
 class ComponentEstimate:
-    """A fitted spectral component as the effect's parameters ± std (unclipped), and the one
-    per-sample state (``phi``, ``q``) the held-out one-step predictor runs."""
+    """A fitted spectral component as the effect's parameters ± std (unclipped); the held-out
+    one-step predictor runs the effect's own ``state_space`` at these parameters."""
 
     params: Params
     params_std: Params
-    phi: float
-    q: float
 
 
 @numba.njit(cache=True)
@@ -89,12 +117,18 @@ class StochasticEffect(Effect):
 
     stochastic = True
     waveform = False
+    catch_all = True  # a random process can absorb any slow structure: named on its signature's evidence
     #: log coordinates of its Whittle spectral component
     n_coords: int = 1
     #: its levels are not stationary (a walk): a finite record's levels periodogram departs from
     #: its spectrum at low frequencies (end-point leakage), so with it in the model candidates
     #: are judged on first differences, where it is white
     nonstationary: bool = False
+
+    def plain_snr(self, p: Params, rec: Record, noise_sd: float) -> float:
+        """A process's snr is its excess Allan variance (``snr``): look-alike processes are told
+        apart by the spectral fit, not by projecting a waveform away."""
+        return self.snr(p, rec, noise_sd)
 
     def _applied(self, p: Params, rec: Record, y: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
         if rng is None:
@@ -183,7 +217,8 @@ class GaussMarkov(StochasticEffect):
         drift there)."""
         return p.get("tau_s", 0.0) < rec.duration_s / 5
 
-    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[Params]:
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
+                   rows: np.ndarray | None = None) -> list[Params]:
         """sigma from the residual's sd after the white part (lag-1 covariance), tau_s where the
         autocorrelation falls to e^{−1} of its lag-1 value, and that tau ×/÷ 3."""
         r = project_out(np.asarray(residual, float), base_regressors(rec))
@@ -218,17 +253,17 @@ class GaussMarkov(StochasticEffect):
 
     def estimate(self, r: np.ndarray, th: np.ndarray, cov: np.ndarray, dt_s: float, *,
                  alone: bool, bootstrap: bool) -> ComponentEstimate:
-        """σ = exp(th0/2), τ = −dt/ln φ with φ = logistic(th1); std by the delta method."""
+        """σ = exp(th0/2), τ = −dt/ln φ with φ = logistic(th1) (−ln φ = log1p(e^{−th1}): finite
+        where φ rounds to 1); std by the delta method."""
         s2, phi = np.exp(th[0]), 1.0 / (1.0 + np.exp(-th[1]))
         sigma = float(np.sqrt(s2))
-        tau = float(-dt_s / np.log(phi))
+        neg_log_phi = max(float(np.log1p(np.exp(-th[1]))), 1e-300)
+        tau = float(dt_s / neg_log_phi)
         d_sigma = 0.5 * sigma
-        d_tau = dt_s / np.log(phi) ** 2 * (1 - phi)  # dτ/dth1 = dt/(ln φ)² · (1/φ)·φ(1−φ)
+        d_tau = dt_s / neg_log_phi ** 2 * (1 - phi)  # dτ/dth1 = dt/(ln φ)² · (1/φ)·φ(1−φ)
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-        phi_k = float(np.exp(-1.0 / max(tau / dt_s, 1e-12)))
         return ComponentEstimate({"sigma": sigma, "tau_s": tau},
-                                 {"sigma": float(d_sigma * sd[0]), "tau_s": float(abs(d_tau) * sd[1])},
-                                 phi_k, sigma ** 2 * (1 - phi_k ** 2))
+                                 {"sigma": float(d_sigma * sd[0]), "tau_s": float(abs(d_tau) * sd[1])})
 
     def state_space(self, p: Mapping[str, float], dt_s: float, n: int) -> StateBlock:
         """One state: φ = e^{−dt/τ}, q = σ²(1 − φ²), starting stationary (variance σ²), as
@@ -237,7 +272,7 @@ class GaussMarkov(StochasticEffect):
         if not (math.isfinite(sigma) and sigma >= 0 and math.isfinite(tau) and tau > 0):
             raise ValueError(f"gauss_markov sigma = {sigma!r}, tau_s = {tau!r}; allowed: sigma >= 0, tau_s > 0")
         f = math.exp(-dt_s / tau)
-        return StateBlock((f,), (sigma ** 2 * (1.0 - f * f),), (sigma ** 2,))
+        return StateBlock.diagonal((f,), (sigma ** 2 * (1.0 - f * f),), (sigma ** 2,))
 
 
 class RateRandomWalk(StochasticEffect):
@@ -264,7 +299,8 @@ class RateRandomWalk(StochasticEffect):
         k = p["k_per_rs"]
         return _allan_z(lambda t: k * k * t / 3.0, rec, noise_sd)
 
-    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None) -> list[Params]:
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
+                   rows: np.ndarray | None = None) -> list[Params]:
         """K from the growth of var(r[k+m] − r[k]) between lags n/10 and n/5 (the white part
         cancels in the difference), and ×/÷ 3."""
         r = np.asarray(residual, float)
@@ -296,10 +332,11 @@ class RateRandomWalk(StochasticEffect):
             q, q_std = random_walk_q(r, N_BOOT_RW if bootstrap else 0)
         else:
             q = float(np.exp(th[0]))
-            q_std = float(q * np.sqrt(max(cov[0, 0], 0.0)))
+            with np.errstate(over="ignore", invalid="ignore"):  # a singular Hessian: infinite std
+                q_std = float(q * np.sqrt(max(cov[0, 0], 0.0)))
         k = math.sqrt(q / dt_s)
         k_std = 0.5 * q_std / max(math.sqrt(q * dt_s), 1e-300)
-        return ComponentEstimate({"k_per_rs": k}, {"k_per_rs": k_std}, 1.0, q)
+        return ComponentEstimate({"k_per_rs": k}, {"k_per_rs": k_std})
 
     def state_space(self, p: Mapping[str, float], dt_s: float, n: int) -> StateBlock:
         """One state: φ = 1, q = K²·dt; its level at the first sample is not known once the bias
@@ -308,7 +345,204 @@ class RateRandomWalk(StochasticEffect):
         k = float(p["k_per_rs"])
         if not (math.isfinite(k) and k >= 0):
             raise ValueError(f"rate_random_walk k_per_rs = {k!r}; allowed: a finite number >= 0")
-        return StateBlock((1.0,), (k * k * dt_s,), (k * k * dt_s * n,))
+        return StateBlock.diagonal((1.0,), (k * k * dt_s,), (k * k * dt_s * n,))
+
+
+#: Flicker as Gauss–Markov states: two per decade of correlation time (ratio √10: the sum's
+#: spectrum ripples < 1 % about 1/f), from the band's shortest correlation time (never below a
+#: quarter sample: white at the Nyquist frequency) to ten record lengths (flat below the lowest
+#: Fourier frequency).
+FLICKER_STATES_PER_DECADE = 2
+FLICKER_TAU_MIN_SAMPLES = 0.25
+FLICKER_TAU_MAX_RECORDS = 10.0
+
+
+def flicker_taus(tau_min_s: float, dt_s: float, n: int) -> np.ndarray:
+    """Correlation times (s) of the Gauss–Markov states whose equal-variance sum is flicker from
+    ``tau_min_s`` over a record of ``n`` samples at ``dt_s`` (:data:`FLICKER_STATES_PER_DECADE`)."""
+    lo = max(float(tau_min_s), FLICKER_TAU_MIN_SAMPLES * dt_s)
+    hi = max(FLICKER_TAU_MAX_RECORDS * max(n, 2) * dt_s, 10 * lo)
+    k = int(math.ceil(math.log10(hi / lo) * FLICKER_STATES_PER_DECADE)) + 1
+    return np.geomspace(lo, hi, k)
+
+
+class FlickerNoise(StochasticEffect):
+    id = "flicker_noise"
+    description = ("flicker (1/f) bias noise: the bias instability B of IEEE Std 952, realised as equal-variance "
+                   "Gauss–Markov states with correlation times from tau_min_s to beyond the record")
+    form = ("PSD S(f) = B²/(2π·f) (two-sided) below the corner 1/(2π·tau_min_s), falling as 1/f² above it: per "
+            "sample (2B²/(π·ω))·atan(ω_c/ω), ω_c = dt/tau_min_s; Σ_k GM(s, τ_k), τ_k log-spaced two per decade "
+            "from tau_min_s to 10·T, s² = B²·ln(τ_{k+1}/τ_k)/π; y += Σ x_k")
+    inputs = ("t",)
+    main_param = "b"
+    signature = ("tau: a flat Allan floor 0.664·B (slope 0) above ~tau_min_s; spectrum 1/f below its corner; "
+                 "innovations white")
+    competitors = ("gauss_markov", "rate_random_walk")
+    separating = {
+        "gauss_markov": "a record much longer than the correlation time: Gauss–Markov's Allan curve falls as "
+                        "1/√τ past its hump, flicker stays flat at 0.664·B",
+        "rate_random_walk": "the Allan slope over the longest τ: flicker flat (0), a random walk rising (+1/2)",
+    }
+    n_coords = 2  # log B² (per-sample level B²/ω), log ω_c (the band's corner, rad/sample)
+    ranges = {  # FOG bias instability 0.005-10 deg/h (1.4e-6 - 2.8e-3 deg/s); QA-2000-class µg flicker floors
+        "accelerometer": (Param("b", "g", 1e-9, 1e-3, log=True), Param("tau_min_s", "s", 1e-4, 1e5, log=True)),
+        "gyro": (Param("b", "deg/s", 1e-7, 0.1, log=True), Param("tau_min_s", "s", 1e-4, 1e5, log=True)),
+        "mhd": (Param("b", "deg/s", 1e-6, 1.0, log=True), Param("tau_min_s", "s", 1e-5, 1e4, log=True)),
+    }
+
+    def _terms(self, p: Mapping[str, float], dt_s: float, n: int) -> tuple[np.ndarray, float]:
+        taus = flicker_taus(float(p["tau_min_s"]), dt_s, n)
+        ratio = taus[1] / taus[0]
+        return taus, float(p["b"]) * math.sqrt(math.log(ratio) / math.pi)
+
+    def noise(self, p: Params, rec: Record, rng: np.random.Generator) -> np.ndarray:
+        if p["b"] == 0:
+            return np.zeros(rec.n)
+        taus, s = self._terms(p, rec.dt_s, rec.n)
+        dt = np.diff(rec.t_s)
+        out = np.zeros(rec.n)
+        for tau in taus:
+            out += _gauss_markov(dt, rng.standard_normal(rec.n), s, float(tau))
+        return out
+
+    @staticmethod
+    def avar(b: float) -> float:
+        """Allan variance of flicker (IEEE 952): (2 ln 2/π)·B², the same at every τ (u²)."""
+        return 2 * math.log(2) / math.pi * b * b
+
+    def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
+        """On the Allan variance of flicker at averaging times beyond its band's corner."""
+        a = self.avar(float(p["b"]))
+        return _allan_z(lambda t: a if t >= 2 * float(p["tau_min_s"]) else 0.0, rec, noise_sd)
+
+    def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        if q.name == "tau_min_s":  # a quarter sample to a hundredth of the record: 1/f over ≥ 2 decades
+            lo = max(q.low, FLICKER_TAU_MIN_SAMPLES * rec.dt_s)
+            return lo, max(min(q.high, rec.duration_s / 100), lo * 1.01)
+        return q.low, q.high
+
+    def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
+        """Its band must span a decade inside the record (shortest correlation time under a
+        twentieth of it): narrower, it is one Gauss–Markov."""
+        return p.get("tau_min_s", 0.0) < rec.duration_s / 20
+
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
+                   rows: np.ndarray | None = None) -> list[Params]:
+        """B from the residual's Allan variance at the longest τ with 9 clusters (its flat floor)."""
+        r = np.asarray(residual, float) - float(np.mean(residual))
+        m = max(1, rec.n // 9)
+        means = r[: (rec.n // m) * m].reshape(-1, m).mean(axis=1)
+        av = 0.5 * float(np.mean(np.diff(means) ** 2))
+        q = self.params[0]
+        b = math.sqrt(max(av, 0.0) / self.avar(1.0)) or q.low
+        return [{"b": float(np.clip(b * f, q.low, q.high)), "tau_min_s": rec.dt_s} for f in (1.0, 3.0, 1 / 3)]
+
+    # ---- spectral component: (2B²/(πω))·atan(ω_c/ω) per sample (B²/ω below the corner) ----
+    def spectrum(self, th: np.ndarray, c: np.ndarray, grad: bool) -> tuple[np.ndarray, list[np.ndarray]]:
+        w = np.arccos(np.clip(c, -1.0, 1.0))
+        b2, wc = np.exp(th[0]), np.exp(th[1])
+        level = b2 * (2.0 / (np.pi * w)) * np.arctan(wc / w)
+        if not grad:
+            return level, []
+        return level, [level, b2 * (2.0 / np.pi) * wc / (w * w + wc * wc)]
+
+    def coords(self, p: Mapping[str, float], dt_s: float) -> list[float]:
+        return [math.log(max(float(p["b"]), 1e-150) ** 2), math.log(dt_s / float(p["tau_min_s"]))]
+
+    def whittle_starts(self, v: float) -> list[np.ndarray]:
+        return [np.r_[np.log(v * 0.9), np.log(v * b), np.log(wc)] for b in (1e-3, 3e-2) for wc in (0.05, 10.0)]
+
+    def estimate(self, r: np.ndarray, th: np.ndarray, cov: np.ndarray, dt_s: float, *,
+                 alone: bool, bootstrap: bool) -> ComponentEstimate:
+        """B = exp(th0/2), tau_min = dt/exp(th1); std by the delta method."""
+        with np.errstate(over="ignore", invalid="ignore"):  # a corner beyond Nyquist is unbounded
+            b = float(np.exp(0.5 * th[0]))
+            tau_min = float(dt_s * np.exp(-th[1]))
+            sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+            return ComponentEstimate({"b": b, "tau_min_s": tau_min},
+                                     {"b": float(0.5 * b * sd[0]), "tau_min_s": float(tau_min * sd[1])})
+
+    def state_space(self, p: Mapping[str, float], dt_s: float, n: int) -> StateBlock:
+        """The Gauss–Markov states of :meth:`noise`, each stationary at the first sample."""
+        b, tau_min = float(p["b"]), float(p["tau_min_s"])
+        if not (math.isfinite(b) and b >= 0 and math.isfinite(tau_min) and tau_min > 0):
+            raise ValueError(f"flicker_noise b = {b!r}, tau_min_s = {tau_min!r}; allowed: b >= 0, tau_min_s > 0")
+        taus, s = self._terms(p, dt_s, n)
+        phi = np.exp(-dt_s / taus)
+        return StateBlock.diagonal(phi, s * s * (1.0 - phi * phi), np.full(taus.size, s * s))
+
+
+class AngleQuantization(StochasticEffect):
+    id = "angle_quantization"
+    description = ("white angle noise of a pulse-counting gyro (IEEE Std 952 Q): each reading is an angle "
+                   "increment whose rounding error (variance Q²) is independent from reading to reading")
+    form = "y += (e_k − e_{k−1})/dt, e white of sd q_angle (angle, deg): an MA(1) in the rate, zero at DC"
+    inputs = ("t",)
+    main_param = "q_angle"
+    signature = ("tau: Allan slope −1 (σ = √3·Q/τ); spectrum rising as f² to the Nyquist frequency; lag-1 "
+                 "autocorrelation negative")
+    kinds = ("gyro",)
+    separating = {"quantization": "a slow ramp of rate: reading quantization puts the readings on a lattice, "
+                                  "angle quantization leaves their mean exact and anti-correlates neighbours"}
+    n_coords = 1  # log c², c = Q/dt the rate noise per unit angle error
+    ranges = {  # FOG pulses 0.05-2″ (Q = pulse/√12 ≈ 4e-6 - 2e-4 deg); up to coarse read-outs
+        "gyro": (Param("q_angle", "deg", 1e-7, 0.1, log=True),),
+    }
+
+    def noise(self, p: Params, rec: Record, rng: np.random.Generator) -> np.ndarray:
+        """Angle errors uniform on ±√3·Q (a rounding error of a dithered angle), differenced and
+        divided by each sample's interval."""
+        q = float(p["q_angle"])
+        e = rng.uniform(-math.sqrt(3.0) * q, math.sqrt(3.0) * q, rec.n + 1)
+        dt = np.diff(rec.t_s, prepend=rec.t_s[0] - rec.dt_s)
+        return (e[1:] - e[:-1]) / dt
+
+    def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
+        q = float(p["q_angle"])
+        return _allan_z(lambda t: 3.0 * q * q / (t * t), rec, noise_sd)
+
+    def main_draw_clip(self, rec: Record, kind: str, noise_sd: float) -> tuple[float, float]:
+        """Readings stay off a visible lattice: the rate step √12·Q/dt of a pulse counter below
+        π·σ·√(2/ln n), where the lattice's visibility exp(−2π²σ²/step²)·√n is one."""
+        top = math.pi * noise_sd * math.sqrt(2.0 / math.log(max(rec.n, 3))) / math.sqrt(12.0) * rec.dt_s
+        return 0.0, top
+
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
+                   rows: np.ndarray | None = None) -> list[Params]:
+        """Q from the residual's negative lag-1 covariance: cov(1) = −Q²/dt²."""
+        r = np.asarray(residual, float) - float(np.mean(residual))
+        c1 = float(np.mean(r[1:] * r[:-1]))
+        q = self.params[0]
+        v = math.sqrt(max(-c1, 1e-3 * float(np.mean(r * r)))) * rec.dt_s
+        return [{"q_angle": float(np.clip(v * f, q.low, q.high))} for f in (1.0, 3.0, 1 / 3)]
+
+    # ---- spectral component: c²·|1 − e^{−iω}|² per sample ----------------------------------
+    def spectrum(self, th: np.ndarray, c: np.ndarray, grad: bool) -> tuple[np.ndarray, list[np.ndarray]]:
+        level = np.exp(th[0]) * (2.0 - 2.0 * c)
+        return level, ([level] if grad else [])
+
+    def coords(self, p: Mapping[str, float], dt_s: float) -> list[float]:
+        return [math.log(max(float(p["q_angle"]) / dt_s, 1e-150) ** 2)]
+
+    def whittle_starts(self, v: float) -> list[np.ndarray]:
+        return [np.r_[np.log(v * 0.9), np.log(v * b)] for b in (1e-2, 0.1)]
+
+    def estimate(self, r: np.ndarray, th: np.ndarray, cov: np.ndarray, dt_s: float, *,
+                 alone: bool, bootstrap: bool) -> ComponentEstimate:
+        """Q = dt·exp(th0/2); std by the delta method."""
+        q = float(dt_s * np.exp(0.5 * th[0]))
+        return ComponentEstimate({"q_angle": q},
+                                 {"q_angle": float(0.5 * q * math.sqrt(max(float(cov[0, 0]), 0.0)))})
+
+    def state_space(self, p: Mapping[str, float], dt_s: float, n: int) -> StateBlock:
+        """Two states (e_k, e_{k−1}) scaled to rate: F = [[0, 0], [1, 0]], the output their
+        difference — the non-diagonal block of a moving average."""
+        q = float(p["q_angle"])
+        if not (math.isfinite(q) and q >= 0):
+            raise ValueError(f"angle_quantization q_angle = {q!r}; allowed: a finite number >= 0")
+        c2 = (q / dt_s) ** 2
+        return StateBlock(np.array([[0.0, 0.0], [1.0, 0.0]]), np.diag([c2, 0.0]), np.array([1.0, -1.0]),
+                          np.diag([c2, c2]))
 
 
 def _diff_whittle(r: np.ndarray) -> np.ndarray:

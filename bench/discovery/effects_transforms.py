@@ -3,9 +3,9 @@ zone) or the whole output (saturation, quantization).
 
 Input-path convention: the record starts settled, so the first input value ``u0`` passes and the
 changes ``u − u0`` go through the dynamics from rest (for the MHD sensor, which starts at rest,
-``u0 = 0``). Filters are the sampled single-pole responses (matched pole ``a = exp(−2π·f·dt)``),
-which run from no effect (corner → ∞ low-pass, → 0 high-pass) continuously; they need a uniform
-record.
+``u0 = 0``). Filters are the single-pole responses sampled exactly for an input linear between
+samples (pole ``a = exp(−2π·f·dt)``, :func:`first_order_lowpass`), which run from no effect
+(corner → ∞ low-pass, → 0 high-pass) continuously; they need a uniform record.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from bench.discovery.effects_base import (
     Param,
     Params,
     guess_kind,
+    input_shape_basis,
     noise_sd_of,
 )
 
@@ -72,6 +73,17 @@ def expected_quantized(x: np.ndarray, step: float, noise_sd: float) -> np.ndarra
 COARSE_STEP_SD = 2.0
 
 
+def first_order_lowpass(u: np.ndarray, corner_hz: float, dt_s: float) -> np.ndarray:
+    """x' = ω(u − x) from rest, ω = 2π·corner_hz, exact when u is linear between its samples (a
+    table's or a tumble's motion is; the matched pole alone, y_k = a·y_{k−1} + (1 − a)·u_k, is
+    exact only for an input held over each sample and puts half a sample of delay in the fit)."""
+    wdt = 2 * math.pi * corner_hz * dt_s
+    a = math.exp(-wdt)
+    c0 = 1.0 - (-math.expm1(-wdt)) / wdt if wdt > 1e-8 else 0.5 * wdt
+    c1 = (1.0 - a) - c0
+    return lfilter([c0, c1], [1.0, -a], u)
+
+
 def _uniform_dt(rec: Record, who: str) -> float:
     if not rec.is_uniform():
         raise ValueError(f"{who} needs a uniformly sampled record (every interval within 0.1 % of "
@@ -108,7 +120,9 @@ class TimeDelay(Effect):
 class LowpassBandwidth(Effect):
     id = "lowpass_bandwidth"
     description = "finite bandwidth of the sensor or its read-out: a single-pole low-pass on the input path"
-    form = "input → u0 + LP[input − u0], LP: y_k = a·y_{k−1} + (1 − a)·x_k, a = exp(−2π·bandwidth_hz·dt)"
+    form = ("input → u0 + LP[input − u0], LP: x' = ω(u − x) exact for an input linear between samples: "
+            "y_k = a·y_{k−1} + c0·x_k + c1·x_{k−1}, a = exp(−ω·dt), c0 = 1 − (1 − a)/(ω·dt), c1 = 1 − a − c0, "
+            "ω = 2π·bandwidth_hz")
     inputs = ("input",)
     needs_uniform = True
     main_param = "bandwidth_hz"
@@ -127,8 +141,7 @@ class LowpassBandwidth(Effect):
         f = p["bandwidth_hz"]
         if math.isinf(f):
             return u.copy()
-        a = math.exp(-2 * math.pi * f * _uniform_dt(rec, self.id))
-        return u[0] + lfilter([1 - a], [1, -a], u - u[0])
+        return u[0] + first_order_lowpass(u - u[0], f, _uniform_dt(rec, self.id))
 
     def main_grid_range(self, rec, kind):
         q = self.param("bandwidth_hz", kind)
@@ -138,7 +151,8 @@ class LowpassBandwidth(Effect):
 class HighpassRolloff(Effect):
     id = "highpass_rolloff"
     description = "AC coupling: a single-pole high-pass on the input path (the MHD sensor senses no DC rate)"
-    form = "input → u0 + HP[input − u0], HP: y_k = a·(y_{k−1} + x_k − x_{k−1}), a = exp(−2π·corner_hz·dt)"
+    form = ("input → u0 + HP[input − u0], HP = 1 − LP: the first-order low-pass at corner_hz (exact for an input "
+            "linear between samples, as lowpass_bandwidth) taken from the input")
     inputs = ("input",)
     needs_uniform = True
     main_param = "corner_hz"
@@ -151,8 +165,8 @@ class HighpassRolloff(Effect):
         f = p["corner_hz"]
         if f == 0:
             return u.copy()
-        a = math.exp(-2 * math.pi * f * _uniform_dt(rec, self.id))
-        return u[0] + lfilter([a, -a], [1, -a], u - u[0])
+        d = u - u[0]
+        return u[0] + d - first_order_lowpass(d, f, _uniform_dt(rec, self.id))
 
     def main_grid_range(self, rec, kind):
         q = self.param("corner_hz", kind)
@@ -173,6 +187,11 @@ class DeadZone(Effect):
         "accelerometer": (Param("half_width", "g", 1e-7, 1e-2, log=True),),
         "gyro": (Param("half_width", "deg/s", 1e-5, 1.0, log=True),),
     }
+
+    def relaxed_basis(self, p, rec):
+        if not rec.varies("input"):
+            return None
+        return input_shape_basis(rec)
 
     def transform_input(self, p, rec, u):
         return np.sign(u) * np.maximum(np.abs(u) - p["half_width"], 0.0)
@@ -201,6 +220,11 @@ class Saturation(Effect):
         "gyro": (Param("limit", "deg/s", 1.0, 2000.0, log=True),),
         "mhd": (Param("limit", "deg/s", 1.0, 2000.0, log=True),),
     }
+
+    def relaxed_basis(self, p, rec):
+        if not rec.varies("input"):
+            return None
+        return input_shape_basis(rec)
 
     def transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-INPUT_COLUMNS = ("input", "cross_input", "temp", "t_on", "vib", "accel")
+INPUT_COLUMNS = ("input", "cross_input", "temp", "t_on", "vib", "accel", "supply")
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,7 @@ class InputCorrelation:
     """Correlation of the residual with a transform of a logged column."""
 
     column: str
-    transform: str  # "x", "x^2", "x^3", "dx/dt"
+    transform: str  # "x", "x^2", "x^3", "|x|", "dx/dt"
     r: float
     z: float
     n_eff: float

@@ -23,6 +23,7 @@ projection still shorten the long-lag correlation a little. With ``stationary=Fa
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -151,9 +152,17 @@ class Fit:
 
 
 class CandidateFitter:
-    """Fits ``effect`` (appended to ``model``) to ``rec`` on row masks."""
+    """Fits ``effect`` (appended to ``model``) to ``rec`` on row masks.
 
-    def __init__(self, model: Model, rec: Record, effect: Effect, *, noise_is_floor: bool = True):
+    ``template``: the effect's parameter values the fit starts from; the fit moves the
+    parameters ``effect.free_params(template)`` says (default all) and keeps the others at the
+    template's values (a jump's unused slots). Predictions reuse what the model contributes
+    without the effect (its input path and additive terms are computed once) whenever the model
+    has no output-stage effect, and an effect linear in every free parameter is fitted by one
+    linear least-squares solve — both give the full model's numbers."""
+
+    def __init__(self, model: Model, rec: Record, effect: Effect, *, noise_is_floor: bool = True,
+                 template: Mapping[str, float] | None = None):
         """``noise_is_floor``: ``model.base.noise_sd`` is the residual floor measured without the
         effect (the naming step), so an output transform's own noise share is taken out of it
         (``Effect.pre_transform_sd``: the rounding error for quantization) before its dithered
@@ -161,15 +170,21 @@ class CandidateFitter:
         self.model, self.rec, self.effect = model, rec, effect
         self.noise_is_floor = noise_is_floor
         self.kind = model.base.kind
-        self.qs = effect.params_for(self.kind)
+        every = effect.params_for(self.kind)
+        self.template = dict(template) if template is not None else {q.name: q.low for q in every}
+        self.qs = effect.free_params(self.template, self.kind, rec) if template is not None else every
         self.with_sf = rec.varies("input")  # a constant input leaves the scale factor out
         self.n_base = 2 if self.with_sf else 1
         sd = max(float(model.base.noise_sd), 1e-300)
         sf = float(model.base.scale_factor)
         self.base_scale = [sd, max(abs(sf) * 1e-4, 1e-12)][: self.n_base]
+        # the model's own contribution, once: input after its input-stage effects, additive terms
+        self._stages = None if model.has_output_stage() else model.stages(rec)
+        self._linear = (self._stages is not None and effect.stage == "additive" and bool(self.qs)
+                        and all(q.linear for q in self.qs))
 
     # ---- coordinates ------------------------------------------------------------------
-    def pack(self, p: dict, bias: float, sf: float) -> np.ndarray:
+    def pack(self, p: Mapping[str, float], bias: float, sf: float) -> np.ndarray:
         v = [bias, sf][: self.n_base]
         for q in self.qs:
             x = float(np.clip(p[q.name], q.low, q.high))
@@ -180,7 +195,7 @@ class CandidateFitter:
         lo, hi = self.bounds()
         bias = float(np.clip(x[0], lo[0], hi[0]))
         sf = float(np.clip(x[1], lo[1], hi[1])) if self.with_sf else float(self.model.base.scale_factor)
-        p = {}
+        p = dict(self.template)
         for q, v in zip(self.qs, x[self.n_base:]):
             val = math.exp(v) if q.log else float(v)
             if q.periodic:  # a phase wraps: the optimiser must not stall at ±π
@@ -200,22 +215,41 @@ class CandidateFitter:
     def x_scale(self) -> np.ndarray:
         sc = list(self.base_scale)
         for q in self.qs:
-            sc.append(0.3 if q.log else max((q.high - q.low) * 1e-3, 1e-300))
+            own = self.effect.coordinate_scale(q, self.rec)
+            sc.append(own if own is not None else 0.3 if q.log else max((q.high - q.low) * 1e-3, 1e-300))
         return np.array(sc)
 
     # ---- predictions ------------------------------------------------------------------
-    def model_at(self, x: np.ndarray):
-        p, bias, sf = self.unpack(x)
-        base = replace(self.model.base, bias=bias, scale_factor=sf)
+    def _noise_sd(self, p: Mapping[str, float]) -> float:
+        sd = float(self.model.base.noise_sd)
         if self.noise_is_floor and self.effect.stage == "output":
-            base = replace(base, noise_sd=self.effect.pre_transform_sd(p, base.noise_sd))
+            sd = self.effect.pre_transform_sd(dict(p), sd)
+        return sd
+
+    def model_at(self, x: np.ndarray) -> Model:
+        p, bias, sf = self.unpack(x)
+        base = replace(self.model.base, bias=bias, scale_factor=sf, noise_sd=self._noise_sd(p))
         return replace(self.model, base=base).with_effect(self.effect.id, p)
 
     def predict(self, x: np.ndarray) -> np.ndarray:
-        return self.model_at(x).predict(self.rec)
+        if self._stages is None:
+            return self.model_at(x).predict(self.rec)
+        p, bias, sf = self.unpack(x)
+        u, add = self._stages
+        eff, rec = self.effect, self.rec
+        if eff.stage == "input":
+            return bias + sf * eff.transform_input(p, rec, u) + add
+        y = bias + sf * u + add
+        if eff.stage == "output":
+            return eff.expected_transform(p, rec, y, self._noise_sd(p))
+        return y + eff.term(p, rec)
 
     def predict_without(self, x: np.ndarray) -> np.ndarray:
+        """The model's prediction with the fitted base of ``x`` and without the effect."""
         _, bias, sf = self.unpack(x)
+        if self._stages is not None:
+            u, add = self._stages
+            return bias + sf * u + add
         return replace(self.model, base=replace(self.model.base, bias=bias, scale_factor=sf)).predict(self.rec)
 
     def steps(self, x: np.ndarray) -> np.ndarray:
@@ -234,10 +268,17 @@ class CandidateFitter:
 
     # ---- fitting ----------------------------------------------------------------------
     def fit(self, starts: list[np.ndarray], rows: np.ndarray | None = None, max_nfev: int = 60) -> Fit:
-        """Best of a bounded trust-region fit from each start (and the start itself) on ``rows``."""
+        """Best of a bounded trust-region fit from each start (and the start itself) on ``rows``;
+        an effect linear in every free parameter: the bounded linear least-squares solution."""
         y = self.rec.y
         rows = np.ones(self.rec.n, bool) if rows is None else rows
         lo, hi = self.bounds()
+        if self._linear:
+            x = self._linear_solution(rows, lo, hi)
+            if x is not None:
+                p, bias, sf = self.unpack(x)
+                sse = float(np.sum((y - self.predict(x))[rows] ** 2))
+                return Fit(p, self._std(x, rows, sse), bias, sf, sse, x, bool(np.isfinite(sse)))
         best_x, best_cost = None, np.inf
         fun = lambda x: (y - self.predict(x))[rows]
         for x0 in starts:
@@ -259,6 +300,37 @@ class CandidateFitter:
         p, bias, sf = self.unpack(best_x)
         std = self._std(best_x, rows, best_cost)
         return Fit(p, std, bias, sf, best_cost, best_x, bool(np.isfinite(best_cost)))
+
+    def _linear_solution(self, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | None:
+        """The least-squares [bias, (SF), params] of an additive effect linear in its free
+        parameters: effect parameters outside their range are clipped to it and the others
+        solved again; None when bias or scale factor falls outside its range (then the bounded
+        iterative fit decides, as for any effect)."""
+        assert self._stages is not None  # only built with the model's stages
+        u, add = self._stages
+        zero = dict(self.template) | {q.name: 0.0 for q in self.qs}
+        cols = [np.ones(self.rec.n)] + ([u] if self.with_sf else [])
+        base_term = self.effect.term(zero, self.rec)
+        for q in self.qs:
+            cols.append(self.effect.term(zero | {q.name: 1.0}, self.rec) - base_term)
+        a = np.column_stack(cols)[rows]
+        target = (self.rec.y - add - base_term)[rows]
+        if not self.with_sf:
+            target = target - float(self.model.base.scale_factor) * u[rows]
+        free = np.ones(a.shape[1], bool)
+        x = np.zeros(a.shape[1])
+        for _ in range(len(self.qs) + 1):
+            sol, *_ = np.linalg.lstsq(a[:, free], target - a[:, ~free] @ x[~free], rcond=None)
+            x[free] = sol
+            over = [j for j in range(self.n_base, x.size) if free[j] and not lo[j] <= x[j] <= hi[j]]
+            if not over:
+                break
+            for j in over:
+                x[j] = float(np.clip(x[j], lo[j], hi[j]))
+                free[j] = False
+        if not all(lo[j] <= x[j] <= hi[j] for j in range(self.n_base)):
+            return None
+        return x
 
     def _std(self, x: np.ndarray, rows: np.ndarray, sse: float) -> dict:
         """Standard errors of the effect parameters from the stationary-error HAC sandwich at the

@@ -158,16 +158,32 @@ def fit_lattice(y: np.ndarray, noise_sd: float, low: float, high: float, n_grid:
     return LatticeFit(s, std, vs, bs, p)
 
 
+#: the noise is judged in this many contiguous stretches: the bound holds for the quietest
+SD_SEGMENTS = 8
+
+
 def difference_sd(d: np.ndarray, noise_sd: float, clip: float = 4.0) -> float:
     """The white sd the lattice is judged against: the calibrated floor ``noise_sd``, or less
     when the readings' own successive differences say so — rms/√2 of the non-zero ones within
     ``clip`` times their own sd (iterated from the floor; a Gaussian's sd is biased by < 0.1 %
-    at 4). Zeros are left out: a clipped plateau repeats one reading, and a coarse quantizer's
-    non-zero differences (±s, ±2s …) give rms/√2 ≥ s/√2, above its floor s/√12, so the floor
-    stays. A misfit the model cannot follow (a clipped plateau's edges, a step) lifts the
-    residual's high-frequency floor; judged against that, readings whose noise is far below it
-    look like a lattice of steps much coarser than their differences."""
-    d = np.abs(np.asarray(d, float))
+    at 4), over the whole record and in each of :data:`SD_SEGMENTS` stretches, the smallest:
+    noise whose level changes along the record (bursts) has a characteristic function above
+    the Gaussian bound of its average level, and would pass for a lattice. Zeros are left out: a
+    clipped plateau repeats one reading, and a coarse quantizer's non-zero differences (±s, ±2s
+    …) give rms/√2 ≥ s/√2, above its floor s/√12, so the floor stays. A misfit the model cannot
+    follow (a clipped plateau's edges, a step) lifts the residual's high-frequency floor; judged
+    against that, readings whose noise is far below it look like a lattice of steps much coarser
+    than their differences."""
+    d = np.asarray(d, float)
+    sd = _difference_sd(d, noise_sd, clip)
+    for part in np.array_split(d, SD_SEGMENTS):
+        if np.count_nonzero(part) >= 64:
+            sd = min(sd, _difference_sd(part, noise_sd, clip))
+    return sd
+
+
+def _difference_sd(d: np.ndarray, noise_sd: float, clip: float) -> float:
+    d = np.abs(d)
     d = d[d > 0]
     sd = float(noise_sd)
     for _ in range(30):

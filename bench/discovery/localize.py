@@ -20,9 +20,10 @@ instead of normal, the Kolmogorov tail averaged over σ̂.
   one or two bins → a line, more → a band.
 * τ: overlapping Allan variance (octave τ) over σ²/(τ·fs) against χ²(edf)/edf, Greenhall's EDF
   for white rate noise (the null), Bonferroni over τ.
-* inputs: correlation of the residual with x, x², x³ (centred) and, for ``input``, with dx/dt
-  (a time delay shows as −τ·SF·dx/dt); the standard error of r uses Bartlett's effective sample
-  size n/(1 + 2Σρₓ(k)ρᵣ(k)), so slow inputs (temperature, time since power-on) are not over-read.
+* inputs: correlation of the residual with x, x², x³ (centred) and, for ``input``, with |x| and
+  dx/dt (an asymmetry is V-shaped; a time delay shows as −τ·SF·dx/dt); the standard error of r
+  uses Bartlett's effective sample size n/(1 + 2Σρₓ(k)ρᵣ(k)), so slow inputs (temperature,
+  time since power-on) are not over-read.
 
 :func:`unexplained_structure` runs all families at a shared ``alpha`` on the model's own terms
 (the residual, or its Kalman innovations for a model with stochastic effects). Measured false
@@ -201,6 +202,7 @@ def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01, *,
         xs = (x - x.mean()) / np.ptp(x)
         trans = {"x": xs, "x^2": xs ** 2, "x^3": xs ** 3}
         if name == "input":
+            trans["|x|"] = np.abs(x) / np.ptp(x)  # V-shaped: an asymmetry of the response
             trans["dx/dt"] = np.gradient(x, rec.t_s)
         for tname, v in trans.items():
             if np.ptp(v) == 0:

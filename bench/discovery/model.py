@@ -193,22 +193,55 @@ class Model:
             raise ValueError(f"rng = {rng!r}; allowed: a numpy Generator or an int seed")
         return self._run(rec, int(rng.integers(0, 2 ** 63)))
 
-    def _run(self, rec: Record, root: int | None) -> np.ndarray:
-        b = self.base
+    def has_output_stage(self) -> bool:
+        """True when an effect of the model transforms the whole output (saturation, quantization)."""
+        return any(e.stage == "output" for e, _ in self.entries())
+
+    def stages(self, rec: Record) -> tuple[np.ndarray, np.ndarray]:
+        """(input after the model's input-stage effects, sum of its deterministic additive terms)
+        on rec: ``predict`` is ``bias + scale_factor·u + terms`` when the model has no output
+        stage (a fit that varies only the base and one more effect reuses them)."""
         u = reference_input(rec)
         staged = self.entries()
         for e, p in staged:
             if e.stage == "input":
                 e.check_inputs(rec)
                 u = e.transform_input(p, rec, u)
-        y = b.bias + b.scale_factor * u
+        add = np.zeros(rec.n)
+        for e, p in staged:
+            if e.stage == "additive" and not isinstance(e, StochasticEffect):
+                e.check_inputs(rec)
+                add = add + e.term(p, rec)
+        return u, add
+
+    def simulate_noise(self, rec: Record, rng) -> np.ndarray:
+        """``simulate(rec, rng) − predict(rec)``: one realisation of the model's own noise (white +
+        its random processes), the same numbers for the same rng; without an output stage it is
+        drawn alone, not as a difference of two full predictions (a null of many replicates)."""
+        if isinstance(rng, (int, np.integer)):
+            rng = np.random.default_rng(int(rng))
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng = {rng!r}; allowed: a numpy Generator or an int seed")
+        if self.has_output_stage():
+            return self.simulate(rec, rng) - self.predict(rec)
+        root = int(rng.integers(0, 2 ** 63))
+        y = np.zeros(rec.n)
+        for i, (e, p) in enumerate(self.entries()):
+            if e.stage == "additive" and isinstance(e, StochasticEffect):
+                e.check_inputs(rec)
+                y = y + e.noise(p, rec, _stream(root, f"{i}:{e.id}"))
+        if self.base.noise_sd > 0:
+            y = y + self.base.noise_sd * _stream(root, "white").standard_normal(rec.n)
+        return y
+
+    def _run(self, rec: Record, root: int | None) -> np.ndarray:
+        b = self.base
+        staged = self.entries()
+        u, add = self.stages(rec)
+        y = b.bias + b.scale_factor * u + add
         for i, (e, p) in enumerate(staged):
-            if e.stage != "additive":
-                continue
-            e.check_inputs(rec)
-            if not isinstance(e, StochasticEffect):
-                y = y + e.term(p, rec)
-            elif root is not None:
+            if e.stage == "additive" and isinstance(e, StochasticEffect) and root is not None:
+                e.check_inputs(rec)
                 y = y + e.noise(p, rec, _stream(root, f"{i}:{e.id}"))
         if root is not None and b.noise_sd > 0:
             y = y + b.noise_sd * _stream(root, "white").standard_normal(rec.n)

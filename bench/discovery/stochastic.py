@@ -16,8 +16,8 @@ curve); which processes exist, and their spectra, are the effects' own hooks:
   model's own stochastic effects (``known``: every parameter free in the null and the
   alternative alike), so the test is calibrated on the current model's noise. p is floored
   at ``P_FLOOR`` (1e-300) instead of underflowing to 0.
-* held-out score (comparable with the deterministic candidates'): the steady-state Kalman
-  one-step predictor of the residual with the fitted parameters; out-of-sample variance
+* held-out score (comparable with the deterministic candidates'): the Kalman one-step predictor
+  of the residual under the fitted process's own states (``state_space``); out-of-sample variance
   reduction ``1 − Σ_test e_k² / Σ_test r_k²`` on the held-out blocks of both folds (the
   predictor only uses past samples; its parameters are fitted on the training fold's blocks).
 
@@ -29,27 +29,27 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, signal, stats
+from scipy import optimize, stats
 
+from bench.discovery import whiten
 from bench.discovery.effects_base import Effect, Params
-from bench.discovery.effects_noise import Processes, StochasticEffect
+from bench.discovery.effects_noise import Processes, StateBlock, StochasticEffect
 from bench.discovery.significance import P_FLOOR
 from bench.discovery.whittle import inv_hessian, minimize, nll, periodogram
 
 
 @dataclass(frozen=True)
 class StochasticFit:
-    """Fitted candidate ``effect``: white σw, the effect's parameters ± std (unclipped), the
-    one-state predictor (``phi``, ``q`` per sample) the held-out score runs, the Whittle
-    log-likelihood gain over the null and its χ² p-value, and the log coordinates ``theta``
-    (white, then the component's: a start for a refit)."""
+    """Fitted candidate ``effect``: white σw, the effect's parameters ± std (unclipped), its
+    states at those parameters (``effect.state_space``: what the held-out one-step predictor
+    runs), the Whittle log-likelihood gain over the null and its χ² p-value, and the log
+    coordinates ``theta`` (white, then the component's: a start for a refit)."""
 
     effect: StochasticEffect
     white_sd: float
     params: Params
     params_std: Params
-    phi: float
-    q: float
+    states: StateBlock
     lr: float
     p_value: float
     theta: tuple[float, ...] = ()
@@ -136,29 +136,18 @@ def fit_stochastic(r: np.ndarray, dt_s: float, effect: Effect, start: np.ndarray
     white_sd = float(np.sqrt(np.exp(th[0])))
     own = slice(1, 1 + n_c)
     est = effect.estimate(r, th[own], cov[own, own], dt_s, alone=not known, bootstrap=bootstrap)
-    return StochasticFit(effect, white_sd, est.params, est.params_std, est.phi, est.q, lr, p,
-                         tuple(th[:1 + n_c]))
+    # the predictor's states at the fitted values, kept inside the effect's widest ranges (a
+    # correlation time the record cannot bound may come out beyond them)
+    states = effect.state_space({q.name: float(np.clip(est.params[q.name], q.low, q.high)) for q in effect.params},
+                                dt_s, r.size)
+    return StochasticFit(effect, white_sd, est.params, est.params_std, states, lr, p, tuple(th[:1 + n_c]))
 
 
 def one_step_prediction(r: np.ndarray, fit: StochasticFit) -> np.ndarray:
-    """Steady-state Kalman one-step prediction of ``r`` from its past (state x: the fitted
-    process's one per-sample state; measurement r = x + white)."""
-    return _kalman(r, fit.phi, fit.q, fit.white_sd ** 2)
-
-
-def _kalman(r: np.ndarray, phi: float, q: float, rv: float) -> np.ndarray:
-    # steady-state prior variance P solves P = φ²P·rv/(P+rv) + q (scalar Riccati)
-    a = 1.0
-    b = rv * (1 - phi ** 2) - q
-    c = -q * rv
-    p = (-b + np.sqrt(b * b - 4 * a * c)) / (2 * a)
-    k = p / (p + rv)
-    # filtered x_k|k = φ(1−K) x_{k−1|k−1} + K r_k ; prediction of r_k = φ x_{k−1|k−1}
-    filt = signal.lfilter([k], [1.0, -phi * (1 - k)], r)
-    pred = np.empty_like(r)
-    pred[0] = 0.0
-    pred[1:] = phi * filt[:-1]
-    return pred
+    """Kalman one-step prediction of ``r`` from its past: the fitted process's states
+    (:class:`~bench.discovery.effects_noise.StateBlock`, any number, diagonal or not) plus white
+    noise of the fitted level."""
+    return whiten.one_step_prediction(r, fit.states, fit.white_sd)
 
 
 def heldout_score(r: np.ndarray, dt_s: float, effect: Effect, folds: np.ndarray,

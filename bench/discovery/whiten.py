@@ -2,11 +2,12 @@
 stochastic effects (Kalman filter). White, unit-variance samples when the model is right, so the
 white-noise localization tests apply to them whatever colour the model's noise has.
 
-State space (sample interval dt = 1/rate_hz): each stochastic effect's states from its
-``state_space`` hook (:class:`bench.discovery.effects_noise.StateBlock`: diagonal, x_k = φ·x_{k−1}
-+ e_k, var e = q, variance p0 at the first sample — a Gauss–Markov starts stationary, a random
-walk with the variance it reaches over the record); observation: r_k = Σ x_k + v_k, v white of
-sd ``white_sd``.
+State space (sample interval dt = 1/rate_hz): each stochastic effect's block of states from its
+``state_space`` hook (:class:`bench.discovery.effects_noise.StateBlock`: x_k = F·x_{k−1} + e_k,
+cov e = Q, seen as h·x_k, covariance P0 at the first sample — a Gauss–Markov starts stationary, a
+random walk with the variance it reaches over the record; most blocks are diagonal, a moving
+average such as white angle noise is not); the model's states are the blocks side by side
+(block-diagonal F); observation: r_k = Σ_b h_b·x_{b,k} + v_k, v white of sd ``white_sd``.
 
 Innovation e_k = r_k − E[r_k | r_<k], standardized by its variance S_k. The filter is linear
 in the residual: ``innovations(a·r1 + b·r2) = a·innovations(r1) + b·innovations(r2)``, so a
@@ -17,78 +18,147 @@ Units: residual and ``white_sd`` in the sensor unit, rate in Hz, the output dime
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from bench.discovery.effects_noise import Processes, StochasticEffect
+from bench.discovery.effects_noise import Processes, StateBlock, StochasticEffect
 
 
 @numba.njit(cache=True)
-def _filter(y, phi, q, p0, r_var):  # pragma: no cover - compiled
-    m = phi.size
+def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - compiled
+    """Time-varying Kalman filter of y under the block-diagonal state space (f, q, h, p0);
+    ``lo[i]``, ``hi[i]``: the range of columns of row i's block. Writes each innovation and its
+    variance into ``out_e`` and ``out_s``. Cost O(n·m²·b), b the largest block."""
+    m = h.size
     n = y.size
     x = np.zeros(m)
-    p = np.zeros((m, m))
-    for i in range(m):
-        p[i, i] = p0[i]
-    out = np.empty(n)
+    xn = np.zeros(m)
+    p = p0.copy()
+    fp = np.zeros((m, m))
     hp = np.zeros(m)
     for k in range(n):
         pred = 0.0
         for i in range(m):
-            pred += x[i]
+            pred += h[i] * x[i]
         s = r_var
         for i in range(m):
             acc = 0.0
             for j in range(m):
-                acc += p[i, j]
-            hp[i] = acc  # (H P)_i = (P Hᵀ)_i, P symmetric
-            s += acc
+                acc += p[i, j] * h[j]
+            hp[i] = acc  # (P hᵀ)_i
+            s += h[i] * acc
         e = y[k] - pred
-        out[k] = e / math.sqrt(s)
-        for i in range(m):  # update with gain K = P Hᵀ / S
+        out_e[k] = e
+        out_s[k] = s
+        for i in range(m):  # update with gain K = P hᵀ / S
             x[i] += hp[i] * e / s
         for i in range(m):
             for j in range(m):
                 p[i, j] -= hp[i] * hp[j] / s
-        for i in range(m):  # predict: diagonal F and Q
-            x[i] *= phi[i]
+        # predict: x ← F x, P ← F P Fᵀ + Q, F block-diagonal (row i reads columns lo[i]..hi[i])
+        for i in range(m):
+            acc = 0.0
+            for a in range(lo[i], hi[i]):
+                acc += f[i, a] * x[a]
+            xn[i] = acc
+        for i in range(m):
+            x[i] = xn[i]
             for j in range(m):
-                p[i, j] *= phi[i] * phi[j]
-            p[i, i] += q[i]
-    return out
+                acc = 0.0
+                for a in range(lo[i], hi[i]):
+                    acc += f[i, a] * p[a, j]
+                fp[i, j] = acc
+        for i in range(m):
+            for j in range(i, m):
+                acc = 0.0
+                for b in range(lo[j], hi[j]):
+                    acc += fp[i, b] * f[j, b]
+                v = acc + q[i, j]
+                p[i, j] = v
+                p[j, i] = v  # symmetric by construction: keep it so against rounding
 
 
-def _states(rate_hz: float, n: int, effects: Processes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The model's noise as diagonal states: each effect's ``state_space`` block, in order."""
+@dataclass(frozen=True, eq=False)
+class StateSpace:
+    """The model's noise states: block-diagonal ``f``, ``q``, ``p0``, the observation row ``h``
+    and, per row, the column range of its block (``lo``, ``hi``)."""
+
+    f: np.ndarray
+    q: np.ndarray
+    h: np.ndarray
+    p0: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    @classmethod
+    def of_blocks(cls, blocks: Sequence[StateBlock]) -> StateSpace:
+        m = sum(b.m for b in blocks)
+        f, q, p0 = np.zeros((m, m)), np.zeros((m, m)), np.zeros((m, m))
+        h = np.zeros(m)
+        lo, hi = np.zeros(m, np.int64), np.zeros(m, np.int64)
+        i = 0
+        for b in blocks:
+            j = i + b.m
+            f[i:j, i:j], q[i:j, i:j], p0[i:j, i:j], h[i:j] = b.f, b.q, b.p0, b.h
+            lo[i:j], hi[i:j] = i, j
+            i = j
+        return cls(f, q, h, p0, lo, hi)
+
+    @property
+    def m(self) -> int:
+        return int(self.h.size)
+
+    def filter(self, y: np.ndarray, white_var: float) -> tuple[np.ndarray, np.ndarray]:
+        """(innovations, their variances) of ``y`` with white measurement noise ``white_var``."""
+        y = np.ascontiguousarray(y, dtype=float)
+        e, s = np.empty_like(y), np.empty_like(y)
+        _filter(y, self.f, self.q, self.h, self.p0, float(white_var), self.lo, self.hi, e, s)
+        return e, s
+
+
+def state_space(rate_hz: float, n: int, effects: Processes) -> StateSpace:
+    """The model's noise as one state space: each effect's ``state_space`` block, in order."""
     dt = 1.0 / rate_hz
-    phi: list[float] = []
-    q: list[float] = []
-    p0: list[float] = []
+    blocks = []
     for eff, p in effects:
         if not isinstance(eff, StochasticEffect):
             raise ValueError(f"effect {getattr(eff, 'id', eff)!r} is not stochastic; allowed: the model's "
                              "stochastic effects (StochasticEffect)")
-        block = eff.state_space(p, dt, n)
-        phi += block.phi
-        q += block.q
-        p0 += block.p0
-    return np.array(phi, float), np.array(q, float), np.array(p0, float)
+        blocks.append(eff.state_space(p, dt, n))
+    return StateSpace.of_blocks(blocks)
 
 
-def noise_psd(f_hz: np.ndarray, rate_hz: float, stochastic_effects: Processes = ()) -> np.ndarray:
-    """One-sided PSD (unit²/Hz) at ``f_hz`` of the sampled stochastic effects (no white part):
-    Σ over their states q/|1−φe^{−iω}|² (a Gauss–Markov σ²(1−φ²)/|1−φe^{−iω}|², a random walk
-    K²·dt/|1−e^{−iω}|²), ω = 2πf/fs, times 2/fs — on the scale where white noise of sd σ has
-    2σ²/fs."""
+def block_psd(block: StateBlock, w: np.ndarray) -> np.ndarray:
+    """Per-sample level spectrum of one block at ω (rad/sample): G·Q·Gᴴ, G = h·(I − F e^{−iω})⁻¹."""
+    m = block.m
+    z = np.exp(-1j * np.asarray(w, float))
+    if np.count_nonzero(block.f - np.diag(np.diag(block.f))) == 0 and \
+            np.count_nonzero(block.q - np.diag(np.diag(block.q))) == 0:
+        phi, qd = np.diag(block.f), np.diag(block.q)
+        with np.errstate(divide="ignore"):
+            return np.sum(block.h ** 2 * qd / np.abs(1.0 - phi * z[:, None]) ** 2, axis=1)
+    a = np.eye(m)[None, :, :] - block.f[None, :, :] * z[:, None, None]
+    g = np.linalg.solve(np.transpose(a, (0, 2, 1)), np.broadcast_to(block.h, (w.size, m))[..., None])[..., 0]
+    return np.real(np.einsum("wi,ij,wj->w", g, block.q, np.conj(g)))
+
+
+def noise_psd(f_hz: np.ndarray, rate_hz: float, stochastic_effects: Processes = (), n: int = 1) -> np.ndarray:
+    """One-sided PSD (unit²/Hz) at ``f_hz`` of the sampled stochastic effects (no white part) on a
+    record of ``n`` samples (a flicker's states span the record's band):
+    each block's G·Q·Gᴴ (a Gauss–Markov σ²(1−φ²)/|1−φe^{−iω}|², a random walk
+    K²·dt/|1−e^{−iω}|², white angle noise (Q/dt)²·|1 − e^{−iω}|²), ω = 2πf/fs, times 2/fs — on
+    the scale where white noise of sd σ has 2σ²/fs."""
     f = np.asarray(f_hz, float)
-    phi, q, _ = _states(float(rate_hz), 1, list(stochastic_effects))
+    dt = 1.0 / float(rate_hz)
     w = 2 * np.pi * f / rate_hz
     out = np.zeros_like(f)
-    for ph, qq in zip(phi, q):
-        with np.errstate(divide="ignore"):
-            out = out + qq / (1 - 2 * ph * np.cos(w) + ph * ph)
+    for eff, p in stochastic_effects:
+        if not isinstance(eff, StochasticEffect):
+            raise ValueError(f"effect {getattr(eff, 'id', eff)!r} is not stochastic; allowed: StochasticEffect")
+        out = out + block_psd(eff.state_space(p, dt, int(n)), w)
     return out * 2.0 / rate_hz
 
 
@@ -107,7 +177,15 @@ def innovations(residual: np.ndarray, rate_hz: float, white_sd: float,
         raise ValueError(f"rate_hz = {rate_hz!r}; allowed: a finite number > 0")
     if not (math.isfinite(white_sd) and white_sd > 0):
         raise ValueError(f"white_sd = {white_sd!r}; allowed: a finite number > 0")
-    phi, q, p0 = _states(float(rate_hz), r.size, list(stochastic_effects))
-    if phi.size == 0:
+    ss = state_space(float(rate_hz), r.size, list(stochastic_effects))
+    if ss.m == 0:
         return r / white_sd
-    return _filter(r, phi, q, p0, float(white_sd) ** 2)
+    e, s = ss.filter(r, float(white_sd) ** 2)
+    return e / np.sqrt(s)
+
+
+def one_step_prediction(r: np.ndarray, block: StateBlock, white_sd: float) -> np.ndarray:
+    """Kalman one-step prediction of ``r`` from its past under white noise of sd ``white_sd``
+    plus the states of ``block`` (a fitted process's own ``state_space``)."""
+    e, _ = StateSpace.of_blocks([block]).filter(np.asarray(r, float), float(white_sd) ** 2)
+    return np.asarray(r, float) - e

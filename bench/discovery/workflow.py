@@ -11,8 +11,12 @@ c. :func:`bench.discovery.naming.name_effect` over the catalogue;
 d. add the named effect with its fitted parameters, re-calibrate, and measure the gap before
    and after (:class:`bench.discovery.significance.Gap`: rms / model-noise rms, Allan distance,
    spectral distance, Ljung–Box whiteness p) against a simulation of the model's own noise;
-e. repeat until nothing is named (or ``max_effects``). Structure left that no candidate
-   explains is reported as "unexplained structure" with where it is
+e. repeat until nothing is named (or ``max_effects``);
+f. audit: every named effect's own signature on the final model (:mod:`bench.discovery.evidence`:
+   a waveform's relaxed shape, a random process's innovations); one that does not hold is
+   withdrawn (the worst first, re-calibrating each time) — a wrong name is worse than none.
+   Structure left that no candidate explains is reported as "unexplained structure" with where
+   it is
    (:func:`bench.discovery.localize.unexplained_structure`: the residual, or its Kalman
    innovations when the model has stochastic effects, against the model's own noise,
    family-wise at ``alpha``); nothing significant names nothing.
@@ -31,6 +35,7 @@ from bench.discovery.calibration import calibrate
 from bench.discovery.candidates import Naming
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
+from bench.discovery.evidence import beyond_leftover, evidence
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import localize, unexplained_structure
@@ -91,9 +96,12 @@ class Discovery:
     residual_initial: np.ndarray = field(repr=False)
     residual_final: np.ndarray = field(repr=False)
     notes: tuple[str, ...] = ()
+    withdrawn: tuple[str, ...] = ()
+    set_aside: tuple[str, ...] = ()
 
     def to_dict(self, model_file: str | None = None) -> dict:
-        return {"effects": [s.to_dict() for s in self.steps],
+        return {"effects": [s.to_dict() for s in self.steps], "withdrawn": list(self.withdrawn),
+                "set_aside": list(self.set_aside),
                 "gap": {"initial": self.gap_initial.rms_ratio, "final": self.gap_final.rms_ratio,
                         "noise_floor": self.noise_floor, "rms_initial": self.rms_initial,
                         "rms_final": self.rms_final,
@@ -104,7 +112,7 @@ class Discovery:
 
 def model_noise(model: Model, rec: Record, seed: int) -> np.ndarray:
     """One realisation of the model's own noise (white + its stochastic effects) on rec's grid."""
-    return model.simulate(rec, np.random.default_rng(seed)) - model.predict(rec)
+    return model.simulate_noise(rec, np.random.default_rng(seed))
 
 
 def gap_of(model: Model, rec: Record, seed: int) -> tuple[Gap, float, float, np.ndarray]:
@@ -136,7 +144,7 @@ def _step_std(model: Model, rec: Record, naming_std: dict) -> dict:
     if not eff.waveform:
         return dict(naming_std)
     # the model's noise_sd is already the noise before any quantizer (with_noise_floor)
-    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, noise_is_floor=False)
+    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, noise_is_floor=False, template=p)
     x = f.pack(p, model.base.bias, model.base.scale_factor)
     return dict(f.fit([x], max_nfev=1).params_std)
 
@@ -167,6 +175,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
     steps = []
     gap_cur, rms_cur, r_cur = g0, rms0, r0
     it = 0
+    unused_followed: set[str] = set()
     while True:  # ends by a break (at it == max_effects at the latest), loc and naming describing r_cur
         loc = _structure(model, rec, r_cur)
 
@@ -174,7 +183,14 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
             say(f"step {_it + 1}: {msg}")
 
         naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
-                             progress=step_say)
+                             catch_alls=not unused_followed, progress=step_say)
+        # a catch-all whose innovations follow a logged column no catalogue effect reads: the
+        # slow structure is that column's, out of the catalogue — no catch-all is named for it
+        new_cols = sorted(set(naming.followed_columns) - CATALOGUE.columns_used(model.base.kind) - unused_followed)
+        if new_cols:
+            unused_followed.update(new_cols)
+            notes.append(f"the slow structure follows {', '.join(new_cols)}, which no catalogue effect reads: "
+                         "no random process or drift is named for it")
         if naming.best is None:
             say(f"step {it + 1}: nothing significant; stopping")
             break
@@ -189,10 +205,35 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         say(f"step {it + 1}: named {best.id}, rms {_fmt(rms_cur)} → {_fmt(rms1)}")
         model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
         it += 1
+    # every named effect's own signature on the final model: a shape that leaves structure where
+    # it acts (a sinusoid on a square wave, K3 on a tanh) or a process whose innovations are not
+    # white is withdrawn, the worst first, and what it stood for is reported as unexplained
+    withdrawn: list[str] = []
+    audit_rng = np.random.default_rng(seed + 7919)
+    while steps:
+        named_ids = {st.effect_id for st in steps}
+        evs = [evidence(model, rec, i, r_cur, rng=audit_rng, n_rep=n_rep)
+               for i, eid in enumerate(model.effect_ids) if eid in named_ids]
+        if unexplained_structure(rec, r_cur, model, alpha=alpha):
+            # structure is left: a waveform must be significant beyond it, not only beyond white
+            evs += [beyond_leftover(model, rec, i, r_cur)
+                    for i, (e, _) in enumerate(model.entries())
+                    if e.id in named_ids and e.waveform and not e.stochastic]
+        failing = [ev for ev in evs if not ev.holds]
+        if not failing:
+            break
+        worst = min(failing, key=lambda ev: ev.p_value)
+        withdrawn.append(worst.describe())
+        say(f"withdrawn: {worst.effect_id} (its signature does not hold)")
+        i = model.effect_ids.index(worst.effect_id)
+        model = calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec)
+        steps = [st for st in steps if st.effect_id != worst.effect_id]
+        gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
+        loc = _structure(model, rec, r_cur)
     # what no catalogue effect explained: the residual (white model) or its Kalman innovations
     # (stochastic model) against the model's own noise, family-wise at alpha
     unexplained = unexplained_structure(rec, r_cur, model, alpha=alpha)
     if unexplained:
         say(f"unexplained structure: {len(unexplained)} finding(s)")
     return Discovery(initial, model, tuple(steps), unexplained, g0, gap_cur, rms0, rms_cur, floor, loc,
-                     naming, r0, r_cur, tuple(notes))
+                     naming, r0, r_cur, tuple(notes), tuple(withdrawn), naming.set_aside)

@@ -141,12 +141,11 @@ class CornerGaussMarkov(StochasticEffect):
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
         d_corner = (1 - phi) / (2 * math.pi * dt_s)  # |d f_c / d logit φ|
         return ComponentEstimate({"sigma": sigma, "corner_hz": corner},
-                                 {"sigma": 0.5 * sigma * sd[0], "corner_hz": d_corner * sd[1]},
-                                 phi, sigma ** 2 * (1 - phi ** 2))
+                                 {"sigma": 0.5 * sigma * sd[0], "corner_hz": d_corner * sd[1]})
 
     def state_space(self, p, dt_s, n):
         phi = math.exp(-2 * math.pi * p["corner_hz"] * dt_s)
-        return StateBlock((phi,), (p["sigma"] ** 2 * (1 - phi * phi),), (p["sigma"] ** 2,))
+        return StateBlock.diagonal((phi,), (p["sigma"] ** 2 * (1 - phi * phi),), (p["sigma"] ** 2,))
 
 
 NEW = CornerGaussMarkov()

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy import signal
 
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
@@ -18,7 +19,10 @@ from bench.discovery.experiments import make_experiment
 ISSUE_IDS = ["warmup_exponential", "linear_drift", "temperature_bias", "temperature_scale_factor",
              "k2_nonlinearity", "k3_nonlinearity", "scale_factor_asymmetry", "misalignment", "g_sensitivity",
              "quantization", "dead_zone", "saturation", "sinusoidal_interference", "gauss_markov",
-             "rate_random_walk", "time_delay", "lowpass_bandwidth", "highpass_rolloff", "vibration_rectification"]
+             "rate_random_walk", "time_delay", "lowpass_bandwidth", "highpass_rolloff", "vibration_rectification",
+             # issue 15
+             "flicker_noise", "bias_jump", "angle_quantization", "thermal_two_node", "temperature_rate",
+             "thermal_hysteresis"]
 NOISE = {"accelerometer": 5e-6, "gyro": 3e-3, "mhd": 0.06}
 # Short experiments keep the suite fast; every applicable effect must still be drawable on them.
 SHORT = {"accelerometer": (3600, 1.0), "gyro": (6000, 10.0), "mhd": (20000, 500.0)}
@@ -263,17 +267,26 @@ def test_time_delay_shifts_the_cross_correlation_peak():
     assert (lags[i] + frac) / rate == pytest.approx(0.034, abs=0.002)
 
 
-def test_lowpass_and_highpass_step_responses_are_single_poles():
+def test_lowpass_and_highpass_are_the_continuous_single_pole_of_an_input_linear_between_samples():
+    # the reference: scipy's lsim of ω/(s + ω), which interpolates the input linearly between samples
     n, rate, f = 400, 100.0, 2.0
-    u = np.where(np.arange(n) >= 100, 1.0, 0.0)
+    rng = np.random.default_rng(3)
+    u = np.cumsum(np.where(rng.random(n) < 0.05, rng.normal(0, 1, n), 0.0))  # steps and holds
+    u[:20] = 0.0
+    t = np.arange(n) / rate
     rec = _rec(n, rate, input=u)
-    a = math.exp(-2 * math.pi * f / rate)
-    k = np.arange(n - 100)
+    w = 2 * math.pi * f
+    _, ref, _ = signal.lsim(([w], [1.0, w]), u, t)
     lp = CATALOGUE["lowpass_bandwidth"].apply({"bandwidth_hz": f}, rec, u)
-    np.testing.assert_allclose(lp[100:], 1 - a ** (k + 1), atol=1e-12)
-    np.testing.assert_array_equal(lp[:100], 0.0)
+    np.testing.assert_allclose(lp, ref, atol=1e-9)
     hp = CATALOGUE["highpass_rolloff"].apply({"corner_hz": f}, rec, u)
-    np.testing.assert_allclose(hp[100:], a ** (k + 1), atol=1e-12)
+    np.testing.assert_allclose(hp, u - ref, atol=1e-9)
+    # a sampled step (a ramp over one sample): 1 − a^k·(1 − a)/(ω·dt) after it
+    step = np.where(np.arange(n) >= 100, 1.0, 0.0)
+    a, k = math.exp(-w / rate), np.arange(n - 100)
+    lp = CATALOGUE["lowpass_bandwidth"].apply({"bandwidth_hz": f}, _rec(n, rate, input=step), step)
+    np.testing.assert_allclose(lp[100:], 1 - a ** k * (1 - a) / (w / rate), atol=1e-12)
+    np.testing.assert_array_equal(lp[:100], 0.0)
     with pytest.raises(ValueError, match="uniformly sampled"):
         t = np.cumsum(np.random.default_rng(0).uniform(0.5, 1.5, 50))
         r = Record(t_s=t, y=np.zeros(50), input=np.ones(50))

@@ -18,7 +18,7 @@ from matplotlib.ticker import NullFormatter
 from scipy import signal
 
 from bench.analysis.allan import overlapping_adev
-from bench.app.reports.common import html_table, save_figure, thin
+from bench.app.reports.common import html_table, save_figure
 
 CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.4}"
        "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;padding:2px 6px;"
@@ -39,13 +39,29 @@ def _welch(r: np.ndarray, rate_hz: float):
     return signal.welch(r, fs=rate_hz, window="hann", nperseg=nperseg, detrend="constant")
 
 
+#: bins of a residual-vs-time trace: each drawn as its minimum and maximum (spikes kept)
+TRACE_BINS = 1500
+
+
+def envelope(t: np.ndarray, y: np.ndarray, bins: int = TRACE_BINS) -> tuple[np.ndarray, np.ndarray]:
+    """The trace as the minimum and maximum of each of ``bins`` equal runs of samples, in time
+    order (2·bins points): what a line of every sample would show at screen resolution, at a
+    fraction of the drawing time of a 180 000-sample line."""
+    if y.size <= 2 * bins:
+        return t, y
+    edges = np.linspace(0, y.size, bins + 1).astype(int)
+    lo = np.minimum.reduceat(y, edges[:-1])
+    hi = np.maximum.reduceat(y, edges[:-1])
+    mid = t[(edges[:-1] + edges[1:]) // 2]
+    return np.repeat(mid, 2), np.column_stack([lo, hi]).ravel()
+
+
 def _plots(t: np.ndarray, before: np.ndarray, after: np.ndarray, noise_sd: float, rate_hz: float,
            path: Path, title: str) -> str:
     fig = Figure(figsize=(12, 3.4))
     ax = fig.subplots(1, 3)
-    tt, rb, ra = thin(t, before, after)
-    ax[0].plot(tt, rb, color="0.6", lw=0.6, label="before")
-    ax[0].plot(tt, ra, color="C0", lw=0.6, label="after")
+    ax[0].plot(*envelope(t, before), color="0.6", lw=0.6, label="before")
+    ax[0].plot(*envelope(t, after), color="C0", lw=0.6, label="after")
     ax[0].set(xlabel="t (s)", ylabel="residual", title=f"{title}: residual vs time")
     ax[0].legend(fontsize=8)
     for r, c, lab in ((before, "0.6", "before"), (after, "C0", "after")):
@@ -129,6 +145,14 @@ def write_discovery_report(result, rec, out_dir, label: str) -> Path:
         parts += ["<h3>d. Added, re-calibrated: the gap before and after</h3>",
                   _gap_table(s.gap_before, s.gap_after), f"<img src='{img}' alt='step {i} plots'>"]
     parts.append("<h2>e. What remains</h2>")
+    if result.withdrawn:
+        parts.append("<p><b>Withdrawn</b> — named on the way, but the effect's own signature does not hold on the "
+                     "final model (a wrong name is worse than none):</p><ul>"
+                     + "".join(f"<li>{html.escape(w)}</li>" for w in result.withdrawn) + "</ul>")
+    if result.set_aside:
+        parts.append("<p><b>Set aside</b> — catch-alls (random processes, a drift) that would have been chosen last, "
+                     "but whose own signature does not hold:</p><ul>"
+                     + "".join(f"<li>{html.escape(w)}</li>" for w in result.set_aside) + "</ul>")
     if result.unexplained:
         parts.append("<p><b>Unexplained structure</b> (no catalogue effect is significant and big enough):</p><ul>"
                      + "".join(f"<li>{html.escape(u)}</li>" for u in result.unexplained) + "</ul>")

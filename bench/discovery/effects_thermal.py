@@ -1,0 +1,255 @@
+"""Thermal catalogue effects beyond a bias proportional to temperature (``temperature_bias``):
+a warm-up through two thermal time constants, a bias proportional to the rate of temperature
+change, and a bias that depends on whether the temperature last rose or fell (hysteresis).
+
+Units: the sensor unit u (g or deg/s), °C, s. The rate of temperature change is taken from the
+logged column by a centred difference over ``rate_window`` samples (a logged temperature is
+quantized: a one-sample difference of 0.01 °C steps would be mostly noise); the hysteresis is
+the play (backlash) operator of the temperature history, started in the middle of its band.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import replace
+
+import numba
+import numpy as np
+
+from bench.discovery.data import Record
+from bench.discovery.effects_base import Effect, Param, Params, guess_kind, legendre_columns
+from bench.discovery.effects_linalg import base_regressors, orthonormal, project_out, project_q, vdot
+from bench.discovery.effects_terms import WarmupExponential
+
+#: A temperature that goes "up and down" (thermal_hysteresis) rises and falls by at least this.
+MIN_REVERSAL_C = 0.5
+
+
+class ThermalTwoNode(Effect):
+    id = "thermal_two_node"
+    description = ("start-up transient through two thermal time constants: the sensing element settles fast, "
+                   "its case and mount slowly (a two-node thermal network)")
+    form = ("y += amplitude · ((1 − fraction_slow)·exp(−t_on/tau_fast_s) + fraction_slow·exp(−t_on/tau_slow_s)), "
+            "tau_slow_s > tau_fast_s")
+    inputs = ("t_on",)
+    main_param = "amplitude"
+    signature = ("time: a decaying offset whose log-time shape is wider than one exponential (two humps in the "
+                 "derivative against log t_on); correlates with t_on")
+    # not a declared look-alike: a two-node transient holds every warm-up (fraction 0), so a
+    # warm-up's snr distinct from it would be nil; its own snr counts what one node cannot absorb
+    nests = ("warmup_exponential",)
+    separating = {"warmup_exponential": "record until the slow node settles (several tau_slow_s), or log the "
+                                        "case temperature: one exponential leaves a hump in log t_on"}
+    ranges = {  # as warmup_exponential's amplitudes; time constants from seconds (die) to hours (mount)
+        "accelerometer": (Param("amplitude", "g", -1e-2, 1e-2, linear=True, floor=1e-7),
+                          Param("fraction_slow", "1", -2.0, 3.0),
+                          Param("tau_fast_s", "s", 1.0, 1e5, log=True), Param("tau_slow_s", "s", 1.0, 1e5, log=True)),
+        "gyro": (Param("amplitude", "deg/s", -0.3, 0.3, linear=True, floor=1e-6),
+                 Param("fraction_slow", "1", -2.0, 3.0),
+                 Param("tau_fast_s", "s", 1.0, 1e5, log=True), Param("tau_slow_s", "s", 1.0, 1e5, log=True)),
+        "mhd": (Param("amplitude", "deg/s", -1.0, 1.0, linear=True, floor=1e-4),
+                Param("fraction_slow", "1", -2.0, 3.0),
+                Param("tau_fast_s", "s", 0.1, 1e5, log=True), Param("tau_slow_s", "s", 0.1, 1e5, log=True)),
+    }
+
+    def term(self, p: Mapping[str, float], rec: Record) -> np.ndarray:
+        t = rec.column("t_on")
+        f = p["fraction_slow"]
+        return p["amplitude"] * ((1 - f) * np.exp(-t / p["tau_fast_s"]) + f * np.exp(-t / p["tau_slow_s"]))
+
+    def localized(self, rec: Record) -> bool:
+        return rec.logged("t_on")
+
+    def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        if q.name == "fraction_slow":
+            return 0.3, 0.7
+        if q.name == "tau_fast_s":  # five samples to a fortieth of the record
+            lo = max(q.low, 5 * rec.dt_s)
+            return lo, max(min(q.high, rec.duration_s / 40), lo * 1.01)
+        if q.name == "tau_slow_s":
+            lo = max(q.low, 20 * rec.dt_s)
+            return lo, max(min(q.high, rec.duration_s / 4), lo * 1.01)
+        return q.low, q.high
+
+    def draw_others(self, rng: np.random.Generator, rec: Record, kind: str) -> Params:
+        """tau_fast log-uniform in its range, tau_slow 4-30 times it (two separate nodes), the
+        slow node's share 0.3-0.7."""
+        lo, hi = self.drawable_range(self.param("tau_fast_s", kind), rec, kind)
+        fast = math.exp(rng.uniform(math.log(lo), math.log(hi)))
+        s_lo, s_hi = self.drawable_range(self.param("tau_slow_s", kind), rec, kind)
+        slow = float(np.clip(fast * math.exp(rng.uniform(math.log(4.0), math.log(30.0))), s_lo, s_hi))
+        return {"fraction_slow": float(rng.uniform(0.3, 0.7)), "tau_fast_s": fast, "tau_slow_s": max(slow, 2 * fast)}
+
+    def reference_params(self, rec: Record, kind: str) -> Params:
+        lo, hi = self.drawable_range(self.param("tau_fast_s", kind), rec, kind)
+        fast = math.sqrt(lo * hi)
+        return {"amplitude": 0.0, "fraction_slow": 0.5, "tau_fast_s": fast, "tau_slow_s": 10 * fast}
+
+    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
+        t = rec.column("t_on")
+        cols = np.column_stack([np.exp(-t / (p["tau_fast_s"] / 4)), np.exp(-t / (4 * p["tau_slow_s"])),
+                                legendre_columns(rec.t_s, (2, 3, 4, 5))])
+        return cols, "exponentials of t_on at tau_fast/4 and 4·tau_slow and polynomials of time of degree 2-5"
+
+    def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
+        """The part of the transient one exponential cannot absorb (the best warm-up direction
+        projected away): a two-node transient is only told from a warm-up by its second node."""
+        y0 = self.reference_output(rec)
+        q = orthonormal(base_regressors(rec))
+        delta = project_q(self.apply(p, rec, y0) - y0, q)
+        if np.any(delta):
+            one = _ONE_NODE.direction_matching(delta, rec, q, guess_kind(rec))
+            delta = project_q(delta, orthonormal(one[:, None]))
+        return math.sqrt(vdot(delta, delta)) / noise_sd
+
+    def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
+                   rows: np.ndarray | None = None) -> list[Params]:
+        """A grid of (tau_fast, tau_slow ≥ 2·tau_fast) over five samples … half the record, the two
+        amplitudes by least squares with the base regressors projected out; the three best."""
+        kind = kind or guess_kind(rec)
+        rows = np.ones(rec.n, bool) if rows is None else np.asarray(rows, bool)
+        a = base_regressors(rec)[rows]
+        r = project_out(np.asarray(residual, float)[rows], a)
+        t = rec.column("t_on")[rows]
+        q_f, q_s = self.param("tau_fast_s", kind), self.param("tau_slow_s", kind)
+        taus = np.geomspace(max(q_f.low, 5 * rec.dt_s), max(min(q_s.high, 0.5 * rec.duration_s), 10 * rec.dt_s), 12)
+        cands = []
+        for i, tf in enumerate(taus):
+            ef = project_out(np.exp(-t / tf), a)
+            for ts in taus[i + 1:]:
+                if ts < 2 * tf:
+                    continue
+                es = project_out(np.exp(-t / ts), a)
+                m = np.column_stack([ef, es])
+                (af, as_), *_ = np.linalg.lstsq(m, r, rcond=None)
+                sse = float(np.sum((r - m @ np.array([af, as_])) ** 2))
+                amp = float(af + as_)
+                frac = float(as_ / amp) if abs(amp) > 1e-3 * (abs(af) + abs(as_)) else 0.5
+                amp_q = self.param("amplitude", kind)
+                cands.append((sse, {"amplitude": float(np.clip(amp, amp_q.low, amp_q.high)),
+                                    "fraction_slow": float(np.clip(frac, -2.0, 3.0)),
+                                    "tau_fast_s": float(tf), "tau_slow_s": float(ts)}))
+        cands.sort(key=lambda c: c[0])
+        return [c[1] for c in cands[:3]]
+
+
+_ONE_NODE = WarmupExponential()
+
+
+def temperature_rate(rec: Record, window: int | None = None) -> np.ndarray:
+    """dT/dt (°C/s) of the logged temperature: a centred difference over ``window`` samples
+    (default n/200, at least 1), one-sided at the ends."""
+    temp = rec.column("temp")
+    h = max(1, rec.n // 400) if window is None else max(1, int(window) // 2)
+    n = rec.n
+    i = np.arange(n)
+    lo, hi = np.clip(i - h, 0, n - 1), np.clip(i + h, 0, n - 1)
+    return (temp[hi] - temp[lo]) / (rec.t_s[hi] - rec.t_s[lo])
+
+
+class TemperatureRate(Effect):
+    id = "temperature_rate"
+    description = ("bias proportional to the rate of temperature change: a thermal gradient across the sensing "
+                   "element (the FOG's Shupe effect, a pendulum's differential expansion)")
+    form = "y += coef_per_c_per_s · dT/dt (centred difference over n/200 samples of the logged temp)"
+    inputs = ("temp",)
+    main_param = "coef_per_c_per_s"
+    signature = "input: residual correlates with d(temp)/dt (changes sign where the temperature turns)"
+    separating = {"temperature_bias": "hold a temperature, then ramp it up and down at two rates: a rate effect "
+                                      "vanishes at the hold and flips with the direction"}
+    ranges = {  # FOG Shupe ~1-10 (deg/h)/(degC/min) ≈ 0.017-0.17 (deg/s)/(degC/s); µg per degC/min class
+        "accelerometer": (Param("coef_per_c_per_s", "g/(degC/s)", -1e-1, 1e-1, linear=True, floor=1e-7),),
+        "gyro": (Param("coef_per_c_per_s", "deg/s/(degC/s)", -10.0, 10.0, linear=True, floor=1e-5),),
+        "mhd": (Param("coef_per_c_per_s", "deg/s/(degC/s)", -100.0, 100.0, linear=True, floor=1e-4),),
+    }
+
+    def term(self, p: Mapping[str, float], rec: Record) -> np.ndarray:
+        return p["coef_per_c_per_s"] * temperature_rate(rec)
+
+    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
+        rate = temperature_rate(rec)
+        span = float(np.max(np.abs(rate))) or 1.0
+        x = rate / span
+        return np.column_stack([x * x, np.abs(x), x ** 3]), "(dT/dt)², |dT/dt|, (dT/dt)³"
+
+
+@numba.njit(cache=True)
+def _play(x, half_width):  # pragma: no cover - compiled
+    """Play (backlash) operator: y follows x within ±half_width, starting at x[0]."""
+    y = np.empty_like(x)
+    v = x[0]
+    for k in range(x.size):
+        if x[k] - v > half_width:
+            v = x[k] - half_width
+        elif v - x[k] > half_width:
+            v = x[k] + half_width
+        y[k] = v
+    return y
+
+
+def reversal_swings(temp: np.ndarray) -> tuple[float, float]:
+    """(largest rise from an earlier minimum, largest fall from an earlier maximum), °C."""
+    rise = float(np.max(temp - np.minimum.accumulate(temp)))
+    fall = float(np.max(np.maximum.accumulate(temp) - temp))
+    return rise, fall
+
+
+class ThermalHysteresis(Effect):
+    id = "thermal_hysteresis"
+    description = ("bias that depends on whether the temperature last rose or fell (stress in the mount or "
+                   "bonds relaxing with a lag): a backlash in temperature")
+    form = ("y += half_gap · (P[temp] − temp)/(width_c/2), P the play operator of half-width width_c/2 started "
+            "at the first temperature: −half_gap while heating, +half_gap while cooling, crossing over the "
+            "first width_c °C after each turn")
+    inputs = ("temp",)
+    main_param = "half_gap"
+    signature = ("input: residual against temp is a loop (two branches, heating and cooling); time: a step at "
+                 "each temperature turn, spread over width_c of temperature")
+    competitors = ("temperature_rate",)  # both follow the sign of dT/dt
+    separating = {"temperature_rate": "ramp the temperature at two rates: hysteresis keeps its gap, a rate "
+                                      "effect scales with the rate"}
+    ranges = {
+        "accelerometer": (Param("half_gap", "g", -1e-3, 1e-3, linear=True, floor=1e-8),
+                          Param("width_c", "degC", 0.05, 20.0, log=True)),
+        "gyro": (Param("half_gap", "deg/s", -0.1, 0.1, linear=True, floor=1e-6),
+                 Param("width_c", "degC", 0.05, 20.0, log=True)),
+        "mhd": (Param("half_gap", "deg/s", -1.0, 1.0, linear=True, floor=1e-4),
+                Param("width_c", "degC", 0.05, 20.0, log=True)),
+    }
+
+    def term(self, p: Mapping[str, float], rec: Record) -> np.ndarray:
+        temp = np.ascontiguousarray(rec.column("temp"), dtype=float)
+        w = 0.5 * float(p["width_c"])
+        return p["half_gap"] * (_play(temp, w) - temp) / w
+
+    def applies_to(self, rec: Record) -> bool:
+        """A temperature column that goes up and down (each by :data:`MIN_REVERSAL_C` at least)."""
+        if not rec.logged("temp"):
+            return False
+        return min(reversal_swings(rec.column("temp"))) >= MIN_REVERSAL_C
+
+    def free_params(self, p: Mapping[str, float], kind: str, rec: Record) -> tuple[Param, ...]:
+        """The width is fitted below the smaller of the record's rise and fall: a play wider than
+        the swing never changes branch, and its output is then linear in temperature."""
+        if not rec.logged("temp"):
+            return self.params_for(kind)
+        top = min(reversal_swings(rec.column("temp")))
+        return tuple(replace(q, high=max(min(q.high, 0.8 * top), q.low * 1.01)) if q.name == "width_c" else q
+                     for q in self.params_for(kind))
+
+    def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
+        """The play must change branch with room to spare: a width over half the smaller of the
+        rise and fall is a temperature bias on this record."""
+        return rec.logged("temp") and p.get("width_c", math.inf) <= 0.5 * min(reversal_swings(rec.column("temp")))
+
+    def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        if q.name == "width_c" and rec.logged("temp"):
+            swing = min(reversal_swings(rec.column("temp")))
+            hi = max(min(q.high, swing / 3), q.low * 1.01)
+            return q.low, max(min(hi, q.high), min(1.0, hi))
+        return q.low, q.high
+
+    def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
+        q = self.param("width_c", kind)
+        return self.drawable_range(q, rec, kind)
