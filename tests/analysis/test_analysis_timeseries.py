@@ -11,7 +11,7 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.signal import lfilter
 from statsmodels.regression.linear_model import burg as sm_burg
@@ -148,6 +148,10 @@ def test_ar_estimators_recover_drawn_coefficients_within_5_std(seed, phi, method
     # 5σ, not 4: a draw of four correlated coefficients beyond 4σ in one of them is rare but real
     # (seed 527 of AR(4) PACF 0.75/−0.5/0.5/0.25 gives 4.2σ; its stated σ matches the spread of 300
     # draws within 3 %, test_ar_std_matches_the_spread_of_repeated_draws)
+    # Yule-Walker's bias near a unit root is of the order of the roots' distance from it and is
+    # not in its asymptotic σ (Tjøstheim & Paulsen 1983): held to roots inside 0.95 (Burg and the
+    # forward-backward least squares have no such bias and are held to every drawn root)
+    assume(method != "yule-walker" or np.max(np.abs(np.roots(np.r_[1.0, -phi]))) < 0.95)
     x = simulate_arma(phi, [], 5000, np.random.default_rng(seed), sigma)
     fit = ts.fit_ar(x, phi.size, method)
     err = np.abs(np.asarray(fit.ar) - phi)
