@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 STORE  ?= bench-data/bench.sqlite
 
-.PHONY: demo test lint bench-speed clean
+.PHONY: demo test lint bench-speed clean postgresql
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,8 +21,13 @@ demo: $(STAMP)
 	$(BIN)/bench --store $(STORE) acceptance --station sim --unit FOG-SIM-0002 --seed 1 \
 		--report bench-data/reports
 
+## postgresql: PostgreSQL's initdb/pg_ctl for the central store's tests (Debian's package,
+## apt-get installed as root when missing); the tests start their own server (scripts/pg)
+postgresql:
+	$(PYTHON) scripts/pg install
+
 ## test: the whole suite (hypothesis derandomised in CI), one worker per core (pytest-xdist)
-test: $(STAMP)
+test: $(STAMP) postgresql
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
 
 ## lint: the linter, the type checker and the import-layer contracts on the whole tree

@@ -61,6 +61,7 @@ from .wire import (
     InstrumentTimeoutError,
     WireFaults,
     safe_to_resend,
+    tcp_no_delay,
 )
 
 __all__ = [
@@ -391,4 +392,6 @@ def open_resource(
         "chunk_size": BINARY_CHUNK_SIZE,
     }
     options.update(kwargs)
-    return manager.open_resource(address, **options)
+    resource = manager.open_resource(address, **options)
+    tcp_no_delay(resource)
+    return resource

@@ -1,6 +1,8 @@
 """Document B on the angular rig: record both sensors and the reference over a profile and
-fuse them — the sequential adaptive-R Kalman filter beside each sensor alone, a fixed-R
-Kalman fusion and a complementary filter, all against the table's reference.
+fuse them — every method of ``bench.analysis.fusion_analysis`` (each sensor alone, the
+complementary filter, Document B's sequential adaptive-R Kalman filter, a fixed-R Kalman
+filter, the complementary Kalman filter and its smoother) against the table's reference,
+and the recommended one.
 
 1. Sensor models: a stepped-sine FRF (``procedures.frf``, ``frf_points_per_decade``) and
    each sensor's fitted transfer function with its delay.
@@ -14,12 +16,9 @@ Kalman fusion and a complementary filter, all against the table's reference.
    (``bench.analysis.frf_timebase``) and removed; each sensor's time axis is moved back by
    its fitted delay; the DMM aperture's droop is compensated (as the FRF divides it out);
    the LF frames and the reference are resampled onto the MHD readings' instants.
-5. Tuning (``tune_fraction`` > 0): Document B's process noise, thresholds and interval
-   functions are chosen on the first ``tune_fraction`` of the aligned record
-   (``bench.analysis.fusion_tuning``); everything below is measured on the rest only.
-6. ``bench.analysis.fusion_metrics.analyze_fusion`` with the fitted models and the tuned
-   settings (the fixed-R baseline shares the tuned ``q``): fused rate and the baselines,
-   amplitude and phase error per tone, RMS error, NIS.
+5. ``bench.analysis.fusion_analysis.analyze_fusion`` with the fitted models: every method
+   tuned on the first ``tune_fraction`` of the aligned record and judged on the rest (amplitude
+   and phase error per tone, RMS error, NIS); the recommended method picked by that judgement.
 
 Streams: ``frf_*`` and ``fusion_ref|hf|lf`` (raw, as acquired; block 0 static, 1 profile)
 and ``fusion_aligned`` (the evaluated part of the aligned series and every method's estimate).
@@ -33,9 +32,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.analysis.frf_timebase import aperture_compensate, apply_time_base, estimate_time_base, resample
-from bench.analysis.fusion import tune_fusion_params
-from bench.analysis.fusion_metrics import _residual_var, analyze_fusion, excess_over_best
-from bench.analysis.fusion_tuning import tune_fusion
+from bench.analysis.fusion_analysis import METHODS as ANALYSIS_METHODS
+from bench.analysis.fusion_analysis import analyze_fusion
 from bench.core.step import Context, FollowUp, Step, parameter
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
 from procedures.common import Estimate, check_ranges
@@ -44,7 +42,7 @@ from procedures.typed_instruments import angular_table
 
 CLOCK_BLOCK_S = 5.0       # block length of the clock estimates
 METRIC_SETTLE_S = 1.0     # the metrics skip the first second of the evaluated part (filter start-up)
-METHODS = ("fused", "fixed_r_kf", "complementary", "hf", "lf")
+METHODS = tuple(ANALYSIS_METHODS)
 
 
 def estimate_column(method: str) -> str:
@@ -52,11 +50,10 @@ def estimate_column(method: str) -> str:
     return {"hf": "hf_alone_dps", "lf": "lf_alone_dps"}.get(method, f"{method}_dps")
 
 FUSION_PRODUCES = {
-    "rms_error_fused": ("deg/s", "RMS error of Document B's sequential adaptive-R fusion vs the reference"),
-    "rms_error_fixed_r_kf": ("deg/s", "RMS error of the conventional fixed-R Kalman fusion"),
-    "rms_error_complementary": ("deg/s", "RMS error of the complementary filter"),
-    "rms_error_hf": ("deg/s", "RMS error of the MHD sensor alone (÷ its passband gain)"),
-    "rms_error_lf": ("deg/s", "RMS error of the LF sensor alone (÷ its passband gain)"),
+    **{f"rms_error_{k}": ("deg/s", f"RMS error of {m.label} vs the reference") for k, m in ANALYSIS_METHODS.items()},
+    "rms_error_recommended": ("deg/s", "RMS error of the recommended method (picked on the judged part)"),
+    "recommended_excess_sigma": ("1", "max over tones of the recommended method's excess amplitude error over the "
+                                      "better sensor, in standard errors of the difference (≤ 2: no worse)"),
     "max_amplitude_error_fused": ("%", "largest |amplitude error| of the fused rate over the tones"),
     "max_phase_error_fused": ("deg", "largest |phase error| of the fused rate over the tones"),
     "fused_minus_best_sensor": ("%", "max over tones of |fused amplitude error| − the better single "
@@ -226,48 +223,34 @@ class FusionTest(Step[FusionParameters]):
         ctx.run.set_result("fusion.alignment", {k: v for k, v in aligned.items() if not k.endswith(("_v", "_dps"))
                                                 and k != "t_s"}
                            | {"hf_offset_v": hf_offset, "lf_bias_dps": lf_bias})
-        n_tune = int(round(p.tune_fraction * aligned["t_s"].size))
-        settings = {}
-        if n_tune:
-            tuning = tune_on(aligned, n_tune, fits, tones, p.rate_hz)
-            ctx.run.set_result("fusion.tuning", tuning["tuning"].to_dict())
-            settings = {"params": tuning["params"], "q": tuning["tuning"].q}
-        evaluated = {k: v[n_tune:] for k, v in aligned.items() if k in ("t_s", "hf_v", "lf_dps", "ref_dps")}
-        analysis = analyze_fusion(evaluated["t_s"], evaluated["hf_v"], evaluated["lf_dps"], evaluated["ref_dps"],
-                                  p.rate_hz, hf_model=fits["hf"].model, lf_model=fits["lf"].model,
-                                  tones_hz=tones, settle_s=METRIC_SETTLE_S, **settings)
+        analysis = analyze_fusion(aligned["t_s"], aligned["hf_v"], aligned["lf_dps"], aligned["ref_dps"], p.rate_hz,
+                                  hf_model=fits["hf"].model, lf_model=fits["lf"].model, tones_hz=tones,
+                                  settle_s=METRIC_SETTLE_S, tune_fraction=p.tune_fraction)
+        if analysis.tuning is not None:
+            ctx.run.set_result("fusion.tuning", analysis.tuning.to_dict())
         ctx.run.set_result("fusion.analysis", analysis.to_dict())
-        aligned = {**aligned, **evaluated}
+        judged = slice(analysis.tune_samples, None)
+        aligned = {**aligned, **{k: aligned[k][judged] for k in ("t_s", "hf_v", "lf_dps", "ref_dps")}}
         ctx.run.add_stream("fusion_aligned", {"t_s": "s", "hf_v": "V", "lf_dps": "deg/s", "ref_dps": "deg/s",
                                               **{estimate_column(m): "deg/s" for m in METHODS}},
-                           "aligned record on the MHD instants and every method's rate estimate")
+                           "aligned record on the MHD instants (after the tuning part) and every method's estimate")
         ctx.run.append("fusion_aligned", t_s=aligned["t_s"], hf_v=aligned["hf_v"], lf_dps=aligned["lf_dps"],
-                       ref_dps=aligned["ref_dps"], **{estimate_column(m): analysis.estimates[m] for m in METHODS})
+                       ref_dps=aligned["ref_dps"],
+                       **{estimate_column(m): analysis.estimates[m][judged] for m in METHODS})
         return summarize(analysis, aligned["clock"], aligned["hf_clock"])
 
 
-def tune_on(aligned: dict, n_tune: int, fits: dict, tones: np.ndarray, rate_hz: float) -> dict:
-    """Tune Document B's filter on the first ``n_tune`` aligned samples (``fusion_tuning``):
-    noise variances from the residuals after the tones, base ``q`` from the readings."""
-    part = {k: aligned[k][:n_tune] for k in ("t_s", "hf_v", "lf_dps", "ref_dps")}
-    hf_var, lf_var = (max(float(v), 1e-30) for v in _residual_var(
-        part["t_s"], np.column_stack([part["hf_v"], part["lf_dps"]]), tones))
-    model, _ = tune_fusion_params(fits["hf"].model, fits["lf"].model, hf_var, lf_var, part["hf_v"], part["lf_dps"],
-                                  1.0 / rate_hz)
-    tuning = tune_fusion(part["t_s"], part["hf_v"], part["lf_dps"], part["ref_dps"], rate_hz, model, hf_var, lf_var,
-                         tones)
-    return {"tuning": tuning, "params": tuning.params(hf_var, lf_var)}
-
-
 def summarize(analysis, clock: dict, hf_clock: dict | None = None) -> dict[str, Estimate]:
-    amp = analysis.amplitude_error_pct
-    excess, sd = excess_over_best(analysis.to_dict())
-    out = {f"rms_error_{m}": Estimate(analysis.rms_error[m], None) for m in METHODS}
-    out["max_amplitude_error_fused"] = Estimate(float(np.max(np.abs(amp["fused"]))), None)
-    out["max_phase_error_fused"] = Estimate(float(np.max(np.abs(analysis.phase_error_deg["fused"]))), None)
+    j = analysis.judgement
+    out = {f"rms_error_{m}": Estimate(j.rms_error[m], None) for m in METHODS}
+    out["rms_error_recommended"] = Estimate(j.rms_error[analysis.recommended], None)
+    out["recommended_excess_sigma"] = Estimate(j.worst_excess_sigma(analysis.recommended), None)
+    out["max_amplitude_error_fused"] = Estimate(float(np.max(np.abs(j.amplitude_error_pct["fused"]))), None)
+    out["max_phase_error_fused"] = Estimate(float(np.max(np.abs(j.phase_error_deg["fused"]))), None)
+    excess, sd = j.excess_pct["fused"], j.excess_std_pct["fused"]
     worst = int(np.argmax(excess))
     out["fused_minus_best_sensor"] = Estimate(float(excess[worst]), float(sd[worst]))
-    out["fused_excess_sigma"] = Estimate(float(np.max(excess / sd)), None)
+    out["fused_excess_sigma"] = Estimate(j.worst_excess_sigma("fused"), None)
     # stamps are corrected by rate_ppm: a clock fast by δ needs −δ
     if clock["rate_ppm"] is not None:
         out["lf_clock_error"] = Estimate(-clock["rate_ppm"], clock["rate_std_ppm"])

@@ -45,7 +45,7 @@ NEIGHBOURS = 8  # Fourier frequencies each side of f that estimate the residual'
 MIN_NEIGHBOURS = 4  # fewer usable ones → AR(1) fallback
 
 
-def _check_record(t_s, y, name: str = "y") -> tuple[np.ndarray, np.ndarray, float]:
+def check_record(t_s, y, name: str = "y") -> tuple[np.ndarray, np.ndarray, float]:
     """1-D finite arrays of one length with strictly increasing times; returns ``(t, y, median dt)``."""
     t = np.asarray(t_s, dtype=float).ravel()
     v = np.asarray(y, dtype=float).ravel()
@@ -164,7 +164,7 @@ def sine_fit(t_s, y, freq_hz: float, harmonics: int = 3, *, trend: bool = False,
     ``trend`` adds a linear term (a drifting bias, a high-pass settling tail); ``span_s``
     ``(start, stop)`` restricts the fit (default the whole record); ``t0_s`` the time at which
     phases are quoted.  Needs ``0 < f < Nyquist`` of the samples and ``≥ min_periods`` periods."""
-    t, v, dt = _check_record(t_s, y)
+    t, v, dt = check_record(t_s, y)
     if not (isinstance(harmonics, (int, np.integer)) and 1 <= harmonics <= 20):
         raise ValueError(f"harmonics {harmonics} must be an integer in [1, 20]")
     nyq = 0.5 / dt
@@ -255,8 +255,8 @@ def frf_point(t_ref, ref, t_y, y, freq_hz: float, *, harmonics: int = 3, trend: 
     """Response of ``y`` (times ``t_y``, already on the reference clock) to the reference
     ``ref`` (times ``t_ref``) at ``freq_hz``, both fitted by :func:`sine_fit` over the same
     whole-period window inside their common span (after skipping ``skip_s`` s of settling)."""
-    t_r, v_r, dt_r = _check_record(t_ref, ref, "ref")
-    t_s, v_s, dt_s = _check_record(t_y, y, "y")
+    t_r, v_r, dt_r = check_record(t_ref, ref, "ref")
+    t_s, v_s, dt_s = check_record(t_y, y, "y")
     if not (math.isfinite(skip_s) and skip_s >= 0):
         raise ValueError(f"skip_s {skip_s} must be a finite value ≥ 0")
     start = max(t_r[0], t_s[0]) + skip_s

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.special import i0
 
-from bench.analysis.frf import _check_record, sine_fit
+from bench.analysis.frf import check_record, sine_fit
 
 SINC_HALF_WIDTH = 16  # taps each side of the band-limited interpolator
 KAISER_BETA = 10.0  # its Kaiser window's shape: passband ripple ≈ 10⁻⁵ to f/fs = 0.4 (measured, see resample)
@@ -70,8 +70,8 @@ def estimate_time_base(t_ref, ref, t_y, y, freq_hz: float, block_s: float, *, ha
     """Rate error and apparent offset of the clock stamping ``t_y`` relative to the clock of
     ``t_ref``, from the tone at ``freq_hz`` (Hz) in consecutive blocks of ``block_s`` (s; rounded
     to a whole number of periods, at least one) over the records' common span; needs ≥ 3 blocks."""
-    t_r, v_r, dt_r = _check_record(t_ref, ref, "ref")
-    t_s, v_s, dt_s = _check_record(t_y, y, "y")
+    t_r, v_r, dt_r = check_record(t_ref, ref, "ref")
+    t_s, v_s, dt_s = check_record(t_y, y, "y")
     if not (math.isfinite(freq_hz) and freq_hz > 0):
         raise ValueError(f"freq_hz {freq_hz} must be a finite value > 0")
     if not (math.isfinite(block_s) and block_s > 0):
@@ -157,7 +157,7 @@ def resample(t_src, y_src, t_dst, method: str = "sinc", *, half_width: int = SIN
     restores what the source's own sampling removed: an interval-mean frame's ``sinc(f/fs)``
     roll-off stays in the resampled series (``procedures/frf.py`` divides it out of the
     measured FRF; :func:`aperture_compensate` undoes such a droop on a series)."""
-    t, v, _ = _check_record(t_src, y_src, "y_src")
+    t, v, _ = check_record(t_src, y_src, "y_src")
     td = np.asarray(t_dst, dtype=float)
     if method not in RESAMPLE_METHODS:
         raise ValueError(f"method {method!r} must be one of {', '.join(RESAMPLE_METHODS)}")

@@ -131,7 +131,7 @@ class FilterRun:
     final_p: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
 
 
-def _check_series(hf, lf) -> tuple[np.ndarray, np.ndarray]:
+def check_series(hf, lf) -> tuple[np.ndarray, np.ndarray]:
     hf, lf = np.asarray(hf, dtype=float).ravel(), np.asarray(lf, dtype=float).ravel()
     if hf.size != lf.size:
         raise ValueError(f"hf has {hf.size} samples and lf {lf.size}; they must match")
@@ -195,7 +195,7 @@ def _model_arrays(phi, q, x0, p0) -> tuple:
 
 def sequential_fusion(hf, lf, ts_s: float, model: FusionModel, params: FusionParams) -> FilterRun:
     """Document B's filter on the HF then the LF reading (see module docstring)."""
-    hf, lf = _check_series(hf, lf)
+    hf, lf = check_series(hf, lf)
     phi, q = model.discretize(ts_s, params.discretization)
     _, _, h1, h2 = model.continuous()
     x0, p0 = initial_state(model, hf, lf)
@@ -206,7 +206,7 @@ def fixed_r_kalman(hf, lf, ts_s: float, model: FusionModel, params: FusionParams
     """Conventional Kalman fusion: one stacked update ``y = [hf, lf]`` per sample with fixed
     ``R = diag(σ1², σ2²)`` (the sensors' nominal variances), same model and discretisation
     (compiled: :func:`~bench.analysis.fusion_kernel.stacked_kernel`)."""
-    hf, lf = _check_series(hf, lf)
+    hf, lf = check_series(hf, lf)
     phi, q = model.discretize(ts_s, params.discretization)
     _, _, h1, h2 = model.continuous()
     x0, p0 = initial_state(model, hf, lf)
@@ -225,7 +225,7 @@ def complementary_filter(hf, lf, rate_hz: float, model: FusionModel, crossover_h
     The HF path ``HPc/G1`` and the LF path ``LPc/G2`` are then proper, so a noiseless pair of
     exact models is reconstructed exactly (for ``n = 1`` the textbook first-order pair).  Each
     path is discretised by the bilinear transform at ``rate_hz``."""
-    hf, lf = _check_series(hf, lf)
+    hf, lf = check_series(hf, lf)
     if not (math.isfinite(crossover_hz) and 0 < crossover_hz < rate_hz / 2):
         raise ValueError(f"crossover_hz {crossover_hz} must be in (0, {rate_hz / 2:g}) Hz (below Nyquist)")
     tau = 1 / (2 * math.pi * crossover_hz)
@@ -306,15 +306,5 @@ def tune_fusion_params(hf_model: SensorModel, lf_model: SensorModel, hf_noise_va
     return model, params
 
 
-def __getattr__(name: str):
-    """``analyze_fusion``/``FusionAnalysis`` live in fusion_metrics (size); served from here
-    lazily, since fusion_metrics imports this module."""
-    if name in ("FusionAnalysis", "analyze_fusion"):
-        from bench.analysis import fusion_metrics
-
-        return getattr(fusion_metrics, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-__all__ = ["AdaptiveNoise", "FusionParams", "FilterRun", "sequential_kalman", "sequential_fusion",
-           "fixed_r_kalman", "complementary_filter", "tune_fusion_params"]
+__all__ = ["AdaptiveNoise", "FilterRun", "FusionParams", "check_series", "complementary_filter", "fixed_r_kalman",
+           "sequential_fusion", "sequential_kalman", "tune_fusion_params"]

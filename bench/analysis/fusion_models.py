@@ -36,6 +36,8 @@ from scipy.optimize import least_squares
 
 KINDS = ("highpass", "lowpass")
 DISCRETIZATIONS = ("euler", "zoh")
+CORNER_STARTS = (1.0, 0.3, 3.0)  # the fit starts from the −3 dB crossing and from these multiples of it
+LOG_LIMIT = 60.0  # log-parameters are clipped here inside the misfit (e⁶⁰ ≈ 10²⁶)
 ORDER_GAIN_FACTOR = 2.0  # a higher order is kept only if it divides the relative RMS misfit by this
 
 
@@ -97,9 +99,10 @@ def _response(f, kind, order, corner_hz, gain, zeta):
 class TransferFit:
     """Result of :func:`fit_transfer_function`: the chosen model, its relative RMS misfit
     ``residual`` (``rms(|Ĝ−G|/|G|)``, delay included), the misfit of every order tried, the
-    rule used, the fitted pure delay ``delay_s`` (s; 0.0 when not fitted) and, when weights
+    rule used, the fitted pure delay ``delay_s`` (s; 0.0 when not fitted), when weights
     were given, ``chi2_reduced`` = ``Σ|w(Ĝ−G)|² / (2N − p)`` (≈ 1 when the model explains the
-    FRF within its stated uncertainty)."""
+    FRF within its stated uncertainty), and a first-order pole above the band ``upper_hz``
+    (``None`` when not fitted) — like the delay, part of the fit, not of ``model``."""
 
     model: SensorModel
     residual: float
@@ -107,6 +110,7 @@ class TransferFit:
     rule: str
     delay_s: float = 0.0
     chi2_reduced: float | None = None
+    upper_hz: float | None = None
 
     @property
     def corner_hz(self) -> float:
@@ -121,15 +125,17 @@ class TransferFit:
         return self.model.order
 
     def response(self, freq_hz) -> np.ndarray:
-        """Complex response of the fitted model including the delay: ``G(jω)·e^{−jωτ}``."""
+        """Complex response of the fit, delay and upper pole included: ``G(jω)·e^{−jωτ}/(1 + jf/f_u)``."""
         f = np.asarray(freq_hz, dtype=float)
-        return self.model.response(f) * np.exp(-2j * np.pi * f * self.delay_s)
+        upper = 1.0 if self.upper_hz is None else 1.0 / (1 + 1j * f / self.upper_hz)
+        return self.model.response(f) * np.exp(-2j * np.pi * f * self.delay_s) * upper
 
     def to_dict(self) -> dict:
         return {"model": self.model.to_dict(), "residual": float(self.residual),
                 "residual_by_order": {str(k): float(v) for k, v in self.residual_by_order.items()}, "rule": self.rule,
                 "delay_s": float(self.delay_s),
-                "chi2_reduced": None if self.chi2_reduced is None else float(self.chi2_reduced)}
+                "chi2_reduced": None if self.chi2_reduced is None else float(self.chi2_reduced),
+                "upper_hz": None if self.upper_hz is None else float(self.upper_hz)}
 
 
 def _phase_slope_delay(f: np.ndarray, g: np.ndarray) -> float:
@@ -142,7 +148,7 @@ def _phase_slope_delay(f: np.ndarray, g: np.ndarray) -> float:
 
 
 def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max_order: int = 2,
-                          fit_delay: bool = False, weights=None) -> TransferFit:
+                          fit_delay: bool = False, weights=None, upper_pole: bool = False) -> TransferFit:
     """Fit a high- or low-pass of order 1…``max_order`` (optionally times a pure delay) to a measured FRF.
 
     Each order is fitted by nonlinear least squares on the *relative* complex misfit
@@ -154,7 +160,12 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
     ``fit_delay``: the model becomes ``G(jω)·e^{−jωτ}`` with a **signed** delay ``τ`` (s;
     positive = the sensor lags the reference: latency, an unmodelled far pole ≈ ``1/(2πf_p)``,
     or a timestamp offset, which may have either sign), started from the phase slope at the
-    top of the band (:func:`_phase_slope_delay`) and from 0, keeping the better.
+    top of the band (:func:`_phase_slope_delay`) and from 0, keeping the better; the corner is
+    started from the −3 dB crossing and from ``CORNER_STARTS`` multiples of it.
+
+    ``upper_pole`` (high-pass only): the model is also divided by ``1 + jf/f_u``, a first-order
+    pole above the band (a sensor's own bandwidth limit: left out, it would bend the gain and the
+    corner to mimic its droop), started from 3× and 10× the top frequency.
 
     **Order rule**: start at order 1; order ``n+1`` replaces ``n`` only if
     its relative RMS misfit is below ``1/ORDER_GAIN_FACTOR`` (half) of order ``n``'s — one
@@ -168,10 +179,12 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
         raise ValueError(f"max_order {max_order} must be 1 or 2")
     if f.size != g.size:
         raise ValueError(f"freq_hz has {f.size} values and response_complex {g.size}; they must match")
-    n_min = 2 * max_order + 1 + int(bool(fit_delay))
+    if upper_pole and kind != "highpass":
+        raise ValueError("upper_pole is for a high-pass sensor's bandwidth limit (kind 'highpass')")
+    n_min = 2 * max_order + 1 + int(bool(fit_delay)) + int(bool(upper_pole))
     if f.size < n_min:
         raise ValueError(f"{f.size} FRF points; at least {n_min} are needed for order {max_order}"
-                         + (" with a delay" if fit_delay else ""))
+                         + (" with a delay" if fit_delay else "") + (" and an upper pole" if upper_pole else ""))
     if not (np.all(np.isfinite(f)) and np.all(f > 0) and np.all(np.isfinite(g)) and np.all(np.abs(g) > 0)):
         raise ValueError("freq_hz must be finite and > 0 and response_complex finite and non-zero")
     w = None
@@ -199,29 +212,42 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
     cross = np.flatnonzero(below[:-1] != below[1:])
     fc0 = float(f[cross[0]]) if cross.size else float(np.sqrt(f[0] * f[-1]))
 
-    fits, residuals, delays, costs = {}, {}, {}, {}
+    fits, residuals, delays, costs, uppers = {}, {}, {}, {}, {}
     for order in range(1, max_order + 1):
-        def misfit(p, order=order):
-            zeta = math.exp(p[2]) if order == 2 else 1.0
-            model = _response(f, kind, order, math.exp(p[1]), math.copysign(math.exp(p[0]), k0), zeta)
-            if fit_delay:
-                model = model * np.exp(-2j * np.pi * f * p[-1] * delay_scale)
-            r = (model - g) / scale
+        n_log = 2 + int(order == 2) + int(upper_pole)  # log gain, log corner, [log ζ], [log f_u/f_top]
+
+        def unpack(p, order=order, n_log=n_log):
+            lp = np.clip(p[:n_log], -LOG_LIMIT, LOG_LIMIT)  # a wild step from a far start must not overflow
+            zeta = math.exp(lp[2]) if order == 2 else math.sqrt(0.5)
+            upper = f[-1] * math.exp(lp[-1]) if upper_pole else None
+            tau = float(p[-1] * delay_scale) if fit_delay else 0.0
+            return SensorModel(kind, order, math.exp(lp[1]), math.copysign(math.exp(lp[0]), k0), zeta), upper, tau
+
+        def response(p, order=order, n_log=n_log):
+            model, upper, tau = unpack(p, order, n_log)
+            r = _response(f, kind, order, model.corner_hz, model.gain, model.zeta if order == 2 else 1.0)
+            if upper is not None:
+                r = r / (1 + 1j * f / upper)
+            return r * np.exp(-2j * np.pi * f * tau) if fit_delay else r
+
+        def misfit(p, order=order, n_log=n_log):
+            r = (response(p, order, n_log) - g) / scale
             return np.concatenate([r.real, r.imag])
 
-        best = None
+        sols = []
         for tau0 in taus0:
-            x0 = [math.log(abs(k0)), math.log(fc0)] + ([math.log(math.sqrt(0.5))] if order == 2 else [])
-            x0 += [tau0 / delay_scale] if fit_delay else []
-            sol = least_squares(misfit, x0, method="lm")
-            if best is None or sol.cost < best.cost:
-                best = sol
-        zeta = math.exp(best.x[2]) if order == 2 else math.sqrt(0.5)
-        fits[order] = SensorModel(kind, order, math.exp(best.x[1]), math.copysign(math.exp(best.x[0]), k0), zeta)
-        delays[order] = float(best.x[-1] * delay_scale) if fit_delay else 0.0
+            for corner_factor in CORNER_STARTS:  # a noisy −3 dB crossing can start far off: several starts
+                for upper0 in ((3.0, 10.0) if upper_pole else (None,)):
+                    x0 = [math.log(abs(k0)), math.log(fc0 * corner_factor)]
+                    x0 += [math.log(math.sqrt(0.5))] if order == 2 else []
+                    x0 += [math.log(upper0)] if upper0 is not None else []
+                    x0 += [tau0 / delay_scale] if fit_delay else []
+                    sols.append(least_squares(misfit, x0, method="lm"))
+        best = min((sol for sol in sols if np.all(np.abs(sol.x[:n_log]) < LOG_LIMIT)),
+                   key=lambda sol: sol.cost, default=min(sols, key=lambda sol: sol.cost))
+        fits[order], uppers[order], delays[order] = unpack(best.x)
         costs[order] = (2 * best.cost, best.x.size)
-        model_g = fits[order].response(f) * np.exp(-2j * np.pi * f * delays[order])
-        residuals[order] = float(np.sqrt(np.mean(np.abs(model_g - g) ** 2 / mag ** 2)))
+        residuals[order] = float(np.sqrt(np.mean(np.abs(response(best.x) - g) ** 2 / mag ** 2)))
     chosen = 1
     for order in range(2, max_order + 1):
         if residuals[order] < residuals[chosen] / ORDER_GAIN_FACTOR:
@@ -231,7 +257,7 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
     if w is not None:
         ss, n_par = costs[chosen]
         chi2 = float(ss / max(1, 2 * f.size - n_par))
-    return TransferFit(fits[chosen], residuals[chosen], residuals, rule, delays[chosen], chi2)
+    return TransferFit(fits[chosen], residuals[chosen], residuals, rule, delays[chosen], chi2, uppers[chosen])
 
 
 @dataclass(frozen=True)

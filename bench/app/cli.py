@@ -15,7 +15,8 @@ import sys
 #: subcommand modules; each has ``register(subparsers)`` and sets ``func(args) -> int``
 COMMAND_MODULES = ("bench.app.commands.run", "bench.app.commands.sim", "bench.app.commands.runs",
                    "bench.app.commands.analyze", "bench.app.commands.acceptance",
-                   "bench.app.commands.doctor", "bench.app.commands.discover")
+                   "bench.app.commands.doctor", "bench.app.commands.discover",
+                   "bench.app.commands.sync", "bench.app.commands.fleet", "bench.app.commands.risk")
 
 
 class UsageError(Exception):

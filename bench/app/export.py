@@ -33,7 +33,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from bench.core.store import AttachmentInfo, Event, RunInfo, RunStore, StreamInfo
+from bench.core.store import AttachmentInfo, Event, RunInfo, StreamInfo
+from bench.core.store.reader import RunReader
 
 FORMAT = "inertial-bench run export"
 FORMAT_VERSION = 1
@@ -51,7 +52,7 @@ class ExportedRun:
     attachments: dict[str, tuple[AttachmentInfo, bytes]]
 
 
-def _snapshot(store: RunStore, run_id: str) -> ExportedRun:
+def _snapshot(store: RunReader, run_id: str) -> ExportedRun:
     streams = store.streams(run_id)
     data = {name: store.load(run_id, name) for name in streams}
     # A running run may have grown between streams() and load(): report what was exported.
@@ -92,7 +93,7 @@ def _write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
             f.write("\n".join(lines.tolist()) + "\n")
 
 
-def export_csv(store: RunStore, run_id: str, out_dir_or_file: str | os.PathLike[str]) -> list[Path]:
+def export_csv(store: RunReader, run_id: str, out_dir_or_file: str | os.PathLike[str]) -> list[Path]:
     """Write run ``run_id`` as CSV files plus a JSON sidecar (see the module docstring).
     Returns the written paths: the CSVs in stream order, the sidecar, then attachments."""
     snap = _snapshot(store, run_id)
@@ -175,7 +176,7 @@ def read_csv_export(sidecar: str | os.PathLike[str]) -> ExportedRun:
 
 # -- HDF5 ------------------------------------------------------------------------------------
 def export_hdf5(
-    store: RunStore, run_id: str, path: str | os.PathLike[str], *, compression: str | None = None
+    store: RunReader, run_id: str, path: str | os.PathLike[str], *, compression: str | None = None
 ) -> Path:
     """Write run ``run_id`` to the HDF5 file ``path`` (replaced if present; layout in the
     module docstring).  ``compression``: None or an h5py filter name such as "gzip"."""

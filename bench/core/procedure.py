@@ -125,8 +125,10 @@ class RunOutcome:
 
 
 def execute(procedure: Procedure, station: OpenStation, store: RunStore, *, unit_serial: str | None,
-            seed: int | None, progress: Progress = no_progress) -> RunOutcome:
+            seed: int | None, progress: Progress = no_progress,
+            labels: dict[str, str] | None = None) -> RunOutcome:
     """Run ``procedure`` on an open station; always tears down; always leaves a record.
+    ``labels`` (station id, test socket, lot) go into the run record as they are.
 
     A station that lacks an instrument the procedure needs is refused before a run is
     created (ValueError naming what is missing).
@@ -137,7 +139,7 @@ def execute(procedure: Procedure, station: OpenStation, store: RunStore, *, unit
                          f"{procedure.name!r}; it has {sorted(station.instruments)}")
     run = store.create_run(procedure=procedure.name, parameters=procedure.parameters(),
                            station=station.snapshot(), unit_serial=unit_serial, seed=seed,
-                           code_version=code_version())
+                           code_version=code_version(), labels=labels)
     ctx = Context(station.instruments, station.clock, run, station.config.wiring, progress,
                   site=dict(getattr(station.config, "site", None) or DEFAULT_SITE))
     status, reason = "aborted", None

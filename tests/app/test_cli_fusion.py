@@ -7,13 +7,14 @@ import json
 import numpy as np
 import pytest
 
+from bench.analysis.fusion_analysis import METHODS
 from bench.app.cli import main
 
 FS_HZ = 2000.0
 TONES_HZ = (0.5, 2.0, 8.0, 40.0, 200.0)
 
 
-def write_csv(path, n=4000, with_ref=True, rows=None, header=None) -> str:
+def write_csv(path, n=24000, with_ref=True, rows=None, header=None) -> str:
     """Tones through a 2 Hz first-order high-pass (hf) and a 30 Hz first-order low-pass (lf)."""
     rng = np.random.default_rng(1)
     t = np.arange(n) / FS_HZ
@@ -31,19 +32,22 @@ def write_csv(path, n=4000, with_ref=True, rows=None, header=None) -> str:
     return str(path)
 
 
-def test_json_with_ref_has_rms_error_per_method_and_writes_fused(tmp_path, capsys):
+def test_json_with_ref_judges_every_method_and_writes_the_recommended_rate(tmp_path, capsys):
     src = write_csv(tmp_path / "rec.csv")
     out = tmp_path / "fused.csv"
     code = main(["analyze", "fusion", "--input", src, "--rate-hz", str(FS_HZ), "--json", "--output", str(out),
                  "--tones-hz", ",".join(map(str, TONES_HZ))])
     assert code == 0
     doc = json.loads(capsys.readouterr().out)
-    assert set(doc["rms_error"]) == {"fused", "hf", "lf", "fixed_r_kf", "complementary"}
-    assert doc["rms_error"]["fused"] < min(doc["rms_error"]["hf"], doc["rms_error"]["lf"])
+    assert set(doc["rms_error"]) == set(METHODS) == set(doc["methods"])
+    best = doc["recommended"]
+    assert doc["rms_error"][best] < min(doc["rms_error"]["hf"], doc["rms_error"]["lf"], doc["rms_error"]["fused"])
     assert {"hf_noise", "lf_noise", "discretization"} <= set(doc["params"])
     assert doc["model"]["hf"]["kind"] == "highpass" and doc["source"] == src
-    fused = np.loadtxt(out, delimiter=",", skiprows=1)
-    assert out.read_text().splitlines()[0] == "t,fused" and fused.shape == (4000, 2)
+    assert doc["tune_samples"] == 9600 - doc["alignment"]["trimmed_start"]
+    rate = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert out.read_text().splitlines()[0] == f"t,{best}"  # the column says which method
+    assert rate.shape == (doc["n_samples"], 2) and 23990 <= doc["n_samples"] <= 24000
 
 
 def test_text_without_ref_uses_given_corners(tmp_path, capsys):
@@ -52,6 +56,7 @@ def test_text_without_ref_uses_given_corners(tmp_path, capsys):
                  "--lf-corner-hz", "30"])
     text = capsys.readouterr().out
     assert code == 0 and "models given" in text and "NIS fused" in text and "RMS error" not in text
+    assert "recommended: complementary smoother (offline)" in text
 
 
 @pytest.mark.parametrize("kwargs, args, message", [

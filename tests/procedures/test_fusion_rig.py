@@ -120,7 +120,7 @@ def test_aperture_compensation_restores_the_amplitude_of_aperture_means(f_hz, du
 
 
 def test_tone_noise_std_matches_the_spread_of_phasor_estimates():
-    from bench.analysis.fusion_metrics import _residual, sine_phasors, tone_noise_std
+    from bench.analysis.fusion_metrics import sine_phasors, tone_noise_std, tone_residual
 
     rng = np.random.default_rng(4)
     t = np.arange(20000) / 1000.0
@@ -131,7 +131,7 @@ def test_tone_noise_std_matches_the_spread_of_phasor_estimates():
         noise = np.convolve(e, [1.0, 0.8, 0.5], mode="same")  # coloured
         y = np.sin(2 * np.pi * 3 * t) + 0.5 * np.cos(2 * np.pi * 37 * t) + noise
         est.append(sine_phasors(t, y, tones))
-        pred.append(tone_noise_std(_residual(t, y[:, None], tones)[:, 0], 1000.0, tones))
+        pred.append(tone_noise_std(tone_residual(t, y[:, None], tones)[:, 0], 1000.0, tones))
     spread = np.std(np.real(np.array(est)), axis=0)
     assert np.allclose(np.mean(pred, axis=0), spread, rtol=0.2)
     with pytest.raises(ValueError, match="aperture_s"):

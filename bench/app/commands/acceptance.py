@@ -9,7 +9,16 @@ import sys
 import time
 from pathlib import Path
 
-from bench.app.commands.common import FollowUpResult, attach_folder, conclude, open_store, progress_bar, seed_of
+from bench.app.commands.common import (
+    FollowUpResult,
+    attach_folder,
+    conclude,
+    label_options,
+    labels_of,
+    open_store,
+    progress_bar,
+    seed_of,
+)
 
 
 def register(sub) -> None:
@@ -24,6 +33,7 @@ def register(sub) -> None:
                    help="write the HTML report into DIR/<run id>/ [bench-data/reports]")
     p.add_argument("--json", action="store_true", help="print the verdict document as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    label_options(p)
     p.set_defaults(func=run_acceptance)
 
 
@@ -72,7 +82,8 @@ def run_acceptance(args) -> int:
     store = open_store(args)
     with Station(config, seed=seed, unit_serial=unit, unit_kind=spec.kind) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
-        outcome = execute(procedure, station, store, unit_serial=unit, seed=seed, progress=progress)
+        outcome = execute(procedure, station, store, unit_serial=unit, seed=seed, progress=progress,
+                          labels=labels_of(args, config))
     folder = report_root / outcome.run_id
     report = None
     written = FollowUpResult("report")

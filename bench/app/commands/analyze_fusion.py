@@ -1,10 +1,13 @@
-"""``bench analyze fusion --input FILE.csv --rate-hz FS``: Document B's sequential Kalman fusion.
+"""``bench analyze fusion --input FILE.csv --rate-hz FS``: every rate-fusion method side by side.
 
 Reads columns ``t`` (s), ``hf``, ``lf`` (same rate unit) and optionally ``ref`` from a CSV
-with a header row; runs :func:`bench.analysis.fusion.analyze_fusion`; prints a summary
-(or ``--json``: ``FusionAnalysis.to_dict()`` plus ``source``) and with ``--output`` writes
-``t,fused``.  The time column must step by ``1/FS`` (within 1 %).  Bad input raises
-``ValueError``; ``bench`` prints it as one line ``bench: error: …`` and exits 2.
+with a header row; runs :func:`bench.analysis.fusion_analysis.analyze_fusion` (with ``ref``:
+every method tuned on the first ``--tune-fraction`` and judged on the rest, the recommended
+one picked by that judgement); prints a summary (or ``--json``: ``FusionAnalysis.to_dict()``
+plus ``source``) and with ``--output`` writes ``t`` and the recommended method's rate in a
+column named after the method (e.g. ``t,complementary_smoother``; ``t`` on the reference's
+clock when the record was aligned).  The time column must step by ``1/FS`` (within 1 %).  Bad
+input raises ``ValueError``; ``bench`` prints it as one line ``bench: error: …`` and exits 2.
 """
 
 from __future__ import annotations
@@ -18,20 +21,25 @@ import numpy as np
 from bench.app.commands.analyze import read_csv_table
 
 SAMPLING_TOLERANCE = 0.01
+TUNE_FRACTION = 0.4  # bench.analysis.fusion_analysis.TUNE_FRACTION (not imported: `bench --help` stays light)
 
 
 def register_analysis(kinds) -> None:
     """Add ``fusion`` to the ``bench analyze`` subparsers."""
-    p = kinds.add_parser("fusion", help="sequential Kalman fusion of an HF (MHD) and an LF rate sensor (Document B)")
+    p = kinds.add_parser("fusion", help="fusion of an HF (MHD) and an LF rate sensor: every method, one recommended")
     p.add_argument("--input", required=True, metavar="FILE.csv", help="CSV with columns t, hf, lf [, ref]")
     p.add_argument("--rate-hz", required=True, type=float, help="sample rate of the record (Hz)")
     p.add_argument("--tones-hz", default=None, help="comma-separated tone frequencies of ref (Hz) [detected]")
     p.add_argument("--hf-corner-hz", type=float, default=None, help="HF first-order high-pass corner [fit/2 Hz]")
     p.add_argument("--lf-corner-hz", type=float, default=None, help="LF first-order low-pass corner [fit/30 Hz]")
     p.add_argument("--crossover-hz", type=float, default=None, help="complementary-filter crossover [√(fh·fl)]")
-    p.add_argument("--settle-s", type=float, default=0.0, help="seconds left out of the metrics [0]")
+    p.add_argument("--settle-s", type=float, default=0.0,
+                   help="seconds after the tuning part left out of the metrics [0]")
+    p.add_argument("--tune-fraction", type=float, default=TUNE_FRACTION,
+                   help=f"with ref: the first part that tunes every method; the rest judges [{TUNE_FRACTION:g}]")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
-    p.add_argument("--output", metavar="FUSED.csv", default=None, help="write t,fused here")
+    p.add_argument("--output", metavar="FUSED.csv", default=None,
+                   help="write t and the recommended method's rate (its column named after it) here")
     p.set_defaults(func=analyze_fusion_csv)
 
 
@@ -59,7 +67,7 @@ def _floats(text: str | None, what: str):
 
 def analyze_fusion_csv(args) -> int:
     """Handler of ``bench analyze fusion``."""
-    from bench.analysis.fusion import analyze_fusion
+    from bench.analysis.fusion_analysis import METHODS, analyze_fusion
     from bench.analysis.fusion_models import SensorModel
 
     data = read_csv_table(args.input, ("t", "hf", "lf"), ("ref",))
@@ -68,14 +76,15 @@ def analyze_fusion_csv(args) -> int:
     lf_model = None if args.lf_corner_hz is None else SensorModel("lowpass", 1, args.lf_corner_hz)
     analysis = analyze_fusion(data["t"], data["hf"], data["lf"], data.get("ref"), args.rate_hz, hf_model=hf_model,
                               lf_model=lf_model, tones_hz=_floats(args.tones_hz, "--tones-hz"),
-                              crossover_hz=args.crossover_hz, settle_s=args.settle_s)
+                              crossover_hz=args.crossover_hz, settle_s=args.settle_s,
+                              tune_fraction=args.tune_fraction)
     if args.output is not None:
         out = Path(args.output)
         try:
             with out.open("w", newline="") as fh:
                 w = csv.writer(fh)
-                w.writerow(["t", "fused"])
-                w.writerows((f"{a:.9g}", f"{b:.10g}") for a, b in zip(data["t"], analysis.fused))
+                w.writerow(["t", analysis.recommended])
+                w.writerows((f"{a:.9g}", f"{b:.10g}") for a, b in zip(analysis.t_s, analysis.recommended_rate))
         except OSError as exc:
             raise ValueError(f"cannot write {out}: {exc}") from None
     if args.json:
@@ -89,19 +98,28 @@ def analyze_fusion_csv(args) -> int:
     print(f"fusion of {args.input}: {analysis.n_samples} samples at {args.rate_hz:.6g} Hz; "
           f"models {analysis.model_source}")
     print(f"  HF {m.hf.kind} order {m.hf.order} corner {m.hf.corner_hz:.4g} Hz gain {m.hf.gain:.5g}; "
-          f"LF {m.lf.kind} order {m.lf.order} corner {m.lf.corner_hz:.4g} Hz gain {m.lf.gain:.5g}; q {m.q:.4g}")
+          f"LF {m.lf.kind} order {m.lf.order} corner {m.lf.corner_hz:.4g} Hz gain {m.lf.gain:.5g}")
+    j = analysis.judgement
+    if j is not None:
+        print(f"  tuned on the first {analysis.tune_samples} samples, judged on "
+              f"{analysis.n_samples - analysis.judged_from}")
+        print(f"  {'method':<46} {'RMS error':>11} {'max |amp err| %':>16} {'worst excess':>20}")
+        for k, meth in METHODS.items():
+            mark = "*" if k == analysis.recommended else " "
+            excess = f"{j.worst_excess_pct(k):+.3g} pp ({j.worst_excess_sigma(k):.3g}σ)"
+            print(f" {mark}{meth.label:<46} {j.rms_error[k]:11.5g} {float(max(abs(j.amplitude_error_pct[k]))):16.4g} "
+                  f"{excess:>20}")
+        print(f"  {'f (Hz)':>10} " + " ".join(f"{k[:22]:>22}" for k in METHODS))
+        for i, f in enumerate(j.tones_hz):
+            cells = [f"{j.amplitude_error_pct[k][i]:+8.3f}% {j.phase_error_deg[k][i]:+8.3f}°" for k in METHODS]
+            print(f"  {f:10.4g} " + " ".join(f"{c:>22}" for c in cells))
     for name, s in analysis.nis.items():
         print(f"  NIS {name}: mean {s.mean:.4g} (χ² bounds {s.lower:.4g}–{s.upper:.4g}, dof {s.dof}); "
               f"{'consistent' if s.consistent else 'inconsistent'}{', DIVERGED' if s.diverged else ''}")
-    if analysis.rms_error is not None:
-        print("  RMS error: " + ", ".join(f"{k} {v:.4g}" for k, v in analysis.rms_error.items()))
-        print(f"  {'f (Hz)':>10} " + " ".join(f"{k:>22}" for k in analysis.amplitude_error_pct))
-        for i, f in enumerate(analysis.tones_hz):
-            cells = [f"{analysis.amplitude_error_pct[k][i]:+8.2f}% {analysis.phase_error_deg[k][i]:+8.2f}°"
-                     for k in analysis.amplitude_error_pct]
-            print(f"  {f:10.4g} " + " ".join(f"{c:>22}" for c in cells))
+    print(f"recommended: {METHODS[analysis.recommended].label} ({analysis.recommended}); "
+          f"{analysis.recommendation_rule}")
     for note in analysis.notes:
         print(f"note: {note}")
     if args.output is not None:
-        print(f"fused rate: {args.output}")
+        print(f"{analysis.recommended} rate: {args.output}")
     return 0

@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -14,6 +15,7 @@ from typing import Any
 
 from bench.core.procedure import RunOutcome
 from bench.core.store import RunStore
+from bench.core.store.reader import RunReader, is_central_url, masked
 
 
 def require_store(path) -> None:
@@ -23,21 +25,55 @@ def require_store(path) -> None:
 
 
 def open_store(args, *, create: bool = True) -> RunStore:
-    """The run store; reading commands pass ``create=False``."""
+    """The station's run store; reading commands pass ``create=False``.  A central store URL
+    is refused here: runs are written locally and forwarded (``bench sync``)."""
+    if is_central_url(args.store):
+        raise ValueError(f"--store {masked(args.store)} is a central store: runs are written to "
+                         "the station's SQLite store and forwarded by `bench sync`")
     if not create:
         require_store(args.store)
     return RunStore(args.store)
 
 
-def resolve_run_id(store: RunStore, run_id: str) -> str:
+def open_reader(args) -> RunReader:
+    """A store to read runs from: the station's SQLite file or the central store
+    (``--store postgresql://…``)."""
+    if is_central_url(args.store):
+        from bench.core.store.central import CentralStore  # psycopg: only when a URL is given
+
+        return CentralStore(args.store)
+    return open_store(args, create=False)
+
+
+def resolve_run_id(store: RunReader, run_id: str) -> str:
     """``latest`` names the newest run; anything else must be a stored id."""
     if run_id == "latest":
         runs = store.list_runs(limit=1)
         if not runs:
-            raise LookupError(f"no runs stored yet in {store.path}")
+            raise LookupError(f"no runs stored yet in {store.location}")
         return runs[0].id
-    store.get_run(run_id)  # raises LookupError naming the id
-    return run_id
+    return store.get_run(run_id).id  # raises LookupError naming the id
+
+
+def label_options(p) -> None:
+    """The options naming where and what a run is in the factory (its labels)."""
+    p.add_argument("--station-id", default=None, help="this station's name in the fleet "
+                   "[$BENCH_STATION_ID, else host:station]")
+    p.add_argument("--socket", default=None, help="test socket (fixture position) of the unit")
+    p.add_argument("--lot", default=None, help="production lot of the unit")
+
+
+def labels_of(args, config) -> dict[str, str]:
+    """The run's labels from :func:`label_options` (station id always; socket and lot if given)."""
+    import socket
+
+    station_id = (getattr(args, "station_id", None) or os.environ.get("BENCH_STATION_ID")
+                  or f"{socket.gethostname()}:{config.name}")
+    labels = {"station_id": station_id}
+    for key in ("socket", "lot"):
+        if getattr(args, key, None):
+            labels[key] = str(getattr(args, key))
+    return labels
 
 
 #: the simulated unit a procedure gets when neither --unit nor the station file names one
@@ -152,4 +188,7 @@ def conclude(outcome: RunOutcome, *, as_json: bool, document: dict[str, Any] | N
                 print(line)
     for error in errors:
         print(f"bench: error: {error}", file=sys.stderr)
+    from bench.app.commands.sync import forward_after_run
+
+    forward_after_run(outcome.store_path)  # with $BENCH_CENTRAL: the queue goes to the central store
     return 2 if errors else EXIT_CODES.get(outcome.status, 2)

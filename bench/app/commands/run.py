@@ -18,7 +18,15 @@ import typing
 from pathlib import Path
 from typing import Any
 
-from bench.app.commands.common import conclude, open_store, progress_bar, seed_of, unit_of
+from bench.app.commands.common import (
+    conclude,
+    label_options,
+    labels_of,
+    open_store,
+    progress_bar,
+    seed_of,
+    unit_of,
+)
 from bench.core.step import Step
 
 
@@ -53,6 +61,7 @@ def station_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=None, help="seed of the simulated world")
     p.add_argument("--json", action="store_true", help="print the outcome as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    label_options(p)
 
 
 def _option_type(annotation: Any) -> type:
@@ -124,7 +133,8 @@ def run_step(args: argparse.Namespace) -> int:
     store = open_store(args)
     with Station(config, seed=seed, unit_serial=unit, unit_kind=kind) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
-        outcome = execute(alone(step), station, store, unit_serial=unit, seed=seed, progress=progress)
+        outcome = execute(alone(step), station, store, unit_serial=unit, seed=seed, progress=progress,
+                          labels=labels_of(args, config))
     declared, follow_ups = step.follow_up, []
     if declared is not None and (not declared.on_request or args.analyze) and outcome.status == "passed":
         follow_ups.append(follow_up(declared, store.path, outcome.run_id, report_root))

@@ -1,4 +1,5 @@
-"""``bench runs list | show ID | export ID --format csv|hdf5``."""
+"""``bench runs list | show ID | export ID --format csv|hdf5``, on the station's store or on
+the central store (``--store postgresql://…``: every station's runs, named by UUID)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
-from bench.app.commands.common import open_store, resolve_run_id
+from bench.app.commands.common import open_reader, resolve_run_id
+from bench.core.store.reader import is_central_url
 
 
 def register(sub) -> None:
@@ -32,9 +34,8 @@ def register(sub) -> None:
 def list_runs(args) -> int:
     if args.limit < 1:
         raise ValueError(f"--limit {args.limit} must be ≥ 1")
-    from pathlib import Path
-
-    runs = open_store(args).list_runs(limit=args.limit) if Path(args.store).is_file() else []
+    central = is_central_url(args.store)
+    runs = open_reader(args).list_runs(limit=args.limit) if central or Path(args.store).is_file() else []
     if args.json:
         json.dump([_info(r) for r in runs], sys.stdout, indent=2, default=str)
         print()
@@ -42,10 +43,13 @@ def list_runs(args) -> int:
     if not runs:
         print("no runs stored yet (try: bench run startup)")
         return 0
-    print(f"{'id':<22} {'procedure':<11} {'unit':<14} {'status':<9} {'started (UTC)':<20} reason")
+    width = 36 if central else 22  # the central store names runs by UUID
+    print(f"{'id':<{width}} {'procedure':<11} {'unit':<14} {'status':<9} {'started (UTC)':<20} "
+          + ("station  " if central else "") + "reason")
     for r in runs:
-        print(f"{r.id:<22} {r.procedure:<11} {str(r.unit_serial or '-'):<14} {r.status:<9} "
-              f"{str(r.started_utc)[:19]:<20} {r.reason or ''}")
+        print(f"{r.id:<{width}} {r.procedure:<11} {str(r.unit_serial or '-'):<14} {r.status:<9} "
+              f"{str(r.started_utc)[:19]:<20} "
+              + (f"{r.labels.get('station_id', '-')}  " if central else "") + f"{r.reason or ''}")
     return 0
 
 
@@ -55,7 +59,7 @@ def _info(r) -> dict:
 
 
 def show_run(args) -> int:
-    store = open_store(args, create=False)
+    store = open_reader(args)
     args.run_id = resolve_run_id(store, args.run_id)
     info = store.get_run(args.run_id)
     streams = store.streams(args.run_id)
@@ -78,7 +82,9 @@ def show_run(args) -> int:
         json.dump(doc, sys.stdout, indent=2, default=str)
         print()
         return 0
-    print(f"run        {info.id}\nprocedure  {info.procedure}\nunit       {info.unit_serial}\n"
+    print(f"run        {info.id}\nuuid       {info.uuid}\nprocedure  {info.procedure}\n"
+          f"unit       {info.unit_serial}\n"
+          + "".join(f"{k:<11}{v}\n" for k, v in info.labels.items()) +
           f"status     {info.status}" + (f" — {info.reason}" if info.reason else "") +
           (f"\nverdict    {verdict}" if verdict else "") +
           f"\nstarted    {info.started_utc}\nended      {info.ended_utc}\nseed       {info.seed}\n"
@@ -111,7 +117,7 @@ def show_run(args) -> int:
 def export_run(args) -> int:
     from bench.app.export import export_csv, export_hdf5
 
-    store = open_store(args, create=False)
+    store = open_reader(args)
     args.run_id = resolve_run_id(store, args.run_id)
     if args.format == "csv":
         paths = export_csv(store, args.run_id, Path(args.out or f"export-{args.run_id}"))

@@ -3,12 +3,13 @@
 :func:`write_angular_report` writes into one directory:
 
 * ``angular_report.html`` — the story: each sensor's FRF and fitted model, the alignment,
-  the metric table of every method (RMS error, worst amplitude/phase error, NIS), the
-  per-tone error table, and whether Document B's claims hold on this run;
+  how every method was tuned, the side-by-side table of every method (RMS error, worst
+  amplitude/phase error, worst excess over the better sensor, the recommended one in bold),
+  the per-tone error table, NIS, and whether Document B's claims hold on this run;
 * ``angular_frf.png`` — FRF magnitude and phase of both sensors (points with ±2σ bars)
   and the fitted models (with their delays);
 * ``angular_errors.png`` — amplitude error (%) and phase error (deg) against frequency for
-  every method on one plot;
+  every method on one plot (the recommended one drawn heaviest);
 * ``angular_tuning.png`` — every tuning candidate's RMS error against its worst excess
   amplitude error, fixed R and adaptive R at each process noise;
 * ``angular_time.png`` — a window of the record: reference, each sensor alone, the fused
@@ -30,19 +31,31 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench.analysis.fusion_metrics import excess_over_best
+from bench.analysis.fusion_analysis import METHODS, excess_over_best
 from bench.analysis.fusion_models import SensorModel
 from bench.app.reports.common import html_table, save_figure
 
-LABELS = {"fused": "sequential adaptive-R KF (Document B)", "fixed_r_kf": "fixed-R Kalman fusion",
-          "complementary": "complementary filter", "hf": "MHD sensor alone", "lf": "LF sensor alone"}
-STYLE = {"fused": ("C3", "o", 2.0), "fixed_r_kf": ("C0", "s", 1.2), "complementary": ("C2", "^", 1.2),
-         "hf": ("C1", "v", 1.0), "lf": ("C4", "D", 1.0)}
+#: plot style per method (colour, marker); every method of the registry has one
+STYLE = {"hf": ("C1", "v"), "lf": ("C4", "D"), "complementary": ("C2", "^"), "fused": ("C3", "o"),
+         "fixed_r_kf": ("C0", "s"), "complementary_kf": ("C5", "P"), "complementary_kf_adaptive": ("C6", "X"),
+         "complementary_smoother": ("C9", "*"), "complementary_smoother_adaptive": ("C8", "h")}
 SENSORS = {"hf": ("MHD (HF) sensor", "V/(deg/s)"), "lf": ("LF sensor", "(deg/s)/(deg/s)")}
 WINDOW_S = 2.0
-#: ``fusion_aligned`` columns of each method's estimate (procedures.fusion.estimate_column)
-COLUMNS = {"fused": "fused_dps", "fixed_r_kf": "fixed_r_kf_dps", "complementary": "complementary_dps",
-           "hf": "hf_alone_dps", "lf": "lf_alone_dps"}
+
+
+def column(method: str) -> str:
+    """``fusion_aligned`` column of a method's estimate (as procedures.fusion.estimate_column writes it)."""
+    return {"hf": "hf_alone_dps", "lf": "lf_alone_dps"}.get(method, f"{method}_dps")
+
+
+def _methods(analysis: dict) -> list[str]:
+    """The methods an analysis judged, in registry order (a run stored before the registry grew
+    has fewer)."""
+    return [k for k in METHODS if k in (analysis.get("rms_error") or {})]
+
+
+def _label(method: str) -> str:
+    return METHODS[method].label if method in METHODS else method
 
 
 def _model_response(fit: dict, f: np.ndarray) -> np.ndarray:
@@ -87,28 +100,31 @@ def frf_figure(points: dict, fits: dict, path: Path) -> str:
 
 def errors_figure(analysis: dict, path: Path) -> str:
     f = np.asarray(analysis["tones_hz"], dtype=float)
-    fig = Figure(figsize=(9, 6))
+    fig = Figure(figsize=(9, 6.5))
     ax_a, ax_p = fig.subplots(2, 1, sharex=True)
-    for method, label in LABELS.items():
-        colour, marker, lw = STYLE[method]
+    recommended = analysis.get("recommended")
+    for method in _methods(analysis):
+        colour, marker = STYLE.get(method, ("k", "."))
+        lw = 2.4 if method == recommended else 1.0
+        label = _label(method) + (" — recommended" if method == recommended else "")
         amp = np.abs(np.asarray(analysis["amplitude_error_pct"][method], dtype=float))
         ph = np.asarray(analysis["phase_error_deg"][method], dtype=float)
-        ax_a.plot(f, np.maximum(amp, 1e-4), marker=marker, color=colour, lw=lw, ms=4, label=label)
+        ax_a.plot(f, np.maximum(amp, 1e-5), marker=marker, color=colour, lw=lw, ms=4, label=label)
         ax_p.plot(f, ph, marker=marker, color=colour, lw=lw, ms=4, label=label)
     ax_a.set_xscale("log")
     ax_a.set_yscale("log")
     ax_a.set_ylabel("|amplitude error| (%)")
     ax_p.set_ylabel("phase error (deg)")
-    ax_p.set_yscale("symlog", linthresh=0.1)
+    ax_p.set_yscale("symlog", linthresh=0.01)
     ax_p.set_xlabel("tone frequency (Hz)")
-    ax_a.set_title("error against the table reference, every method on the same record")
-    ax_a.legend(fontsize=7)
+    ax_a.set_title("error against the table reference, every method on the same (judged) record")
+    ax_a.legend(fontsize=6, ncol=2)
     for ax in (ax_a, ax_p):
         ax.grid(True, which="both", lw=0.3)
     return save_figure(fig, path)
 
 
-def time_figure(aligned: dict, path: Path) -> str:
+def time_figure(aligned: dict, path: Path, recommended: str | None = None) -> str:
     t = np.asarray(aligned["t_s"], dtype=float)
     mid = t[0] + 0.5 * (t[-1] - t[0])
     sel = (t >= mid) & (t <= mid + WINDOW_S)
@@ -117,17 +133,20 @@ def time_figure(aligned: dict, path: Path) -> str:
     fig = Figure(figsize=(9, 6))
     ax_s, ax_e = fig.subplots(2, 1, sharex=True)
     ax_s.plot(tt, ref, color="k", lw=1.5, label="table reference")
-    for method in ("hf", "lf", "fused"):
-        colour, _, lw = STYLE[method]
-        ax_s.plot(tt, np.asarray(aligned[COLUMNS[method]])[sel], color=colour, lw=0.8, label=LABELS[method])
-    for method in ("fused", "fixed_r_kf", "complementary"):
-        colour, _, lw = STYLE[method]
-        ax_e.plot(tt, np.asarray(aligned[COLUMNS[method]])[sel] - ref, color=colour, lw=0.6, label=LABELS[method])
+    shown = ["hf", "lf", "fused"] + ([recommended] if recommended not in (None, "hf", "lf", "fused") else [])
+    for method in shown:
+        if column(method) in aligned:
+            ax_s.plot(tt, np.asarray(aligned[column(method)])[sel], color=STYLE.get(method, ("k", "."))[0], lw=0.8,
+                      label=_label(method))
+    for method in [m for m in METHODS if m not in ("hf", "lf")]:
+        if column(method) in aligned:
+            ax_e.plot(tt, np.asarray(aligned[column(method)])[sel] - ref, color=STYLE.get(method, ("k", "."))[0],
+                      lw=1.2 if method == recommended else 0.5, label=_label(method))
     ax_s.set_ylabel("rate (deg/s)")
     ax_e.set_ylabel("error (deg/s)")
     ax_e.set_xlabel(f"time from {mid:.4g} s (s)")
     ax_s.legend(fontsize=7, ncol=2)
-    ax_e.legend(fontsize=7)
+    ax_e.legend(fontsize=6, ncol=2)
     for ax in (ax_s, ax_e):
         ax.grid(True, lw=0.3)
     return save_figure(fig, path)
@@ -167,11 +186,11 @@ def _fmt(x, digits: int = 4) -> str:
 def claims(analysis: dict) -> list[tuple[str, bool, str]]:
     """Document B's claims as checks on this run: (claim, holds, evidence).  "No worse"
     allows two standard errors of the difference (the estimates are noisy)."""
-    worse, sd = excess_over_best(analysis)
+    worse, sd = excess_over_best(analysis, "fused")
     rms = analysis["rms_error"]
     f = np.asarray(analysis["tones_hz"], dtype=float)
     worst = int(np.argmax(worse - 2 * sd))
-    diverged = any(v.get("diverged", False) for v in analysis["nis"].values())
+    diverged = any(v.get("diverged", False) for k, v in analysis["nis"].items() if k.startswith("fused"))
     return [
         ("fused amplitude error no worse than the better single sensor at every tone (within 2σ)",
          bool(np.all(worse <= 2 * sd)),
@@ -180,28 +199,52 @@ def claims(analysis: dict) -> list[tuple[str, bool, str]]:
          f"{rms['fused']:.5g} vs {rms['fixed_r_kf']:.5g} deg/s "
          f"({100 * (rms['fused'] / rms['fixed_r_kf'] - 1):+.3f} %)"),
         ("the sequential filter does not diverge (NIS)", not diverged,
-         ", ".join(f"{k} mean NIS {v['mean']:.3g}" for k, v in analysis["nis"].items())),
+         ", ".join(f"{k} mean NIS {v['mean']:.3g}" for k, v in analysis["nis"].items() if k.startswith("fused"))),
     ]
+
+
+def _settings_text(analysis: dict) -> list[str]:
+    """One line per tuned method: what the tuning part chose."""
+    methods = analysis.get("methods") or {}
+    out = []
+    cf = (methods.get("complementary") or {}).get("settings") or {}
+    if cf:
+        out.append(f"complementary filter: crossover {cf['crossover_hz']:.4g} Hz")
+    ckf = (methods.get("complementary_kf") or {}).get("settings") or {}
+    if ckf:
+        nz = ckf["noise"]
+        out.append(f"complementary Kalman filter (maximum likelihood): HF noise σ² {nz['hf_var']:.3g}, LF noise σ² "
+                   f"{nz['lf_var']:.3g}, HF offset walk {nz['offset_rw']:.3g} /s")
+    ad = (methods.get("complementary_kf_adaptive") or {}).get("settings") or {}
+    if ad:
+        lfn = ad["lf_noise"]
+        out.append(f"adaptive R on top: LF R between {lfn['r_lower']:.3g} and {lfn['r_upper']:.3g}, disturbed "
+                   f"{lfn['a'][2]:.3g}")
+    fixed = (methods.get("fixed_r_kf") or {}).get("settings") or {}
+    if fixed:
+        out.append(f"fixed-R Kalman filter: q {fixed['q']:.4g} (deg/s)²/s")
+    return out
 
 
 def write_angular_report(results: dict, folder: Path, context: dict, aligned: dict | None = None) -> Path:
     """Write the report (module docstring) from a run's results; returns the HTML path."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    parts = [f"<h1>Angular rig — Document B</h1><p>{html.escape(', '.join(f'{k}: {v}' for k, v in context.items()))}</p>"]
+    head = html.escape(", ".join(f"{k}: {v}" for k, v in context.items()))
+    parts = [f"<h1>Angular rig — Document B</h1><p>{head}</p>"]
     points, fits = results.get("frf.points"), results.get("frf.fits", {})
     if points:
         png = frf_figure(points, fits, folder / "angular_frf.png")
-        rows = []
-        for sensor, (title, unit) in SENSORS.items():
+        frf_rows: list[list[object]] = []
+        for sensor, (title, _unit) in SENSORS.items():
             fit = fits.get(sensor)
             if fit:
                 m = fit["model"]
-                rows.append([title, f"{m['kind']} order {m['order']}", _fmt(m["corner_hz"]), _fmt(m["gain"]),
-                             _fmt(m.get("zeta")), _fmt(1e6 * fit.get("delay_s", 0.0)), _fmt(fit["residual"], 3)])
+                frf_rows.append([title, f"{m['kind']} order {m['order']}", _fmt(m["corner_hz"]), _fmt(m["gain"]),
+                                 _fmt(m.get("zeta")), _fmt(1e6 * fit.get("delay_s", 0.0)), _fmt(fit["residual"], 3)])
         parts.append("<h2>1. Frequency response (stepped sine against the table reference)</h2>"
                      f"<img src='{png}'>" + html_table(
-                         ["sensor", "model", "corner (Hz)", "gain", "ζ", "delay (µs)", "relative misfit"], rows))
+                         ["sensor", "model", "corner (Hz)", "gain", "ζ", "delay (µs)", "relative misfit"], frf_rows))
     analysis = results.get("fusion.analysis")
     if analysis and analysis.get("rms_error"):
         align = results.get("fusion.alignment", {})
@@ -215,10 +258,11 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
         tuning = results.get("fusion.tuning")
         if tuning:
             ch = tuning["chosen"]
-            fixed_same_q = [c for c in tuning["candidates"] if c["q_factor"] == ch["q_factor"] and c["upper_factor"] == 1]
+            fixed_same_q = [c for c in tuning["candidates"]
+                            if c["q_factor"] == ch["q_factor"] and c["upper_factor"] == 1]
             same = (f"; a fixed R at the same q gives {fixed_same_q[0]['rms_error']:.5g} deg/s, excess "
                     f"{fixed_same_q[0]['excess_pct']:.3g} pp") if fixed_same_q else ""
-            parts.append("<h2>3. Tuning (on the first part of the record; everything below is the rest)</h2>"
+            parts.append("<h2>3. Tuning Document B (on the first part of the record; everything below is the rest)</h2>"
                          f"<img src='{tuning_figure(tuning, folder / 'angular_tuning.png')}'><p>" + html.escape(
                              f"Chosen: q × {ch['q_factor']:g} (q = {tuning['q']:.4g} (deg/s)²/s), r_upper = "
                              f"{ch['upper_factor']:g} σ², disturbed R = {ch['inflate']:g} σ² — RMS "
@@ -226,33 +270,50 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
                              f"{tuning['rule']}.") + "</p>")
         png = errors_figure(analysis, folder / "angular_errors.png")
         rms = analysis["rms_error"]
-        best = min(rms, key=rms.get)
-        rows = []
-        for i, (method, label) in enumerate(LABELS.items()):
+        methods = _methods(analysis)
+        recommended = analysis.get("recommended") or min(rms, key=rms.get)
+        rows: list[list[object]] = []
+        for method in methods:
             amp = np.abs(np.asarray(analysis["amplitude_error_pct"][method], dtype=float))
             ph = np.abs(np.asarray(analysis["phase_error_deg"][method], dtype=float))
-            rows.append([label, _fmt(rms[method]), _fmt(float(amp.max())), _fmt(float(ph.max()))])
-        order = list(LABELS)
-        parts.append("<h2>4. Every method against the reference</h2>"
-                     f"<img src='{png}'>" + html_table(
-                         ["method", "RMS error (deg/s)", "max |amplitude error| (%)", "max |phase error| (deg)"],
-                         rows, bold_rows={order.index(best)}))
+            ex, sd = excess_over_best(analysis, method)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = np.where(sd > 0, ex / sd, np.where(ex > 0, np.inf, 0.0))
+            sensor_ok = (analysis.get("feasible_sensor") or {}).get(method)
+            rows.append([_label(method) + (" (recommended)" if method == recommended else ""), _fmt(rms[method]),
+                         _fmt(float(amp.max())), _fmt(float(ph.max())),
+                         f"{float(ex.max()):+.3g} pp ({float(z.max()):.3g}σ)",
+                         ("yes" if bool(np.all(ex <= 2 * sd)) else "no") + " / "
+                         + ("—" if sensor_ok is None else "yes" if sensor_ok else "no")])
+        settings = "".join(f"<li>{html.escape(line)}</li>" for line in _settings_text(analysis))
+        parts.append("<h2>4. Every method against the reference</h2><p>" + html.escape(
+            f"Recommended: {_label(recommended)} — {analysis.get('recommendation_rule', '')}.") + "</p>"
+            + (f"<ul>{settings}</ul>" if settings else "")
+            + f"<img src='{png}'>" + html_table(
+                ["method", "RMS error (deg/s)", "max |amplitude error| (%)", "max |phase error| (deg)",
+                 "worst excess over the better sensor",
+                 "within 2σ at every tone: of the excess / of the sensor's own error"],
+                rows, bold_rows={methods.index(recommended)} if recommended in methods else frozenset()))
         f = analysis["tones_hz"]
-        tone_rows = [[_fmt(fk)] + [f"{analysis['amplitude_error_pct'][m][i]:+.3g} / "
-                                   f"{analysis['phase_error_deg'][m][i]:+.3g}" for m in LABELS]
-                     for i, fk in enumerate(f)]
+        tone_rows: list[list[object]] = []
+        for i, fk in enumerate(f):
+            cells: list[object] = [_fmt(fk)]
+            cells += [f"{analysis['amplitude_error_pct'][m][i]:+.3g} / {analysis['phase_error_deg'][m][i]:+.3g}"
+                      for m in methods]
+            tone_rows.append(cells)
         parts.append("<h3>Per tone: amplitude error (%) / phase error (deg)</h3>"
-                     + html_table(["tone (Hz)"] + [LABELS[m] for m in LABELS], tone_rows))
-        nis_rows = [[k, _fmt(v["mean"]), f"{_fmt(v['lower'])}..{_fmt(v['upper'])}",
+                     + html_table(["tone (Hz)"] + [_label(m) for m in methods], tone_rows))
+        nis_rows: list[list[object]] = [[k, _fmt(v["mean"]), f"{_fmt(v['lower'])}..{_fmt(v['upper'])}",
                      "yes" if v.get("consistent") else "no", "yes" if v.get("diverged") else "no"]
                     for k, v in analysis["nis"].items()]
         parts.append("<h3>Consistency (normalised innovation squared)</h3>"
                      + html_table(["filter/update", "mean NIS", "95 % band", "consistent", "diverged"], nis_rows))
-        check_rows = [[c, "holds" if ok else "does not hold", ev] for c, ok, ev in claims(analysis)]
+        check_rows: list[list[object]] = [[c, "holds" if ok else "does not hold", ev] for c, ok, ev in claims(analysis)]
         parts.append("<h2>5. Document B's claims on this run</h2>"
                      + html_table(["claim", "verdict", "evidence"], check_rows))
         if aligned is not None:
-            parts.append(f"<h2>6. A window of the record</h2><img src='{time_figure(aligned, folder / 'angular_time.png')}'>")
+            png = time_figure(aligned, folder / "angular_time.png", recommended)
+            parts.append(f"<h2>6. A window of the record</h2><img src='{png}'>")
         notes = analysis.get("notes") or []
         if notes:
             parts.append("<h3>Notes</h3><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")

@@ -70,6 +70,10 @@ class RunInfo:
     reason: str | None
     last_sample_t_s: float | None
     results: dict[str, Any] = field(default_factory=dict)
+    #: globally unique id (the central store's key; derived from the store's UUID and ``id``)
+    uuid: str | None = None
+    #: what a factory sorts runs by: ``station_id``, ``socket``, ``lot`` (text) when given
+    labels: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -104,6 +108,25 @@ class AttachmentInfo:
     size_bytes: int
     sha256: str
     created_utc: str
+
+
+#: the labels a run may carry (``RunStore.create_run(labels=...)``)
+LABELS = ("station_id", "socket", "lot")
+
+
+def check_labels(labels: object) -> dict[str, str]:
+    """``labels`` as a dict of known keys to non-empty text (at most 128 characters)."""
+    if labels is None:
+        return {}
+    if not isinstance(labels, dict):
+        raise TypeError(f"labels must be a dict, got {type(labels).__name__}")
+    unknown = sorted(set(labels) - set(LABELS))
+    if unknown:
+        raise ValueError(f"labels {unknown} unknown; allowed: {', '.join(LABELS)}")
+    for key, value in labels.items():
+        if not isinstance(value, str) or not value or len(value) > 128 or not value.isprintable():
+            raise ValueError(f"label {key} = {value!r} must be printable text of 1..128 characters")
+    return {k: labels[k] for k in LABELS if k in labels}
 
 
 def utc_now() -> str:

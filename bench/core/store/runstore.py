@@ -15,6 +15,7 @@ import secrets
 import sqlite3
 import threading
 import time
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,7 @@ from .model import (
     UnknownAttachmentError,
     UnknownRunError,
     UnknownStreamError,
+    check_labels,
     from_json,
     to_json,
     utc_now,
@@ -43,7 +45,7 @@ DEFAULT_PATH = Path("bench-data/bench.sqlite")
 
 _RUN_COLUMNS = (
     "id, procedure, parameters_json, station_json, unit_serial, seed, code_version, "
-    "started_utc, ended_utc, status, reason, last_sample_t_s"
+    "started_utc, ended_utc, status, reason, last_sample_t_s, labels_json"
 )
 
 
@@ -68,7 +70,21 @@ class RunStore:
         self._conn: sqlite3.Connection | None = connect(self.path, synchronous, busy_timeout_s)
         # Strong references: a writer dropped unfinished is still aborted by close().
         self._open_writers: dict[str, RunWriter] = {}
+        (store_uuid,) = self._conn.execute(
+            "SELECT value FROM meta WHERE key = 'store_uuid'").fetchone()
+        #: this store's identity towards a central store (made when the file was created)
+        self.uuid = uuid.UUID(store_uuid)
         self.recover_interrupted()
+
+    @property
+    def location(self) -> str:
+        """Where the store is, as a message names it."""
+        return os.fspath(self.path)
+
+    def run_uuid(self, run_id: str) -> str:
+        """The run's globally unique id: UUID 5 of its id in this store's namespace (ids are
+        unique in a store, store UUIDs are random, so the pair is unique in every fleet)."""
+        return str(uuid.uuid5(self.uuid, run_id))
 
     def __repr__(self) -> str:
         return f"RunStore({os.fspath(self.path)!r})"
@@ -100,8 +116,10 @@ class RunStore:
         unit_serial: str | None,
         seed: int | None,
         code_version: str,
+        labels: dict[str, str] | None = None,
     ) -> RunWriter:
-        """Start a run (status ``running``) and return its writer."""
+        """Start a run (status ``running``) and return its writer.  ``labels``: the run's
+        ``station_id``, test ``socket`` and unit ``lot`` where known (text)."""
         if not isinstance(procedure, str) or not procedure:
             raise ValueError(f"procedure must be a non-empty str, got {procedure!r}")
         for name, value in (("parameters", parameters), ("station", station)):
@@ -115,6 +133,7 @@ class RunStore:
             raise TypeError(f"code_version must be str, got {code_version!r}")
         parameters_json = to_json(parameters, "parameters")
         station_json = to_json(station, "station")
+        labels_json = to_json(check_labels(labels), "labels")
         me = liveness.current_process()
         for _ in range(100):  # a 16-bit suffix collides rarely; retry with a fresh one
             now = time.time()
@@ -125,11 +144,11 @@ class RunStore:
                     conn.execute(
                         "INSERT INTO runs (id, procedure, parameters_json, station_json, "
                         "unit_serial, seed, code_version, started_utc, last_write_utc, status, "
-                        "writer_host, writer_pid, writer_start) "
-                        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?, ?, ?)",
+                        "writer_host, writer_pid, writer_start, labels_json) "
+                        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, 'running', ?, ?, ?, ?)",
                         (run_id, procedure, parameters_json, station_json, unit_serial,
                          None if seed is None else str(int(seed)), code_version, started,
-                         started, me.host, me.pid, me.start_token),
+                         started, me.host, me.pid, me.start_token, labels_json),
                     )
             except sqlite3.IntegrityError:
                 continue
@@ -329,6 +348,60 @@ class RunStore:
             self._run_row(conn, run_id)
             return self._results(conn, run_id)
 
+    # -- forwarding to a central store (bench.core.store.forward) ---------------------------
+    def chunk_rows(self, run_id: str) -> Iterator[tuple[str, int, int, str, bytes]]:
+        """The run's stored chunks as they are, ``(stream, seq, n_rows, dtypes, data)`` in
+        stream-declaration and seq order: what a central store copies without decoding."""
+        with self._read_snapshot() as conn:
+            self._run_row(conn, run_id)
+            rows = conn.execute(
+                "SELECT c.stream, c.seq, c.n_rows, c.dtypes, c.data FROM chunks c "
+                "JOIN streams s ON s.run_id = c.run_id AND s.name = c.stream "
+                "WHERE c.run_id = ? ORDER BY s.position, c.seq", (run_id,)).fetchall()
+        for stream, seq, n_rows, dtypes, data in rows:
+            yield stream, int(seq), int(n_rows), dtypes, bytes(data)
+
+    def forwarded(self, target: str) -> dict[str, tuple[str, str]]:
+        """Runs already sent to the central store ``target`` (its UUID): run id -> (digest,
+        attachment manifest) as sent."""
+        with self._read_snapshot() as conn:
+            rows = conn.execute("SELECT run_id, digest, manifest FROM forwarded WHERE target = ?",
+                                (target,)).fetchall()
+        return {run_id: (digest, manifest) for run_id, digest, manifest in rows}
+
+    def finished_run_ids(self) -> list[str]:
+        """Ids of every finished run (any status but ``running``), oldest first."""
+        with self._read_snapshot() as conn:
+            rows = conn.execute("SELECT id FROM runs WHERE status != 'running' "
+                                "ORDER BY started_utc, rowid").fetchall()
+        return [r[0] for r in rows]
+
+    def attachment_index(self) -> dict[str, list[tuple[str, str]]]:
+        """Every run's attachments as ``(name, sha256)`` by name, in one query (what the
+        forwarding compares with what it sent)."""
+        with self._read_snapshot() as conn:
+            rows = conn.execute("SELECT run_id, name, sha256 FROM attachments "
+                                "ORDER BY run_id, name").fetchall()
+        index: dict[str, list[tuple[str, str]]] = {}
+        for run_id, name, sha in rows:
+            index.setdefault(run_id, []).append((name, sha))
+        return index
+
+    def unforwarded_run_ids(self) -> list[str]:
+        """Finished runs no central store has acknowledged, oldest first."""
+        with self._read_snapshot() as conn:
+            rows = conn.execute("SELECT id FROM runs WHERE status != 'running' AND id NOT IN "
+                                "(SELECT run_id FROM forwarded) ORDER BY started_utc, rowid").fetchall()
+        return [r[0] for r in rows]
+
+    def mark_forwarded(self, run_id: str, target: str, digest: str, manifest: str) -> None:
+        """Record that ``run_id`` is in the central store ``target`` as ``digest``/``manifest``."""
+        with self._write_transaction() as conn:
+            self._run_row(conn, run_id)
+            conn.execute("INSERT OR REPLACE INTO forwarded (run_id, target, digest, manifest, "
+                         "forwarded_utc) VALUES (?, ?, ?, ?, ?)",
+                         (run_id, target, digest, manifest, utc_now()))
+
     def schema_version(self) -> int:
         with self._lock:
             (value,) = self._connection().execute(
@@ -351,7 +424,7 @@ class RunStore:
 
     def _run_info(self, conn: sqlite3.Connection, row: tuple[Any, ...]) -> RunInfo:
         (run_id, procedure, parameters, station, unit_serial, seed, code_version, started,
-         ended, status, reason, last_t) = row
+         ended, status, reason, last_t, labels) = row
         return RunInfo(
             id=run_id,
             procedure=procedure,
@@ -366,4 +439,6 @@ class RunStore:
             reason=reason,
             last_sample_t_s=last_t,
             results=self._results(conn, run_id),
+            uuid=self.run_uuid(run_id),
+            labels=from_json(labels),
         )

@@ -12,17 +12,25 @@ imports may pass ``synchronous="NORMAL"``.
 Samples are stored one row per appended chunk per stream: ``data`` holds the chunk's columns'
 raw little-endian bytes one after another in the stream's column order, ``dtypes`` their
 numpy dtype strings, ``n_rows`` the length shared by every column.
+
+Version 2 (``bench sync``): each run has ``labels_json`` (station id, test socket, lot: what
+the factory sorts runs by) and the ``forwarded`` table records which finished runs reached
+which central store, with the digest they were sent with.  The store's own UUID
+(``meta.store_uuid``) names it to the central store; a run's UUID is derived from it and the
+run id (``RunStore.run_uuid``).  A version-1 file is migrated in place when opened (two added
+columns and a table; nothing rewritten).
 """
 
 from __future__ import annotations
 
 import os
 import sqlite3
+import uuid
 from pathlib import Path
 
 from .model import STATUSES, SchemaVersionError, utc_now
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 SYNCHRONOUS_MODES = ("NORMAL", "FULL", "EXTRA")
 
 _STATUS_CHECK = ", ".join(f"'{s}'" for s in STATUSES)
@@ -48,6 +56,8 @@ CREATE TABLE IF NOT EXISTS runs (
     last_sample_t_s REAL,
     writer_host     TEXT NOT NULL,
     writer_pid      INTEGER NOT NULL,
+    -- labels_json: {"station_id", "socket", "lot"} as text, what a factory sorts runs by
+    labels_json     TEXT NOT NULL DEFAULT '{{}}',
     writer_start    TEXT              -- see liveness.py, NULL where the OS does not tell
 );
 CREATE INDEX IF NOT EXISTS runs_by_start ON runs (started_utc);
@@ -94,7 +104,21 @@ CREATE TABLE IF NOT EXISTS results (
     value_json TEXT NOT NULL,
     PRIMARY KEY (run_id, key)
 );
+CREATE TABLE IF NOT EXISTS forwarded (
+    run_id        TEXT NOT NULL REFERENCES runs (id),
+    target        TEXT NOT NULL,      -- the central store's UUID
+    digest        TEXT NOT NULL,      -- sha256 of the run's acquired content as sent
+    manifest      TEXT NOT NULL,      -- sha256 of its attachment list as sent (analyses change it)
+    forwarded_utc TEXT NOT NULL,
+    PRIMARY KEY (run_id, target)
+);
 """
+#: version -> statements that bring a store of that version to the next one
+MIGRATIONS = {
+    1: ["ALTER TABLE runs ADD COLUMN labels_json TEXT NOT NULL DEFAULT '{}'",
+        DDL[DDL.index("CREATE TABLE IF NOT EXISTS forwarded"):]],
+}
+TABLES = ("meta", "runs", "streams", "chunks", "events", "attachments", "results", "forwarded")
 
 
 def connect(path: Path, synchronous: str, busy_timeout_s: float) -> sqlite3.Connection:
@@ -135,7 +159,7 @@ def _ensure_schema(conn: sqlite3.Connection, path: Path) -> None:
         if version is None:
             foreign = conn.execute(
                 "SELECT name FROM sqlite_master WHERE type='table' AND name NOT IN "
-                "('meta', 'runs', 'streams', 'chunks', 'events', 'attachments', 'results')"
+                f"({', '.join(repr(t) for t in TABLES)})"
             ).fetchall()
             if foreign:  # never write our tables into somebody else's database
                 raise SchemaVersionError(
@@ -151,10 +175,20 @@ def _ensure_schema(conn: sqlite3.Connection, path: Path) -> None:
                 (str(SCHEMA_VERSION), utc_now()),
             )
         elif version != SCHEMA_VERSION:
-            raise SchemaVersionError(
-                f"{path}: schema_version {version} but this code reads only version "
-                f"{SCHEMA_VERSION}; use the matching bench version (no migration exists yet)"
-            )
+            if version not in MIGRATIONS:
+                raise SchemaVersionError(
+                    f"{path}: schema_version {version} but this code reads versions "
+                    f"{sorted(MIGRATIONS)} (migrated) and {SCHEMA_VERSION}; use the matching "
+                    "bench version"
+                )
+            while version in MIGRATIONS:
+                for statement in MIGRATIONS[version]:
+                    conn.execute(statement)
+                version += 1
+            conn.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(version),))
+        # The store's identity towards a central store, made once (older stores get theirs now).
+        conn.execute("INSERT OR IGNORE INTO meta (key, value) VALUES ('store_uuid', ?)",
+                     (str(uuid.uuid4()),))
         conn.execute("COMMIT")
     except BaseException:
         conn.execute("ROLLBACK")
