@@ -24,13 +24,20 @@ from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
 from procedures.running import alone
-from procedures.thermal_sweep import ThermalSweep
+from procedures.thermal_sweep import AccelerometerSweepParameters, ThermalSweep
 from sim.physics.accelerometer import draw_accelerometer
 
 LINEAR = {"drift_g_per_s": 0.0, "bias_tc2_g_per_c2": 0.0, "bias_tc3_g_per_c3": 0.0, "sf_tc2_ppm_per_c2": 0.0,
           "sf_tc3_ppm_per_c3": 0.0, "bias_hysteresis_g": 0.0, "bias_gradient_g_per_c": 0.0}
-SWEEP = dict(low_c=-20.0, high_c=50.0, set_points=5, verify_points=2, ramp_c_per_min=3.0, soak_window_s=600.0,
-             soak_poll_s=60.0, positions=12, settle_s=2.0, average_s=4.0, nplc=1.0)
+SWEEP = AccelerometerSweepParameters(low_c=-20.0, high_c=50.0, set_points=5, verify_points=2, ramp_c_per_min=3.0,
+                                     soak_window_s=600.0, soak_poll_s=60.0, positions=12, settle_s=2.0,
+                                     average_s=4.0, nplc=1.0)
+
+
+def _stated(uncertainty: float | None) -> float:
+    if uncertainty is None:
+        raise ValueError("the step stated no uncertainty")
+    return uncertainty
 
 
 def main() -> None:
@@ -46,12 +53,12 @@ def main() -> None:
             cfg = builtin_sim_config()
             cfg = dataclasses.replace(cfg, simulation={**(cfg.simulation or {}), "accelerometer": LINEAR})
             with Station(cfg, seed=k, unit_serial=serial, unit_kind="accelerometer") as station:
-                outcome = execute(alone(ThermalSweep(**SWEEP)), station, store, unit_serial=serial, seed=k)
+                outcome = execute(alone(ThermalSweep(SWEEP)), station, store, unit_serial=serial, seed=k)
             got = {m.name: m for m in outcome.measurements}
             truth = draw_accelerometer(serial)
-            zb = (got["bias_tc"].value - truth.bias_tc_g_per_c) / got["bias_tc"].uncertainty
-            zs = (got["sf_tc"].value - truth.sf_tc_ppm_per_c) / got["sf_tc"].uncertainty
-            r = got["bias_residual"].value / got["bias_residual"].uncertainty
+            zb = (got["bias_tc"].value - truth.bias_tc_g_per_c) / _stated(got["bias_tc"].uncertainty)
+            zs = (got["sf_tc"].value - truth.sf_tc_ppm_per_c) / _stated(got["sf_tc"].uncertainty)
+            r = got["bias_residual"].value / _stated(got["bias_residual"].uncertainty)
             z_bias.append(zb)
             z_sf.append(zs)
             ratio.append(r)
