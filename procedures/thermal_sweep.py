@@ -263,7 +263,11 @@ class ThermalSweepBase(Step[P], Generic[P]):
         return out
 
     def _calibrate(self, measured: list[tuple[float, PointMeasurement]]) -> ThermalCalibration:
-        return calibrate_over_temperature(self._points(measured), reference_c=self.p.reference_c)
+        # "birge": the per-temperature σ a tumble states come from a few degrees of freedom and
+        # leave out the noise correlated across its positions; where the points scatter more
+        # than they claim the curve's covariance is widened by the Birge ratio (never narrowed)
+        return calibrate_over_temperature(self._points(measured), reference_c=self.p.reference_c,
+                                          uncertainty="birge")
 
 
 # --------------------------------------------------------------------------- accelerometer
@@ -271,7 +275,8 @@ class ThermalSweepBase(Step[P], Generic[P]):
 
 @dataclass
 class AccelerometerSweepParameters(SweepParameters):
-    positions: int = parameter(8, "tumble positions per temperature (a multiple of 4, one plane: IA–OA)")
+    positions: int = parameter(12, "tumble positions per temperature (a multiple of 4, one plane: IA–OA; 12 leaves "
+                                    "6 degrees of freedom for the per-temperature uncertainties)")
     settle_s: float = parameter(5.0, "tumble: after in position, before averaging, s")
     average_s: float = parameter(10.0, "tumble: averaging time per position, s")
     nplc: float = parameter(10.0, "tumble: DMM integration per reading, power-line cycles (0.02|0.06|0.2|1|10|100)")

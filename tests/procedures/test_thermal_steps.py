@@ -37,7 +37,7 @@ from sim.physics.accelerometer import draw_accelerometer
 SERIAL = "QA-SIM-0005"
 #: a short sweep: four temperatures 0…45 °C, one verification point between them
 SHORT = dict(low_c=0.0, high_c=45.0, set_points=4, verify_points=2, ramp_c_per_min=3.0,
-             soak_window_s=600.0, soak_poll_s=60.0, positions=8, settle_s=2.0, average_s=4.0, nplc=1.0)
+             soak_window_s=600.0, soak_poll_s=60.0, positions=12, settle_s=2.0, average_s=4.0, nplc=1.0)
 #: the drawn unit with only linear thermal terms, no hysteresis or gradient, and no slow bias
 #: drift in time (≈ 1e-9 g/s: 15 µg between the calibration and the verification points —
 #: which no thermal model can compensate)
