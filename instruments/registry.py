@@ -22,6 +22,7 @@ from types import MappingProxyType
 from typing import Any
 
 from .angular_table import AngularVibrationTable
+from .daq import KeysightDAQ970A
 from .fog import BAUD_RATES, SerialGyro
 from .multimeter import Keysight34465A
 from .power_supply import KeysightE36312A
@@ -31,6 +32,7 @@ from .protocols import (
     PositionRateTable,
     PowerSupply,
     RandomVibrationTable,
+    ScanningMultimeter,
     TimedTraceMultimeter,
 )
 from .shaker import VibrationTable
@@ -103,6 +105,7 @@ DRIVERS: Mapping[str, Driver] = MappingProxyType({d.key: d for d in (
         "polarity": Option(1, choices=(1, -1))})),
     Driver("vibration_controller", VibrationTable, RandomVibrationTable, VISA),
     Driver("angular_vibration_table", AngularVibrationTable, AngularTable, VISA),
+    Driver("keysight_daq970a", KeysightDAQ970A, ScanningMultimeter, VISA),
 )})
 
 __all__ = ["DRIVERS", "SERIAL", "TRANSPORTS", "VISA", "Driver", "Option"]
