@@ -8,6 +8,7 @@ import inspect
 import pytest
 
 from instruments.angular_table import AngularVibrationTable
+from instruments.daq import KeysightDAQ970A
 from instruments.fog import SerialGyro
 from instruments.multimeter import Keysight34465A
 from instruments.power_supply import KeysightE36312A
@@ -18,6 +19,7 @@ from instruments.protocols import (
     PowerSupply,
     RandomVibrationTable,
     SafeInstrument,
+    ScanningMultimeter,
     SafeOrder,
     TimedTraceMultimeter,
 )
@@ -28,8 +30,9 @@ from tests.instruments.test_driver_base import assert_conforms
 
 # Checked by the type checker (mypy runs on tests/): each driver is structurally its Protocol.
 STATIC: tuple[type[TimedTraceMultimeter], type[PowerSupply], type[PositionRateTable], type[FrameGyro],
-              type[RandomVibrationTable], type[AngularTable]] = (
-    Keysight34465A, KeysightE36312A, DualAxisTurntable, SerialGyro, VibrationTable, AngularVibrationTable)
+              type[RandomVibrationTable], type[AngularTable], type[ScanningMultimeter]] = (
+    Keysight34465A, KeysightE36312A, DualAxisTurntable, SerialGyro, VibrationTable, AngularVibrationTable,
+    KeysightDAQ970A)
 
 
 class Connection:

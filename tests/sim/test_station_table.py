@@ -28,6 +28,7 @@ DOCUMENTED_KINDS = {
     "angular_table": "drop stall slow garble error power interlock",
     "dmm_mhd": "drop stall slow garble error power overload",
     "lf_gyro": "drop stall frame power",
+    "daq": "drop stall slow garble error power overload",
 }
 
 
