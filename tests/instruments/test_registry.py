@@ -19,8 +19,8 @@ from instruments.protocols import (
     PowerSupply,
     RandomVibrationTable,
     SafeInstrument,
-    ScanningMultimeter,
     SafeOrder,
+    ScanningMultimeter,
     TimedTraceMultimeter,
 )
 from instruments.registry import DRIVERS, TRANSPORTS, Driver, Option
