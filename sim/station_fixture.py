@@ -13,6 +13,9 @@ Wiring (what the fixture's harness does):
 * ``open_sockets``: sockets whose unit's output lead is open (a connector not seated): the
   channel reads the fixture filter's 0 V.
 
+``fixture_units`` (overrides) and ``fixture_open`` describe sockets; they apply to the unit a
+batch puts in that socket, and to nothing while it is empty.
+
 Each unit is drawn by its serial (``draw_accelerometer``), with its own noise stream
 (``world.rng("accelerometer:<serial>")``, as the single unit of the same serial): the same
 serial is the same unit in any socket.
@@ -36,32 +39,39 @@ FIRST_CHANNEL = 101  # socket 1's DAQ channel
 SpecificForce = Callable[[np.ndarray], np.ndarray]
 
 
+def _socket_number(key, where: str) -> int:
+    try:
+        n = int(key)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where} socket {key!r} not in 1..{MAX_SOCKETS}") from None
+    if isinstance(key, bool) or not 1 <= n <= MAX_SOCKETS:
+        raise ValueError(f"{where} socket {key!r} not in 1..{MAX_SOCKETS}")
+    return n
+
+
 def check_fixture(sockets: Mapping, overrides: Mapping, open_sockets, tau_s: float) -> dict[int, str]:
     """The fixture's sockets as ``{socket: serial}``; ValueError naming a bad entry."""
     if not isinstance(sockets, Mapping):
         raise ValueError(f"fixture = {sockets!r} must be a table socket = serial")
     out: dict[int, str] = {}
     for key, serial in sockets.items():
-        try:
-            n = int(key)
-        except (TypeError, ValueError):
-            raise ValueError(f"fixture socket {key!r} not in 1..{MAX_SOCKETS}") from None
-        if not 1 <= n <= MAX_SOCKETS:
-            raise ValueError(f"fixture socket {key!r} not in 1..{MAX_SOCKETS}")
+        n = _socket_number(key, "fixture")
         if not isinstance(serial, str) or not 0 < len(serial) <= 64:
             raise ValueError(f"fixture socket {n}: serial {serial!r} must be text of 1..64 characters")
         if serial in out.values():
             raise ValueError(f"fixture socket {n}: serial {serial!r} is already in another socket")
         out[n] = serial
+    # overrides and open leads describe the fixture's sockets; they apply to a socket's unit
+    # when the batch puts one there (a station file names them before any serial is known)
     if not isinstance(overrides, Mapping):
         raise ValueError(f"fixture_units = {overrides!r} must be a table socket = {{parameters}}")
     for key, table in overrides.items():
-        if str(key) not in {str(n) for n in out}:
-            raise ValueError(f"fixture_units socket {key!r} holds no unit (sockets: {sorted(out)})")
-        draw_accelerometer(out[int(key)], dict(table))
-    for n in open_sockets:
-        if n not in out:
-            raise ValueError(f"fixture_open socket {n!r} holds no unit (sockets: {sorted(out)})")
+        n = _socket_number(key, "fixture_units")
+        draw_accelerometer(out.get(n, "QA-SIM-0001"), dict(table))
+    if not isinstance(open_sockets, (list, tuple)):
+        raise ValueError(f"fixture_open = {open_sockets!r} must be a list of sockets")
+    for key in open_sockets:
+        _socket_number(key, "fixture_open")
     if isinstance(tau_s, bool) or not isinstance(tau_s, (int, float)) or not 1e-7 <= tau_s <= 1.0:
         raise ValueError(f"fixture_settling_tau_s = {tau_s!r} not in 1e-07..1 s")
     return out

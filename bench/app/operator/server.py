@@ -52,6 +52,7 @@ class OperatorStation:
         self.seed, self.spec_path = seed, spec_path
         self.labels = dict(labels or {})
         self.thread: threading.Thread | None = None
+        self.last_station: Any = None  # the station the last batch opened (tests read its sim)
 
     # -- starting a batch ------------------------------------------------------------------
     def check_start(self, body: Any) -> tuple[str, dict[int, str], Any]:
@@ -97,6 +98,7 @@ class OperatorStation:
 
         def attach(station: Any) -> None:
             station.clock = AbortableClock(station.clock, live)
+            self.last_station = station
 
         labels = {**self.labels, "station_id": self.labels.get("station_id", f"operator:{self.config.name}")}
         try:
