@@ -20,16 +20,15 @@ import time
 import urllib.request
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from playwright.sync_api import sync_playwright  # noqa: E402  (after the path: tests.app helper)
-
-from tests.app.operator_server import CHROMIUM, serve  # noqa: E402
-
 SERIALS = {1: "QA-SIM-0003", 2: "QA-SIM-0002", 3: "QA-SIM-0004", 4: "QA-SIM-0001"}
 
 
 def main() -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' station helper
+    from playwright.sync_api import sync_playwright
+
+    from tests.app.operator_server import CHROMIUM, serve
+
     with tempfile.TemporaryDirectory() as tmp, serve(Path(tmp)) as (url, _), sync_playwright() as p:
         browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
         page = browser.new_page(viewport={"width": 1400, "height": 1000})
