@@ -49,7 +49,8 @@ def main() -> None:
         page.wait_for_selector("body[data-state=running]")
         continue_ms = 1000 * (time.perf_counter() - t0)
         page.wait_for_function("window.plotUpdates > 0", timeout=120_000)
-        plots0, msgs0, t_live = page.evaluate("window.plotUpdates"), page.evaluate("window.stateMessages"), time.perf_counter()
+        plots0, msgs0 = page.evaluate("window.plotUpdates"), page.evaluate("window.stateMessages")
+        t_live = time.perf_counter()
         page.wait_for_selector("body[data-state=done]", timeout=600_000)
         live_s = time.perf_counter() - t_live
         plots = page.evaluate("window.plotUpdates") - plots0
