@@ -9,9 +9,9 @@ imports nothing of the bench).
 
 A driver is called as ``cls(connection, name=<instrument name>, **driver_options)``, where
 the connection is what its transport opens: a pyvisa message-based resource (:data:`VISA`)
-or a pyserial port (:data:`SERIAL`).  A driver for another kind of connection (a Modbus TCP
-client for a chamber controller) adds its transport name here and its opener beside the
-others in ``bench.app.station.OPENERS``.
+a pyserial port (:data:`SERIAL`) or a connected pymodbus ``ModbusTcpClient`` (:data:`MODBUS`,
+a chamber controller).  A driver for another kind of connection adds its transport name here
+and its opener beside the others in ``bench.app.station.OPENERS``.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from types import MappingProxyType
 from typing import Any
 
 from .angular_table import AngularVibrationTable
+from .chamber import WatlowF4TChamber
 from .daq import KeysightDAQ970A
 from .fog import BAUD_RATES, SerialGyro
 from .multimeter import Keysight34465A
@@ -33,6 +34,7 @@ from .protocols import (
     PowerSupply,
     RandomVibrationTable,
     ScanningMultimeter,
+    ThermalChamber,
     TimedTraceMultimeter,
 )
 from .shaker import VibrationTable
@@ -42,7 +44,9 @@ from .turntable import DualAxisTurntable
 VISA = "visa"
 #: a pyserial port (a device path such as ``/dev/ttyUSB0``, or ``socket://host:port``)
 SERIAL = "serial"
-TRANSPORTS = (VISA, SERIAL)
+#: a pymodbus Modbus TCP client (``modbus://host[:port]``, port 502 by default)
+MODBUS = "modbus"
+TRANSPORTS = (VISA, SERIAL, MODBUS)
 
 
 @dataclass(frozen=True)
@@ -105,7 +109,10 @@ DRIVERS: Mapping[str, Driver] = MappingProxyType({d.key: d for d in (
         "polarity": Option(1, choices=(1, -1))})),
     Driver("vibration_controller", VibrationTable, RandomVibrationTable, VISA),
     Driver("angular_vibration_table", AngularVibrationTable, AngularTable, VISA),
+    Driver("watlow_f4t", WatlowF4TChamber, ThermalChamber, MODBUS, MappingProxyType({
+        "device_id": Option(1, range=(0, 247)),
+        "ambient_set_point_c": Option(23.0, range=(-70.0, 180.0))})),
     Driver("keysight_daq970a", KeysightDAQ970A, ScanningMultimeter, VISA),
 )})
 
-__all__ = ["DRIVERS", "SERIAL", "TRANSPORTS", "VISA", "Driver", "Option"]
+__all__ = ["DRIVERS", "MODBUS", "SERIAL", "TRANSPORTS", "VISA", "Driver", "Option"]

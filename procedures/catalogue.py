@@ -21,8 +21,11 @@ from procedures.fusion import FusionTest
 from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.ratetable import RateTableCalibration
 from procedures.startup import StartupAcquisition
+from procedures.thermal_ramp import GyroThermalRamp, ThermalRamp
+from procedures.thermal_sweep import GyroThermalSweep, ThermalSweep
 from procedures.tumble import TumbleCalibration
 from procedures.turn_on import GyroTurnOnTest, TurnOnTest
+from procedures.turn_on_repeatability import GyroTurnOnRepeatabilityTest, TurnOnRepeatabilityTest
 from procedures.vibration import VibrationTest
 
 CATALOGUE = Catalogue.of(
@@ -36,6 +39,12 @@ CATALOGUE = Catalogue.of(
     VibrationTest,           # vibration: Document C's test
     FrfTest,                 # frf: the angular rig (Document B)
     FusionTest,              # fusion: the angular rig (Document B)
+    ThermalSweep,            # thermal_sweep: calibration over temperature (chamber)
+    GyroThermalSweep,        # gyro_thermal_sweep
+    ThermalRamp,             # thermal_ramp: hysteresis and rate sensitivity (chamber)
+    GyroThermalRamp,         # gyro_thermal_ramp
+    TurnOnRepeatabilityTest,      # turn_on_repeatability: power cycles in the chamber
+    GyroTurnOnRepeatabilityTest,  # gyro_turn_on_repeatability
     renamed={"startup": "turn_on", "gyro_startup": "gyro_turn_on"},
 )
 

@@ -23,6 +23,7 @@ from instruments.protocols import (
     PowerSupply,
     RandomVibrationTable,
     ScanningMultimeter,
+    ThermalChamber,
     TimedTraceMultimeter,
 )
 
@@ -72,4 +73,9 @@ def angular_table(ctx: Context, name: str = "angular_table") -> AngularTable:
     return _instrument(ctx, name)
 
 
-__all__ = ["multimeter", "scanner", "power_supply", "turntable", "frame_gyro", "shaker", "angular_table"]
+def chamber(ctx: Context, name: str = "chamber") -> ThermalChamber:
+    """The temperature chamber's controller the unit (and its table) stands in."""
+    return _instrument(ctx, name)
+
+
+__all__ = ["multimeter", "scanner", "power_supply", "turntable", "frame_gyro", "shaker", "angular_table", "chamber"]

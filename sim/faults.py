@@ -43,6 +43,10 @@ interlock  a device with an interlock      ``trip_interlock``: drives off, latch
 overload   a meter (dmm, dmm_temp,         ``overload(volts)``: the input forced to
            dmm_mhd)                        ``volts`` (default 1e4 V, beyond every range):
                                            readings ±9.9E37
+limit      a controller with an over-      ``trip_limit``: heating and cooling cut,
+           temperature limit (chamber)     latched until the limit is cleared over its wire
+alarm      a controller with alarms        ``raise_alarm``: an alarm active (the chamber's
+           (chamber)                       alarm 2 high), latched until cleared
 ========== =============================== ============================================
 """
 
@@ -55,7 +59,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from sim.devices.lifecycle import InterlockedDevice, OverloadableDevice, SimDevice
+from sim.devices.lifecycle import AlarmingDevice, InterlockedDevice, LimitDevice, OverloadableDevice, SimDevice
 from sim.scpi import ScpiDevice
 from sim.server import Transport
 from sim.world import World
@@ -68,7 +72,7 @@ PARAMETERS: dict[str, dict[str, float | None]] = {
     "drop": {"refuse_s": 0.0}, "stall": {"duration_s": math.inf}, "slow": {"delay_ms": None},
     "garble": {"probability": None}, "error": {"count": 1, "code": -300},
     "frame": {"corrupt": 0.0, "loss": 0.0}, "power": {}, "interlock": {},
-    "overload": {"volts": DEFAULT_OVERLOAD_V}}
+    "overload": {"volts": DEFAULT_OVERLOAD_V}, "limit": {}, "alarm": {}}
 #: messages that still work under an ``error`` fault (reading the errors must be possible)
 _ERROR_EXEMPT = (b"SYST:ERR", b"SYSTEM:ERR", b":SYST:ERR", b":SYSTEM:ERR", b"*CLS", b"*ESR?",
                  b"*STB?")
@@ -223,7 +227,7 @@ class FaultInjector:
 
         Parameters by kind: drop(refuse_s=0), stall(duration_s=inf), slow(delay_ms),
         garble(probability), error(count=1, code=-300), frame(corrupt=0, loss=0), power(),
-        interlock(), overload(volts=1e4).  Bad values raise ValueError at once.
+        interlock(), overload(volts=1e4), limit(), alarm().  Bad values raise ValueError at once.
         """
         action = self.prepare(kind, instrument, params)
         if at_s is None:
@@ -344,6 +348,12 @@ class FaultInjector:
     def _arm_interlock(self, name: str, p: dict[str, Any]) -> Callable[[], None]:
         return cast(InterlockedDevice, self.devices[name]).trip_interlock
 
+    def _arm_limit(self, name: str, p: dict[str, Any]) -> Callable[[], None]:
+        return cast(LimitDevice, self.devices[name]).trip_limit
+
+    def _arm_alarm(self, name: str, p: dict[str, Any]) -> Callable[[], None]:
+        return cast(AlarmingDevice, self.devices[name]).raise_alarm
+
     def _arm_overload(self, name: str, p: dict[str, Any]) -> Callable[[], None]:
         volts = _number("volts", p["volts"], -1e6, 1e6)
         meter = cast(OverloadableDevice, self.devices[name])
@@ -381,4 +391,5 @@ _ARM: dict[str, Callable[[FaultInjector, str, dict[str, Any]], Callable[[], None
     "slow": FaultInjector._arm_slow, "garble": FaultInjector._arm_garble,
     "error": FaultInjector._arm_error, "frame": FaultInjector._arm_frame,
     "power": FaultInjector._arm_power, "interlock": FaultInjector._arm_interlock,
-    "overload": FaultInjector._arm_overload}
+    "overload": FaultInjector._arm_overload, "limit": FaultInjector._arm_limit,
+    "alarm": FaultInjector._arm_alarm}

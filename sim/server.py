@@ -9,7 +9,9 @@ SCPI instrument (:data:`SCPI`; port 5025 on real Keysight meters) is what pyvisa
 ``TCPIP::host::port::SOCKET``; a serial-line device (:data:`SERIAL`, a
 :class:`ByteStreamDevice`, e.g. the FOG's frame output) is served as a raw byte stream that
 pyserial opens as ``socket://host:port``, and writes to its one client through a
-:class:`SerialLink` whenever the world runs it, on the same thread.
+:class:`SerialLink` whenever the world runs it, on the same thread; a register-map device
+(:data:`MODBUS`, a chamber controller) is served by pymodbus's asyncio Modbus TCP server on
+the same loop, ``modbus://host:port``.
 
 Robustness: every message goes through the device's ``process()``, which never raises;
 a misbehaving client is disconnected on a socket error and never takes the server down.
@@ -30,7 +32,11 @@ import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, Protocol, cast
+
+from pymodbus.server import ModbusTcpServer
+from pymodbus.server.requesthandler import ServerRequestHandler
+from pymodbus.simulator import SimDevice
 
 from sim.scpi import MessageFramer, Oversize, ScpiDevice
 
@@ -115,7 +121,7 @@ class Transport(ABC):
     """How a simulated instrument is served on loopback: its listener and connection loop,
     the address a client opens, and the faults its wire carries.
 
-    One instance per kind of wire (:data:`SCPI`, :data:`SERIAL`).  Another wire is one more
+    One instance per kind of wire (:data:`SCPI`, :data:`SERIAL`, :data:`MODBUS`).  Another wire is one more
     subclass: set the class attributes, format the client's address in :meth:`resource`, and
     either implement :meth:`serve` (one asyncio stream connection, as the two here) or
     override :meth:`listen` to start a library's own asyncio server on the running loop
@@ -232,6 +238,77 @@ class SerialOverTcp(Transport):
             _close(writer, gate)
 
 
+class ModbusDevice(Protocol):
+    """A register-map device served over Modbus TCP: pymodbus's ``SimDevice`` of it, whose
+    action callback reads and writes the device (on the server thread)."""
+
+    def simdevice(self) -> SimDevice: ...
+
+
+class _GatedModbusHandler(ServerRequestHandler):
+    """pymodbus's per-connection handler with the instrument's fault gate in its path: admitted
+    or closed at connect, a silent instrument discards requests unanswered.  The handler is what
+    the gate holds as the connection (``gate.drop`` aborts its ``transport``)."""
+
+    def __init__(self, owner: ModbusTcpServer, gate: ConnectionGate | None) -> None:
+        super().__init__(owner, owner.trace_packet, owner.trace_pdu, owner.trace_connect)
+        self._gate = gate
+
+    def callback_connected(self) -> None:
+        super().callback_connected()
+        if self._gate is not None and not self._gate.admit(self):
+            cast(asyncio.Transport, self.transport).abort()  # reconnects refused now, or powered off
+
+    def callback_disconnected(self, exc: Exception | None) -> None:
+        if self._gate is not None:
+            self._gate.release(self)
+        super().callback_disconnected(exc)
+
+    def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
+        if self._gate is not None and self._gate.silent():
+            return len(data)  # stalled or unpowered: the request is lost, no reply
+        try:
+            return super().callback_data(data, addr)
+        except Exception:  # never let one client take the server down
+            log.exception("modbus client handler failed")
+            return len(data)
+
+
+class _GatedModbusServer(ModbusTcpServer):
+    def __init__(self, device: ModbusDevice, host: str, port: int,
+                 gate: Callable[[], ConnectionGate | None]) -> None:
+        super().__init__(device.simdevice(), address=(host, port))
+        self._gate_of = gate
+
+    def callback_new_connection(self) -> _GatedModbusHandler:
+        return _GatedModbusHandler(self, self._gate_of())
+
+    @property
+    def sockets(self) -> tuple[Any, ...]:
+        """The listening sockets (as an asyncio server has them)."""
+        listening: Any = self.transport
+        return tuple(listening.sockets) if listening is not None else ()
+
+
+class ModbusTcp(Transport):
+    """A Modbus TCP instrument (a chamber controller's Ethernet port, 502 on the real one):
+    pymodbus's asyncio ``ModbusTcpServer`` on the one server loop, the device's register map
+    as its data store; what a pymodbus ``ModbusTcpClient`` opens for ``modbus://host:port``."""
+
+    name = "modbus"
+    wire_fault_kinds = ("drop", "stall")
+    interface_in_instrument = True
+
+    def resource(self, host: str, port: int) -> str:
+        return f"modbus://{host}:{port}"
+
+    async def listen(self, device: Any, host: str, port: int,
+                     gate: Callable[[], ConnectionGate | None]) -> tuple[Listener, int]:
+        server = _GatedModbusServer(device, host, port, gate)
+        await server.serve_forever(background=True)
+        return server, int(server.sockets[0].getsockname()[1])
+
+
 def _close(writer: asyncio.StreamWriter, gate: ConnectionGate | None) -> None:
     if gate is not None:
         gate.release(writer)
@@ -244,6 +321,7 @@ def _close(writer: asyncio.StreamWriter, gate: ConnectionGate | None) -> None:
 #: the wires of the simulated station
 SCPI = ScpiOverTcp()
 SERIAL = SerialOverTcp()
+MODBUS = ModbusTcp()
 
 
 @dataclass

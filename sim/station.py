@@ -9,6 +9,10 @@ Wiring (what a lab would do with cables):
 * the accelerometer is fixed to the turntable platform with its input axis along platform z;
 * the fibre-optic gyro sits on the platform too (IA along z), powered from
   ``gyro_supply_channel``, its frames on a serial line (``sim/station_gyro.py``);
+* the turntable with both units stands inside a temperature chamber (``chamber``, a Watlow
+  F4T over Modbus TCP, ``sim/devices/chamber.py``): the chamber air is the units' ambient
+  (``sim/physics/thermal_chamber.py``); stopped, it rests at the lab's ambient.  The angular
+  rig stands outside it;
 * the shaker (``shaker``, a random-vibration controller) moves the same fixture along
   ``shaker_axis`` (platform frame; default z, the gyro's input axis).  The station has one
   fixture position: the platform is the shaker's fixture, so the controller refuses
@@ -33,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.devices.chamber import WatlowF4T
 from sim.devices.dmm import Multimeter
 from sim.devices.dmm_model import LinePickup
 from sim.devices.lifecycle import SimDevice
@@ -45,7 +50,8 @@ from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
 from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
 from sim.physics.motion import DualAxisTable
 from sim.physics.shaker import Shaker
-from sim.server import SCPI, SERIAL, Endpoint, InstrumentServer, Transport
+from sim.physics.thermal_chamber import ChamberAir, ChamberParams
+from sim.server import MODBUS, SCPI, SERIAL, Endpoint, InstrumentServer, Transport
 from sim.station_angular import AngularRig, draw_rig
 from sim.station_fixture import Fixture, check_fixture
 from sim.station_gyro import StationGyro, check_gyro_serial, station_gyro_params
@@ -84,6 +90,8 @@ class SimStationConfig:
     mhd: dict = field(default_factory=dict)        # MhdParams overrides
     lf_sensor: dict = field(default_factory=dict)  # LfRateParams overrides
     dmm_timebase_ppm: float = 0.0                  # the MHD DMM's sample timer, slow by this much
+    #: the temperature chamber's figures (``ChamberParams`` overrides: lab_ambient_c, rates, loop)
+    chamber: dict = field(default_factory=dict)
     #: the batch fixture (``sim.station_fixture``): socket (1..8) → unit serial, read by ``daq``
     fixture: dict = field(default_factory=dict)
     fixture_units: dict = field(default_factory=dict)   # socket → overrides of its drawn unit
@@ -131,6 +139,16 @@ class SimStationConfig:
         ppm = self.dmm_timebase_ppm
         if isinstance(ppm, bool) or not isinstance(ppm, (int, float)) or not abs(ppm) <= 1000:
             raise ValueError(f"dmm_timebase_ppm = {ppm!r} not in -1000..1000 ppm")
+        self.chamber_params()
+
+    def chamber_params(self) -> ChamberParams:
+        if not isinstance(self.chamber, dict):
+            raise ValueError(f"chamber = {self.chamber!r} must be a table of chamber figures")
+        known = set(ChamberParams.__dataclass_fields__)
+        unknown = sorted(set(self.chamber) - known)
+        if unknown:
+            raise ValueError(f"chamber parameter(s) {unknown} unknown; allowed: {sorted(known)}")
+        return ChamberParams(**self.chamber)
 
 
 class SimulatedStation:
@@ -146,8 +164,13 @@ class SimulatedStation:
         self.world = World(cfg.seed)
         self.g_mps2 = cfg.g_mps2 or local_gravity_mps2(cfg.latitude_deg, cfg.height_m)
         self.table = DualAxisTable()
+        #: the chamber air around the table and both units (at the lab's ambient while stopped)
+        self.chamber_air = ChamberAir(self.world, cfg.chamber_params())
+        self.chamber = WatlowF4T(self.world, self.chamber_air)
         self.accel = QuartzAccelerometer(draw_accelerometer(cfg.unit_serial, cfg.accelerometer),
-                                         self.world.rng(f"accelerometer:{cfg.unit_serial}"))
+                                         self.world.rng(f"accelerometer:{cfg.unit_serial}"),
+                                         ambient=self.chamber_air,
+                                         turn_on_rng=self.world.rng(f"accelerometer-turn-on:{cfg.unit_serial}"))
         self._mount = np.asarray(cfg.mount, float)
         pickup = LinePickup(amplitude_v=cfg.line_pickup_v, nominal_hz=cfg.line_hz)
         self.supply = PowerSupply(self.world)
@@ -165,7 +188,7 @@ class SimulatedStation:
                                  grade=cfg.gyro_grade, overrides=cfg.gyro,
                                  channel=cfg.gyro_supply_channel,
                                  latitude_deg=cfg.latitude_deg, g_mps2=self.g_mps2,
-                                 shaker=self.shaker)
+                                 shaker=self.shaker, ambient=self.chamber_air)
         self.gyro, self.gyro_line = self._gyro.model, self._gyro.line
         self.angular = AngularRig(self.world, serial=cfg.mhd_serial, mhd=cfg.mhd, lf=cfg.lf_sensor,
                                   line_pickup_v=cfg.line_pickup_v, line_hz=cfg.line_hz,
@@ -177,7 +200,8 @@ class SimulatedStation:
             specific_force=self.specific_force_iapo_g,
             sampling_resistor_ohm=cfg.sampling_resistor_ohm,
             line_pickup=LinePickup(amplitude_v=cfg.line_pickup_v, nominal_hz=cfg.line_hz, phase_rad=0.7),
-            settling_tau_s=cfg.fixture_settling_tau_s, ideal_meters=cfg.ideal_meters)
+            settling_tau_s=cfg.fixture_settling_tau_s, ideal_meters=cfg.ideal_meters,
+            ambient=self.chamber_air)
         #: every instrument's device, by name, in table order (``INSTRUMENTS``)
         self.devices: dict[str, SimDevice] = {row.name: row.device(self) for row in INSTRUMENTS}
         self.server = InstrumentServer(cfg.host)
@@ -271,6 +295,16 @@ class SimulatedStation:
         """The angular rig's drawn sensors (for recovery tests, never for procedures)."""
         return self.angular.truth()
 
+    def thermal_truth(self, t_s) -> dict:
+        """Air, case and element temperatures (°C) at past times ``t_s`` (for tests, never for
+        procedures): the chamber air and each unit's nodes, and the hysteresis memories."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        acc, fog = self.accel.body, self.gyro.body
+        return {"air_c": self.chamber_air.air_c(t),
+                "accelerometer_case_c": acc.case_c(t), "accelerometer_element_c": acc.element_c(t),
+                "accelerometer_memory_c": acc.hysteresis_memory_c(t),
+                "gyro_case_c": fog.case_c(t), "gyro_coil_c": fog.element_c(t),
+                "gyro_memory_c": fog.hysteresis_memory_c(t)}
     def fixture_truth(self) -> dict[int, dict]:
         """Each fixture socket's true unit (for recovery tests, never for procedures)."""
         return self.fixture.truth()
@@ -305,5 +339,6 @@ INSTRUMENTS: tuple[StationInstrument, ...] = (
                       lambda s: s.angular.controller),
     StationInstrument("dmm_mhd", "multimeter", SCPI, "keysight_34465a", lambda s: s.angular.dmm),
     StationInstrument("lf_gyro", "gyro", SERIAL, "fog_serial", lambda s: s.angular.lf_line),
+    StationInstrument("chamber", "thermal_chamber", MODBUS, "watlow_f4t", lambda s: s.chamber),
     StationInstrument("daq", "scanning_multimeter", SCPI, "keysight_daq970a", lambda s: s.fixture.daq),
 )

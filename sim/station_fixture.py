@@ -9,7 +9,8 @@ Wiring (what the fixture's harness does):
 * every socket's unit on the station's accelerometer rails (supply CH2 / CH3 inverted), in
   parallel: the supply sees the sum of their quiescent currents;
 * every unit fixed to the turntable platform with the station's mount (IA along platform
-  z): a turntable position is one position for the whole batch;
+  z), in the chamber air with the table: a turntable position is one position for the whole
+  batch;
 * ``open_sockets``: sockets whose unit's output lead is open (a connector not seated): the
   channel reads the fixture filter's 0 V.
 
@@ -30,6 +31,7 @@ import numpy as np
 from sim.devices.daq import ScanningDaq
 from sim.devices.dmm_model import LinePickup
 from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
+from sim.physics.thermal_unit import AmbientSource
 from sim.world import World
 
 MAX_SOCKETS = 8
@@ -82,12 +84,15 @@ class Fixture:
 
     def __init__(self, world: World, sockets: Mapping[int, str], *, overrides: Mapping,
                  open_sockets, specific_force: SpecificForce, sampling_resistor_ohm: float,
-                 line_pickup: LinePickup, settling_tau_s: float, ideal_meters: bool) -> None:
+                 line_pickup: LinePickup, settling_tau_s: float, ideal_meters: bool,
+                 ambient: AmbientSource | None = None) -> None:
+        """``ambient``: the air the fixture stands in (the station's chamber air)."""
         self.sockets = dict(sockets)
         self.open_sockets = {int(n) for n in open_sockets}
         by_socket = {int(k): dict(v) for k, v in overrides.items()}
         self.units = {n: QuartzAccelerometer(draw_accelerometer(serial, by_socket.get(n, {})),
-                                             world.rng(f"accelerometer:{serial}"))
+                                             world.rng(f"accelerometer:{serial}"), ambient=ambient,
+                                             turn_on_rng=world.rng(f"accelerometer-turn-on:{serial}"))
                       for n, serial in sorted(self.sockets.items())}
         self._force = specific_force
         self._ohm = float(sampling_resistor_ohm)

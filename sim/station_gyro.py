@@ -61,10 +61,10 @@ class StationGyro:
 
     def __init__(self, world: World, table: DualAxisTable, supply: PowerSupply, *,
                  serial: str, grade: str, overrides: dict, channel: int,
-                 latitude_deg: float, g_mps2: float, shaker=None) -> None:
+                 latitude_deg: float, g_mps2: float, shaker=None, ambient=None) -> None:
         check_gyro_serial(serial)
         self.params = station_gyro_params(serial, grade, overrides)
-        self.model = FiberOpticGyro(self.params, world.rng(f"gyro:{serial}"))
+        self.model = FiberOpticGyro(self.params, world.rng(f"gyro:{serial}"), ambient=ambient)
         self.table, self.latitude_deg, self.g_mps2 = table, latitude_deg, g_mps2
         self.shaker = shaker
         self.line = FogSerialDevice(

@@ -11,14 +11,19 @@ fusion sees:
 
 1. a quick FRF of each sensor against the reference at the tones (least-squares phasors);
 2. each sensor's clock rate error, from the phase drift of the highest tone it passes
-   (:func:`~bench.analysis.frf_timebase.estimate_time_base`, blocks of at least ten periods),
+   (:func:`~bench.analysis.frf_timebase.estimate_time_base`, blocks of at least ten periods;
+   the other tones fitted out of both series first, :func:`only_tone` — left in, they leak
+   into blocks a few of their periods long and the rate's uncertainty grows 20×),
    when the stretch holds at least three blocks and the error is significant (beyond three
    standard errors: correcting noise would add a drift);
 3. on the rate-corrected time axes, the FRF again and each sensor's transfer function with a
    pure delay (:func:`~bench.analysis.fusion_models.fit_transfer_function`, order ≤ 2; order 1
    with fewer than six tones), each FRF point weighted by its standard uncertainty (from both
    series' noise at the tone); for the HF sensor also with a first-order pole above the tones,
-   kept if it halves the misfit — then undone on the HF record (:func:`undo_upper_pole`);
+   kept if it halves the misfit — then undone on the HF record (:func:`undo_upper_pole`); for
+   the LF sensor also as the mean over each sample interval (an integrating converter: its
+   response ``sinc(f/fs)`` divided out of the FRF, the half interval's lag left to the delay),
+   kept if it halves the misfit — then undone on the LF record (:func:`undo_interval_mean`);
 4. the HF samples kept as they are on their corrected instants less the HF delay; the LF
    record (its instants corrected and moved back by its delay) and the reference resampled
    onto them (:func:`~bench.analysis.frf_timebase.resample`, band-limited), the ends that
@@ -44,6 +49,8 @@ CLOCK_BLOCK_S = 5.0  # longest clock block (s); at least ten periods of the tone
 MIN_CLOCK_BLOCKS = 3
 UPPER_POLE_HALF_WIDTH = 8  # taps each side of the derivative filter that undoes an HF upper pole
 UPPER_POLE_BAND = 0.25  # ... designed to be exact (1e-6) up to this fraction of the sample rate
+INTERVAL_MEAN_HALF_WIDTH = 8  # taps each side of the filter that undoes an LF interval mean
+INTERVAL_MEAN_BAND = 0.25  # ... designed up to this fraction of the sample rate
 CLOCK_SIGNIFICANCE = 3.0  # a clock rate error is corrected only beyond this many standard errors
 
 
@@ -59,6 +66,7 @@ class PairAlignment:
     trimmed_start: int
     trimmed_end: int
     notes: tuple
+    lf_interval_mean: bool = False
 
     def to_dict(self) -> dict:
         def clock(tb):
@@ -66,7 +74,8 @@ class PairAlignment:
 
         return {"hf_fit": self.hf_fit.to_dict(), "lf_fit": self.lf_fit.to_dict(), "hf_clock": clock(self.hf_clock),
                 "lf_clock": clock(self.lf_clock), "trimmed_start": int(self.trimmed_start),
-                "trimmed_end": int(self.trimmed_end), "notes": list(self.notes)}
+                "trimmed_end": int(self.trimmed_end), "notes": list(self.notes),
+                "lf_interval_mean": self.lf_interval_mean}
 
 
 def _frf(t_ref, ref, t_y, y, tones, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -109,7 +118,51 @@ def undo_upper_pole(y, upper_hz: float, rate_hz: float) -> np.ndarray:
     return y + dy / (2 * math.pi * upper_hz)
 
 
-def _clock(t, ref, y, f_hz: float, notes: list, name: str) -> TimeBase | None:
+def inverse_sinc_taps(half_width: int = INTERVAL_MEAN_HALF_WIDTH, band: float = INTERVAL_MEAN_BAND) -> np.ndarray:
+    """Symmetric taps ``c_0, c_1 … c_half_width`` of a filter whose response
+    ``c_0 + 2 Σ c_m cos mθ`` is ``1/sinc(θ/2π)`` — the inverse of a mean over one sample
+    interval — up to ``band``·fs: least squares on the relative error (≈ 10⁻⁶ at 8 taps to
+    fs/4; its gain at Nyquist stays below 2)."""
+    theta = np.linspace(0.0, 2 * np.pi * band, 400)
+    target = 1.0 / np.sinc(theta / (2 * np.pi))
+    design = np.column_stack([np.ones_like(theta)] + [2 * np.cos(m * theta) for m in range(1, half_width + 1)])
+    return np.linalg.lstsq(design / target[:, None], np.ones_like(theta), rcond=None)[0]
+
+
+def undo_interval_mean(y) -> np.ndarray:
+    """``y`` whose samples are means over their own sample interval, with that averaging undone
+    by :func:`inverse_sinc_taps` (looking ``INTERVAL_MEAN_HALF_WIDTH`` samples ahead; the ends,
+    where the filter would run off the record, keep their samples).  Offline only."""
+    y = np.asarray(y, dtype=float)
+    if y.ndim != 1:
+        raise ValueError(f"y must be 1-D (has shape {y.shape})")
+    taps = inverse_sinc_taps()
+    half = taps.size - 1
+    if y.size <= 2 * half:
+        return y.copy()
+    out = y.copy()
+    kernel = np.concatenate([taps[:0:-1], taps])
+    out[half:-half] = np.convolve(y, kernel, mode="valid")
+    return out
+
+
+def only_tone(t_s, y, tones_hz, f_hz: float) -> np.ndarray:
+    """``y`` less every tone of ``tones_hz`` but ``f_hz`` (one joint least-squares fit over the
+    record): the clock's per-block sine fits at ``f_hz`` then see its noise, not the other
+    tones leaking into blocks a few of their periods long."""
+    tones = np.asarray(tones_hz, dtype=float)
+    others = tones[~np.isclose(tones, f_hz)]
+    if others.size == 0:
+        return np.asarray(y, dtype=float)
+    t = np.asarray(t_s, dtype=float)
+    phasors, residual = tone_fit(t, y, tones)
+    kept = phasors[np.isclose(tones, f_hz)].sum()
+    arg = 2 * np.pi * f_hz * (t - t[0])
+    return residual + kept.real * np.cos(arg) - kept.imag * np.sin(arg)
+
+
+def _clock(t, ref, y, tones, f_hz: float, notes: list, name: str) -> TimeBase | None:
+    ref, y = only_tone(t, ref, tones, f_hz), only_tone(t, y, tones, f_hz)
     span = float(t[-1] - t[0])
     block = max(10.0 / f_hz, min(CLOCK_BLOCK_S, span / 4))
     if span < MIN_CLOCK_BLOCKS * block:
@@ -148,11 +201,12 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
     passed_lf = tones[np.abs(g_lf) >= 0.5 * np.abs(g_lf[0])]
     clocks = {}
     for name, y, passed in (("hf", hp, passed_hf), ("lf", lp, passed_lf)):
-        clocks[name] = _clock(tp, rp, y, float(passed.max()) if passed.size else float(tones.min()), notes, name)
+        clocks[name] = _clock(tp, rp, y, tones, float(passed.max()) if passed.size else float(tones.min()), notes, name)
     epoch = float(t[0])
     t_hf = t if clocks["hf"] is None else apply_time_base(t, clocks["hf"], epoch_s=epoch)
     t_lf = t if clocks["lf"] is None else apply_time_base(t, clocks["lf"], epoch_s=epoch)
     fits = {}
+    interval_mean = False
     for name, kind, ty, y in (("hf", "highpass", t_hf[part], hp), ("lf", "lowpass", t_lf[part], lp)):
         g, sd = _frf(tp, rp, ty, y, tones, rate_hz)
         order = 2 if tones.size >= 6 else 1
@@ -165,11 +219,24 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
             if (upper.upper_hz is not None and tones.max() < upper.upper_hz
                     and upper.residual < fits[name].residual / ORDER_GAIN_FACTOR):
                 fits[name] = upper
+        if name == "lf" and tones.max() <= INTERVAL_MEAN_BAND * rate_hz:
+            # the LF sensor's samples may be means over their interval (an integrating converter):
+            # its sinc droop is outside the fitted family and would bend the gain and the corner
+            droop = np.sinc(tones / rate_hz)
+            mean = fit_transfer_function(tones, g / droop, kind, max_order=order, fit_delay=True,
+                                         weights=droop / sd)
+            if mean.residual < fits[name].residual / ORDER_GAIN_FACTOR:
+                fits[name] = mean
+                interval_mean = True
     hf_fit, lf_fit = fits["hf"], fits["lf"]
     if hf_fit.upper_hz is not None:
         hf = undo_upper_pole(hf, hf_fit.upper_hz, rate_hz)
         notes.append(f"HF upper pole at {hf_fit.upper_hz:.4g} Hz measured and undone "
                      f"(a {UPPER_POLE_HALF_WIDTH}-sample look-ahead filter)")
+    if interval_mean:
+        lf = undo_interval_mean(lf)
+        notes.append(f"LF samples are means over their interval: sinc droop measured and undone "
+                     f"(a {INTERVAL_MEAN_HALF_WIDTH}-sample look-ahead filter)")
     t_base = t_hf - hf_fit.delay_s
     t_lf = t_lf - lf_fit.delay_s
     lo = max(t_lf[0], t[0])
@@ -185,4 +252,5 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
         if not math.isfinite(fit.residual) or fit.residual > 0.05:
             notes.append(f"{name} model misfit {fit.residual:.3g} (relative RMS over the tones): the fusion "
                          "will inherit it")
-    return aligned, PairAlignment(hf_fit, lf_fit, clocks["hf"], clocks["lf"], i0, t.size - i1, tuple(notes))
+    return aligned, PairAlignment(hf_fit, lf_fit, clocks["hf"], clocks["lf"], i0, t.size - i1, tuple(notes),
+                                  interval_mean)

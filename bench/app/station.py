@@ -50,7 +50,7 @@ import pyvisa
 from bench.core.clock import Clock, SimulatedClock, WallClock
 from bench.core.site import DEFAULT_SITE
 from instruments.base import open_resource
-from instruments.registry import DRIVERS, SERIAL, VISA, Option
+from instruments.registry import DRIVERS, MODBUS, SERIAL, VISA, Option
 
 if TYPE_CHECKING:  # the simulator is imported when a station starts one (it is slow to import)
     from sim.station import SimulatedStation
@@ -242,8 +242,29 @@ def _open_serial(inst: InstrumentConfig, options: dict[str, Any], manager: Calla
     return serial.serial_for_url(inst.address, timeout=inst.timeout_ms / 1000.0, **options)
 
 
+def _open_modbus(inst: InstrumentConfig, options: dict[str, Any], manager: Callable[[str], Any]) -> Any:
+    """A connected pymodbus ``ModbusTcpClient`` for ``modbus://host[:port]`` (port 502 by default)."""
+    from pymodbus.client import ModbusTcpClient  # imported here so `bench --help` stays fast
+
+    host, port = parse_modbus_address(inst.address)
+    # retries=0: the driver re-sends what may be re-sent itself (instruments/chamber.py)
+    client = ModbusTcpClient(host, port=port, timeout=inst.timeout_ms / 1000.0, retries=0)
+    if not client.connect():
+        raise ConnectionError(f"no Modbus TCP server at {host}:{port}")
+    return client
+
+
+def parse_modbus_address(address: str) -> tuple[str, int]:
+    """``modbus://host[:port]`` → (host, port); ValueError naming the expected form."""
+    rest = address[len("modbus://"):] if address.startswith("modbus://") else None
+    host, _, port = (rest or "").rpartition(":") if rest and ":" in rest else (rest, "", "502")
+    if not rest or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"address {address!r} must be modbus://host[:port] (port 1..65535, default 502)")
+    return host, int(port)
+
+
 #: how a station opens each kind of connection a driver is driven over
-OPENERS: dict[str, Opener] = {VISA: _open_visa, SERIAL: _open_serial}
+OPENERS: dict[str, Opener] = {VISA: _open_visa, SERIAL: _open_serial, MODBUS: _open_modbus}
 
 
 def check_simulation(options: dict, source: str = "<station>") -> None:

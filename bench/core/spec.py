@@ -56,6 +56,17 @@ UNITS: dict[str, tuple[str, float]] = {
     "deg/h/rth": ("rate random walk", 1.0),
     "pulses/arcsec": ("gyro scale factor", 1.0),
     "readings": ("count", 1.0), "frames": ("count", 1.0),
+    # calibration over temperature (issue 14)
+    "g/degC": ("accelerometer bias temperature coefficient", 1.0),
+    "mg/degC": ("accelerometer bias temperature coefficient", 1e-3),
+    "ug/degC": ("accelerometer bias temperature coefficient", 1e-6),
+    "g/g^2/degC": ("K2 temperature coefficient", 1.0), "ug/g^2/degC": ("K2 temperature coefficient", 1e-6),
+    "deg/h/degC": ("gyro bias temperature coefficient", 1.0),
+    "ppm/degC": ("scale-factor temperature coefficient", 1.0),
+    "g/(degC/min)": ("accelerometer temperature-rate sensitivity", 1.0),
+    "ug/(degC/min)": ("accelerometer temperature-rate sensitivity", 1e-6),
+    "deg/h/(degC/min)": ("gyro temperature-rate sensitivity", 1.0),
+    "degC": ("temperature difference", 1.0),
 }
 KINDS = ("accelerometer", "gyro")
 

@@ -16,6 +16,10 @@ overload   ``overload(volts)``, ``end_overload()``, the input forced to ``volts`
            ``overloaded``                          until ended
 frame      (its frames go out through              each frame corrupted or lost on the line
            ``SerialLink.write_frames``)
+limit      ``trip_limit()``                        an over-temperature limit trips: heating
+                                                   and cooling cut, latched until its reset
+alarm      ``raise_alarm()``                       a controller alarm goes active, latched
+                                                   until cleared
 ========== ======================================= ==========================================
 
 A contract test (``tests/sim/test_station_table.py``) checks that every instrument of the
@@ -65,6 +69,20 @@ class OverloadableDevice(SimDevice, Protocol):
         """The forced input ends now (no-op without one)."""
 
 
+class LimitDevice(SimDevice, Protocol):
+    """A controller with an over-temperature limit (``"limit"`` in its fault kinds)."""
+
+    def trip_limit(self) -> None:
+        """The limit trips now: heating and cooling cut, latched until the limit is reset."""
+
+
+class AlarmingDevice(SimDevice, Protocol):
+    """A controller with alarms (``"alarm"`` in its fault kinds)."""
+
+    def raise_alarm(self) -> None:
+        """An alarm goes active now, latched until it is cleared."""
+
+
 def scpi_power_on(device: ScpiDevice) -> None:
     """The power-on state of an IEEE 488.2 instrument: ``*RST`` settings, an empty error
     queue, and only PON in the event status register."""
@@ -73,4 +91,5 @@ def scpi_power_on(device: ScpiDevice) -> None:
     device.esr = ESR_POWER_ON
 
 
-__all__ = ["ESR_POWER_ON", "InterlockedDevice", "OverloadableDevice", "SimDevice", "scpi_power_on"]
+__all__ = ["ESR_POWER_ON", "AlarmingDevice", "InterlockedDevice", "LimitDevice", "OverloadableDevice",
+           "SimDevice", "scpi_power_on"]

@@ -44,7 +44,7 @@ def register_fault_commands(device: ScpiDevice, injector: FaultInjector) -> None
                "SLOW": ("slow", ("delay_ms",)), "GARBle": ("garble", ("probability",)),
                "ERRor": ("error", ("count", "code")), "FRAMe": ("frame", ("corrupt", "loss")),
                "POWer": ("power", ()), "INTerlock": ("interlock", ()),
-               "OVERload": ("overload", ("volts",))}
+               "OVERload": ("overload", ("volts",)), "LIMit": ("limit", ()), "ALARm": ("alarm", ())}
 
     def handler(kind: str, names: tuple[str, ...]) -> Callable[[Args], None]:
         def apply(args: Args) -> None:

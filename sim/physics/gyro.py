@@ -6,13 +6,18 @@ Per output interval [t₀, t₁] the unit integrates its indicated rate (°/s)
 
 with ω the interval-mean input rate along the misaligned input axis (clipped to ±FS,
 which sets OVER_RANGE) and B(t) = turn-on bias (+ a repeatability draw per power-on)
-+ warm-up a·exp(−(t − t_on)/τ) + temperature tc·(T − ambient) + g-sensitivity·f
-+ flicker (Gauss-Markov sum) + rate random walk. Parameters, conventions and sources:
-``sim/physics/gyro_params.py``; manufacturing spread and limits:
++ warm-up a·exp(−(t − t_on)/τ) + temperature (a polynomial of the coil's T − ambient to 3rd
+order, hysteresis, Shupe ∝ dT_coil/dt: ``GyroParams.thermal_bias_dps``) + g-sensitivity·f
++ flicker (Gauss-Markov sum) + rate random walk; the scale factor is multiplied by
+``GyroParams.scale_factor_ratio`` of the coil temperature.  The unit is two thermal nodes
+(``sim.physics.thermal_unit``): the case, where the frame's temperature sensor sits, and the
+coil, heated by the unit's dissipation; their ambient is the room or the chamber air.
+Parameters, conventions and sources: ``sim/physics/gyro_params.py``; manufacturing spread and limits:
 ``sim/physics/gyro_population.py``.
 
 How each term enters the interval's angle (degrees):
-* warm-up and temperature: their exact integrals over the interval (closed forms);
+* warm-up: its exact integral over the interval; temperature terms: Simpson's rule on the
+  interval's edges and midpoint (exact to ~dt⁴/τ⁴ of the term: τ ≥ tens of seconds);
 * flicker + RRW: the knot-grid process (``gyro_noise.KnotBias``) at the interval midpoint;
 * ARW: white rate noise of density N integrated exactly, an increment of σ = N·√dt;
 * vibration (g rms per sensor axis): rectified bias Σ kᵢgᵢ², the resonance's exact mean
@@ -40,7 +45,6 @@ of the last ``pulses`` call containing t), 0x20 WARMING_UP (ready and t − t_on
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import asdict, dataclass
 
@@ -58,7 +62,7 @@ from sim.physics.gyro_params import (
 )
 from sim.physics.gyro_population import LIMITS, draw_gyro, out_of_limits
 from sim.physics.noise import GaussMarkov
-from sim.physics.thermal import ThermalNode
+from sim.physics.thermal_unit import AmbientSource, ConstantAmbient, TwoNodeBody
 
 __all__ = ["GRADES", "LIMITS", "NAVIGATION", "TACTICAL", "FiberOpticGyro", "GyroParams", "adev_model_dph",
            "draw_gyro", "flicker_terms", "indicated_rate_dps", "out_of_limits"]
@@ -100,7 +104,6 @@ class _Segment:
     on: bool
     t_on: float  # power-on instant (NaN when off)
     t_ready: float  # t_on + boot time (inf when off)
-    thermal: ThermalNode  # snapshot valid from t_start on
     run_bias_dps: float  # turn-on bias of this run (bias + repeatability draw)
 
 
@@ -112,9 +115,10 @@ class FiberOpticGyro:
     each starting at (contiguous) or after (a gap) the previous call's last edge.
     Queries (``powered``, ``ready``, ``status``, temperatures) accept times from the
     start of the last ``pulses`` call on; scalars give scalars, arrays give arrays.
+    ``ambient``: the air around the unit (default: the still room at ``ambient_c``).
     """
 
-    def __init__(self, params: GyroParams, rng: np.random.Generator) -> None:
+    def __init__(self, params: GyroParams, rng: np.random.Generator, ambient: AmbientSource | None = None) -> None:
         if not isinstance(params, GyroParams):
             raise TypeError("params must be a GyroParams (e.g. draw_gyro(serial) or TACTICAL)")
         if not isinstance(rng, np.random.Generator):
@@ -129,8 +133,8 @@ class FiberOpticGyro:
         self._vib_phase = float(phase_rng.uniform(0.0, 2.0 * math.pi))
         self._ia = np.array([1.0, *p.misalignment_rad])
         self._g_sens_dps = np.array(p.g_sensitivity_dph_per_g) / 3600.0
-        self._thermal = ThermalNode(p.ambient_c, p.self_heating_delta_c, p.thermal_tau_s)
-        self._segments = [_Segment(-math.inf, False, math.nan, math.inf, copy.copy(self._thermal), 0.0)]
+        self.body = TwoNodeBody(p.thermal_nodes(), ambient if ambient is not None else ConstantAmbient(p.ambient_c))
+        self._segments = [_Segment(-math.inf, False, math.nan, math.inf, 0.0)]
         self._supply_v = 0.0
         self._t_edge: float | None = None  # last interval edge processed
         self._acc = HALF_PULSE  # carry accumulator (fixed point), valid while _running
@@ -156,12 +160,12 @@ class FiberOpticGyro:
         on = self.supply_in_range(volts)
         if on == self._segments[-1].on:
             return
-        self._thermal.set_power(t, on)
+        self.body.set_power(t, on)
         p = self.params
         run_bias = (p.bias_dph + p.bias_repeatability_dph * float(self._rep_rng.standard_normal())) / 3600.0 \
             if on else 0.0
         self._segments.append(_Segment(t, on, t if on else math.nan, t + p.boot_time_s if on else math.inf,
-                                       copy.copy(self._thermal), run_bias))
+                                       run_bias))
         self._running = False
 
     @property
@@ -201,14 +205,22 @@ class FiberOpticGyro:
         """Powered and booted at ``t_s`` (output valid)."""
         return self._per_segment(t_s, lambda s, t: s.on & (t >= s.t_ready), bool)
 
+    def _node(self, t_s, column: int, offset: float = 0.0):
+        t = np.asarray(t_s, dtype=float)
+        out = self.body.nodes_c(t.ravel())[:, column].reshape(t.shape) + offset
+        return out[()] if t.ndim == 0 else out
+
     def body_temperature_c(self, t_s):
-        """Coil (sensor-body) temperature in °C — the one the bias depends on."""
-        return self._per_segment(t_s, lambda s, t: s.thermal.temperature_c(t))
+        """Coil (sensing element) temperature in °C — the one the bias and scale factor follow."""
+        return self._node(t_s, 1)
+
+    def case_temperature_c(self, t_s):
+        """Case temperature in °C, where the frame's temperature sensor sits."""
+        return self._node(t_s, 0)
 
     def temperature_c(self, t_s):
-        """The on-board temperature sensor's reading in °C (coil + sensor offset)."""
-        offset = self.params.temp_sensor_offset_c
-        return self._per_segment(t_s, lambda s, t: s.thermal.temperature_c(t) + offset)
+        """The on-board temperature sensor's reading in °C (case + sensor offset)."""
+        return self._node(t_s, 0, self.params.temp_sensor_offset_c)
 
     def supply_current_a(self, t_s):
         """Current drawn from the supply in A (constant while powered)."""
@@ -223,7 +235,7 @@ class FiberOpticGyro:
             if not s.on:
                 return np.zeros(t.shape, dtype=np.int64)
             ready = t >= s.t_ready
-            temp = s.thermal.temperature_c(t)
+            temp = self.body.element_c(t)
             out = np.where(ready, STATUS_READY, STATUS_BOOTING).astype(np.int64)
             out |= np.where(ready & (t - s.t_on < WARMUP_STATUS_TAUS * p.warmup_tau_s), STATUS_WARMING_UP, 0)
             out |= np.where((temp < p.operating_min_c) | (temp > p.operating_max_c), STATUS_TEMPERATURE, 0)
@@ -298,9 +310,13 @@ class FiberOpticGyro:
         for seg, a, b in self._ready_runs(t):
             valid[a:b] = True
             rate = indicated_rate_dps(p, omega_ia[a:b])
+            thermal_bias, sf_ratio = self._thermal_terms(t[a:b + 1], mid[a:b])
+            if sf_ratio is not None:
+                rate *= sf_ratio
             rate += seg.run_bias_dps
             rate += noise_dps[a:b]
             rate += self._deterministic_bias_dps(seg, t[a:b + 1], dt[a:b])
+            rate += thermal_bias
             rate += f[a:b] @ self._g_sens_dps
             if vib is not None:
                 rect, amp, sigma = (x if np.ndim(x) == 0 else x[a:b] for x in vib)
@@ -340,18 +356,34 @@ class FiberOpticGyro:
                 yield seg, a, b
 
     def _deterministic_bias_dps(self, seg: _Segment, edges: np.ndarray, dt: np.ndarray) -> np.ndarray:
-        """Interval means of warm-up and temperature bias (exact integrals), °/s."""
+        """Interval means of the warm-up bias (exact integrals), °/s."""
         p = self.params
         out = np.zeros(dt.size)
         if p.warmup_amplitude_dph:
             e = np.exp(-(edges - seg.t_on) / p.warmup_tau_s)
             out += (p.warmup_amplitude_dph / 3600.0 * p.warmup_tau_s) * (e[:-1] - e[1:]) / dt
-        if p.bias_tc_dph_per_c:
-            temp = seg.thermal.temperature_c(edges)
-            # ∫(T − target) = τ (T(t₀) − T(t₁)) for the exponential relaxation toward target
-            rise = p.self_heating_delta_c + p.thermal_tau_s * (temp[:-1] - temp[1:]) / dt
-            out += (p.bias_tc_dph_per_c / 3600.0) * rise
         return out
+
+    def _thermal_terms(self, edges: np.ndarray, mids: np.ndarray) -> tuple[np.ndarray | float, np.ndarray | None]:
+        """Interval means of the thermal bias (°/s, Simpson on edges and midpoints) and the
+        scale-factor ratio at the midpoints (None when the unit has no SF temperature terms)."""
+        p = self.params
+        has_bias = bool(p.bias_tc_dph_per_c or p.bias_tc2_dph_per_c2 or p.bias_tc3_dph_per_c3
+                        or p.bias_hysteresis_dph or p.shupe_dph_per_c_per_min)
+        has_sf = bool(p.sf_tc_ppm_per_c or p.sf_tc2_ppm_per_c2 or p.sf_tc3_ppm_per_c3)
+        if not (has_bias or has_sf):
+            return 0.0, None
+        n = mids.size
+        t = np.empty(2 * n + 1)
+        t[0::2], t[1::2] = edges, mids
+        coil = self.body.element_c(t)
+        bias: np.ndarray | float = 0.0
+        if has_bias:
+            memory = self.body.hysteresis_memory_c(t, coil) if p.bias_hysteresis_dph else coil
+            rate = self.body.rates_c_per_s(t)[:, 1] if p.shupe_dph_per_c_per_min else np.zeros(t.size)
+            b = p.thermal_bias_dps(coil, memory, rate)
+            bias = (b[0:-1:2] + 4.0 * b[1::2] + b[2::2]) / 6.0
+        return bias, (p.scale_factor_ratio(coil[1::2]) if has_sf else None)
 
     def _prune(self, t_first: float) -> None:
         """Forget supply segments that ended before the last call's first edge."""

@@ -32,6 +32,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from sim.physics.thermal_unit import TwoNodeParams
+
 _DPH_PER_DPS = 3600.0
 #: Spacing of the flicker approximation: one Gauss-Markov term per decade keeps the ADEV
 #: plateau within −6 %/+0 % of 0.664·B between 3·tau_min and 0.6·tau_max.
@@ -58,6 +60,11 @@ _BOUNDS = {  # name: (low, high), inclusive
     "ambient_c": (-55.0, 95.0), "self_heating_delta_c": (0.0, 30.0), "thermal_tau_s": (1.0, 1e5),
     "supply_min_v": (0.5, 60.0), "supply_max_v": (0.5, 60.0), "supply_current_a": (0.0, 10.0),
     "temp_sensor_offset_c": (-10.0, 10.0), "operating_min_c": (-100.0, 200.0),
+    "element_tau_s": (0.1, 1e4), "element_capacity_ratio": (1e-3, 10.0),
+    "bias_tc2_dph_per_c2": (-1.0, 1.0), "bias_tc3_dph_per_c3": (-0.1, 0.1),
+    "sf_tc_ppm_per_c": (-1000.0, 1000.0), "sf_tc2_ppm_per_c2": (-50.0, 50.0), "sf_tc3_ppm_per_c3": (-1.0, 1.0),
+    "bias_hysteresis_dph": (0.0, 100.0), "hysteresis_width_c": (0.1, 50.0),
+    "shupe_dph_per_c_per_min": (-100.0, 100.0),
     "operating_max_c": (-100.0, 200.0), "vib_resonance_hz": (0.1, 1e5), "vib_noise_tau_s": (1e-5, 10.0),
 }
 
@@ -79,15 +86,27 @@ class GyroParams:
     flicker_tau_min_s: float = 10.0  # flicker correlation-time range (assumed)
     flicker_tau_max_s: float = 1e4
     rrw_dph_per_rh: float = 0.3  # K (assumed)
-    bias_tc_dph_per_c: float = 0.02  # bias temperature coefficient vs (T − ambient) (assumed)
+    bias_tc_dph_per_c: float = 0.02  # bias temperature coefficient vs (T_coil − ambient) (assumed)
     g_sensitivity_dph_per_g: tuple[float, float, float] = (0.3, -0.2, 0.1)  # per sensor axis (assumed)
     misalignment_rad: tuple[float, float] = (3e-4, -2e-4)  # θ₂, θ₃ (assumed, limit 1 mrad)
     warmup_amplitude_dph: float = 2.0  # start-up exponential (assumed)
     warmup_tau_s: float = 120.0  # (assumed)
     boot_time_s: float = 1.0  # power-on to valid output (assumed)
     ambient_c: float = 23.0  # laboratory ambient
-    self_heating_delta_c: float = 6.0  # coil rise while powered (assumed, ~3 W)
-    thermal_tau_s: float = 900.0  # (assumed)
+    self_heating_delta_c: float = 6.0  # case rise while powered (assumed, ~3 W)
+    thermal_tau_s: float = 900.0  # dominant thermal time constant (assumed)
+    # thermal model (issue 14): the unit is a case node (frame temperature sensor) and the coil
+    # (sensing element), sim/physics/thermal_unit.py; coefficients 0 here, drawn per serial
+    element_tau_s: float = 60.0  # coil ↔ case time constant (assumed)
+    element_capacity_ratio: float = 0.5  # coil / case heat capacity (assumed)
+    bias_tc2_dph_per_c2: float = 0.0  # bias over (T_coil − ambient)²
+    bias_tc3_dph_per_c3: float = 0.0  # and ³
+    sf_tc_ppm_per_c: float = 0.0  # scale factor over temperature, 1st..3rd order
+    sf_tc2_ppm_per_c2: float = 0.0
+    sf_tc3_ppm_per_c3: float = 0.0
+    bias_hysteresis_dph: float = 0.0  # half the up-ramp/down-ramp bias difference
+    hysteresis_width_c: float = 5.0  # reversal that switches the hysteresis fully over
+    shupe_dph_per_c_per_min: float = 0.0  # Shupe effect: bias per °C/min of coil temperature rate
     supply_min_v: float = 9.0  # (tactical FOG class, 9-36 V)
     supply_max_v: float = 36.0
     supply_current_a: float = 0.25  # at 12 V (assumed)
@@ -124,6 +143,25 @@ class GyroParams:
         if not 10.0 <= ratio <= 1e6:
             raise ValueError(f"flicker_tau_max_s/flicker_tau_min_s={ratio!r} "
                              "outside the allowed range [10, 1e6]")
+        self.thermal_nodes()  # element_tau_s must be the fast node: checked there
+
+    def thermal_nodes(self) -> TwoNodeParams:
+        """The unit's case and coil nodes (``sim.physics.thermal_unit``)."""
+        return TwoNodeParams(self.thermal_tau_s, self.element_tau_s, self.element_capacity_ratio,
+                             self.self_heating_delta_c, self.hysteresis_width_c)
+
+    def thermal_bias_dps(self, coil_c: np.ndarray, memory_c: np.ndarray, coil_rate_c_per_s: np.ndarray) -> np.ndarray:
+        """Bias over temperature (°/s): polynomial of the coil, hysteresis, Shupe (∝ dT_coil/dt)."""
+        d = coil_c - self.ambient_c
+        dph = (d * (self.bias_tc_dph_per_c + d * (self.bias_tc2_dph_per_c2 + d * self.bias_tc3_dph_per_c3))
+               + self.bias_hysteresis_dph / self.hysteresis_width_c * (coil_c - memory_c)
+               + self.shupe_dph_per_c_per_min * 60.0 * coil_rate_c_per_s)
+        return dph / _DPH_PER_DPS
+
+    def scale_factor_ratio(self, coil_c: np.ndarray) -> np.ndarray:
+        """SF(T)/SF at coil temperatures (°C)."""
+        d = coil_c - self.ambient_c
+        return 1.0 + 1e-6 * d * (self.sf_tc_ppm_per_c + d * (self.sf_tc2_ppm_per_c2 + d * self.sf_tc3_ppm_per_c3))
 
     def replace(self, **changes) -> GyroParams:
         """A copy with some fields changed (validated)."""

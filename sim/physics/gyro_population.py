@@ -123,7 +123,44 @@ def draw_gyro(serial: str, grade: str = "tactical") -> GyroParams:
         "vib_resonance_dps_per_grms": tuple(lognormal(v, 0.3) for v in p.vib_resonance_dps_per_grms),
         "vib_noise_dps_per_grms": tuple(lognormal(v, 0.2) for v in p.vib_noise_dps_per_grms),
     }
+    values.update(draw_thermal(serial, grade))
     return p.replace(**values)
+
+
+#: Thermal spread (issue 14) per grade: field -> (kind, centre, width), drawn from the serial's own
+#: thermal stream so the z vector above never changes. All assumed (tactical FOG orders: bias
+#: 2nd/3rd order ~0.5 °/h over −40…+70 °C, SF ~±1500 ppm, hysteresis 2h ≈ 0.1 °/h, Shupe
+#: ~0.1 °/h per °C/min); navigation ≈ 30× smaller.
+THERMAL_SPREAD: dict[str, dict[str, tuple[str, float, float]]] = {
+    "tactical": {
+        "bias_tc2_dph_per_c2": ("normal", 0.0, 2e-4), "bias_tc3_dph_per_c3": ("normal", 0.0, 3e-6),
+        "sf_tc_ppm_per_c": ("normal", 0.0, 20.0), "sf_tc2_ppm_per_c2": ("normal", 0.0, 0.1),
+        "sf_tc3_ppm_per_c3": ("normal", 0.0, 0.002), "bias_hysteresis_dph": ("lognormal", 0.05, 0.4),
+        "hysteresis_width_c": ("lognormal", 6.0, 0.2), "shupe_dph_per_c_per_min": ("normal", 0.0, 0.1),
+        "element_tau_s": ("lognormal", 60.0, 0.2)},
+    "navigation": {
+        "bias_tc2_dph_per_c2": ("normal", 0.0, 6e-6), "bias_tc3_dph_per_c3": ("normal", 0.0, 1e-7),
+        "sf_tc_ppm_per_c": ("normal", 0.0, 1.0), "sf_tc2_ppm_per_c2": ("normal", 0.0, 0.005),
+        "sf_tc3_ppm_per_c3": ("normal", 0.0, 1e-4), "bias_hysteresis_dph": ("lognormal", 0.0015, 0.4),
+        "hysteresis_width_c": ("lognormal", 6.0, 0.2), "shupe_dph_per_c_per_min": ("normal", 0.0, 0.003),
+        "element_tau_s": ("lognormal", 60.0, 0.2)},
+}
+
+
+def thermal_generator(serial: str) -> np.random.Generator:
+    """The serial's thermal stream: SeedSequence([crc32("gyro-thermal"), crc32(serial)])."""
+    return np.random.default_rng(np.random.SeedSequence(
+        [zlib.crc32(b"gyro-thermal"), zlib.crc32(serial.encode("utf-8"))]))
+
+
+def draw_thermal(serial: str, grade: str) -> dict[str, float]:
+    """The thermal coefficients of the unit ``serial`` (a separate stream of the serial)."""
+    rng = thermal_generator(serial)
+    out = {}
+    for name, (kind, centre, width) in THERMAL_SPREAD[_grade(grade)].items():
+        z = float(rng.standard_normal())
+        out[name] = centre * math.exp(width * z) if kind == "lognormal" else centre + width * z
+    return out
 
 
 def limited_values(p: GyroParams) -> dict[str, float | tuple[float, ...]]:

@@ -62,14 +62,15 @@ def test_sim_serve_prints_resources_that_plain_pyvisa_can_use():
     proc = subprocess.Popen([sys.executable, "-m", "bench.app.cli", "sim", "serve", "--seed", "5"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
-        lines = [json.loads(proc.stdout.readline()) for _ in range(11)]
+        lines = [json.loads(proc.stdout.readline()) for _ in range(12)]
         by_name = {d["name"]: d for d in lines}
         assert set(by_name) == {"dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "angular_table",
-                                "dmm_mhd", "lf_gyro", "daq", "sim"}
-        serial = {"gyro", "lf_gyro"}
+                                "dmm_mhd", "lf_gyro", "chamber", "daq", "sim"}
+        serial, modbus = {"gyro", "lf_gyro"}, {"chamber"}
         assert all(d["resource"].startswith("TCPIP::127.0.0.1::") and
-                   d["resource"].endswith("::SOCKET") for d in lines if d["name"] not in serial)
+                   d["resource"].endswith("::SOCKET") for d in lines if d["name"] not in serial | modbus)
         assert all(by_name[n]["resource"].startswith("socket://127.0.0.1:") for n in serial)  # pyserial URLs
+        assert by_name["chamber"]["resource"].startswith("modbus://127.0.0.1:")  # a pymodbus client's
         rm = pyvisa.ResourceManager("@py")
         sim = rm.open_resource(by_name["sim"]["resource"], read_termination="\n",
                                write_termination="\n", timeout=5000)

@@ -44,7 +44,7 @@ def _station_file(tmp_path, sim, *, dmm_address=None, dmm_options=None) -> str:
 def test_builtin_sim_station_is_healthy(capsys):
     assert main(["doctor"]) == 0
     out = capsys.readouterr().out
-    assert len(CHECKED) == 11  # the station table (daq included) and the clock
+    assert len(CHECKED) == len(INSTRUMENTS) + 1  # and the clock
     for name in CHECKED:
         assert f"\n{name} " in out
     assert "all healthy" in out and "FAIL" not in out

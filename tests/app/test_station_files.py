@@ -65,12 +65,12 @@ def test_site_table_is_validated_and_defaults_to_the_simulated_world(tmp_path):
 
 def test_the_embedded_station_is_the_sim_table_joined_with_the_driver_registry():
     from bench.app.station import OPENERS
-    from instruments.registry import DRIVERS, SERIAL, TRANSPORTS, VISA
+    from instruments.registry import DRIVERS, MODBUS, SERIAL, TRANSPORTS, VISA
     from sim import server
     from sim.station import INSTRUMENTS
 
     assert set(OPENERS) == set(TRANSPORTS)  # every kind of connection a driver needs can be opened
-    driven_over = {server.SCPI.name: VISA, server.SERIAL.name: SERIAL}
+    driven_over = {server.SCPI.name: VISA, server.SERIAL.name: SERIAL, server.MODBUS.name: MODBUS}
     for row in INSTRUMENTS:
         assert DRIVERS[row.driver].transport == driven_over[row.transport.name], row.name
     with Station(builtin_sim_config()) as station:

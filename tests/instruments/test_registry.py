@@ -8,6 +8,7 @@ import inspect
 import pytest
 
 from instruments.angular_table import AngularVibrationTable
+from instruments.chamber import WatlowF4TChamber
 from instruments.daq import KeysightDAQ970A
 from instruments.fog import SerialGyro
 from instruments.multimeter import Keysight34465A
@@ -21,6 +22,7 @@ from instruments.protocols import (
     SafeInstrument,
     SafeOrder,
     ScanningMultimeter,
+    ThermalChamber,
     TimedTraceMultimeter,
 )
 from instruments.registry import DRIVERS, TRANSPORTS, Driver, Option
@@ -30,9 +32,10 @@ from tests.instruments.test_driver_base import assert_conforms
 
 # Checked by the type checker (mypy runs on tests/): each driver is structurally its Protocol.
 STATIC: tuple[type[TimedTraceMultimeter], type[PowerSupply], type[PositionRateTable], type[FrameGyro],
-              type[RandomVibrationTable], type[AngularTable], type[ScanningMultimeter]] = (
+              type[RandomVibrationTable], type[AngularTable], type[ThermalChamber],
+              type[ScanningMultimeter]] = (
     Keysight34465A, KeysightE36312A, DualAxisTurntable, SerialGyro, VibrationTable, AngularVibrationTable,
-    KeysightDAQ970A)
+    WatlowF4TChamber, KeysightDAQ970A)
 
 
 class Connection:
@@ -94,5 +97,5 @@ def test_options_split_between_connection_and_driver_and_check_values():
     assert Option(None, range=(0.0, 1.0)).problem("x", 2) == "x = 2 must be a number in 0..1"
     assert Option(None, range=(0.0, 1.0)).problem("x", 0.5) is None
     assert DRIVERS["keysight_34465a"].connection_options({"options": ["DIG"]}) == {}
-    with pytest.raises(ValueError, match="transport 'modbus' not in visa|serial"):
-        Driver("chamber", object, object, "modbus")
+    with pytest.raises(ValueError, match="transport .can. not in visa|serial|modbus"):
+        Driver("can_bus_thing", object, object, "can")

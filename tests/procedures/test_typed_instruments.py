@@ -17,6 +17,7 @@ import pytest
 from bench.app.station import Station, builtin_sim_config
 from bench.core.step import Context
 from instruments.angular_table import AngularVibrationTable
+from instruments.chamber import WatlowF4TChamber
 from instruments.fog import SerialGyro
 from instruments.multimeter import Keysight34465A
 from instruments.power_supply import KeysightE36312A
@@ -26,20 +27,30 @@ from instruments.protocols import (
     PositionRateTable,
     PowerSupply,
     RandomVibrationTable,
+    ThermalChamber,
     TimedTraceMultimeter,
 )
 from instruments.shaker import VibrationTable
 from instruments.turntable import DualAxisTurntable
 from procedures.catalogue import CATALOGUE
-from procedures.typed_instruments import angular_table, frame_gyro, multimeter, power_supply, shaker, turntable
+from procedures.typed_instruments import (
+    angular_table,
+    chamber,
+    frame_gyro,
+    multimeter,
+    power_supply,
+    shaker,
+    turntable,
+)
 
 
 def drivers_as_protocols(dmm: Keysight34465A, supply: KeysightE36312A, table: DualAxisTurntable,
                          gyro: SerialGyro, vibration: VibrationTable, angular: AngularVibrationTable,
+                         f4t: WatlowF4TChamber,
                          ) -> tuple[TimedTraceMultimeter, PowerSupply, PositionRateTable, FrameGyro,
-                                    RandomVibrationTable, AngularTable]:
+                                    RandomVibrationTable, AngularTable, ThermalChamber]:
     """Never called: mypy refuses this file if a driver no longer fits its Protocol."""
-    return dmm, supply, table, gyro, vibration, angular
+    return dmm, supply, table, gyro, vibration, angular, f4t
 
 
 #: station name → (typed accessor, the Protocol it returns)
@@ -53,6 +64,7 @@ ACCESS: dict[str, tuple[Callable[[Context, str], Any], type]] = {
     "lf_gyro": (frame_gyro, FrameGyro),
     "shaker": (shaker, RandomVibrationTable),
     "angular_table": (angular_table, AngularTable),
+    "chamber": (chamber, ThermalChamber),
 }
 
 

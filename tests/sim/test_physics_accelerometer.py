@@ -47,7 +47,7 @@ def test_powered_at_rest_ia_up_gives_the_model_value_within_noise():
     t = 5.0 + np.arange(0.0, 3600.0, 1.0)
     current = unit.output_current_a(t, ia_up(t.size), 0.2)
     since = t - 5.0
-    temp = 23.0 + 4.0 * (1 - np.exp(-since / 600.0))
+    temp = unit.element_temperature_c(t)  # the two-node model's element (tests/sim/test_thermal_*)
     expected_g = (ONE_G + p.k0_g + p.k2_g_per_g2 * ONE_G**2 + p.k3_g_per_g3 * ONE_G**3
                   + 60e-6 * np.exp(-since / 180.0) + 1e-9 * since + 5e-6 * (temp - 23.0))
     residual_g = current / 1.33e-3 - expected_g
@@ -135,7 +135,8 @@ def test_k2_recovered_from_a_noise_free_tumble(k2, k3, k0):
     assert np.allclose(ap, 0.0, atol=1e-15)  # tilting about East keeps PA horizontal here
     design = np.column_stack([np.ones_like(ai), ai, ai**2, ai**3, ao, ai * ao])
     coef, *_ = np.linalg.lstsq(design, readings / unit.params.k1_a_per_g, rcond=None)
-    warm_bias = k0 + 5e-6 * 4.0 * (1 - math.exp(-1e5 / 600.0)) + 60e-6 * math.exp(-1e5 / 180.0)
+    warm_element_c = unit.element_temperature_c(1e5)[0]  # steady: 23 + 4 + the element's rise
+    warm_bias = k0 + 5e-6 * (warm_element_c - 23.0) + 60e-6 * math.exp(-1e5 / 180.0)
     assert coef[0] == pytest.approx(warm_bias, abs=1e-10)
     assert coef[1] == pytest.approx(1.0, abs=1e-9)
     assert coef[2] == pytest.approx(k2, abs=1e-10)
@@ -148,7 +149,9 @@ def test_temperature_sensor_and_supply_current():
     unit = powered_unit(t_on=100.0)
     assert unit.temperature_c(100.0)[0] == pytest.approx(23.0)
     assert unit.temp_sensor_current_a(100.0)[0] == pytest.approx(296.15e-6, rel=1e-12)
-    assert unit.temperature_c(700.0)[0] == pytest.approx(23.0 + 4.0 * (1 - math.exp(-1)), rel=1e-12)
+    # the case (the sensor's node) rises 4 °C in steady state; its warm-up is the dominant
+    # 600-s mode plus the element's fast one (two-node model, sim/physics/thermal_unit.py)
+    assert unit.temperature_c(700.0)[0] == pytest.approx(23.0 + 4.0 * (1 - math.exp(-1)), abs=0.1)
     assert unit.temp_sensor_current_a(1e6)[0] == pytest.approx(300.15e-6, rel=1e-9)
     assert np.array_equal(unit.supply_current_a(np.array([150.0, 200.0])), [0.016, 0.016])
 

@@ -1,4 +1,4 @@
-"""Gravity, thermal node and noise processes."""
+"""Gravity, the two-node thermal unit in a still room, and noise processes."""
 
 import math
 
@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from sim.physics.gravity import EARTH_RATE_RPS, earth_rate_enu_rps, local_gravity_mps2
 from sim.physics.noise import GaussMarkov, RandomWalk, WhiteNoise
-from sim.physics.thermal import ThermalNode
+from sim.physics.thermal_unit import ConstantAmbient, TwoNodeBody, TwoNodeParams
 
 # ---- gravity ---------------------------------------------------------------------------
 
@@ -52,34 +52,37 @@ def test_earth_rate_vector(lat):
 
 @settings(max_examples=50, deadline=None)
 @given(gaps=st.lists(st.floats(0.0, 3000.0), min_size=1, max_size=8), delta=st.floats(0.0, 10.0),
-       tau=st.floats(10.0, 2000.0))
-def test_thermal_node_is_continuous_and_bounded(gaps, delta, tau):
-    node = ThermalNode(23.0, delta, tau)
+       tau=st.floats(100.0, 2000.0))
+def test_two_node_unit_is_continuous_and_bounded_through_power_switching(gaps, delta, tau):
+    """The self-heating unit in a still room (the two-node model that replaced the single node;
+    more in test_thermal_physics.py): both nodes between the room and their powered steady
+    states, continuous at every switch."""
+    p = TwoNodeParams(tau, 20.0, 0.3, delta)
+    body = TwoNodeBody(p, ConstantAmbient(23.0))
+    top = 23.0 + delta + p.element_rise_over_case_c
     t, on = 0.0, False
     for gap in gaps:
         grid = t + np.linspace(0.0, gap, 50)
-        temp = node.temperature_c(grid)
-        assert np.all((temp >= 23.0 - 1e-12) & (temp <= 23.0 + delta + 1e-12))
-        # Monotone approach toward the current target.
-        assert np.all(np.diff(temp) >= -1e-12) if on else np.all(np.diff(temp) <= 1e-12)
+        nodes = body.nodes_c(grid)
+        assert np.all((nodes >= 23.0 - 1e-9) & (nodes <= top + 1e-9))
         t += gap
-        before = float(node.temperature_c(t))
+        before = body.nodes_c([t])[0]
         on = not on
-        node.set_power(t, on)
-        assert float(node.temperature_c(t)) == pytest.approx(before, abs=1e-12)  # continuity
+        body.set_power(t, on)
+        assert np.allclose(body.nodes_c([t])[0], before, atol=1e-12)  # continuity
 
 
-def test_thermal_time_constant():
-    node = ThermalNode(20.0, 5.0, 100.0)
-    assert node.temperature_c(-50.0) == 20.0  # never switched: equilibrium
-    node.set_power(10.0, True)
-    assert node.temperature_c(110.0) == pytest.approx(20.0 + 5.0 * (1 - math.exp(-1)), rel=1e-12)
-    node.set_power(1e5, False)
-    assert node.temperature_c(1e5 + 100.0) == pytest.approx(20.0 + 5.0 * math.exp(-1), rel=1e-9)
+def test_two_node_unit_history_and_errors():
+    body = TwoNodeBody(TwoNodeParams(100.0, 10.0, 0.3, 5.0), ConstantAmbient(20.0), t0_s=0.0)
+    body.set_power(10.0, True)
+    body.set_power(1e5, False)
+    assert body.case_c(1e5 - 1.0)[0] == pytest.approx(25.0, abs=1e-9)  # the history is kept
     with pytest.raises(ValueError, match="precedes"):
-        node.temperature_c(50.0)
-    with pytest.raises(ValueError, match="tau_s"):
-        ThermalNode(tau_s=0.0)
+        body.nodes_c([-1.0])
+    with pytest.raises(ValueError, match="must be finite and ≥ the last thermal change"):
+        body.set_power(50.0, True)
+    with pytest.raises(ValueError, match="element_tau_s"):
+        TwoNodeParams(100.0, 90.0, 0.3, 5.0)
 
 
 # ---- Gauss-Markov --------------------------------------------------------------------------

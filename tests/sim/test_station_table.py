@@ -9,12 +9,13 @@ import math
 import pytest
 
 from sim.faults import PARAMETERS
-from sim.server import SCPI, SERIAL, ByteStreamDevice
+from sim.server import MODBUS, SCPI, SERIAL, ByteStreamDevice
 from sim.station import INSTRUMENTS, StationInstrument
 
 #: the hooks each device fault kind needs (sim.devices.lifecycle)
 HOOKS = {"power": ("power_off", "power_on"), "interlock": ("trip_interlock",),
-         "overload": ("overload", "end_overload", "overloaded"), "frame": ("connect", "receive", "disconnect")}
+         "overload": ("overload", "end_overload", "overloaded"), "frame": ("connect", "receive", "disconnect"),
+         "limit": ("trip_limit",), "alarm": ("raise_alarm",)}
 
 #: the fault kinds of every instrument, as docs/ARCHITECTURE.md's sim-control table has them
 #: (a change here is a change of the documented fault semantics)
@@ -28,6 +29,7 @@ DOCUMENTED_KINDS = {
     "angular_table": "drop stall slow garble error power interlock",
     "dmm_mhd": "drop stall slow garble error power overload",
     "lf_gyro": "drop stall frame power",
+    "chamber": "drop stall power limit alarm",
     "daq": "drop stall slow garble error power overload",
 }
 
@@ -70,12 +72,14 @@ def test_each_wire_serves_its_kind_of_device(row: StationInstrument, station):
     device = station.devices[row.name]
     if row.transport is SCPI:
         assert callable(getattr(device, "process", None))
+    elif row.transport is MODBUS:
+        assert callable(getattr(device, "simdevice", None))
     else:
         assert row.transport is SERIAL
         assert all(callable(getattr(device, m, None)) for m in ByteStreamDevice.__dict__
                    if not m.startswith("_"))
     resource = row.transport.resource("127.0.0.1", 5025)
-    assert resource in ("TCPIP::127.0.0.1::5025::SOCKET", "socket://127.0.0.1:5025")
+    assert resource in ("TCPIP::127.0.0.1::5025::SOCKET", "socket://127.0.0.1:5025", "modbus://127.0.0.1:5025")
 
 
 def test_server_sim_control_and_listing_follow_the_table(sim_station):

@@ -7,7 +7,9 @@ with the ``options = [...]`` the station file states for it, and time one identi
 round trip.  The sim-control clock of a simulated station is checked the same way.
 
 How an instrument is checked follows from its driver's connection kind
-(``instruments.registry``): SCPI over VISA as above, a serial line by its identity command.
+(``instruments.registry``): SCPI over VISA as above, a serial line by its identity command,
+a Modbus TCP chamber controller by its identification registers, its limit and its alarms
+(a tripped limit or an active alarm is a FAIL).
 VISA instruments are checked first, so the supply's outputs are known before the lines it
 powers are opened.
 
@@ -42,7 +44,7 @@ from bench.app.station import (
 )
 from instruments.base import Identity, open_resource, parse_error_reply
 from instruments.protocols import PowerSupply
-from instruments.registry import DRIVERS, SERIAL, VISA
+from instruments.registry import DRIVERS, MODBUS, SERIAL, VISA
 
 #: at most this many ``SYST:ERR?`` reads (an error queue is 20..100 deep on real meters)
 MAX_ERROR_READS = 200
@@ -196,6 +198,24 @@ def _check_serial(inst: InstrumentConfig, config: StationConfig, powered: dict) 
     return h
 
 
+def _check_modbus(inst: InstrumentConfig, config: StationConfig, powered: dict) -> Health:
+    """A chamber controller: identification registers, limit and alarm states."""
+    h = Health(inst.name, inst.driver, inst.address)
+    try:
+        with Station(_single(config, inst)) as station:
+            driver = station.instruments[inst.name]
+            identity, h.round_trip_ms = _timed(driver.identify)
+            h.identity = ",".join(str(v) for v in asdict(identity).values())
+            status = driver.status()
+    except Exception as exc:
+        h.reason = _short(exc)
+        return h
+    h.errors = ([f"limit tripped ({status.limit})"] if status.limit_tripped else []) + \
+        [f"alarm {a.number} {a.state}" for a in status.alarms if a.active]
+    h.status, h.reason = ("FAIL", "; ".join(h.errors)) if h.errors else ("OK", "")
+    return h
+
+
 def _check_clock(config: StationConfig) -> Health:
     """The sim-control endpoint that serves a simulated station's clock."""
     h = Health("clock", "sim_control", config.clock)
@@ -219,7 +239,7 @@ def _check_clock(config: StationConfig) -> Health:
 #: how an instrument is checked, by its driver's connection kind, in this order (the supply,
 #: a VISA instrument, is read before the serial lines it may power)
 CHECKS: dict[str, Callable[[InstrumentConfig, StationConfig, dict[int, bool]], Health]] = {
-    VISA: _check_scpi, SERIAL: _check_serial}
+    VISA: _check_scpi, SERIAL: _check_serial, MODBUS: _check_modbus}
 
 
 def _short(exc: BaseException) -> str:

@@ -15,6 +15,14 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.app.reports.common import save_figure as _save
+from bench.app.reports.thermal_plots import (
+    gyro_thermal_ramp_section,
+    gyro_thermal_sweep_section,
+    gyro_turn_on_repeatability_section,
+    thermal_ramp_section,
+    thermal_sweep_section,
+    turn_on_repeatability_section,
+)
 
 Section = tuple[str, str, str]
 
@@ -207,4 +215,10 @@ SECTIONS: dict[str, Callable[..., Section | None]] = {
     "accelerometer_noise": accelerometer_noise_section,
     "gyro_noise": gyro_noise_section,
     "vibration": vibration_section,
+    "thermal_sweep": thermal_sweep_section,
+    "gyro_thermal_sweep": gyro_thermal_sweep_section,
+    "thermal_ramp": thermal_ramp_section,
+    "gyro_thermal_ramp": gyro_thermal_ramp_section,
+    "turn_on_repeatability": turn_on_repeatability_section,
+    "gyro_turn_on_repeatability": gyro_turn_on_repeatability_section,
 }
