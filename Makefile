@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 STORE  ?= bench-data/bench.sqlite
 
-.PHONY: demo test lint bench-speed clean postgresql
+.PHONY: demo test lint bench-speed clean postgresql chromium
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,7 +27,7 @@ postgresql:
 	$(PYTHON) scripts/pg install
 
 ## test: the whole suite (hypothesis derandomised in CI), one worker per core (pytest-xdist)
-test: $(STAMP) postgresql
+test: $(STAMP) postgresql chromium
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
 
 ## lint: the linter, the type checker and the import-layer contracts on the whole tree
@@ -42,3 +42,8 @@ bench-speed: $(STAMP)
 
 clean:
 	rm -rf $(VENV) bench-data build *.egg-info
+
+## chromium: Debian's chromium for the operator page's browser tests (Playwright drives it;
+## it cannot download a browser of its own), apt-get installed as root when missing
+chromium:
+	command -v chromium >/dev/null 2>&1 || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium)

@@ -26,6 +26,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .daq_types import ScanPlan, ScanReadings
 from .fog_types import GyroConfig, GyroFrames
 
 #: ``wait(seconds)``: let that much (bench-clock) time pass.  Drivers never sleep.
@@ -129,6 +130,34 @@ class TimedTraceMultimeter(SafeInstrument, Protocol):
         self, chunk_points: int = ..., *, wait: Wait, initiate: bool = ...,
         min_poll_s: float = ..., stall_timeout_s: float | None = ...,
     ) -> Generator[np.ndarray, None, None]: ...
+
+
+class ScanningMultimeter(SafeInstrument, Protocol):
+    """A data-acquisition unit scanning DC volts over multiplexer channels (test sockets)."""
+
+    @property
+    def line_frequency_hz(self) -> float: ...
+
+    @staticmethod
+    def channel_time_s(nplc: float, line_hz: float = ..., channel_delay_s: float | None = ...,
+                       autozero: bool = ...) -> float: ...
+
+    def configure_scan(self, channels: Sequence[int], *, interval_s: float, sweeps: int,
+                       nplc: float = ..., range_v: float = ..., line_hz: float = ...,
+                       channel_delay_s: float | None = ..., autozero: bool = ...) -> ScanPlan: ...
+
+    def initiate(self) -> None: ...
+
+    def abort(self) -> None: ...
+
+    def points_available(self) -> int: ...
+
+    def read_available(self, max_n: int | None = ...) -> ScanReadings: ...
+
+    def stream_scan(self, wait: Wait, poll_s: float = ...,
+                    timeout_s: float | None = ...) -> Generator[ScanReadings, None, None]: ...
+
+    def snapshot(self) -> dict[str, Any]: ...
 
 
 class SupplyChannel(Protocol):

@@ -23,6 +23,7 @@ from typing import Any
 
 from .angular_table import AngularVibrationTable
 from .chamber import WatlowF4TChamber
+from .daq import KeysightDAQ970A
 from .fog import BAUD_RATES, SerialGyro
 from .multimeter import Keysight34465A
 from .power_supply import KeysightE36312A
@@ -32,6 +33,7 @@ from .protocols import (
     PositionRateTable,
     PowerSupply,
     RandomVibrationTable,
+    ScanningMultimeter,
     ThermalChamber,
     TimedTraceMultimeter,
 )
@@ -110,6 +112,7 @@ DRIVERS: Mapping[str, Driver] = MappingProxyType({d.key: d for d in (
     Driver("watlow_f4t", WatlowF4TChamber, ThermalChamber, MODBUS, MappingProxyType({
         "device_id": Option(1, range=(0, 247)),
         "ambient_set_point_c": Option(23.0, range=(-70.0, 180.0))})),
+    Driver("keysight_daq970a", KeysightDAQ970A, ScanningMultimeter, VISA),
 )})
 
 __all__ = ["DRIVERS", "MODBUS", "SERIAL", "TRANSPORTS", "VISA", "Driver", "Option"]

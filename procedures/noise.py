@@ -110,9 +110,15 @@ class AccelerometerNoise(Step[AccelerometerNoiseParameters]):
             parts.append(volts)
             got += volts.size
             ctx.progress(p.warmup_s + got / p.rate_hz, self.duration_s(), "static record")
-        volts = np.concatenate(parts)
+        return self.reduce(ctx, np.concatenate(parts), aperture, interval)
+
+    def reduce(self, ctx: Context, volts: np.ndarray, aperture: float, interval: float) -> dict[str, Estimate]:
+        """The static record (readings of ``aperture`` s every ``interval`` s) → the Allan
+        deviation, kept under ``accelerometer_noise.allan``; the produced values (also a
+        batch's, per socket)."""
+        p = self.p
         if not np.all(np.isfinite(volts)):
-            raise RuntimeError("dmm overload during the static record")
+            raise RuntimeError("overload during the static record")
         # volts → g with the record's own mean as 1 g: the unit is level, IA up; the scale
         # factor's error (~1e-3) is far below what an Allan estimate resolves
         g = volts / float(np.mean(volts))

@@ -94,7 +94,6 @@ class TumbleCalibration(Step[TumbleParameters]):
 
     def run(self, ctx: Context) -> dict[str, Estimate]:
         p, plan = self.p, self.plan
-        ohm = float(ctx.wiring["sampling_resistor_ohm"])
         ctx.run.add_stream("tumble", {"t_s": "s", "inner_deg": "deg", "outer_deg": "deg",
                                       "voltage_v": "V", "voltage_se_v": "V", "n_readings": "1"},
                            "mean output per tumble position")
@@ -114,6 +113,13 @@ class TumbleCalibration(Step[TumbleParameters]):
                            voltage_v=[mean], voltage_se_v=[se], n_readings=[n])
             ctx.progress(p.warmup_s + (k + 1) * (self.duration_s() - p.warmup_s) / len(plan),
                          self.duration_s(), f"position {k + 1}/{len(plan)} ({inner:g}°, {outer:g}°)")
+        return self.fit(ctx, means, errors)
+
+    def fit(self, ctx: Context, means: np.ndarray, errors: np.ndarray) -> dict[str, Estimate]:
+        """The IEEE 1293 fit of the positions' mean output voltages (and their standard
+        errors), kept under ``tumble.fit``; the produced values (also a batch's, per socket)."""
+        p, plan = self.p, self.plan
+        ohm = float(ctx.wiring["sampling_resistor_ohm"])
         g_mps2 = p.local_g_mps2 or site_gravity_mps2(ctx.site)
         g_over_g0 = g_mps2 / STANDARD_GRAVITY_MPS2
         forces = specific_force_iapo_g(plan[:, 0], plan[:, 1], g_over_g0)

@@ -22,6 +22,7 @@ from instruments.protocols import (
     PositionRateTable,
     PowerSupply,
     RandomVibrationTable,
+    ScanningMultimeter,
     ThermalChamber,
     TimedTraceMultimeter,
 )
@@ -38,6 +39,11 @@ def _instrument(ctx: Context, name: str) -> Any:
 def multimeter(ctx: Context, name: str = "dmm") -> TimedTraceMultimeter:
     """A DC voltmeter taking timed traces: ``dmm`` (the unit's output), ``dmm_temp`` (its
     temperature sensor), ``dmm_mhd`` (the angular rig's MHD sensor, digitizing)."""
+    return _instrument(ctx, name)
+
+
+def scanner(ctx: Context, name: str = "daq") -> ScanningMultimeter:
+    """The scanning DAQ whose multiplexer channels read the fixture's test sockets."""
     return _instrument(ctx, name)
 
 
@@ -72,4 +78,4 @@ def chamber(ctx: Context, name: str = "chamber") -> ThermalChamber:
     return _instrument(ctx, name)
 
 
-__all__ = ["multimeter", "power_supply", "turntable", "frame_gyro", "shaker", "angular_table", "chamber"]
+__all__ = ["multimeter", "scanner", "power_supply", "turntable", "frame_gyro", "shaker", "angular_table", "chamber"]

@@ -53,6 +53,7 @@ from sim.physics.shaker import Shaker
 from sim.physics.thermal_chamber import ChamberAir, ChamberParams
 from sim.server import MODBUS, SCPI, SERIAL, Endpoint, InstrumentServer, Transport
 from sim.station_angular import AngularRig, draw_rig
+from sim.station_fixture import Fixture, check_fixture
 from sim.station_gyro import StationGyro, check_gyro_serial, station_gyro_params
 from sim.world import World
 
@@ -91,6 +92,11 @@ class SimStationConfig:
     dmm_timebase_ppm: float = 0.0                  # the MHD DMM's sample timer, slow by this much
     #: the temperature chamber's figures (``ChamberParams`` overrides: lab_ambient_c, rates, loop)
     chamber: dict = field(default_factory=dict)
+    #: the batch fixture (``sim.station_fixture``): socket (1..8) → unit serial, read by ``daq``
+    fixture: dict = field(default_factory=dict)
+    fixture_units: dict = field(default_factory=dict)   # socket → overrides of its drawn unit
+    fixture_open: list = field(default_factory=list)    # sockets whose output lead is open
+    fixture_settling_tau_s: float = 1e-4                # the fixture's input filter, s
     host: str = "127.0.0.1"
 
     def validate(self) -> None:
@@ -129,6 +135,7 @@ class SimStationConfig:
         check_gyro_serial(self.gyro_serial)
         station_gyro_params(self.gyro_serial, self.gyro_grade, self.gyro)
         draw_rig(self.mhd_serial, self.mhd, self.lf_sensor)
+        check_fixture(self.fixture, self.fixture_units, self.fixture_open, self.fixture_settling_tau_s)
         ppm = self.dmm_timebase_ppm
         if isinstance(ppm, bool) or not isinstance(ppm, (int, float)) or not abs(ppm) <= 1000:
             raise ValueError(f"dmm_timebase_ppm = {ppm!r} not in -1000..1000 ppm")
@@ -186,6 +193,15 @@ class SimulatedStation:
         self.angular = AngularRig(self.world, serial=cfg.mhd_serial, mhd=cfg.mhd, lf=cfg.lf_sensor,
                                   line_pickup_v=cfg.line_pickup_v, line_hz=cfg.line_hz,
                                   ideal_meters=cfg.ideal_meters, dmm_timebase_ppm=cfg.dmm_timebase_ppm)
+        self.fixture = Fixture(
+            self.world, check_fixture(cfg.fixture, cfg.fixture_units, cfg.fixture_open,
+                                      cfg.fixture_settling_tau_s),
+            overrides=cfg.fixture_units, open_sockets=cfg.fixture_open,
+            specific_force=self.specific_force_iapo_g,
+            sampling_resistor_ohm=cfg.sampling_resistor_ohm,
+            line_pickup=LinePickup(amplitude_v=cfg.line_pickup_v, nominal_hz=cfg.line_hz, phase_rad=0.7),
+            settling_tau_s=cfg.fixture_settling_tau_s, ideal_meters=cfg.ideal_meters,
+            ambient=self.chamber_air)
         #: every instrument's device, by name, in table order (``INSTRUMENTS``)
         self.devices: dict[str, SimDevice] = {row.name: row.device(self) for row in INSTRUMENTS}
         self.server = InstrumentServer(cfg.host)
@@ -216,12 +232,13 @@ class SimulatedStation:
                 rails[channel] = volts
                 # CH3 is wired inverted at the fixture: it feeds the unit's negative rail.
                 self.accel.set_supply(t, rails[pos], -rails[neg])
+                self.fixture.set_rails(t, rails[pos], -rails[neg])
 
         def load(t: float, volts: float) -> float:
             # Quiescent draw of the unit's servo electronics while a rail is within its range.
             p = self.accel.params
             in_range = p.supply_min_v <= volts <= p.supply_max_v
-            return p.quiescent_current_a if in_range else 0.0
+            return (p.quiescent_current_a if in_range else 0.0) + self.fixture.quiescent_current_a(volts)
 
         self.supply.listeners.append(on_change)
         self.supply.attach_load(pos, load)
@@ -288,6 +305,9 @@ class SimulatedStation:
                 "accelerometer_memory_c": acc.hysteresis_memory_c(t),
                 "gyro_case_c": fog.case_c(t), "gyro_coil_c": fog.element_c(t),
                 "gyro_memory_c": fog.hysteresis_memory_c(t)}
+    def fixture_truth(self) -> dict[int, dict]:
+        """Each fixture socket's true unit (for recovery tests, never for procedures)."""
+        return self.fixture.truth()
 
     def gyro_truth(self) -> dict:
         """The simulated gyro's true parameters (for recovery tests, never for procedures)."""
@@ -320,4 +340,5 @@ INSTRUMENTS: tuple[StationInstrument, ...] = (
     StationInstrument("dmm_mhd", "multimeter", SCPI, "keysight_34465a", lambda s: s.angular.dmm),
     StationInstrument("lf_gyro", "gyro", SERIAL, "fog_serial", lambda s: s.angular.lf_line),
     StationInstrument("chamber", "thermal_chamber", MODBUS, "watlow_f4t", lambda s: s.chamber),
+    StationInstrument("daq", "scanning_multimeter", SCPI, "keysight_daq970a", lambda s: s.fixture.daq),
 )

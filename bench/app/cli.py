@@ -16,7 +16,8 @@ import sys
 COMMAND_MODULES = ("bench.app.commands.run", "bench.app.commands.sim", "bench.app.commands.runs",
                    "bench.app.commands.analyze", "bench.app.commands.acceptance",
                    "bench.app.commands.doctor", "bench.app.commands.discover",
-                   "bench.app.commands.sync", "bench.app.commands.fleet", "bench.app.commands.risk")
+                   "bench.app.commands.sync", "bench.app.commands.fleet", "bench.app.commands.risk",
+                   "bench.app.commands.station")
 
 
 class UsageError(Exception):

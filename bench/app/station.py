@@ -65,6 +65,7 @@ DEFAULT_WIRING = {
     "gyro_supply_channel": 1,
     "gyro_supply_voltage_v": 5.0,
     "gyro_current_limit_a": 1.0,
+    "fixture_first_channel": 101,   # the batch fixture: socket n on scanner channel first + n − 1
 }
 #: instruments the station's supply powers: name -> the [wiring] key of the output feeding it
 SUPPLY_FED = {"gyro": "gyro_supply_channel"}
@@ -125,6 +126,7 @@ WIRING_RANGES = {
     "gyro_supply_channel": ((1, 3), True),
     "gyro_supply_voltage_v": ((0.0, 25.0), False),
     "gyro_current_limit_a": ((0.0, 5.0), False),
+    "fixture_first_channel": ((101, 113), True),
 }
 
 
@@ -298,13 +300,17 @@ class Station:
     """Open drivers and clock of a station; closes everything (and the embedded sim) on exit."""
 
     def __init__(self, config: StationConfig, *, seed: int | None = None,
-                 unit_serial: str | None = None, unit_kind: str = "accelerometer") -> None:
+                 unit_serial: str | None = None, unit_kind: str = "accelerometer",
+                 fixture: Mapping[int, str] | None = None) -> None:
+        """``fixture``: the units in the batch fixture's sockets (socket → serial); on a
+        simulated station they are the fixture's simulated units."""
         if unit_kind not in UNIT_KEYS:
             raise ValueError(f"unit_kind {unit_kind!r} not in {'|'.join(UNIT_KEYS)}")
         self.config = config
         self.seed = seed
         self.unit_serial = unit_serial
         self.unit_kind = unit_kind  # which simulated sensor the serial number names
+        self.fixture = dict(fixture or {})
         self.instruments: dict[str, Any] = {}
         self.clock: Clock = WallClock()
         self.sim: SimulatedStation | None = None  # the embedded simulated station, if any
@@ -363,6 +369,8 @@ class Station:
             sim_opts["seed"] = self.seed
         if self.unit_serial is not None:
             sim_opts[UNIT_KEYS[self.unit_kind]] = self.unit_serial
+        if self.fixture:
+            sim_opts["fixture"] = {str(n): serial for n, serial in self.fixture.items()}
         for key in ("sampling_resistor_ohm", "temp_resistor_ohm",
                     "positive_rail_channel", "negative_rail_channel", "gyro_supply_channel"):
             sim_opts.setdefault(key, cfg.wiring[key])

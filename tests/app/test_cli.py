@@ -62,10 +62,10 @@ def test_sim_serve_prints_resources_that_plain_pyvisa_can_use():
     proc = subprocess.Popen([sys.executable, "-m", "bench.app.cli", "sim", "serve", "--seed", "5"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
-        lines = [json.loads(proc.stdout.readline()) for _ in range(11)]
+        lines = [json.loads(proc.stdout.readline()) for _ in range(12)]
         by_name = {d["name"]: d for d in lines}
         assert set(by_name) == {"dmm", "dmm_temp", "supply", "turntable", "gyro", "shaker", "angular_table",
-                                "dmm_mhd", "lf_gyro", "chamber", "sim"}
+                                "dmm_mhd", "lf_gyro", "chamber", "daq", "sim"}
         serial, modbus = {"gyro", "lf_gyro"}, {"chamber"}
         assert all(d["resource"].startswith("TCPIP::127.0.0.1::") and
                    d["resource"].endswith("::SOCKET") for d in lines if d["name"] not in serial | modbus)

@@ -9,6 +9,7 @@ import pytest
 
 from instruments.angular_table import AngularVibrationTable
 from instruments.chamber import WatlowF4TChamber
+from instruments.daq import KeysightDAQ970A
 from instruments.fog import SerialGyro
 from instruments.multimeter import Keysight34465A
 from instruments.power_supply import KeysightE36312A
@@ -20,6 +21,7 @@ from instruments.protocols import (
     RandomVibrationTable,
     SafeInstrument,
     SafeOrder,
+    ScanningMultimeter,
     ThermalChamber,
     TimedTraceMultimeter,
 )
@@ -30,9 +32,10 @@ from tests.instruments.test_driver_base import assert_conforms
 
 # Checked by the type checker (mypy runs on tests/): each driver is structurally its Protocol.
 STATIC: tuple[type[TimedTraceMultimeter], type[PowerSupply], type[PositionRateTable], type[FrameGyro],
-              type[RandomVibrationTable], type[AngularTable], type[ThermalChamber]] = (
+              type[RandomVibrationTable], type[AngularTable], type[ThermalChamber],
+              type[ScanningMultimeter]] = (
     Keysight34465A, KeysightE36312A, DualAxisTurntable, SerialGyro, VibrationTable, AngularVibrationTable,
-    WatlowF4TChamber)
+    WatlowF4TChamber, KeysightDAQ970A)
 
 
 class Connection:

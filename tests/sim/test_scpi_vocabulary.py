@@ -66,6 +66,7 @@ INSTRUMENTS = {
     "turntable.md": lambda s: [s.turntable],
     "shaker.md": lambda s: [s.shaker_controller],
     "angular_table.md": lambda s: [s.angular.controller],
+    "keysight_daq970a.md": lambda s: [s.fixture.daq],
 }
 
 

@@ -30,6 +30,7 @@ DOCUMENTED_KINDS = {
     "dmm_mhd": "drop stall slow garble error power overload",
     "lf_gyro": "drop stall frame power",
     "chamber": "drop stall power limit alarm",
+    "daq": "drop stall slow garble error power overload",
 }
 
 

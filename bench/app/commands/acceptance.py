@@ -31,6 +31,9 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=None, help="seed of the simulated world")
     p.add_argument("--report", metavar="DIR", default="bench-data/reports",
                    help="write the HTML report into DIR/<run id>/ [bench-data/reports]")
+    p.add_argument("--sockets", default=None, metavar="N=SN,...",
+                   help="a batch on the fixture: socket=serial pairs (sockets 1..8), e.g. "
+                   "'1=QA-SIM-0001,2=QA-SIM-0002'; one run and one report per unit")
     p.add_argument("--json", action="store_true", help="print the verdict document as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     label_options(p)
@@ -61,6 +64,8 @@ def run_acceptance(args) -> int:
     from bench.core.procedure import execute
     from procedures.acceptance import AcceptanceTest
 
+    if args.sockets is not None:
+        return run_batch_acceptance(args)
     started = time.perf_counter()
     spec = choose_spec(args.spec, args.unit)
     procedure = AcceptanceTest(spec)  # every step's parameters validated before the station opens
@@ -97,6 +102,54 @@ def run_acceptance(args) -> int:
                wall_time_s=round(time.perf_counter() - started, 2))
     return conclude(outcome, as_json=args.json, document=doc, table=verdict_lines(doc),
                     follow_ups=[written])
+
+
+def run_batch_acceptance(args) -> int:
+    """``--sockets``: the batch on the fixture, each unit's verdict, exit 0 all passed, 1 one
+    failed, 2 one aborted."""
+    import json
+
+    from bench.app.batch import parse_sockets, run_batch, spec_for_sockets
+    from bench.app.commands.sync import forward_after_run
+    from bench.app.station import resolve_station
+
+    if args.unit is not None or args.socket is not None:
+        raise ValueError("--sockets names every unit and its socket: give no --unit / --socket")
+    sockets = parse_sockets(args.sockets)
+    spec = spec_for_sockets(sockets, args.spec)
+    for n, serial in sockets.items():
+        if spec.serial_pattern and not spec.applies_to(serial):
+            print(f"bench: warning: socket {n}: unit {serial!r} does not match the spec's serial "
+                  f"pattern {spec.serial_pattern!r}", file=sys.stderr)
+    config = resolve_station(args.station)
+    report_root = Path(args.report)
+    try:
+        report_root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--report {args.report!r} cannot be created: {exc.strerror}") from None
+    seed = seed_of(args, config)
+    store = open_store(args)
+    with progress_bar(not args.no_progress and not args.json) as progress:
+        result = run_batch(config, sockets, spec, store, seed=seed, report_root=report_root,
+                           labels=labels_of(args, config), progress=progress)
+    if args.json:
+        json.dump({"sockets": {str(n): d for n, d in result.documents.items()},
+                   "wall_time_s": round(result.wall_time_s, 2)},
+                  sys.stdout, indent=2, allow_nan=False, default=str)
+        print()
+    else:
+        for n, doc in result.documents.items():
+            print(f"socket {n}:")
+            for line in verdict_lines(doc):
+                print("  " + line)
+        print(f"batch of {len(sockets)}: " + ", ".join(
+            f"{n}={d['verdict']}" for n, d in result.documents.items())
+            + f"; wall time {result.wall_time_s:.1f} s")
+    for doc in result.documents.values():
+        if doc.get("report_error"):
+            print(f"bench: error: {doc['report_error']}", file=sys.stderr)
+    forward_after_run(str(store.path))
+    return result.exit_code
 
 
 def verdict_lines(doc: dict) -> list[str]:

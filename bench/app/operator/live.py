@@ -1,0 +1,263 @@
+"""The operator station's live state: what a batch is doing now, as every page sees it.
+
+One :class:`LiveBatch` per server, written by the batch's thread and read (as a JSON
+snapshot) by every page: sockets and serials, the step list with progress and time left, the
+decimated samples of each socket's current stream, the measurements as they are judged, the
+verdicts, and the operator prompt.  A reload or a second browser gets the same snapshot.
+
+The samples and measurements are tapped where they are stored: :class:`LiveStore` is the run
+store whose writers (:class:`TappedWriter`) hand each appended chunk and each judged
+measurement to the live state after storing it, so the page shows exactly what the record holds.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.core.store import RunStore, RunWriter
+
+PLOT_POINTS = 600        # points kept per socket for the live plot
+CHUNK_POINTS = 120       # an appended chunk is decimated to at most this many points
+#: stream → the column plotted and its label
+PLOTTED = {"output": ("acceleration_g", "output, g"), "noise": ("voltage_v", "static record, V"),
+           "tumble": ("voltage_v", "tumble position means, V")}
+
+
+class OperatorAbort(KeyboardInterrupt):
+    """The operator pressed Abort: the runner's interrupt path (teardown: station safe)."""
+
+
+@dataclass
+class SocketView:
+    socket: int
+    serial: str
+    run_id: str | None = None
+    status: str = "waiting"            # waiting | running | passed | failed | aborted
+    reason: str | None = None
+    verdict: str | None = None         # PASS | PASS (marginal) | FAIL | ABORTED
+    report: str | None = None          # the report's URL path
+    stream: str | None = None          # the stream plotted now
+    t: deque = field(default_factory=lambda: deque(maxlen=PLOT_POINTS))
+    y: deque = field(default_factory=lambda: deque(maxlen=PLOT_POINTS))
+    measurements: list[dict[str, Any]] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"socket": self.socket, "serial": self.serial, "run_id": self.run_id,
+                "status": self.status, "reason": self.reason, "verdict": self.verdict,
+                "report": self.report, "stream": self.stream,
+                "label": PLOTTED.get(self.stream or "", ("", ""))[1],
+                "t": list(self.t), "y": list(self.y), "measurements": list(self.measurements)}
+
+
+class LiveBatch:
+    """Thread-safe live state of the station's batch (one at a time)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.version = 0
+        self._clear()
+
+    def _clear(self) -> None:
+        self.state = "idle"                # idle | prompt | running | done | aborted
+        self.operator = ""
+        self.spec = ""
+        self.sockets: dict[int, SocketView] = {}
+        self.steps: list[dict[str, Any]] = []
+        self.done_s = 0.0
+        self.total_s = 0.0
+        self.message = ""
+        self.started_wall = 0.0
+        self.prompt: dict[str, Any] | None = None
+        self.abort_requested = False
+        self.error: str | None = None
+        self._answer = threading.Event()
+        self._continue = False
+
+    # -- written by the batch ----------------------------------------------------------
+    def begin(self, operator: str, spec: str, sockets: dict[int, str],
+              steps: list[tuple[str, float]]) -> None:
+        with self._lock:
+            self._clear()
+            self.state, self.operator, self.spec = "prompt", operator, spec
+            self.sockets = {n: SocketView(n, s) for n, s in sorted(sockets.items())}
+            self.steps = [{"name": name, "duration_s": d} for name, d in steps]
+            self.total_s = sum(d for _, d in steps)
+            self._touch()
+
+    def ask(self, text: str) -> bool:
+        """Show a prompt and wait for the operator: True on Continue, False on Abort."""
+        with self._lock:
+            self.prompt = {"text": text, "id": self.version + 1}
+            self._answer.clear()
+            self._touch()
+        self._answer.wait()
+        with self._lock:
+            self.prompt = None
+            self._touch()
+            return self._continue
+
+    def running(self) -> None:
+        with self._lock:
+            self.state, self.started_wall = "running", time.monotonic()
+            for view in self.sockets.values():
+                view.status = "running"
+            self._touch()
+
+    def progress(self, done: float, total: float, message: str = "") -> None:
+        with self._lock:
+            self.done_s, self.total_s, self.message = float(done), float(total), message
+            self._touch()
+
+    def run_created(self, socket: int, run_id: str) -> None:
+        with self._lock:
+            if socket in self.sockets:
+                self.sockets[socket].run_id = run_id
+                self._touch()
+
+    def samples(self, socket: int, stream: str, t: np.ndarray, y: np.ndarray) -> None:
+        if socket not in self.sockets or stream not in PLOTTED or t.size == 0:
+            return
+        step = max(1, int(np.ceil(t.size / CHUNK_POINTS)))
+        with self._lock:
+            view = self.sockets[socket]
+            if view.stream != stream:
+                view.stream = stream
+                view.t.clear()
+                view.y.clear()
+            keep = np.isfinite(y[::step])
+            view.t.extend(np.round(t[::step][keep], 4).tolist())
+            view.y.extend(y[::step][keep].tolist())
+            self._touch()
+
+    def measured(self, socket: int, measurement: dict[str, Any]) -> None:
+        with self._lock:
+            if socket in self.sockets:
+                self.sockets[socket].measurements.append(measurement)
+                self._touch()
+
+    def socket_ended(self, socket: int, status: str, reason: str | None) -> None:
+        with self._lock:
+            view = self.sockets[socket]
+            view.status, view.reason = status, reason
+            self._touch()
+
+    def verdict(self, socket: int, verdict: str, report: str | None) -> None:
+        with self._lock:
+            self.sockets[socket].verdict, self.sockets[socket].report = verdict, report
+            self._touch()
+
+    def finish(self, state: str, error: str | None = None) -> None:
+        with self._lock:
+            self.state, self.error = state, error
+            self.prompt = None
+            self._touch()
+
+    def _touch(self) -> None:
+        self.version += 1
+
+    # -- written by the operator -------------------------------------------------------
+    def answer(self, go_on: bool) -> bool:
+        """Continue / Abort at the prompt; False when no prompt is open."""
+        with self._lock:
+            if self.prompt is None:
+                return False
+            self._continue = go_on
+            if not go_on:
+                self.abort_requested = True
+            self._answer.set()
+            return True
+
+    def request_abort(self) -> bool:
+        with self._lock:
+            if self.state not in ("prompt", "running"):
+                return False
+            self.abort_requested = True
+            self._continue = False
+            self._answer.set()
+            self._touch()
+            return True
+
+    @property
+    def busy(self) -> bool:
+        return self.state in ("prompt", "running")
+
+    # -- read by the pages -------------------------------------------------------------
+    def snapshot(self) -> dict[str, Any]:
+        with self._lock:
+            fraction = self.done_s / self.total_s if self.total_s > 0 else 0.0
+            elapsed = time.monotonic() - self.started_wall if self.state == "running" else 0.0
+            left = elapsed * (1 - fraction) / fraction if fraction > 0.01 else None
+            start = 0.0
+            steps = []
+            for s in self.steps:
+                end = start + s["duration_s"]
+                state = ("done" if self.done_s >= end - 1e-9 else
+                         "running" if self.done_s >= start and self.state == "running" else "waiting")
+                steps.append({**s, "state": state})
+                start = end
+            return {"version": self.version, "state": self.state, "operator": self.operator,
+                    "spec": self.spec, "message": self.message, "fraction": fraction,
+                    "wall_left_s": left, "steps": steps, "prompt": self.prompt,
+                    "abort_requested": self.abort_requested, "error": self.error,
+                    "sockets": [v.to_dict() for v in self.sockets.values()]}
+
+
+class TappedWriter(RunWriter):
+    """A run writer that hands what it stored to the live state (plot samples, measurements)."""
+
+    def __init__(self, store: RunStore, run_id: str, live: LiveBatch, socket: int) -> None:
+        super().__init__(store, run_id)
+        self.live, self.socket = live, socket
+
+    def append(self, stream: str, /, **columns: Any) -> None:
+        super().append(stream, **columns)
+        column = PLOTTED.get(stream, (None,))[0]
+        if column in columns and "t_s" in columns:
+            self.live.samples(self.socket, stream, np.asarray(columns["t_s"], float),
+                              np.asarray(columns[column], float))
+
+    def set_result(self, key: str, value: Any) -> None:
+        super().set_result(key, value)
+        if key.startswith("measurement.") and isinstance(value, dict):
+            self.live.measured(self.socket, value)
+
+
+class LiveStore(RunStore):
+    """The run store whose socket runs are tapped for the live state."""
+
+    def __init__(self, path: Any, live: LiveBatch) -> None:
+        super().__init__(path)
+        self.live = live
+
+    def create_run(self, **kwargs: Any) -> RunWriter:
+        writer = super().create_run(**kwargs)
+        socket = (kwargs.get("labels") or {}).get("socket")
+        if socket is None:
+            return writer
+        self.live.run_created(int(socket), writer.id)
+        return TappedWriter(self, writer.id, self.live, int(socket))
+
+
+class AbortableClock:
+    """The station's clock, with the operator's Abort checked at every wait."""
+
+    def __init__(self, clock: Any, live: LiveBatch) -> None:
+        self.clock, self.live = clock, live
+
+    def now(self) -> float:
+        return self.clock.now()
+
+    def sleep(self, seconds: float) -> None:
+        if self.live.abort_requested:
+            raise OperatorAbort("aborted by the operator")
+        self.clock.sleep(seconds)
+
+
+__all__ = ["LiveBatch", "LiveStore", "TappedWriter", "AbortableClock", "OperatorAbort", "SocketView",
+           "PLOTTED"]

@@ -1,0 +1,239 @@
+"""The operator station's web server (Starlette): the page, its JSON API and the live stream.
+
+Routes
+- ``GET /`` the page (``static/index.html``, plain JavaScript and canvas plots: no build step);
+- ``GET /api/state`` the live snapshot; ``GET /api/events`` the same as Server-Sent Events, a
+  message whenever it changed, at most every ``PUSH_INTERVAL_S`` (4 per second);
+- ``POST /api/start`` ``{"operator", "sockets": {"1": serial, ...}}``: checked (a clear 400
+  message naming the bad value), then the batch in a thread: the "mount the units" prompt,
+  the station opened with its fixture, the spec's batch acceptance, one report per unit;
+- ``POST /api/prompt`` ``{"answer": "continue"|"abort"}``; ``POST /api/abort``: Abort — the
+  runner's interrupt path leaves the station safe, every record says why it stopped;
+- ``GET /api/history?serial=&verdict=&date=`` stored runs; ``GET /reports/<run>/...`` reports;
+- ``GET /api/doctor`` ``bench doctor``'s table (refused while a batch runs).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import threading
+from collections.abc import AsyncIterator
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
+from starlette.routing import Mount, Route
+from starlette.staticfiles import StaticFiles
+
+from bench.app.batch import MAX_SOCKETS, check_socket, run_batch, spec_for_sockets
+from bench.app.operator.live import AbortableClock, LiveBatch, LiveStore, OperatorAbort
+from bench.app.reports.acceptance_report import acceptance_document
+
+STATIC = Path(__file__).resolve().parent / "static"
+PUSH_INTERVAL_S = 0.25
+MAX_OPERATOR_CHARS = 64
+
+
+class OperatorStation:
+    """One station's server state: its config, store, reports folder and the live batch."""
+
+    def __init__(self, config: Any, store_path: str | Path, report_root: str | Path, *,
+                 seed: int | None = None, spec_path: str | None = None,
+                 labels: dict[str, str] | None = None) -> None:
+        self.config = config
+        self.live = LiveBatch()
+        self.store = LiveStore(store_path, self.live)
+        self.report_root = Path(report_root)
+        self.report_root.mkdir(parents=True, exist_ok=True)
+        self.seed, self.spec_path = seed, spec_path
+        self.labels = dict(labels or {})
+        self.thread: threading.Thread | None = None
+        self.last_station: Any = None  # the station the last batch opened (tests read its sim)
+
+    # -- starting a batch ------------------------------------------------------------------
+    def check_start(self, body: Any) -> tuple[str, dict[int, str], Any]:
+        """The operator's form, checked: (operator, sockets, spec); ValueError naming the problem."""
+        if not isinstance(body, dict):
+            raise ValueError("the request must be a JSON object {operator, sockets}")
+        operator = body.get("operator")
+        if not isinstance(operator, str) or not operator.strip():
+            raise ValueError("operator name is required")
+        operator = operator.strip()
+        if len(operator) > MAX_OPERATOR_CHARS or not operator.isprintable():
+            raise ValueError(f"operator name must be 1..{MAX_OPERATOR_CHARS} printable characters")
+        given = body.get("sockets")
+        if not isinstance(given, dict):
+            raise ValueError("sockets must be an object {socket: serial}")
+        sockets: dict[int, str] = {}
+        for key, serial in given.items():
+            serial = serial.strip() if isinstance(serial, str) else serial
+            if serial == "":
+                continue  # an empty socket
+            sockets.update(check_socket(key, serial, sockets))
+        if not sockets:
+            raise ValueError(f"scan or type at least one serial (sockets 1..{MAX_SOCKETS})")
+        return operator, sockets, spec_for_sockets(sockets, self.spec_path)
+
+    def start(self, operator: str, sockets: dict[int, str], spec: Any) -> None:
+        from procedures.batch_acceptance import BatchAcceptance
+
+        steps = [(s.name, s.duration_s()) for s in BatchAcceptance(spec).steps]
+        self.live.begin(operator, spec.model, sockets, steps)
+        self.thread = threading.Thread(target=self._run, args=(sockets, spec), daemon=True,
+                                       name="operator-batch")
+        self.thread.start()
+
+    def _run(self, sockets: dict[int, str], spec: Any) -> None:
+        live = self.live
+        listed = ", ".join(str(n) for n in sockets)
+        if not live.ask(f"Mount the units in socket{'s' if len(sockets) > 1 else ''} {listed}, "
+                        "connect their cables and close the fixture cover."):
+            live.finish("aborted", "aborted by the operator before the start")
+            return
+        live.running()
+
+        def attach(station: Any) -> None:
+            station.clock = AbortableClock(station.clock, live)
+            self.last_station = station
+
+        labels = {**self.labels, "station_id": self.labels.get("station_id", f"operator:{self.config.name}")}
+        try:
+            result = run_batch(self.config, sockets, spec, self.store, seed=self.seed,
+                               report_root=self.report_root, labels=labels, progress=live.progress,
+                               on_socket=live.socket_ended, on_station=attach)
+        except OperatorAbort:
+            self._verdicts_of_stored()
+            live.finish("aborted", "aborted by the operator: station left safe")
+            return
+        except Exception as exc:  # the station could not be opened, a report failed...
+            self._verdicts_of_stored()
+            live.finish("aborted", f"{type(exc).__name__}: {exc}")
+            return
+        for n, doc in result.documents.items():
+            report = f"/reports/{doc['run_id']}/acceptance_report.html" if doc.get("report") else None
+            live.verdict(n, doc["verdict"], report)
+        live.finish("done")
+
+    def _verdicts_of_stored(self) -> None:
+        for view in list(self.live.sockets.values()):
+            if view.run_id is None:
+                continue
+            try:
+                doc = acceptance_document(self.store, view.run_id)
+            except Exception:  # a run that was never finished: nothing to show
+                continue
+            self.live.socket_ended(view.socket, doc["status"], doc.get("reason"))
+            self.live.verdict(view.socket, doc["verdict"], None)
+
+    # -- history and health ----------------------------------------------------------------
+    def history(self, serial: str = "", verdict: str = "", date: str = "") -> list[dict[str, Any]]:
+        from bench.app.reports.acceptance_report import verdict_of
+
+        rows = []
+        for info in self.store.list_runs(limit=500):
+            if serial and serial.lower() not in (info.unit_serial or "").lower():
+                continue
+            if date and not info.started_utc.startswith(date):
+                continue
+            measurements = [v for k, v in info.results.items() if k.startswith("measurement.")]
+            judged = verdict_of(info.status, measurements) if info.status != "running" else "RUNNING"
+            if verdict and not judged.upper().startswith(verdict.upper()):
+                continue
+            report = self.report_root / info.id / "acceptance_report.html"
+            rows.append({"run_id": info.id, "serial": info.unit_serial, "procedure": info.procedure,
+                         "socket": info.labels.get("socket"), "started_utc": info.started_utc,
+                         "status": info.status, "verdict": judged, "reason": info.reason,
+                         "report": f"/reports/{info.id}/acceptance_report.html" if report.is_file() else None})
+        return rows
+
+    def doctor(self) -> list[dict[str, Any]]:
+        from bench.app.commands.doctor import diagnose
+
+        return [asdict(h) for h in diagnose(self.config)]
+
+
+def create_app(station: OperatorStation) -> Starlette:
+    """The Starlette application of ``station``."""
+
+    async def index(request: Request) -> Response:
+        return FileResponse(STATIC / "index.html")
+
+    async def state(request: Request) -> Response:
+        return JSONResponse(station.live.snapshot())
+
+    async def events(request: Request) -> Response:
+        async def stream() -> AsyncIterator[str]:
+            seen = -1
+            while True:
+                if await request.is_disconnected():
+                    return
+                snap = station.live.snapshot()
+                if snap["version"] != seen or snap["state"] == "running":
+                    seen = snap["version"]
+                    yield f"data: {json.dumps(snap, allow_nan=False, default=str)}\n\n"
+                await asyncio.sleep(PUSH_INTERVAL_S)
+        return StreamingResponse(stream(), media_type="text/event-stream",
+                                 headers={"Cache-Control": "no-cache"})
+
+    async def start(request: Request) -> Response:
+        if station.live.busy:
+            return JSONResponse({"error": "a batch is running: wait for it or abort it"}, status_code=409)
+        try:
+            body = await request.json()
+        except ValueError:
+            return JSONResponse({"error": "the request is not JSON"}, status_code=400)
+        try:
+            operator, sockets, spec = await asyncio.to_thread(station.check_start, body)
+        except (ValueError, LookupError) as exc:
+            return JSONResponse({"error": str(exc)}, status_code=400)
+        station.start(operator, sockets, spec)
+        return JSONResponse({"started": True, "spec": spec.model,
+                             "sockets": {str(n): s for n, s in sockets.items()}})
+
+    async def prompt(request: Request) -> Response:
+        try:
+            answer = (await request.json()).get("answer")
+        except (ValueError, AttributeError):
+            answer = None
+        if answer not in ("continue", "abort"):
+            return JSONResponse({"error": "answer must be 'continue' or 'abort'"}, status_code=400)
+        if not station.live.answer(answer == "continue"):
+            return JSONResponse({"error": "no prompt is open"}, status_code=409)
+        return JSONResponse({"answered": answer})
+
+    async def abort(request: Request) -> Response:
+        if not station.live.request_abort():
+            return JSONResponse({"error": "nothing is running"}, status_code=409)
+        return JSONResponse({"aborting": True})
+
+    async def history(request: Request) -> Response:
+        q = request.query_params
+        rows = await asyncio.to_thread(station.history, q.get("serial", ""), q.get("verdict", ""),
+                                       q.get("date", ""))
+        return JSONResponse({"runs": rows})
+
+    async def doctor(request: Request) -> Response:
+        if station.live.busy:
+            return JSONResponse({"error": "the station is busy with a batch"}, status_code=409)
+        try:
+            rows = await asyncio.to_thread(station.doctor)
+        except ValueError as exc:
+            return JSONResponse({"error": str(exc)}, status_code=400)
+        return JSONResponse({"instruments": rows})
+
+    routes = [
+        Route("/", index), Route("/api/state", state), Route("/api/events", events),
+        Route("/api/start", start, methods=["POST"]), Route("/api/prompt", prompt, methods=["POST"]),
+        Route("/api/abort", abort, methods=["POST"]), Route("/api/history", history),
+        Route("/api/doctor", doctor),
+        Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        Mount("/reports", StaticFiles(directory=station.report_root, check_dir=False), name="reports"),
+    ]
+    return Starlette(routes=routes)
+
+
+__all__ = ["OperatorStation", "create_app", "PUSH_INTERVAL_S"]

@@ -1,0 +1,78 @@
+"""The operator page under a live batch: plot update rate and page latency, in Debian's chromium.
+
+A batch of four QA-2000 units with the shipped spec (1.9 h of station time, simulated) on the
+operator station served on loopback; the page is driven by Playwright.  Measured:
+
+* live plot updates per second, per socket plot, while the batch runs (a redraw counts when
+  new samples arrived), and snapshots received per second (Server-Sent Events);
+* latency: ``GET /api/state`` round trip; Continue clicked → the page shows the run;
+  Abort clicked → the page shows every socket aborted (the station made safe in between).
+
+Usage: ``python benchmarks/bench_operator_page.py`` (needs ``make chromium``).
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+SERIALS = {1: "QA-SIM-0003", 2: "QA-SIM-0002", 3: "QA-SIM-0004", 4: "QA-SIM-0001"}
+
+
+def main() -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' station helper
+    from playwright.sync_api import sync_playwright
+
+    from tests.app.operator_server import CHROMIUM, serve
+
+    with tempfile.TemporaryDirectory() as tmp, serve(Path(tmp)) as (url, _), sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
+        page = browser.new_page(viewport={"width": 1400, "height": 1000})
+        page.goto(url)
+        state_ms = []
+        for _ in range(50):
+            t0 = time.perf_counter()
+            with urllib.request.urlopen(url + "/api/state") as r:
+                r.read()
+            state_ms.append(1000 * (time.perf_counter() - t0))
+        page.fill("#operator", "bench")
+        for n, serial in SERIALS.items():
+            page.fill(f"#serial-{n}", serial)
+        page.click("#start")
+        page.wait_for_selector("#prompt:not(.hidden)")
+        t0 = time.perf_counter()
+        page.click("#prompt-continue")
+        page.wait_for_selector("body[data-state=running]")
+        continue_ms = 1000 * (time.perf_counter() - t0)
+        page.wait_for_function("window.plotUpdates > 0", timeout=120_000)
+        plots0, msgs0 = page.evaluate("window.plotUpdates"), page.evaluate("window.stateMessages")
+        t_live = time.perf_counter()
+        page.wait_for_selector("body[data-state=done]", timeout=600_000)
+        live_s = time.perf_counter() - t_live
+        plots = page.evaluate("window.plotUpdates") - plots0
+        msgs = page.evaluate("window.stateMessages") - msgs0
+        # a second batch, aborted once its plots move
+        page.click("#start")
+        page.wait_for_selector("#prompt:not(.hidden)")
+        page.click("#prompt-continue")
+        page.wait_for_function(f"window.plotUpdates > {page.evaluate('window.plotUpdates') + 4}",
+                               timeout=120_000)
+        t0 = time.perf_counter()
+        page.click("#abort")
+        page.wait_for_selector("body[data-state=aborted]", timeout=120_000)
+        abort_ms = 1000 * (time.perf_counter() - t0)
+        browser.close()
+    print(f"live batch of 4: {live_s:.1f} s of wall time with plots moving")
+    print(f"plot updates per socket plot: {plots / len(SERIALS) / live_s:.1f} /s   "
+          f"(snapshots received: {msgs / live_s:.1f} /s)")
+    print(f"GET /api/state: median {statistics.median(state_ms):.1f} ms, max {max(state_ms):.1f} ms")
+    print(f"Continue → page shows the run: {continue_ms:.0f} ms")
+    print(f"Abort → page shows every socket aborted (station safe): {abort_ms:.0f} ms")
+
+
+if __name__ == "__main__":
+    main()
