@@ -34,6 +34,7 @@ def store(tmp_path_factory):
     """One store with a gyro start-up, a gyro static record (after a warm-up), a short vibration
     test and an accelerometer static record."""
     from procedures.noise import AccelerometerNoise, GyroNoise
+    from procedures.thermal_ramp import GyroThermalRamp, ThermalRamp
     from procedures.turn_on import GyroTurnOnTest
     from procedures.vibration import VibrationTest
 
@@ -46,6 +47,9 @@ def store(tmp_path_factory):
                                               frame_rate_hz=200, chunk_s=1.0), GYRO),
         "accelerometer_noise": _run(path, AccelerometerNoise(duration_s=120.0, rate_hz=5.0, warmup_s=30.0,
                                                              chunk_s=60.0), ACCEL),
+        # the chamber ramps −10…+60 °C at two rates with the unit static (≈ 7 h of chamber time)
+        "thermal_ramp": _run(path, ThermalRamp(sample_interval_s=10.0), ACCEL),
+        "gyro_thermal_ramp": _run(path, GyroThermalRamp(sample_interval_s=10.0), GYRO),
     }
     return path, runs
 
@@ -86,6 +90,17 @@ def test_accelerometer_static_record_is_in_g_with_one_g_applied(store):
     assert rec.t_on_s is not None and rec.t_on_s[0] >= 30.0
 
 
+@pytest.mark.parametrize("which", ["thermal_ramp", "gyro_thermal_ramp"])
+def test_a_thermal_ramp_is_a_record_with_the_units_temperature(store, which):
+    path, runs = store
+    rec, kind, label = read_run(path, runs[which][0])
+    assert kind == ("gyro" if which.startswith("gyro") else "accelerometer") and "stream thermal_ramp" in label
+    assert rec.temp_c is not None and np.ptp(rec.temp_c) > 50.0  # the ramps' −10…+60 °C, at the unit's sensor
+    assert rec.t_on_s is not None and np.all(rec.t_on_s > 0)  # powered before the soak
+    if kind == "accelerometer":
+        assert np.all(rec.input == 0.0)  # IA horizontal
+
+
 def test_unmappable_run_and_unknown_stream_are_one_line_exit_2(store, tmp_path, capsys):
     path, runs = store
     rc = main(["--store", str(path), "discover", "--run", runs["gyro_noise"][0], "--stream", "nope"])
@@ -95,7 +110,7 @@ def test_unmappable_run_and_unknown_stream_are_one_line_exit_2(store, tmp_path, 
     assert rc == 2 and "--run only" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("which", ["gyro_startup", "gyro_noise", "vibration", "accelerometer_noise"])
+@pytest.mark.parametrize("which", ["gyro_startup", "gyro_noise", "vibration", "accelerometer_noise", "thermal_ramp"])
 def test_every_run_kind_runs_through_discover(store, tmp_path, capsys, which):
     path, runs = store
     rc = main(["--store", str(path), "discover", "--run", runs[which][0], "--max-effects", "1",
@@ -104,6 +119,10 @@ def test_every_run_kind_runs_through_discover(store, tmp_path, capsys, which):
     doc = json.loads(capsys.readouterr().out)
     assert doc["source"].startswith(f"run {runs[which][0]}") and doc["model_file"]
     assert np.isfinite(doc["gap"]["initial"]) and doc["gap"]["final"] <= doc["gap"]["initial"] + 1e-9
+    if which == "thermal_ramp":  # the catalogue's temperature effects are tried on it, and what stays is said
+        tried = [e["id"] for e in doc["effects"]] + [w.split(":")[0] for w in doc["withdrawn"]]
+        assert "temperature_bias" in tried
+        assert doc["effects"] or any("temp" in u for u in doc["unexplained"])
 
 
 def test_power_on_time_is_the_switch_on_not_followed_by_a_switch_off():

@@ -19,6 +19,11 @@ stream            sensor          mapping
                                   temp, t_on from the gyro supply events; READY frames only
 ``gyro_frames``   gyro            ``vibration`` (the stream with ``level_grms``): rate_dps → y,
                                   level_grms → vib, temperature_c → temp, t_on from the events
+``thermal_ramp``  accelerometer   ``thermal_ramp`` (the stream with ``output_g``): output_g → y,
+                                  unit_c (its AD590 on the case) → temp, input = 0 g (IA
+                                  horizontal), t_on from the supply events
+``thermal_ramp``  gyro            ``gyro_thermal_ramp`` (the stream with ``rate_dps``): rate_dps →
+                                  y, temperature_c → temp, READY frames only, t_on from the events
 ================  ==============  ==============================================================
 
 Time since power-on for streams on the bench clock comes from the run's supply events
@@ -73,6 +78,11 @@ STREAM_MAPS: tuple[StreamMap, ...] = (
               power_events=("gyro_supply_on", "gyro_supply_off")),
     StreamMap("noise", "accelerometer", "voltage_v", "accelerometer_noise", applied_input=1.0,
               normalise_mean=True, power_events=("supply_on", "supply_off")),
+    StreamMap("thermal_ramp", "accelerometer", "output_g", "thermal_ramp", needs=("unit_c",),
+              applied_input=0.0, temp=("thermal_ramp", "unit_c"), power_events=("supply_on", "supply_off")),
+    StreamMap("thermal_ramp", "gyro", "rate_dps", "gyro_thermal_ramp", needs=("temperature_c",),
+              temp=("thermal_ramp", "temperature_c"), ready_only=True,
+              power_events=("gyro_supply_on", "gyro_supply_off")),
 )
 
 
