@@ -34,7 +34,8 @@ DEFAULT_OUT = "bench-data/discover"
 def register(sub) -> None:
     p = sub.add_parser("discover", help="name the effect the model lacks (discrepancy workflow)")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--run", metavar="ID", help="stored run id or 'latest' (start-up, noise, vibration and thermal-ramp runs)")
+    src.add_argument("--run", metavar="ID",
+                     help="stored run id or 'latest' (start-up, noise, vibration and thermal-ramp runs)")
     src.add_argument("--measured", metavar="FILE.csv",
                      help=f"CSV with a header row; columns {', '.join(CSV_COLUMNS)} (t, y required)")
     p.add_argument("--stream", metavar="NAME", default=None,
