@@ -236,7 +236,7 @@ def _hysteresis(p: Params, rec: Record) -> np.ndarray:
 ADDITIVE: dict[str, Callable[[Params, Record], np.ndarray]] = {
     "warmup_exponential": _warmup,
     "linear_drift": _drift,
-    "temperature_bias": lambda p, rec: np.polyval([p["coef_per_c3"], p["coef_per_c2"], p["coef_per_c"], 0.0],
+    "temperature_bias": lambda p, rec: np.polyval([p["coef_per_c2"], p["coef_per_c"], 0.0],
                                                   rec.column("temp") - T_REF_C),
     "k2_nonlinearity": lambda p, rec: p["k2_per_u"] * rec.column("input") * rec.column("input"),
     "k3_nonlinearity": lambda p, rec: p["k3_per_u2"] * rec.column("input") ** 3,

@@ -107,41 +107,36 @@ class LinearDrift(Effect):
 
 class TemperatureBias(Effect):
     id = "temperature_bias"
-    description = "bias over temperature: a polynomial to third order (a calibration's bias model)"
-    form = f"y += coef_per_c·ΔT + coef_per_c2·ΔT² + coef_per_c3·ΔT³, ΔT = temp − {T_REF_C} °C (fixed reference)"
+    description = "bias temperature sensitivity, linear with an optional quadratic term"
+    form = f"y += coef_per_c·ΔT + coef_per_c2·ΔT², ΔT = temp − {T_REF_C} °C (fixed reference)"
     inputs = ("temp",)
     main_param = "coef_per_c"
-    signature = "input: residual correlates with temp (and temp², temp³); time: follows the temperature profile"
+    signature = "input: residual correlates with temp (and temp²); time: follows the temperature profile"
     separating = {"temperature_scale_factor": "change temperature at zero input and at a large input"}
-    ranges = {  # QA-2000 sheet < 30 µg/°C; FOG ~0.1-10 deg/h/°C (1e-2 deg/h/°C = 2.8e-6 deg/s/°C); the
-        # cubic term at most the quadratic range over ~30 °C (a calibration over −40…+70 °C fits to 3rd order)
+    ranges = {  # QA-2000 sheet < 30 µg/°C; FOG ~0.1-10 deg/h/°C (1e-2 deg/h/°C = 2.8e-6 deg/s/°C)
         "accelerometer": (Param("coef_per_c", "g/degC", -1e-4, 1e-4, linear=True, floor=1e-8),
-                          Param("coef_per_c2", "g/degC^2", -1e-6, 1e-6, linear=True),
-                          Param("coef_per_c3", "g/degC^3", -3e-8, 3e-8, linear=True)),
+                          Param("coef_per_c2", "g/degC^2", -1e-6, 1e-6, linear=True)),
         "gyro": (Param("coef_per_c", "deg/s/degC", -3e-3, 3e-3, linear=True, floor=1e-7),
-                 Param("coef_per_c2", "deg/s/degC^2", -1e-4, 1e-4, linear=True),
-                 Param("coef_per_c3", "deg/s/degC^3", -3e-6, 3e-6, linear=True)),
+                 Param("coef_per_c2", "deg/s/degC^2", -1e-4, 1e-4, linear=True)),
         "mhd": (Param("coef_per_c", "deg/s/degC", -1e-2, 1e-2, linear=True, floor=1e-5),
-                Param("coef_per_c2", "deg/s/degC^2", -1e-3, 1e-3, linear=True),
-                Param("coef_per_c3", "deg/s/degC^3", -3e-5, 3e-5, linear=True)),
+                Param("coef_per_c2", "deg/s/degC^2", -1e-3, 1e-3, linear=True)),
     }
 
     def relaxed_basis(self, p, rec):
-        return legendre_columns(rec.column("temp"), (4, 5)), "temp⁴ and temp⁵ (Legendre)"
+        return legendre_columns(rec.column("temp"), (3, 4)), "temp³ and temp⁴ (Legendre)"
 
     def term(self, p, rec):
         dt = rec.column("temp") - T_REF_C
-        return (p["coef_per_c"] + (p["coef_per_c2"] + p["coef_per_c3"] * dt) * dt) * dt
+        return p["coef_per_c"] * dt + p["coef_per_c2"] * dt * dt
 
     def draw_others(self, rng, rec, kind):
-        return {"coef_per_c2": 0.0, "coef_per_c3": 0.0}
+        return {"coef_per_c2": 0.0}
 
     def identity_params(self, p):
-        return {"coef_per_c": 0.0, "coef_per_c2": 0.0, "coef_per_c3": 0.0}
+        return {"coef_per_c": 0.0, "coef_per_c2": 0.0}
 
     def finish_draw(self, rng, rec, kind, p):
-        # quadratic part at most 30 % of the linear one over the record's temperature swing (draws
-        # keep the cubic at 0: a drawn record tests the catalogue's detection, not the cubic's)
+        # quadratic part at most 30 % of the linear one over the record's temperature swing
         dt = rec.column("temp") - T_REF_C
         span = max(float(np.ptp(dt)), 1.0) + abs(float(np.mean(dt)))
         q = self.param("coef_per_c2", kind)

@@ -124,7 +124,7 @@ def test_linear_drift_temperature_and_input_terms_have_their_shapes():
     y0 = np.zeros(2000)
     d = CATALOGUE["linear_drift"].apply({"slope_per_s": 2e-6}, rec, y0)
     assert np.polyfit(rec.t_s, d, 1)[0] == pytest.approx(2e-6)
-    d = CATALOGUE["temperature_bias"].apply({"coef_per_c": -1e-5, "coef_per_c2": 0.0, "coef_per_c3": 0.0}, rec, y0)
+    d = CATALOGUE["temperature_bias"].apply({"coef_per_c": -1e-5, "coef_per_c2": 0.0}, rec, y0)
     assert np.corrcoef(d, temp)[0, 1] == pytest.approx(-1.0)
     d = CATALOGUE["temperature_scale_factor"].apply({"sf_coef_per_c": 1e-4}, rec, y0)
     np.testing.assert_allclose(d, 1e-4 * (temp - 25.0) * u)
@@ -294,8 +294,7 @@ def test_lowpass_and_highpass_are_the_continuous_single_pole_of_an_input_linear_
 
 
 @pytest.mark.parametrize("eid,params", [("k2_nonlinearity", {"k2_per_u": 3e-5}),
-                                        ("temperature_bias",
-                                         {"coef_per_c": 2e-6, "coef_per_c2": -1e-8, "coef_per_c3": 0.0}),
+                                        ("temperature_bias", {"coef_per_c": 2e-6, "coef_per_c2": -1e-8}),
                                         ("warmup_exponential", {"amplitude": -5e-5, "tau_s": 300.0})])
 def test_fit_starts_recover_linear_parameters_from_a_clean_residual(records, eid, params):
     e, rec = CATALOGUE[eid], records["accelerometer"]
@@ -361,8 +360,7 @@ def test_a_draw_at_an_snr_has_that_snr(records, kind, eid):
             assert "on this record" in str(exc)
             continue
         assert e.check_params(p, kind) == p
-        # without its drawn ΔT² share
-        main_only = p | ({"coef_per_c2": 0.0, "coef_per_c3": 0.0} if eid == "temperature_bias" else {})
+        main_only = p | ({"coef_per_c2": 0.0} if eid == "temperature_bias" else {})  # its drawn ΔT² share
         assert e.snr(main_only, rec, sd) == pytest.approx(ratio * MIN_SNR, rel=0.02)
     with pytest.raises(ValueError, match="at_snr = -1.0; allowed: > 0"):
         e.draw(np.random.default_rng(9), rec, kind=kind, noise_sd=sd, at_snr=-1.0)

@@ -98,7 +98,7 @@ def test_predict_composes_stages_input_then_additive_then_output():
     rec = _rec(1000, input=u, temp_c=25 + np.linspace(0, 5, 1000))
     m = (Model(BaseModel("accelerometer", bias=1e-3, scale_factor=2.0, noise_sd=1e-5))
          .with_effect("lowpass_bandwidth", {"bandwidth_hz": 0.5})
-         .with_effect("temperature_bias", {"coef_per_c": 1e-5, "coef_per_c2": 0.0, "coef_per_c3": 0.0})
+         .with_effect("temperature_bias", {"coef_per_c": 1e-5, "coef_per_c2": 0.0})
          .with_effect("quantization", {"step": 1e-4}))
     lp = CATALOGUE["lowpass_bandwidth"].transform_input({"bandwidth_hz": 0.5}, rec, u)
     expect = 1e-3 + 2.0 * lp + 1e-5 * (rec.temp_c - 25.0)  # the bias is not low-passed; SF scales the filtered input
