@@ -40,6 +40,7 @@ import numpy as np
 from sim.devices.dmm_model import (
     DmmConverter,
     DmmFrontEnd,
+    ForcedInput,
     LinePickup,
     round_up_nplc,
 )
@@ -154,7 +155,7 @@ class ScanningDaq(ScpiDevice):
                                             noise_scale=0.0 if ideal else 1.0)
                            for ch in SLOT_CHANNELS}
         self.memory = _ScanMemory(MEMORY_DEPTH)
-        self._overloads: list[tuple[float, float, float]] = []
+        self.forced = ForcedInput()  # the overload fault's windows
         self._defaults()
         self._register()
 
@@ -186,17 +187,14 @@ class ScanningDaq(ScpiDevice):
 
     @property
     def overloaded(self) -> bool:
-        return bool(self._overloads) and self._overloads[-1][1] == math.inf
+        return self.forced.active
 
     def overload(self, volts: float) -> None:
         """Every channel's input forced to ``volts`` from now (beyond range: ±9.9E37)."""
-        self.end_overload()
-        self._overloads.append((self.world.now, math.inf, float(volts)))
+        self.forced.force(self.world.now, volts)
 
     def end_overload(self) -> None:
-        if self.overloaded:
-            t0, _, volts = self._overloads[-1]
-            self._overloads[-1] = (t0, self.world.now, volts)
+        self.forced.release(self.world.now)
 
     # -- the scan's timing ---------------------------------------------------------------
     @property
@@ -320,9 +318,7 @@ class ScanningDaq(ScpiDevice):
     def _input(self, ch: int, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
         source = self.inputs.get(ch)
         volts = np.zeros_like(t_start) if source is None else source(t_start, aperture_s)
-        for t0, t1, forced in self._overloads:
-            volts = np.where((t_start >= t0) & (t_start < t1), forced, volts)
-        return volts
+        return self.forced.apply(t_start, volts)
 
     def wait_complete(self) -> None:
         t_end = self.completion_time()

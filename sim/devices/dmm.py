@@ -23,14 +23,13 @@ that can never end (bus trigger pending, infinite trigger count) is answered wit
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Callable
 
 import numpy as np
 
 from sim.devices.dmm_capture import CaptureGrid
-from sim.devices.dmm_model import DmmConverter, DmmFrontEnd, LinePickup
+from sim.devices.dmm_model import DmmConverter, DmmFrontEnd, ForcedInput, LinePickup
 from sim.devices.dmm_scpi import Keysight34465AVocabulary
 from sim.devices.lifecycle import scpi_power_on
 from sim.scpi import ScpiError
@@ -130,8 +129,7 @@ class Multimeter(Keysight34465AVocabulary):
         self.converter = DmmConverter(world.rng(f"{name}.converter"), noise_scale=0.0 if ideal else 1.0)
         self.format_real = False
         self.swapped = False
-        #: (t_from_s, t_to_s, volts): intervals in which the input is forced (overload faults)
-        self._overloads: list[tuple[float, float, float]] = []
+        self.forced = ForcedInput()  # the overload fault's windows
         self._defaults()
         self._register()
 
@@ -174,24 +172,19 @@ class Multimeter(Keysight34465AVocabulary):
 
     @property
     def overloaded(self) -> bool:
-        return bool(self._overloads) and self._overloads[-1][1] == math.inf
+        return self.forced.active
 
     def overload(self, volts: float) -> None:
         """The input forced to ``volts`` from now on (beyond range: readings ±9.9E37)."""
-        self.end_overload()
-        self._overloads.append((self.world.now, math.inf, float(volts)))
+        self.forced.force(self.world.now, volts)
 
     def end_overload(self) -> None:
-        if self.overloaded:
-            t0, _, volts = self._overloads[-1]
-            self._overloads[-1] = (t0, self.world.now, volts)
+        self.forced.release(self.world.now)
 
     def _input_volts(self, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
         """The input terminals' mean volts over each aperture, forced where an overload was."""
         volts = self.input_signal(t_start, aperture_s)
-        for t0, t1, forced in self._overloads:
-            volts = np.where((t_start >= t0) & (t_start < t1), forced, volts)
-        return volts
+        return self.forced.apply(t_start, volts)
 
     @property
     def delay_s(self) -> float:

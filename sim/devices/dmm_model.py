@@ -15,6 +15,7 @@ What the model reproduces, and why it matters on an inertial bench:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,3 +153,31 @@ class DmmConverter:
 
     def autozero_once(self) -> None:
         self._once_offset = None
+
+
+class ForcedInput:
+    """Intervals in which a meter's input is forced to a voltage (the overload fault): a window
+    opens at ``force`` and closes at ``release``; :meth:`apply` puts the forced volts over the
+    readings whose aperture starts inside a window.  Shared by the DMM and the scanning DAQ."""
+
+    def __init__(self) -> None:
+        #: (t_from_s, t_to_s, volts); the last window is open while t_to_s is inf
+        self.windows: list[tuple[float, float, float]] = []
+
+    @property
+    def active(self) -> bool:
+        return bool(self.windows) and self.windows[-1][1] == math.inf
+
+    def force(self, now_s: float, volts: float) -> None:
+        self.release(now_s)
+        self.windows.append((now_s, math.inf, float(volts)))
+
+    def release(self, now_s: float) -> None:
+        if self.active:
+            t0, _, volts = self.windows[-1]
+            self.windows[-1] = (t0, now_s, volts)
+
+    def apply(self, t_start: np.ndarray, volts: np.ndarray) -> np.ndarray:
+        for t0, t1, forced in self.windows:
+            volts = np.where((t_start >= t0) & (t_start < t1), forced, volts)
+        return volts
