@@ -6,13 +6,17 @@ Used by ``bench acceptance --sockets`` and by the operator station (``bench stat
 
 from __future__ import annotations
 
+import contextlib
 import re
 import time
 from collections.abc import Callable, Mapping
+from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.app.reports.parallel import ReportWriters, report_workers
 from bench.core.step import Progress, no_progress
 from bench.core.store import RunStore
 
@@ -85,6 +89,18 @@ class BatchResult:
         return 2 if "aborted" in statuses else 1 if "failed" in statuses else 0
 
 
+def _written_here(store: RunStore, run_id: str, folder: Path) -> Future[str]:
+    """The report written in this process, as a finished future (its error kept in it)."""
+    from bench.app.reports.acceptance_report import write_acceptance_report
+
+    future: Future[str] = Future()
+    try:
+        future.set_result(str(write_acceptance_report(store, run_id, folder)))
+    except OSError as exc:
+        future.set_exception(exc)
+    return future
+
+
 def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed: int | None,
               report_root: Path | None, labels: dict[str, str], progress: Progress = no_progress,
               on_socket: Callable[[int, str, str | None], None] | None = None,
@@ -92,34 +108,45 @@ def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed
     """Open the station with ``sockets`` in its fixture, run the spec's batch acceptance, write
     each unit's report; ``on_station(station)`` is called once it is open (a live view's hook)."""
     from bench.app.commands.common import attach_folder
-    from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
+    from bench.app.reports.acceptance_report import acceptance_document
     from bench.app.station import Station
     from bench.core.batch import execute_batch
     from procedures.batch_acceptance import BatchAcceptance
 
     started = time.perf_counter()
     procedure = BatchAcceptance(spec)  # every step validated before the station opens
-    with Station(config, seed=seed, unit_kind=spec.kind, fixture=sockets) as station:
-        if on_station is not None:
-            on_station(station)
-        outcomes = execute_batch(procedure, station, store, sockets=sockets, seed=seed,
-                                 progress=progress, labels=labels, on_socket=on_socket)
-    result = BatchResult()
-    for n, outcome in sorted(outcomes.items()):
-        report = None
-        error = None
-        if report_root is not None:
-            folder = report_root / outcome.run_id
-            try:
-                report = write_acceptance_report(store, outcome.run_id, folder)
-                attach_folder(store, outcome.run_id, folder, "analysis/acceptance/")
-            except OSError as exc:
-                error = f"run {outcome.run_id} is stored, but the report could not be written: {exc}"
-        doc = acceptance_document(store, outcome.run_id)
-        doc.update(socket=n, report=None if report is None else str(report), store=str(store.path))
-        if error:
-            doc["report_error"] = error
-        result.documents[n] = doc
+    workers = report_workers(len(sockets)) if report_root is not None else 0
+    with contextlib.ExitStack() as stack:
+        # started now: the workers import matplotlib while the station runs, on an idle core
+        writers = stack.enter_context(ReportWriters(workers)) if workers else None
+        with Station(config, seed=seed, unit_kind=spec.kind, fixture=sockets) as station:
+            if on_station is not None:
+                on_station(station)
+            outcomes = execute_batch(procedure, station, store, sockets=sockets, seed=seed,
+                                     progress=progress, labels=labels, on_socket=on_socket)
+        reports: dict[int, Future[str] | None] = {}
+        for n, outcome in sorted(outcomes.items()):
+            if report_root is None:
+                reports[n] = None
+            elif writers is not None:
+                reports[n] = writers.submit(store, outcome.run_id, report_root / outcome.run_id)
+            else:
+                reports[n] = _written_here(store, outcome.run_id, report_root / outcome.run_id)
+        result = BatchResult()
+        for n, outcome in sorted(outcomes.items()):
+            doc = acceptance_document(store, outcome.run_id)
+            doc.update(socket=n, report=None, store=str(store.path))
+            future = reports[n]
+            if future is not None:
+                folder = report_root / outcome.run_id if report_root is not None else None
+                try:
+                    doc["report"] = future.result()
+                    if folder is not None:
+                        attach_folder(store, outcome.run_id, folder, "analysis/acceptance/")
+                except (OSError, BrokenProcessPool) as exc:
+                    doc["report_error"] = (f"run {outcome.run_id} is stored, but the report could "
+                                           f"not be written: {type(exc).__name__}: {exc}")
+            result.documents[n] = doc
     result.wall_time_s = time.perf_counter() - started
     return result
 

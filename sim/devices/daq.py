@@ -64,8 +64,7 @@ INFINITE = 9.9e37
 OVERLOAD = 9.9e37
 
 
-def _fmt_reading(x: float) -> str:
-    return f"{x:+.8E}"
+READING_FORMAT = "%+.8E"         # a reading as the DAQ970A sends it: +1.23456789E+00
 
 
 class _ScanMemory:
@@ -287,7 +286,10 @@ class ScanningDaq(ScpiDevice):
                 self.state = "WAIT_TRIGGER"
 
     def _take_sweeps(self, first: int, n: int) -> None:
-        starts = np.array([self._sweep_start(k) for k in range(first, first + n)], dtype=np.float64)
+        if self.trig_source in ("IMMEDIATE", "TIMER"):  # _sweep_start's arithmetic, vectorised
+            starts = self._t0 + np.arange(first, first + n, dtype=np.float64) * self.period_s
+        else:
+            starts = np.array(self._sweep_starts[first:first + n], dtype=np.float64)
         out = np.empty((n, len(self.scan_list), 3))
         offset, tau = 0.0, self.settling_tau_s
         inputs: list[np.ndarray] = []
@@ -337,15 +339,18 @@ class ScanningDaq(ScpiDevice):
 
     # -- replies -------------------------------------------------------------------------
     def _format(self, rows: np.ndarray) -> str:
-        parts = []
-        for value, t_rel, ch in rows.tolist():
-            item = _fmt_reading(value)
-            if self.format_time:
-                item += f",{t_rel:.6f}"
-            if self.format_channel:
-                item += f",{int(ch)}"
-            parts.append(item)
-        return ",".join(parts)
+        """Readings as text: each ``value[,time][,channel]`` (``FORM:READ:TIME``/``CHAN``)."""
+        if rows.shape[0] == 0:
+            return ""
+        columns, fields = [0], [READING_FORMAT]
+        if self.format_time:
+            columns.append(1)
+            fields.append("%.6f")
+        if self.format_channel:
+            columns.append(2)
+            fields.append("%d")
+        row = ",".join(fields)  # one %-format over the whole reply: ~3x the speed of a loop
+        return ",".join([row] * rows.shape[0]) % tuple(rows[:, columns].ravel().tolist())
 
     # -- SCPI vocabulary -----------------------------------------------------------------
     def _channels(self, args: Args, i: int) -> list[int]:
