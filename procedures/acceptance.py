@@ -33,6 +33,9 @@ class AcceptanceTest(StationProcedure):
         return {"spec": self.spec.to_dict(),
                 "steps": {s.name: s.parameters() for s in self.steps}}
 
+    def prompt_before(self, step: Step[Any]) -> str | None:
+        return self.spec.prompts.get(step.name)
+
     def setup(self, ctx: Context) -> None:
         super().setup(ctx)
         ctx.run.set_result("acceptance.spec", self.spec.to_dict())

@@ -37,6 +37,9 @@ class BatchAcceptance(BatchProcedure):
     def parameters(self) -> dict[str, Any]:
         return {**self.single.parameters(), "batch": True}
 
+    def prompt_before(self, step: BatchStep) -> str | None:
+        return self.single.prompt_before(step.step)
+
     def setup(self, shared: Context) -> None:
         make_safe(shared)
         level_table(shared)

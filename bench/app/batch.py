@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.app.reports.parallel import ReportWriters, report_workers
+from bench.core.operator import Operator
 from bench.core.step import Progress, no_progress
 from bench.core.store import RunStore
 
@@ -104,9 +105,11 @@ def _written_here(store: RunStore, run_id: str, folder: Path) -> Future[str]:
 def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed: int | None,
               report_root: Path | None, labels: dict[str, str], progress: Progress = no_progress,
               on_socket: Callable[[int, str, str | None], None] | None = None,
-              on_station: Callable[[Any], None] | None = None) -> BatchResult:
+              on_station: Callable[[Any], None] | None = None,
+              operator: Operator | None = None) -> BatchResult:
     """Open the station with ``sockets`` in its fixture, run the spec's batch acceptance, write
-    each unit's report; ``on_station(station)`` is called once it is open (a live view's hook)."""
+    each unit's report; ``on_station(station)`` is called once it is open (a live view's hook);
+    ``operator`` answers the spec's prompts (default: nobody, every prompt continues)."""
     from bench.app.commands.common import attach_folder
     from bench.app.reports.acceptance_report import acceptance_document
     from bench.app.station import Station
@@ -123,7 +126,8 @@ def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed
             if on_station is not None:
                 on_station(station)
             outcomes = execute_batch(procedure, station, store, sockets=sockets, seed=seed,
-                                     progress=progress, labels=labels, on_socket=on_socket)
+                                     progress=progress, labels=labels, on_socket=on_socket,
+                                     operator=operator)
         reports: dict[int, Future[str] | None] = {}
         for n, outcome in sorted(outcomes.items()):
             if report_root is None:

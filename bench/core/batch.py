@@ -28,7 +28,8 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from bench.analysis.trend import Estimate
-from bench.core.procedure import OpenStation, RunOutcome, scaled_progress
+from bench.core.operator import Operator, Unattended
+from bench.core.procedure import OpenStation, RunOutcome, interrupt_reason, scaled_progress
 from bench.core.site import DEFAULT_SITE
 from bench.core.step import Context, Progress, Step, no_progress
 from bench.core.store import RunStore, RunWriter
@@ -113,6 +114,10 @@ class BatchProcedure(ABC):
     def parameters(self) -> dict[str, Any]:
         return {s.name: s.step.parameters() for s in self.steps}
 
+    def prompt_before(self, step: BatchStep) -> str | None:
+        """What the operator is asked before ``step`` (None: nothing)."""
+        return None
+
     @abstractmethod
     def setup(self, shared: Context) -> None:
         """The fixture to its start state, once for the batch."""
@@ -129,12 +134,13 @@ class BatchProcedure(ABC):
 def execute_batch(procedure: BatchProcedure, station: OpenStation, store: RunStore, *,
                   sockets: Mapping[int, str], seed: int | None, progress: Progress = no_progress,
                   labels: dict[str, str] | None = None,
-                  on_socket: Callable[[int, str, str | None], None] | None = None
-                  ) -> dict[int, RunOutcome]:
+                  on_socket: Callable[[int, str, str | None], None] | None = None,
+                  operator: Operator | None = None) -> dict[int, RunOutcome]:
     """Run ``procedure`` for the units in ``sockets`` (socket → serial) on an open station:
     one run record per unit (its labels: ``labels`` plus ``socket``), the shared actions once,
     every socket to its own verdict.  ``on_socket(socket, status, reason)`` is told as each
-    socket ends (a live view).  A station lacking an instrument the procedure needs is refused
+    socket ends (a live view); ``operator`` answers the procedure's prompts, once for the
+    batch (default: :class:`Unattended`).  A station lacking an instrument the procedure needs is refused
     before any run exists."""
     if not sockets:
         raise ValueError("no sockets: give at least one socket = serial")
@@ -166,7 +172,7 @@ def execute_batch(procedure: BatchProcedure, station: OpenStation, store: RunSto
 
     shared = Context(station.instruments, station.clock,
                      SharedRun(lambda: [c.run for c in live.values()]),
-                     station.config.wiring, progress, site=site)
+                     station.config.wiring, progress, site=site, operator=operator or Unattended())
     total = procedure.duration_s()
     try:
         procedure.setup(shared)
@@ -174,6 +180,9 @@ def execute_batch(procedure: BatchProcedure, station: OpenStation, store: RunSto
         for step in procedure.steps:
             if not live:
                 break
+            text = procedure.prompt_before(step)
+            if text:
+                shared.ask(text)  # into every running socket's record
             shared.run.event(shared.clock.now(), "step_start", step.name)
             shared.progress = scaled_progress(progress, done, step.duration_s(), total, step.name)
             try:
@@ -196,9 +205,9 @@ def execute_batch(procedure: BatchProcedure, station: OpenStation, store: RunSto
             failed = [m.name for m in units[n].measurements if m.outcome == "fail"]
             end(n, "failed" if failed else "passed",
                 f"out of limits: {', '.join(failed)}" if failed else None)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         for n in list(live):
-            end(n, "aborted", "interrupted by the operator")
+            end(n, "aborted", interrupt_reason(exc))
         raise
     except Exception as exc:  # a fault of the shared station: every running socket stops
         for n in list(live):

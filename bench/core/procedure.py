@@ -23,6 +23,7 @@ from typing import Any, Protocol
 
 from bench.analysis.trend import Estimate
 from bench.core.clock import Clock
+from bench.core.operator import Operator, OperatorAbort, Unattended
 from bench.core.site import DEFAULT_SITE
 from bench.core.step import Context, Limit, Measurement, Progress, Step, no_progress
 from bench.core.store import RunStore
@@ -79,12 +80,20 @@ class Procedure(ABC):
                 est = produced[name]
                 ctx.measure(name, est.value, unit, Limit(), description, est.std)
 
+    def prompt_before(self, step: Step[Any]) -> str | None:
+        """What the operator is asked before ``step`` (None: nothing); a spec's prompts."""
+        return None
+
     def run(self, ctx: Context) -> None:
-        """Each step in turn, its progress a share of the whole, bracketed by events, judged."""
+        """Each step in turn, its progress a share of the whole, bracketed by events, judged;
+        the operator prompted first where the procedure says (``prompt_before``)."""
         total = self.duration_s()
         done = 0.0
         outer = ctx.progress
         for step in self.steps:
+            text = self.prompt_before(step)
+            if text:
+                ctx.ask(text)
             ctx.run.event(ctx.clock.now(), "step_start", step.name)
             weight = step.duration_s()
             ctx.progress = scaled_progress(outer, done, weight, total, step.name)
@@ -126,9 +135,10 @@ class RunOutcome:
 
 def execute(procedure: Procedure, station: OpenStation, store: RunStore, *, unit_serial: str | None,
             seed: int | None, progress: Progress = no_progress,
-            labels: dict[str, str] | None = None) -> RunOutcome:
+            labels: dict[str, str] | None = None, operator: Operator | None = None) -> RunOutcome:
     """Run ``procedure`` on an open station; always tears down; always leaves a record.
-    ``labels`` (station id, test socket, lot) go into the run record as they are.
+    ``labels`` (station id, test socket, lot) go into the run record as they are; ``operator``
+    answers the procedure's prompts (default: :class:`Unattended`).
 
     A station that lacks an instrument the procedure needs is refused before a run is
     created (ValueError naming what is missing).
@@ -141,7 +151,8 @@ def execute(procedure: Procedure, station: OpenStation, store: RunStore, *, unit
                            station=station.snapshot(), unit_serial=unit_serial, seed=seed,
                            code_version=code_version(), labels=labels)
     ctx = Context(station.instruments, station.clock, run, station.config.wiring, progress,
-                  site=dict(getattr(station.config, "site", None) or DEFAULT_SITE))
+                  site=dict(getattr(station.config, "site", None) or DEFAULT_SITE),
+                  operator=operator or Unattended())
     status, reason = "aborted", None
     try:
         procedure.setup(ctx)
@@ -149,8 +160,8 @@ def execute(procedure: Procedure, station: OpenStation, store: RunStore, *, unit
         failed = [m.name for m in ctx.measurements if m.outcome == "fail"]
         status = "failed" if failed else "passed"
         reason = f"out of limits: {', '.join(failed)}" if failed else None
-    except KeyboardInterrupt:
-        reason = "interrupted by the operator"
+    except KeyboardInterrupt as exc:
+        reason = interrupt_reason(exc)
         raise
     except Exception as exc:  # any fault: abort path, data kept, reason recorded
         reason = f"{type(exc).__name__}: {exc}"
@@ -163,6 +174,13 @@ def execute(procedure: Procedure, station: OpenStation, store: RunStore, *, unit
                 status, reason = "aborted", f"teardown failed: {teardown_error}"
         run.finish(status, reason)
     return RunOutcome(run.id, status, reason, ctx.measurements, str(store.path))
+
+
+def interrupt_reason(exc: KeyboardInterrupt) -> str:
+    """Why an interrupted run stopped: the operator's Abort says where, Ctrl-C does not."""
+    if isinstance(exc, OperatorAbort) and str(exc):
+        return str(exc)
+    return "interrupted by the operator"
 
 
 def _safe_teardown(procedure: Procedure, ctx: Context) -> str | None:
@@ -193,4 +211,5 @@ def each_safely(actions: list[tuple[str, Callable[[], Any]]]) -> None:
 
 
 
-__all__ = ["scaled_progress", "Procedure", "OpenStation", "RunOutcome", "execute", "each_safely"]
+__all__ = ["scaled_progress", "Procedure", "OpenStation", "RunOutcome", "execute", "each_safely",
+           "interrupt_reason"]

@@ -20,6 +20,10 @@ parameters) and every measurement with its unit, limits and optional marginal ba
     high = 4.0
     marginal = 0.4                         # inside the limits but this close: "marginal"
 
+    [[prompts]]                            # optional: the operator is asked before a procedure
+    before = "tumble"
+    text = "Remove the shipping clamp and close the fixture cover"
+
 The procedures are steps of the step catalogue the caller passes
 (``procedures.catalogue.CATALOGUE``): which sensor kinds each applies to, its parameters,
 what it produces and what a given parameter table can produce.  The spec is checked against
@@ -32,10 +36,11 @@ from __future__ import annotations
 import fnmatch
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.core.operator import check_prompt
 from bench.core.step import Catalogue
 
 #: unit → (dimension, value of one unit in the dimension's base unit)
@@ -120,6 +125,8 @@ class UnitSpec:
     description: str = ""
     serial_pattern: str | None = None
     source: str = "<spec>"
+    #: operator prompts: procedure name → what the operator is asked before it runs
+    prompts: dict[str, str] = field(default_factory=dict)
 
     def for_procedure(self, procedure: str) -> list[SpecMeasurement]:
         return [m for m in self.measurements if m.procedure == procedure]
@@ -131,7 +138,9 @@ class UnitSpec:
         return {"model": self.model, "kind": self.kind, "description": self.description,
                 "serial_pattern": self.serial_pattern, "source": self.source,
                 "procedures": self.procedures,
-                "measurements": [m.to_dict() for m in self.measurements]}
+                "measurements": [m.to_dict() for m in self.measurements],
+                **({"prompts": [{"before": k, "text": v} for k, v in self.prompts.items()]}
+                   if self.prompts else {})}
 
 
 def _number(value: Any, where: str) -> float:
@@ -153,10 +162,10 @@ def _optional_text(table: dict, key: str, where: str) -> str | None:
 
 def parse_spec(data: dict, catalogue: Catalogue, source: str = "<spec>") -> UnitSpec:
     """Validate a spec table (as read from TOML) against the step catalogue."""
-    unknown = set(data) - {"unit", "procedures", "measurements"}
+    unknown = set(data) - {"unit", "procedures", "measurements", "prompts"}
     if unknown:
         raise SpecError(f"{source}: unknown table(s) {sorted(unknown)}; allowed: unit, procedures, "
-                        "measurements")
+                        "measurements, prompts")
     unit = data.get("unit")
     if not isinstance(unit, dict):
         raise SpecError(f"{source}: missing [unit] table (model, kind)")
@@ -241,7 +250,32 @@ def parse_spec(data: dict, catalogue: Catalogue, source: str = "<spec>") -> Unit
             raise SpecError(f"{where}: description {description!r} must be text")
         measurements.append(SpecMeasurement(name, proc, unit_name, low, high, marginal, description))
     return UnitSpec(model, kind, checked, tuple(measurements), unit.get("description", ""),
-                    pattern, source)
+                    pattern, source, _prompts(data.get("prompts", []), checked, source))
+
+
+def _prompts(entries: Any, procedures: dict[str, Any], source: str) -> dict[str, str]:
+    """``[[prompts]]`` tables (``before`` = a procedure of the spec, ``text``) checked."""
+    if not isinstance(entries, list):
+        raise SpecError(f"{source}: prompts must be [[prompts]] tables (before, text)")
+    prompts: dict[str, str] = {}
+    for i, entry in enumerate(entries, start=1):
+        where = f"{source}: prompt #{i}"
+        if not isinstance(entry, dict):
+            raise SpecError(f"{where} must be a table (before, text)")
+        extra = set(entry) - {"before", "text"}
+        if extra:
+            raise SpecError(f"{where}: unknown key(s) {sorted(extra)}; allowed: before, text")
+        before = _text(entry, "before", where)
+        if before not in procedures:
+            raise SpecError(f"{where}: before = {before!r} is not among this spec's "
+                            f"[procedures.*] ({list(procedures)})")
+        if before in prompts:
+            raise SpecError(f"{where}: a second prompt before {before!r} (one per procedure)")
+        try:
+            prompts[before] = check_prompt(entry.get("text"), where)
+        except ValueError as exc:
+            raise SpecError(str(exc)) from None
+    return prompts
 
 
 def load_spec(path: str | Path, catalogue: Catalogue) -> UnitSpec:

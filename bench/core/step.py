@@ -37,6 +37,7 @@ from typing import Any, ClassVar, Generic, Protocol, TypeVar
 
 from bench.analysis.trend import Estimate
 from bench.core.clock import Clock
+from bench.core.operator import Operator, OperatorAbort, Unattended
 from bench.core.site import DEFAULT_SITE
 from bench.core.store import RunWriter
 
@@ -103,6 +104,19 @@ class Context:
     measurements: list[Measurement] = field(default_factory=list)
     #: latitude_deg, height_m and optionally local_g_mps2 of the station
     site: dict[str, Any] = field(default_factory=lambda: dict(DEFAULT_SITE))
+    #: who answers the run's prompts (``bench.core.operator``)
+    operator: Operator = field(default_factory=Unattended)
+
+    def ask(self, text: str) -> None:
+        """Prompt the operator and wait; the prompt and the answer are events of the run.
+        Abort raises :class:`OperatorAbort` (the runner's interrupt path: station safe)."""
+        self.run.event(self.clock.now(), "operator_prompt", text)
+        go_on = self.operator.ask(text)
+        answer = "continue" if go_on else "abort"
+        self.run.event(self.clock.now(), "operator_answer", answer,
+                       operator=getattr(self.operator, "name", type(self.operator).__name__))
+        if not go_on:
+            raise OperatorAbort(f"aborted by the operator at the prompt: {text}")
 
     def measure(self, name: str, value: float, unit: str, limit: Limit | None = None,
                 description: str = "", uncertainty: float | None = None) -> Measurement:

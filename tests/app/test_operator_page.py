@@ -1,8 +1,8 @@
 """The operator page in a real browser (Debian's chromium driven by Playwright): an operator's
-whole path for a batch of four — bad input, the mount prompt, live plots, a failing socket,
-verdicts with reports, a reload, history, station health — and an Abort mid-run that leaves
-the station safe.  A screenshot of each page state is kept under
-``bench-data/test-artifacts/operator/``."""
+whole path for a batch of four — bad input, the mount prompt, live plots, a prompt of the
+spec mid-run, a failing socket, verdicts with reports, a reload, history, station health, a
+retest of the failed socket — and an Abort mid-run that leaves the station safe.  A
+screenshot of each page state is kept under ``bench-data/test-artifacts/operator/``."""
 
 from __future__ import annotations
 
@@ -16,6 +16,12 @@ from tests.app.operator_server import ARTIFACTS, CHROMIUM, serve
 from tests.procedures.test_batch_acceptance import SHORT_SPEC
 
 SERIALS = {1: "QA-SIM-0003", 2: "QA-SIM-0002", 3: "QA-SIM-0004", 4: "QA-SIM-0001"}
+COVER = "Close the fixture's acoustic cover for the static record"
+MID_RUN_PROMPT = f"""
+[[prompts]]
+before = "accelerometer_noise"
+text = "{COVER}"
+"""
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +43,7 @@ def shot(page, name: str) -> None:
 
 def test_an_operators_batch_of_four_with_a_prompt_and_a_failing_socket(browser, tmp_path):
     spec = tmp_path / "short.toml"
-    spec.write_text(SHORT_SPEC)
+    spec.write_text(SHORT_SPEC + MID_RUN_PROMPT)
     failing = {"fixture_units": {"2": {"k0_g": 6e-3}}}  # socket 2's unit: bias out of its limit
     with serve(tmp_path, spec_path=str(spec), simulation=failing) as (url, station):
         page = browser.new_page(viewport={"width": 1400, "height": 1000})
@@ -72,6 +78,10 @@ def test_an_operators_batch_of_four_with_a_prompt_and_a_failing_socket(browser, 
         page.click("#prompt-continue")
         page.wait_for_function("window.plotUpdates > 0")
         shot(page, "04-live")
+        expect(page.locator("#prompt-text")).to_have_text(COVER, timeout=120_000)  # mid-run
+        assert page.locator("body[data-state=running]").count() == 1
+        shot(page, "04b-mid-run-prompt")
+        page.click("#prompt-continue")
         page.wait_for_selector("body[data-state=done]", timeout=120_000)
         shot(page, "05-verdicts")
         verdicts = {n: page.text_content(f"#socket-{n} .verdict") for n in SERIALS}
@@ -103,7 +113,25 @@ def test_an_operators_batch_of_four_with_a_prompt_and_a_failing_socket(browser, 
         health = page.text_content("#doctor-table") or ""
         assert "daq" in health and "keysight_daq970a" in health
         shot(page, "08-health")
+
+        assert page.locator("#retest").is_visible()  # socket 2 failed: its serial, started again
+        page.click("#retest")
+        page.wait_for_selector("#prompt:not(.hidden)")
+        assert "Mount the units in socket 2," in (page.text_content("#prompt-text") or "")
+        assert page.input_value("#serial-1") == "" and page.input_value("#serial-2") == SERIALS[2]
+        page.click("#prompt-continue")
+        expect(page.locator("#prompt-text")).to_have_text(COVER, timeout=120_000)
+        page.click("#prompt-continue")
+        page.wait_for_selector("body[data-state=done]", timeout=120_000)
+        assert page.locator("#sockets .card").count() == 1
+        assert page.text_content("#socket-2 .verdict") == "FAIL"
+        shot(page, "08b-retest")
         page.close()
+    runs = station.store.list_runs()
+    assert len(runs) == 5 and sum(r.unit_serial == SERIALS[2] for r in runs) == 2
+    for info in runs:  # the mid-run prompt and its answer are in every unit's record
+        events = [(e.kind, e.message) for e in station.store.events(info.id)]
+        assert ("operator_prompt", COVER) in events and ("operator_answer", "continue") in events
 
 
 def test_abort_mid_run_leaves_the_station_safe_and_every_record_says_why(browser, tmp_path):
@@ -127,5 +155,5 @@ def test_abort_mid_run_leaves_the_station_safe_and_every_record_says_why(browser
         assert sim.fixture.daq.state == "IDLE"                              # the scan stopped
         with urllib.request.urlopen(url + "/api/history?verdict=ABORTED") as r:
             runs = json.loads(r.read())["runs"]
-        assert len(runs) == 4 and all(r["reason"] == "interrupted by the operator" for r in runs)
+        assert len(runs) == 4 and all(r["reason"] == "aborted by the operator" for r in runs)
         page.close()

@@ -11,6 +11,7 @@ import pytest
 
 from bench.analysis.trend import Estimate
 from bench.core.batch import BatchProcedure, BatchStep, SocketResult, execute_batch
+from bench.core.operator import OperatorAbort
 from bench.core.step import Context, Limit
 from bench.core.store import RunStore
 from tests.core.test_procedure import Count, station
@@ -102,3 +103,44 @@ def test_a_station_without_the_scanner_is_refused_before_any_record(tmp_path) ->
     with pytest.raises(ValueError, match="lacks \\['meter'\\]"):
         execute_batch(Judged([CountBatch(1)]), station(), store, sockets={1: "SN-1"}, seed=None)
     assert store.list_runs() == []
+
+
+class PromptedBatch(Judged):
+    def __init__(self, steps: list[BatchStep], before: int, text: str) -> None:
+        super().__init__(steps)
+        self.before, self.text = before, text
+
+    def prompt_before(self, step: BatchStep) -> str | None:
+        return self.text if self.steps.index(step) == self.before else None
+
+
+def test_a_prompt_mid_batch_goes_into_every_record_and_abort_ends_every_socket_safely(tmp_path) -> None:
+    class Operator:
+        name = "Bo"
+
+        def __init__(self, answer: bool) -> None:
+            self.answer, self.asked = answer, 0
+
+        def ask(self, text: str) -> bool:
+            self.asked += 1
+            return self.answer
+
+    going_on = Operator(True)
+    store, outcomes, _ = run(tmp_path, PromptedBatch([CountBatch(1), CountBatch(2)], 1, "close the cover"),
+                             {1: "SN-1", 2: "SN-2"}, operator=going_on)
+    assert going_on.asked == 1  # once for the batch, not once per socket
+    for outcome in outcomes.values():
+        assert outcome.status == "passed"
+        kinds = [(e.kind, e.message) for e in store.events(outcome.run_id)]
+        assert ("operator_prompt", "close the cover") in kinds and ("operator_answer", "continue") in kinds
+
+    procedure = PromptedBatch([CountBatch(1), CountBatch(2)], 1, "close the cover")
+    with pytest.raises(OperatorAbort):
+        run(tmp_path / "abort", procedure, {1: "SN-1", 2: "SN-2"}, operator=Operator(False))
+    store = RunStore(tmp_path / "abort" / "b.sqlite")
+    runs = store.list_runs()
+    assert len(runs) == 2 and procedure.calls == ["setup", "teardown"]
+    for info in runs:
+        assert info.status == "aborted"
+        assert info.reason == "aborted by the operator at the prompt: close the cover"
+        assert len(store.load(info.id, "counts_1")["value"]) == 1  # the first step's data kept

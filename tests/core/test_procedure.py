@@ -13,6 +13,7 @@ from typing import Any
 import pytest
 
 from bench.analysis.trend import Estimate
+from bench.core.operator import OperatorAbort
 from bench.core.procedure import Procedure, execute
 from bench.core.step import Catalogue, Context, Limit, Step, parameter
 from bench.core.store import RunStore
@@ -177,3 +178,53 @@ def test_a_station_without_what_the_steps_need_is_refused_before_a_run(tmp_path)
     assert store.list_runs() == []
     with pytest.raises(ValueError, match="has no steps"):
         Recorded([])
+
+
+class Answering:
+    """An operator who answers from a list and remembers what was asked."""
+
+    name = "Ann"
+
+    def __init__(self, *answers: bool) -> None:
+        self.answers, self.asked = list(answers), []
+
+    def ask(self, text: str) -> bool:
+        self.asked.append(text)
+        return self.answers.pop(0)
+
+
+class Prompted(Recorded):
+    def __init__(self, steps: list[Step[Any]], prompts: dict[int, str]) -> None:
+        super().__init__(steps)
+        self.prompts = prompts
+
+    def prompt_before(self, step: Step[Any]) -> str | None:
+        return self.prompts.get(self.steps.index(step))
+
+
+def test_a_prompt_before_a_step_is_asked_and_recorded_and_abort_leaves_the_station_safe(tmp_path) -> None:
+    store = RunStore(tmp_path / "b.sqlite")
+    first, second = Count(n=1), Count(n=2)
+    operator = Answering(True)
+    outcome = execute(Prompted([first, second], {1: "close the cover"}), station(meter=object()), store,
+                      unit_serial="U1", seed=None, operator=operator)
+    assert outcome.status == "passed" and operator.asked == ["close the cover"]
+    events = [(e.kind, e.message, e.data) for e in store.events(outcome.run_id)]
+    assert events[2:5] == [("operator_prompt", "close the cover", {}),
+                           ("operator_answer", "continue", {"operator": "Ann"}),
+                           ("step_start", "count", {})]
+
+    procedure = Prompted([Count(n=1), Count(n=2)], {1: "close the cover"})
+    with pytest.raises(OperatorAbort):
+        execute(procedure, station(meter=object()), store, unit_serial="U2", seed=None,
+                operator=Answering(False))
+    info = store.get_run(store.list_runs()[0].id)
+    assert info.status == "aborted"
+    assert info.reason == "aborted by the operator at the prompt: close the cover"
+    assert procedure.calls == ["setup", "teardown"]           # the teardown ran: station safe
+    assert len(store.load(info.id, "counts")["value"]) == 1  # the first step's data kept
+
+    unattended = execute(Prompted([Count(n=1)], {0: "mount the unit"}), station(meter=object()), store,
+                         unit_serial="U3", seed=None)  # nobody to ask: continues, says so
+    answer = [e for e in store.events(unattended.run_id) if e.kind == "operator_answer"]
+    assert unattended.status == "passed" and answer[0].data == {"operator": "unattended"}

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -151,3 +153,22 @@ def test_a_step_of_another_sensor_kind_is_refused():
     data = spec_with(procedures__frf={})
     with pytest.raises(SpecError, match=r"\[procedures.frf\]: applies to \['angular'\], not to a accelerometer"):
         parse_spec(data, CATALOGUE)
+
+
+def test_operator_prompts_before_a_procedure_are_parsed_and_every_mistake_named():
+    data = {**GOOD, "prompts": [{"before": "tumble", "text": " Remove the shipping clamp "}]}
+    spec = parse_spec(data, CATALOGUE)
+    assert spec.prompts == {"tumble": "Remove the shipping clamp"}
+    assert spec.to_dict()["prompts"] == [{"before": "tumble", "text": "Remove the shipping clamp"}]
+    assert "prompts" not in parse_spec(GOOD, CATALOGUE).to_dict()  # records without prompts unchanged
+    for prompts, message in [
+        ([{"before": "ratetable", "text": "x"}], "before = 'ratetable' is not among this spec's"),
+        ([{"before": "tumble"}], "prompt text None must be non-empty"),
+        ([{"before": "tumble", "text": "a\nb"}], "1..200 printable characters on one line"),
+        ([{"before": "tumble", "text": "x" * 201}], "got 201"),
+        ([{"before": "tumble", "text": "x"}, {"before": "tumble", "text": "y"}], "a second prompt"),
+        ([{"before": "tumble", "text": "x", "when": 1}], "unknown key(s) ['when']"),
+        ({"before": "tumble"}, "must be [[prompts]] tables"),
+    ]:
+        with pytest.raises(SpecError, match=re.escape(message)):
+            parse_spec({**GOOD, "prompts": prompts}, CATALOGUE)

@@ -16,6 +16,8 @@ from bench.app.commands.common import (
     label_options,
     labels_of,
     open_store,
+    operator_of,
+    operator_options,
     progress_bar,
     seed_of,
 )
@@ -37,6 +39,7 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the verdict document as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     label_options(p)
+    operator_options(p)
     p.set_defaults(func=run_acceptance)
 
 
@@ -88,7 +91,7 @@ def run_acceptance(args) -> int:
     with Station(config, seed=seed, unit_serial=unit, unit_kind=spec.kind) as station, \
             progress_bar(not args.no_progress and not args.json) as progress:
         outcome = execute(procedure, station, store, unit_serial=unit, seed=seed, progress=progress,
-                          labels=labels_of(args, config))
+                          labels=labels_of(args, config), operator=operator_of(args))
     folder = report_root / outcome.run_id
     report = None
     written = FollowUpResult("report")
@@ -131,7 +134,8 @@ def run_batch_acceptance(args) -> int:
     store = open_store(args)
     with progress_bar(not args.no_progress and not args.json) as progress:
         result = run_batch(config, sockets, spec, store, seed=seed, report_root=report_root,
-                           labels=labels_of(args, config), progress=progress)
+                           labels=labels_of(args, config), progress=progress,
+                           operator=operator_of(args))
     if args.json:
         json.dump({"sockets": {str(n): d for n, d in result.documents.items()},
                    "wall_time_s": round(result.wall_time_s, 2)},

@@ -99,6 +99,38 @@ def unit_of(args, config, kind: str) -> str | None:
     return args.unit or (config.simulation or {}).get(key) or (default if config.simulated else None)
 
 
+class TerminalOperator:
+    """The operator at a console (``bench.core.operator.Operator``): a prompt on stderr, Enter
+    continues, ``a`` aborts; end of input aborts (nobody can answer)."""
+
+    name = "terminal"
+
+    def ask(self, text: str) -> bool:
+        print(f"\n>>> operator: {text}\n    Enter = continue, a = abort: ", end="", file=sys.stderr,
+              flush=True)
+        try:
+            answer = input()
+        except EOFError:
+            return False
+        return answer.strip().lower() not in ("a", "abort")
+
+
+def operator_options(p) -> None:
+    p.add_argument("--unattended", action="store_true",
+                   help="answer every operator prompt of the spec Continue (scripts); without it "
+                   "a console is asked, and a run with no console continues unattended")
+
+
+def operator_of(args):
+    """Who answers a run's prompts: the console when there is one and ``--unattended`` is not
+    given, else nobody (every prompt continues; the record says unattended)."""
+    from bench.core.operator import Unattended
+
+    if getattr(args, "unattended", False) or getattr(args, "json", False) or not sys.stdin.isatty():
+        return Unattended()
+    return TerminalOperator()
+
+
 @contextlib.contextmanager
 def progress_bar(enabled: bool):
     """A rich progress bar on stderr; yields a ``progress(done, total, message)`` callable."""

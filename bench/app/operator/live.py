@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.core.operator import OperatorAbort
 from bench.core.store import RunStore, RunWriter
 
 PLOT_POINTS = 600        # points kept per socket for the live plot
@@ -27,10 +28,6 @@ CHUNK_POINTS = 120       # an appended chunk is decimated to at most this many p
 #: stream → the column plotted and its label
 PLOTTED = {"output": ("acceleration_g", "output, g"), "noise": ("voltage_v", "static record, V"),
            "tumble": ("voltage_v", "tumble position means, V")}
-
-
-class OperatorAbort(KeyboardInterrupt):
-    """The operator pressed Abort: the runner's interrupt path (teardown: station safe)."""
 
 
 @dataclass
@@ -184,6 +181,11 @@ class LiveBatch:
             return True
 
     @property
+    def name(self) -> str:
+        """Who answers the prompts (``bench.core.operator.Operator``): the operator's name."""
+        return self.operator or "operator page"
+
+    @property
     def busy(self) -> bool:
         return self.state in ("prompt", "running")
 
@@ -259,5 +261,5 @@ class AbortableClock:
         self.clock.sleep(seconds)
 
 
-__all__ = ["LiveBatch", "LiveStore", "TappedWriter", "AbortableClock", "OperatorAbort", "SocketView",
+__all__ = ["LiveBatch", "LiveStore", "TappedWriter", "AbortableClock", "SocketView",
            "PLOTTED"]

@@ -30,8 +30,10 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from bench.app.batch import MAX_SOCKETS, check_socket, run_batch, spec_for_sockets
-from bench.app.operator.live import AbortableClock, LiveBatch, LiveStore, OperatorAbort
+from bench.app.operator.live import AbortableClock, LiveBatch, LiveStore
 from bench.app.reports.acceptance_report import acceptance_document
+from bench.app.reports.parallel import start_report_server
+from bench.core.operator import OperatorAbort
 
 STATIC = Path(__file__).resolve().parent / "static"
 PUSH_INTERVAL_S = 0.25
@@ -53,6 +55,7 @@ class OperatorStation:
         self.labels = dict(labels or {})
         self.thread: threading.Thread | None = None
         self.last_station: Any = None  # the station the last batch opened (tests read its sim)
+        start_report_server()  # the report workers' imports, once, before the first batch
 
     # -- starting a batch ------------------------------------------------------------------
     def check_start(self, body: Any) -> tuple[str, dict[int, str], Any]:
@@ -104,10 +107,10 @@ class OperatorStation:
         try:
             result = run_batch(self.config, sockets, spec, self.store, seed=self.seed,
                                report_root=self.report_root, labels=labels, progress=live.progress,
-                               on_socket=live.socket_ended, on_station=attach)
-        except OperatorAbort:
+                               on_socket=live.socket_ended, on_station=attach, operator=live)
+        except OperatorAbort as exc:
             self._verdicts_of_stored()
-            live.finish("aborted", "aborted by the operator: station left safe")
+            live.finish("aborted", f"{exc}: station left safe")
             return
         except Exception as exc:  # the station could not be opened, a report failed...
             self._verdicts_of_stored()

@@ -38,6 +38,20 @@ async function start() {
   if (!ok) $("error").textContent = doc.error;
 }
 
+// Retest: the sockets whose unit failed or aborted, with the same serials, as a new batch
+let lastSnapshot = null;
+function retestable(st) {
+  return (st && (st.state === "done" || st.state === "aborted"))
+    ? st.sockets.filter((s) => s.verdict === "FAIL" || s.verdict === "ABORTED") : [];
+}
+async function retest() {
+  const again = new Map(retestable(lastSnapshot).map((s) => [s.socket, s.serial]));
+  if (!again.size) return;
+  for (let n = 1; n <= SOCKETS; n++) $(`serial-${n}`).value = again.get(n) || "";
+  if (!$("operator").value.trim()) $("operator").value = lastSnapshot.operator;  // after a reload
+  await start();
+}
+
 const lastPlotted = {};
 function plot(canvas, t, y, key) {
   if (lastPlotted[canvas.id] === key) return;
@@ -109,6 +123,8 @@ function render(st) {
   const busy = st.state === "prompt" || st.state === "running";
   $("start").disabled = busy;
   $("abort").classList.toggle("hidden", !busy);
+  lastSnapshot = st;
+  $("retest").classList.toggle("hidden", retestable(st).length === 0);
   $("progress").style.width = `${(100 * st.fraction).toFixed(1)}%`;
   const left = st.wall_left_s == null ? "" : ` — about ${Math.ceil(st.wall_left_s)} s left`;
   $("progress-text").textContent = `${(100 * st.fraction).toFixed(0)}% ${st.message || ""}${left}` + (st.error ? ` — ${st.error}` : "");
@@ -144,6 +160,7 @@ async function doctor() {
 buildSerials();
 $("start").addEventListener("click", start);
 $("abort").addEventListener("click", () => post("/api/abort"));
+$("retest").addEventListener("click", retest);
 $("prompt-continue").addEventListener("click", () => post("/api/prompt", {answer: "continue"}));
 $("prompt-abort").addEventListener("click", () => post("/api/prompt", {answer: "abort"}));
 $("history-search").addEventListener("click", searchHistory);
