@@ -12,6 +12,7 @@ from typing import Any
 
 import uvicorn
 
+from bench.app.operator.auth import Users
 from bench.app.operator.server import OperatorStation, create_app
 from bench.app.station import builtin_sim_config
 
@@ -27,14 +28,14 @@ def free_port() -> int:
 
 @contextmanager
 def serve(folder: Path, *, spec_path: str | None = None, simulation: dict[str, Any] | None = None,
-          seed: int = 3) -> Iterator[tuple[str, OperatorStation]]:
+          seed: int = 3, users: Users | None = None) -> Iterator[tuple[str, OperatorStation]]:
     """``(base URL, station)`` of a station served in a thread until the block ends."""
     config = builtin_sim_config()
     config.simulation = dict(simulation or {})
     station = OperatorStation(config, folder / "bench.sqlite", folder / "reports", seed=seed,
                               spec_path=spec_path, labels={"station_id": "test-line"})
     port = free_port()
-    server = uvicorn.Server(uvicorn.Config(create_app(station), host="127.0.0.1", port=port,
+    server = uvicorn.Server(uvicorn.Config(create_app(station, users), host="127.0.0.1", port=port,
                                            log_level="warning"))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()

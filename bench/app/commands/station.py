@@ -1,13 +1,17 @@
-"""``bench station serve``: the operator station — a web page to run batch acceptance.
+"""``bench station serve``: the operator station — a web page to run batch acceptance;
+``bench station user``: the users who may log in to it.
 
-Binds to loopback by default.  Binding to another address would put the station on the
-plant network, where an operator/engineer login is needed; this version has none, so any
-other address is refused with that reason.
+Binds to loopback by default, with no login.  Another address puts the station on the plant
+network: it is served only with a users file (``--users``), and then every route needs an
+operator's or engineer's login (``bench.app.operator.auth``); ``--tls-cert``/``--tls-key``
+serve it over HTTPS, so the credentials do not cross the network in the clear.
 """
 
 from __future__ import annotations
 
+import getpass
 import ipaddress
+import sys
 
 LOOPBACK_HOSTS = ("127.0.0.1", "::1", "localhost")
 
@@ -18,8 +22,12 @@ def register(sub) -> None:
     p = cmds.add_parser("serve", help="serve the operator page: batch acceptance with live plots")
     p.add_argument("--station", default="sim", help="'sim' or a station TOML file [sim]")
     p.add_argument("--port", type=int, default=8470, help="TCP port (0: any free one) [8470]")
-    p.add_argument("--host", default="127.0.0.1", help="address to bind: loopback only "
-                   "(127.0.0.1, ::1) [127.0.0.1]")
+    p.add_argument("--host", default="127.0.0.1", help="address to bind [127.0.0.1]; any "
+                   "other than loopback needs --users")
+    p.add_argument("--users", metavar="FILE", default=None,
+                   help="users file (`bench station user`): every route then needs a login")
+    p.add_argument("--tls-cert", metavar="PEM", default=None, help="serve HTTPS with this certificate")
+    p.add_argument("--tls-key", metavar="PEM", default=None, help="… and this private key")
     p.add_argument("--spec", default=None, help="unit spec TOML [the built-in spec matching "
                    "the serials]")
     p.add_argument("--seed", type=int, default=None, help="seed of the simulated world")
@@ -27,35 +35,64 @@ def register(sub) -> None:
                    help="reports folder, served under /reports [bench-data/reports]")
     p.add_argument("--station-id", default=None, help="this station's name in the fleet")
     p.set_defaults(func=serve)
+    u = cmds.add_parser("user", help="add a user to a users file (or change its role and password)")
+    u.add_argument("file", help="users file (TOML; created if missing, mode 600)")
+    u.add_argument("name", help="login name: 1..32 letters, digits or ._-")
+    u.add_argument("--role", required=True, choices=("operator", "engineer"),
+                   help="operator: run batches; engineer: also the station health check")
+    u.add_argument("--password-stdin", action="store_true",
+                   help="read the password from the first line of stdin (scripts)")
+    u.set_defaults(func=add_user_command)
 
 
-def check_host(host: str) -> str:
-    """Loopback only: ValueError naming the address otherwise."""
+def check_host(host: str, users: str | None) -> str:
+    """Loopback, or any address with a users file: ValueError naming the address otherwise."""
     try:
         loopback = host == "localhost" or ipaddress.ip_address(host).is_loopback
     except ValueError:
         loopback = False
-    if not loopback:
-        raise ValueError(f"--host {host!r}: only loopback addresses ({', '.join(LOOPBACK_HOSTS)}) "
-                         "are served — another address needs an operator/engineer login, which "
-                         "this version does not have")
+    if not loopback and users is None:
+        raise ValueError(f"--host {host!r}: beyond loopback ({', '.join(LOOPBACK_HOSTS)}) the "
+                         "station needs a login — give --users FILE (`bench station user FILE NAME "
+                         "--role operator`), and --tls-cert/--tls-key for HTTPS")
     return host
 
 
 def serve(args) -> int:
     import uvicorn
 
+    from bench.app.operator.auth import Users
     from bench.app.operator.server import OperatorStation, create_app
     from bench.app.station import resolve_station
 
-    host = check_host(args.host)
+    host = check_host(args.host, args.users)
     if not 0 <= args.port <= 65535:
         raise ValueError(f"--port {args.port} not in 0..65535")
+    if (args.tls_cert is None) != (args.tls_key is None):
+        raise ValueError("--tls-cert and --tls-key go together")
+    users = Users.load(args.users) if args.users is not None else None
     config = resolve_station(args.station)
     labels = {"station_id": args.station_id} if args.station_id else None
     station = OperatorStation(config, args.store, args.report, seed=args.seed, spec_path=args.spec,
                               labels=labels)
-    print(f"operator station on http://{host}:{args.port}/ (store {args.store}); Ctrl-C stops it",
-          flush=True)
-    uvicorn.run(create_app(station), host=host, port=args.port, log_level="warning")
+    scheme = "https" if args.tls_cert else "http"
+    login = f", login: {len(users.users)} user(s) of {args.users}" if users else ""
+    print(f"operator station on {scheme}://{host}:{args.port}/ (store {args.store}{login}); "
+          "Ctrl-C stops it", flush=True)
+    uvicorn.run(create_app(station, users), host=host, port=args.port, log_level="warning",
+                ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key)
+    return 0
+
+
+def add_user_command(args) -> int:
+    from bench.app.operator.auth import add_user
+
+    if args.password_stdin:
+        password = sys.stdin.readline().rstrip("\n")
+    else:
+        password = getpass.getpass(f"password for {args.name}: ")
+        if getpass.getpass("again: ") != password:
+            raise ValueError("the two passwords differ")
+    add_user(args.file, args.name, args.role, password)
+    print(f"{args.name} ({args.role}) in {args.file}")
     return 0

@@ -10,7 +10,10 @@ Routes
 - ``POST /api/prompt`` ``{"answer": "continue"|"abort"}``; ``POST /api/abort``: Abort — the
   runner's interrupt path leaves the station safe, every record says why it stopped;
 - ``GET /api/history?serial=&verdict=&date=`` stored runs; ``GET /reports/<run>/...`` reports;
-- ``GET /api/doctor`` ``bench doctor``'s table (refused while a batch runs).
+- ``GET /api/doctor`` ``bench doctor``'s table (refused while a batch runs; an engineer's);
+- ``GET /api/whoami`` the login (``{}`` when the station needs none).
+
+Served beyond loopback, every route needs a login (``bench.app.operator.auth``).
 """
 
 from __future__ import annotations
@@ -24,12 +27,14 @@ from pathlib import Path
 from typing import Any
 
 from starlette.applications import Starlette
+from starlette.middleware import Middleware
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from bench.app.batch import MAX_SOCKETS, check_socket, run_batch, spec_for_sockets
+from bench.app.operator.auth import LoginRequired, Users
 from bench.app.operator.live import AbortableClock, LiveBatch, LiveStore
 from bench.app.reports.acceptance_report import acceptance_document
 from bench.app.reports.parallel import start_report_server
@@ -103,7 +108,8 @@ class OperatorStation:
             station.clock = AbortableClock(station.clock, live)
             self.last_station = station
 
-        labels = {**self.labels, "station_id": self.labels.get("station_id", f"operator:{self.config.name}")}
+        labels = {**self.labels, "station_id": self.labels.get("station_id", f"operator:{self.config.name}"),
+                  "operator": live.operator}
         try:
             result = run_batch(self.config, sockets, spec, self.store, seed=self.seed,
                                report_root=self.report_root, labels=labels, progress=live.progress,
@@ -159,8 +165,9 @@ class OperatorStation:
         return [asdict(h) for h in diagnose(self.config)]
 
 
-def create_app(station: OperatorStation) -> Starlette:
-    """The Starlette application of ``station``."""
+def create_app(station: OperatorStation, users: Users | None = None) -> Starlette:
+    """The Starlette application of ``station``; with ``users`` every route needs a login
+    (``bench.app.operator.auth``) and a batch records its login as the operator."""
 
     async def index(request: Request) -> Response:
         return FileResponse(STATIC / "index.html")
@@ -189,6 +196,9 @@ def create_app(station: OperatorStation) -> Starlette:
             body = await request.json()
         except ValueError:
             return JSONResponse({"error": "the request is not JSON"}, status_code=400)
+        user = request.scope.get("bench_user")
+        if user is not None and isinstance(body, dict):
+            body = {**body, "operator": user.name}  # who logged in is who runs it
         try:
             operator, sockets, spec = await asyncio.to_thread(station.check_start, body)
         except (ValueError, LookupError) as exc:
@@ -213,6 +223,10 @@ def create_app(station: OperatorStation) -> Starlette:
             return JSONResponse({"error": "nothing is running"}, status_code=409)
         return JSONResponse({"aborting": True})
 
+    async def whoami(request: Request) -> Response:
+        user = request.scope.get("bench_user")
+        return JSONResponse({} if user is None else {"user": user.name, "role": user.role})
+
     async def history(request: Request) -> Response:
         q = request.query_params
         rows = await asyncio.to_thread(station.history, q.get("serial", ""), q.get("verdict", ""),
@@ -232,11 +246,12 @@ def create_app(station: OperatorStation) -> Starlette:
         Route("/", index), Route("/api/state", state), Route("/api/events", events),
         Route("/api/start", start, methods=["POST"]), Route("/api/prompt", prompt, methods=["POST"]),
         Route("/api/abort", abort, methods=["POST"]), Route("/api/history", history),
-        Route("/api/doctor", doctor),
+        Route("/api/doctor", doctor), Route("/api/whoami", whoami),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
         Mount("/reports", StaticFiles(directory=station.report_root, check_dir=False), name="reports"),
     ]
-    return Starlette(routes=routes)
+    middleware = [] if users is None else [Middleware(LoginRequired, users=users)]
+    return Starlette(routes=routes, middleware=middleware)
 
 
 __all__ = ["OperatorStation", "create_app", "PUSH_INTERVAL_S"]

@@ -72,7 +72,7 @@ class RunInfo:
     results: dict[str, Any] = field(default_factory=dict)
     #: globally unique id (the central store's key; derived from the store's UUID and ``id``)
     uuid: str | None = None
-    #: what a factory sorts runs by: ``station_id``, ``socket``, ``lot`` (text) when given
+    #: what a factory sorts runs by: ``station_id``, ``socket``, ``lot``, ``operator`` (text) when given
     labels: dict[str, str] = field(default_factory=dict)
 
 
@@ -111,7 +111,7 @@ class AttachmentInfo:
 
 
 #: the labels a run may carry (``RunStore.create_run(labels=...)``)
-LABELS = ("station_id", "socket", "lot")
+LABELS = ("station_id", "socket", "lot", "operator")
 
 
 def check_labels(labels: object) -> dict[str, str]:

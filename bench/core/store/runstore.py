@@ -119,7 +119,7 @@ class RunStore:
         labels: dict[str, str] | None = None,
     ) -> RunWriter:
         """Start a run (status ``running``) and return its writer.  ``labels``: the run's
-        ``station_id``, test ``socket`` and unit ``lot`` where known (text)."""
+        ``station_id``, test ``socket``, unit ``lot`` and ``operator`` where known (text)."""
         if not isinstance(procedure, str) or not procedure:
             raise ValueError(f"procedure must be a non-empty str, got {procedure!r}")
         for name, value in (("parameters", parameters), ("station", station)):

@@ -157,7 +157,14 @@ async function doctor() {
     `<tr><td>${esc(h.name)}</td><td>${esc(h.driver)}</td><td class="${h.status === "FAIL" ? "fail" : ""}">${esc(h.status)}</td><td>${esc(h.reason || h.identity)}</td><td>${h.round_trip_ms == null ? "" : h.round_trip_ms.toFixed(1) + " ms"}</td></tr>`).join("");
 }
 
+async function whoami() {  // logged in (a station served beyond loopback): the login runs the batch
+  const r = await fetch("/api/whoami");
+  const doc = r.ok ? await r.json() : {};
+  if (doc.user) { $("operator").value = doc.user; $("operator").readOnly = true; $("operator").title = `logged in as ${doc.role}`; }
+}
+
 buildSerials();
+whoami();
 $("start").addEventListener("click", start);
 $("abort").addEventListener("click", () => post("/api/abort"));
 $("retest").addEventListener("click", retest);
