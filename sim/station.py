@@ -97,6 +97,7 @@ class SimStationConfig:
     fixture_units: dict = field(default_factory=dict)   # socket → overrides of its drawn unit
     fixture_open: list = field(default_factory=list)    # sockets whose output lead is open
     fixture_settling_tau_s: float = 1e-4                # the fixture's input filter, s
+    fixture_first_channel: int = 101                    # socket n on DAQ channel first + n − 1
     host: str = "127.0.0.1"
 
     def validate(self) -> None:
@@ -201,7 +202,7 @@ class SimulatedStation:
             sampling_resistor_ohm=cfg.sampling_resistor_ohm,
             line_pickup=LinePickup(amplitude_v=cfg.line_pickup_v, nominal_hz=cfg.line_hz, phase_rad=0.7),
             settling_tau_s=cfg.fixture_settling_tau_s, ideal_meters=cfg.ideal_meters,
-            ambient=self.chamber_air)
+            ambient=self.chamber_air, first_channel=cfg.fixture_first_channel)
         #: every instrument's device, by name, in table order (``INSTRUMENTS``)
         self.devices: dict[str, SimDevice] = {row.name: row.device(self) for row in INSTRUMENTS}
         self.server = InstrumentServer(cfg.host)

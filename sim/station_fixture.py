@@ -5,7 +5,8 @@ DAQM901A multiplexer in slot 1).
 Wiring (what the fixture's harness does):
 
 * socket ``n`` (1..8) → its unit's output current → its own sampling resistor
-  (the station's ``sampling_resistor_ohm``) → DAQ channel ``100 + n``;
+  (the station's ``sampling_resistor_ohm``) → DAQ channel ``fixture_first_channel + n − 1``
+  (101 + n − 1 by default);
 * every socket's unit on the station's accelerometer rails (supply CH2 / CH3 inverted), in
   parallel: the supply sees the sum of their quiescent currents;
 * every unit fixed to the turntable platform with the station's mount (IA along platform
@@ -35,7 +36,8 @@ from sim.physics.thermal_unit import AmbientSource
 from sim.world import World
 
 MAX_SOCKETS = 8
-FIRST_CHANNEL = 101  # socket 1's DAQ channel
+FIRST_CHANNEL = 101  # socket 1's DAQ channel by default
+LAST_FIRST_CHANNEL = 120 - MAX_SOCKETS + 1  # eight sockets must fit on the DAQM901A (101..120)
 
 #: specific force along (IA, PA, OA) at the given times, g
 SpecificForce = Callable[[np.ndarray], np.ndarray]
@@ -85,8 +87,14 @@ class Fixture:
     def __init__(self, world: World, sockets: Mapping[int, str], *, overrides: Mapping,
                  open_sockets, specific_force: SpecificForce, sampling_resistor_ohm: float,
                  line_pickup: LinePickup, settling_tau_s: float, ideal_meters: bool,
-                 ambient: AmbientSource | None = None) -> None:
-        """``ambient``: the air the fixture stands in (the station's chamber air)."""
+                 ambient: AmbientSource | None = None, first_channel: int = FIRST_CHANNEL) -> None:
+        """``ambient``: the air the fixture stands in (the station's chamber air);
+        ``first_channel``: socket 1's DAQ channel (socket n on ``first_channel + n − 1``)."""
+        if isinstance(first_channel, bool) or not isinstance(first_channel, int) \
+                or not FIRST_CHANNEL <= first_channel <= LAST_FIRST_CHANNEL:
+            raise ValueError(f"fixture_first_channel = {first_channel!r} not in "
+                             f"{FIRST_CHANNEL}..{LAST_FIRST_CHANNEL} (8 sockets on channels 101..120)")
+        self.first_channel = first_channel
         self.sockets = dict(sockets)
         self.open_sockets = {int(n) for n in open_sockets}
         by_socket = {int(k): dict(v) for k, v in overrides.items()}
@@ -96,7 +104,7 @@ class Fixture:
                       for n, serial in sorted(self.sockets.items())}
         self._force = specific_force
         self._ohm = float(sampling_resistor_ohm)
-        inputs = {FIRST_CHANNEL + n - 1: self._output(n) for n in self.units
+        inputs = {first_channel + n - 1: self._output(n) for n in self.units
                   if n not in self.open_sockets}
         self.daq = ScanningDaq(world, "daq", inputs, line_pickup=line_pickup,
                                settling_tau_s=settling_tau_s, ideal=ideal_meters)

@@ -371,8 +371,8 @@ class Station:
             sim_opts[UNIT_KEYS[self.unit_kind]] = self.unit_serial
         if self.fixture:
             sim_opts["fixture"] = {str(n): serial for n, serial in self.fixture.items()}
-        for key in ("sampling_resistor_ohm", "temp_resistor_ohm",
-                    "positive_rail_channel", "negative_rail_channel", "gyro_supply_channel"):
+        for key in ("sampling_resistor_ohm", "temp_resistor_ohm", "positive_rail_channel",
+                    "negative_rail_channel", "gyro_supply_channel", "fixture_first_channel"):
             sim_opts.setdefault(key, cfg.wiring[key])
         try:
             sim_cfg = SimStationConfig(**sim_opts)

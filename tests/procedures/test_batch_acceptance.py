@@ -14,6 +14,7 @@ from bench.app.batch import check_socket, parse_sockets, run_batch, spec_for_soc
 from bench.app.cli import main
 from bench.app.station import builtin_sim_config
 from bench.core.store import RunStore
+from sim.station_fixture import Fixture
 
 SHORT_SPEC = """
 [unit]
@@ -142,3 +143,26 @@ def test_one_spec_per_batch_and_a_serial_no_spec_matches_is_named():
     with pytest.raises(ValueError, match="no built-in spec matches unit 'XX-1'"):
         spec_for_sockets({1: "XX-1"})
     assert check_socket("2", "QA-SIM-0009", {1: "QA-SIM-0001"}) == {2: "QA-SIM-0009"}
+
+
+def test_a_fixture_wired_from_another_channel_is_read_there(tmp_path):
+    """``[wiring] fixture_first_channel``: the procedures read socket n on first + n − 1, and
+    the simulated harness is wired there too (one setting, both sides)."""
+    spec_file = tmp_path / "short.toml"
+    spec_file.write_text(SHORT_SPEC)
+    config = builtin_sim_config()
+    config.wiring = {**config.wiring, "fixture_first_channel": 113}
+    held: dict = {}
+    sockets = {1: "QA-SIM-0003", 8: "QA-SIM-0002"}
+    result = run_batch(config, sockets, spec_for_sockets(sockets, str(spec_file)),
+                       RunStore(tmp_path / "b.sqlite"), seed=5, report_root=None, labels={},
+                       on_station=lambda station: held.update(sim=station.sim))
+    assert sorted(held["sim"].fixture.daq.inputs) == [113, 120]
+    truth = held["sim"].fixture_truth()
+    for n in sockets:
+        k1 = {m["name"]: m for m in result.documents[n]["measurements"]}["k1"]
+        assert abs(k1["value"] - truth[n]["k1_ma_per_g"]) < 5 * k1["uncertainty"] + 2e-4 * truth[n]["k1_ma_per_g"]
+    with pytest.raises(ValueError, match="fixture_first_channel = 114 not in 101..113"):
+        Fixture(held["sim"].world, {}, overrides={}, open_sockets=[], specific_force=lambda t: t,
+                sampling_resistor_ohm=5000.0, line_pickup=None, settling_tau_s=1e-4,
+                ideal_meters=True, first_channel=114)
