@@ -133,6 +133,25 @@ class PointMeasurement:
 P = TypeVar("P", bound=SweepParameters)
 
 
+def sweep_produces(bias_unit: str, more_tcs: dict[str, tuple[str, str]] | None = None
+                   ) -> dict[str, tuple[str, str]]:
+    """What a calibration over temperature produces: the bias and scale-factor temperature
+    coefficients (and ``more_tcs``), the verification's compensated and uncompensated rms
+    errors, the longest soak; bias quantities in ``bias_unit``."""
+    return {
+        "bias_tc": (f"{bias_unit}/degC", "bias temperature coefficient at the reference temperature"),
+        "sf_tc": ("ppm/degC", "scale-factor temperature coefficient at the reference temperature"),
+        **(more_tcs or {}),
+        "bias_residual": (bias_unit, "rms bias error over the verification profile, compensated"),
+        "bias_uncompensated": (bias_unit, "rms bias error over the verification profile, "
+                                          "room-temperature calibration only"),
+        "sf_residual": ("ppm", "rms scale-factor error over the verification profile, compensated"),
+        "sf_uncompensated": ("ppm", "rms scale-factor error over the verification profile, "
+                                    "room-temperature calibration only"),
+        "soak_time_max": ("s", "longest soak on the unit's own sensor"),
+    }
+
+
 class ThermalSweepBase(Step[P], Generic[P]):
     """The sweep (module docstring); a kind supplies its thermometer, its measurement at one
     temperature and its quantities."""
@@ -302,18 +321,8 @@ class ThermalSweep(ThermalSweepBase[AccelerometerSweepParameters]):
     name = "thermal_sweep"
     requires = ("dmm", "dmm_temp", "supply", "turntable", "chamber")
     kinds = ("accelerometer",)
-    produces = {
-        "bias_tc": ("g/degC", "bias temperature coefficient at the reference temperature"),
-        "sf_tc": ("ppm/degC", "scale-factor temperature coefficient at the reference temperature"),
-        "k2_tc": ("g/g^2/degC", "K2 temperature coefficient at the reference temperature"),
-        "bias_residual": ("g", "rms bias error over the verification profile, compensated"),
-        "bias_uncompensated": ("g", "rms bias error over the verification profile, room-temperature "
-                                    "calibration only"),
-        "sf_residual": ("ppm", "rms scale-factor error over the verification profile, compensated"),
-        "sf_uncompensated": ("ppm", "rms scale-factor error over the verification profile, "
-                                    "room-temperature calibration only"),
-        "soak_time_max": ("s", "longest soak on the unit's own sensor"),
-    }
+    produces = sweep_produces("g", {"k2_tc": ("g/g^2/degC", "K2 temperature coefficient at the "
+                                                        "reference temperature")})
     Parameters = AccelerometerSweepParameters
     quantities = {"k0": ("bias", "g"), "k1": ("scale_factor", "mA/g"), "k2": ("k2", "g/g^2")}
     input_unit, output_unit = "g", "mA"
@@ -422,17 +431,7 @@ class GyroThermalSweep(ThermalSweepBase[GyroSweepParameters]):
     name = "gyro_thermal_sweep"
     requires = ("gyro", "supply", "turntable", "chamber")
     kinds = ("gyro",)
-    produces = {
-        "bias_tc": ("deg/h/degC", "bias temperature coefficient at the reference temperature"),
-        "sf_tc": ("ppm/degC", "scale-factor temperature coefficient at the reference temperature"),
-        "bias_residual": ("deg/h", "rms bias error over the verification profile, compensated"),
-        "bias_uncompensated": ("deg/h", "rms bias error over the verification profile, room-temperature "
-                                        "calibration only"),
-        "sf_residual": ("ppm", "rms scale-factor error over the verification profile, compensated"),
-        "sf_uncompensated": ("ppm", "rms scale-factor error over the verification profile, "
-                                    "room-temperature calibration only"),
-        "soak_time_max": ("s", "longest soak on the unit's own sensor"),
-    }
+    produces = sweep_produces("deg/h")
     Parameters = GyroSweepParameters
     quantities = {"bias": ("bias", "deg/h"), "scale_factor": ("scale_factor", "1")}
     input_unit, output_unit = "deg/h", "deg/h indicated"
