@@ -122,20 +122,20 @@ def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed
     with contextlib.ExitStack() as stack:
         # started now: the workers import matplotlib while the station runs, on an idle core
         writers = stack.enter_context(ReportWriters(workers)) if workers else None
+        reports: dict[int, Future[str] | None] = {}
         with Station(config, seed=seed, unit_kind=spec.kind, fixture=sockets) as station:
             if on_station is not None:
                 on_station(station)
             outcomes = execute_batch(procedure, station, store, sockets=sockets, seed=seed,
                                      progress=progress, labels=labels, on_socket=on_socket,
                                      operator=operator)
-        reports: dict[int, Future[str] | None] = {}
+            if writers is not None and report_root is not None:  # the workers start as the station closes
+                reports = {n: writers.submit(store, o.run_id, report_root / o.run_id)
+                           for n, o in sorted(outcomes.items())}
         for n, outcome in sorted(outcomes.items()):
-            if report_root is None:
-                reports[n] = None
-            elif writers is not None:
-                reports[n] = writers.submit(store, outcome.run_id, report_root / outcome.run_id)
-            else:
-                reports[n] = _written_here(store, outcome.run_id, report_root / outcome.run_id)
+            if n not in reports:
+                reports[n] = None if report_root is None else \
+                    _written_here(store, outcome.run_id, report_root / outcome.run_id)
         result = BatchResult()
         for n, outcome in sorted(outcomes.items()):
             doc = acceptance_document(store, outcome.run_id)
