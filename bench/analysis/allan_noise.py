@@ -200,12 +200,31 @@ def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase:
             cov = None
         if cov is not None:
             inflate = max(1.0, reduced or 1.0)
+            model = a @ coef2
             for k, idx in enumerate(support):
-                var_c2 = cov[k, k] * inflate * scale ** 2
+                var_c2 = max(cov[k, k] * inflate,
+                             _single_point_var(a[:, idx] * coef2[idx], model, edf, float(coef2[idx])))
+                var_c2 *= scale ** 2
                 name = terms[idx]
                 if values[name] > 0 and var_c2 >= 0:
                     stds[name] = math.sqrt(var_c2) / (2.0 * values[name])  # δ√v = δv / (2√v)
     return NoiseFit(terms, values, stds, alpha, edf, reduced, iterations)
+
+
+def _single_point_var(term: np.ndarray, model: np.ndarray, edf: np.ndarray, c2: float) -> float:
+    """The variance of a term's coefficient ``c2`` read from the one Allan variance that tells
+    it best: a floor for the least-squares variance, which treats the octave points as
+    independent — they are not (overlapping estimates at neighbouring τ share most of their
+    data, strongly so where a random walk dominates), so the fit knows a term little better
+    than its best single point.  From point i, with the other terms known,
+    ``c² = (σ²ᵢ − others) / a_ik`` and ``var(σ²ᵢ) = 2 σ⁴ᵢ / edfᵢ``: the relative variance is
+    ``2 / (edfᵢ · shareᵢ²)``, ``shareᵢ`` the term's part of the model there (points where it
+    makes at least half of it)."""
+    share = np.divide(term, model, out=np.zeros_like(model), where=model > 0)
+    usable = share >= 0.9
+    if not np.any(usable):
+        return 0.0
+    return c2 ** 2 * float(np.min(2.0 / (edf[usable] * share[usable] ** 2)))
 
 
 @dataclass(frozen=True)
