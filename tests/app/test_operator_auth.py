@@ -152,3 +152,4 @@ def test_the_page_logs_in_and_shows_the_login_as_the_operator(tmp_path, users):
             assert "for an engineer" in (page.text_content("#doctor-table") or "")
         finally:
             browser.close()
+

@@ -108,11 +108,10 @@ class TerminalOperator:
     def ask(self, text: str) -> bool:
         print(f"\n>>> operator: {text}\n    Enter = continue, a = abort: ", end="", file=sys.stderr,
               flush=True)
-        try:
-            answer = input()
-        except EOFError:
+        line = sys.stdin.readline()
+        if not line:  # end of input: nobody can answer
             return False
-        return answer.strip().lower() not in ("a", "abort")
+        return line.strip().lower() not in ("a", "abort")
 
 
 def operator_options(p) -> None:
