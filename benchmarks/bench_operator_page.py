@@ -6,6 +6,8 @@ operator station served on loopback; the page is driven by Playwright.  Measured
 * live plot updates per second, per socket plot, while the batch acquires (first plot to the
   progress reading "done") and from the first plot to the verdicts (reports included); a
   redraw counts when new samples arrived; snapshots received per second (Server-Sent Events);
+* the wall time from Continue to the verdicts of one unit alone and of the batch of four,
+  and their ratio (the issue's < 1.5×);
 * latency: ``GET /api/state`` round trip; Continue clicked → the page shows the run;
   Abort clicked → the page shows every socket aborted (the station made safe in between).
 
@@ -41,6 +43,14 @@ def main() -> None:
                 r.read()
             state_ms.append(1000 * (time.perf_counter() - t0))
         page.fill("#operator", "bench")
+        # one unit alone through the page: Continue → its verdict (the batch's yardstick)
+        page.fill("#serial-1", SERIALS[1])
+        page.click("#start")
+        page.wait_for_selector("#prompt:not(.hidden)")
+        t0 = time.perf_counter()
+        page.click("#prompt-continue")
+        page.wait_for_selector("body[data-state=done]", timeout=600_000)
+        one_s = time.perf_counter() - t0
         for n, serial in SERIALS.items():
             page.fill(f"#serial-{n}", serial)
         page.click("#start")
@@ -49,6 +59,7 @@ def main() -> None:
         page.click("#prompt-continue")
         page.wait_for_selector("body[data-state=running]")
         continue_ms = 1000 * (time.perf_counter() - t0)
+        t_batch = t0
         page.wait_for_function("window.plotUpdates > 0", timeout=120_000)
         plots0, msgs0 = page.evaluate("window.plotUpdates"), page.evaluate("window.stateMessages")
         t_live = time.perf_counter()
@@ -59,6 +70,7 @@ def main() -> None:
         acquiring_plots = page.evaluate("window.plotUpdates") - plots0
         page.wait_for_selector("body[data-state=done]", timeout=600_000)
         live_s = time.perf_counter() - t_live
+        four_s = time.perf_counter() - t_batch
         plots = page.evaluate("window.plotUpdates") - plots0
         msgs = page.evaluate("window.stateMessages") - msgs0
         # a second batch, aborted once its plots move
@@ -73,6 +85,8 @@ def main() -> None:
         abort_ms = 1000 * (time.perf_counter() - t0)
         browser.close()
     n = len(SERIALS)
+    print(f"Continue → verdicts: 1 unit {one_s:.1f} s, a batch of {n} {four_s:.1f} s: "
+          f"ratio {four_s / one_s:.2f}")
     print(f"live batch of 4: {acquiring_s:.1f} s of wall time acquiring, {live_s:.1f} s to the verdicts "
           f"(reports written in {live_s - acquiring_s:.1f} s)")
     print(f"plot updates per socket plot while acquiring: {acquiring_plots / n / acquiring_s:.1f} /s; "
