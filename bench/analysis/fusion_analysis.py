@@ -5,8 +5,9 @@ on the rest, and the recommended output picked by that judgement.
 from it) — each sensor alone, the complementary filter, Document B's sequential adaptive-R
 Kalman filter as published, a conventional fixed-R Kalman filter, the complementary Kalman
 filter (:mod:`bench.analysis.fusion_complementary`: cannot lag, noise by maximum likelihood)
-with and without Document B's adaptive R on top, and its fixed-interval smoother (offline)
-with and without it.
+with and without Document B's adaptive R on top, its fixed-interval smoother (offline)
+with and without it, and the complementary filter and smoother on a copy of the record with
+each sensor's outliers replaced (offline; see **Outliers** below).
 
 **With a reference** (:func:`analyze_fusion` with ``ref``), the first ``tune_fraction`` of the
 record *tunes* and the rest (after ``settle_s``) *judges*:
