@@ -1,8 +1,8 @@
 """The fusion robustness battery: ``bench analyze fusion``'s recommendation on HF/LF pairs drawn
 over regimes by an independent generator, graded against the exact rate.
 
-    .venv/bin/python benchmarks/fusion_battery.py [--cases 60] [--first 0] [--max-samples 400000]
-        [--json FILE] [--quiet]
+    .venv/bin/python benchmarks/fusion_battery.py [--cases 60] [--first 0] [--seeds S ...]
+        [--max-samples 400000] [--json FILE] [--quiet]
 
 Each pair (``tests/analysis/fusion_pairs.py``: corner ratio 3–300, sample rate 1–20 kHz, tones
 up to a fifth of the sample rate, noise 1e-4…1e-1 of the signal, spikes, dropouts, clock skew
@@ -134,13 +134,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cases", type=int, default=60)
     ap.add_argument("--first", type=int, default=0, help="seed of the first pair [0]")
+    ap.add_argument("--seeds", type=int, nargs="+", default=None,
+                    help="these seeds only (instead of --first/--cases)")
     ap.add_argument("--max-samples", type=int, default=None, help="shorter pairs (fewer samples) [generator's]")
     ap.add_argument("--json", metavar="FILE", default=None, help="write every pair's figures here")
     ap.add_argument("--quiet", action="store_true", help="no line per pair")
     args = ap.parse_args()
     cases = []
     t0 = time.perf_counter()
-    for seed in range(args.first, args.first + args.cases):
+    for seed in args.seeds if args.seeds else range(args.first, args.first + args.cases):
         case = run_case(seed, args.max_samples)
         cases.append(case)
         if not args.quiet:

@@ -7,7 +7,9 @@ an unmodelled pole far above the band).  :func:`fit_and_align`, on the stretch i
 (the tuning part: the reference of the judged part is never used), with each sensor's
 outliers (spikes, dropouts: > 8 robust σ from its tone fit) replaced by that fit
 (:func:`~bench.analysis.fusion_metrics.without_outliers`) — they are left in the record the
-fusion sees:
+fusion sees (what a sensor alone reads, and what Document B's adaptive R is meant to handle);
+a copy with them replaced (step 4) goes beside it, for the methods run on a cleaned record,
+which are judged like every other and so cannot displace a better one:
 
 1. a quick FRF of each sensor against the reference at the tones (least-squares phasors);
 2. each sensor's clock rate error, from the phase drift of the highest tone it passes
@@ -27,7 +29,13 @@ fusion sees:
 4. the HF samples kept as they are on their corrected instants less the HF delay; the LF
    record (its instants corrected and moved back by its delay) and the reference resampled
    onto them (:func:`~bench.analysis.frf_timebase.resample`, band-limited), the ends that
-   would need extrapolation dropped.
+   would need extrapolation dropped.  The cleaned copy (``hf_clean``, ``lf_clean``): each
+   sensor's whole record, on its corrected clock (where the tones stay coherent over the
+   record), with the samples beyond 8 robust σ of its own tone fit replaced by that fit
+   (the reference unused), *before* the look-ahead filters and the resampling, which would
+   smear a one-sample spike over their taps below the threshold; then aligned the same way.
+   It needs the motion to be the tones (a tone test): on other motion the residual is the
+   motion and little or nothing is replaced.
 
 The fusion then sees two sensors whose only differences from the reference are their
 transfer functions without delay and their noise.
@@ -42,7 +50,7 @@ import numpy as np
 
 from bench.analysis.frf_timebase import TimeBase, apply_time_base, estimate_time_base, resample
 from bench.analysis.fusion_metrics import tone_fit, tone_noise_std, without_outliers
-from bench.analysis.fusion_models import ORDER_GAIN_FACTOR, TransferFit, fit_transfer_function
+from bench.analysis.fusion_models import ORDER_GAIN_FACTOR, TransferFit, fit_transfer_function, min_frf_points
 
 MIN_TONES = 4  # a first-order high- or low-pass with a delay needs this many FRF points (second order: 6)
 CLOCK_BLOCK_S = 5.0  # longest clock block (s); at least ten periods of the tone
@@ -67,6 +75,8 @@ class PairAlignment:
     trimmed_end: int
     notes: tuple
     lf_interval_mean: bool = False
+    #: samples replaced by the tone fit in the cleaned copy, HF and LF, over the whole record
+    outliers_replaced: tuple = (0, 0)
 
     def to_dict(self) -> dict:
         def clock(tb):
@@ -75,7 +85,8 @@ class PairAlignment:
         return {"hf_fit": self.hf_fit.to_dict(), "lf_fit": self.lf_fit.to_dict(), "hf_clock": clock(self.hf_clock),
                 "lf_clock": clock(self.lf_clock), "trimmed_start": int(self.trimmed_start),
                 "trimmed_end": int(self.trimmed_end), "notes": list(self.notes),
-                "lf_interval_mean": self.lf_interval_mean}
+                "lf_interval_mean": self.lf_interval_mean,
+                "outliers_replaced": {"hf": int(self.outliers_replaced[0]), "lf": int(self.outliers_replaced[1])}}
 
 
 def _frf(t_ref, ref, t_y, y, tones, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -181,7 +192,8 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
                   fit_part: slice | None = None) -> tuple[dict, PairAlignment]:
     """Fit both sensors and align the record (module docstring).  ``fit_part`` the stretch the
     clocks and models are measured on (default: all).  Returns the aligned ``{"t_s", "hf",
-    "lf", "ref"}`` (``t_s`` on the reference's clock) and what was found."""
+    "lf", "ref", "hf_clean", "lf_clean"}`` (``t_s`` on the reference's clock; the last two the
+    cleaned copy, the same arrays as ``hf``/``lf`` where nothing was replaced) and what was found."""
     t = np.asarray(t_s, dtype=float)
     hf, lf, ref = (np.asarray(v, dtype=float) for v in (hf, lf, ref))
     tones = np.sort(np.asarray(tones_hz, dtype=float))
@@ -211,7 +223,7 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
         g, sd = _frf(tp, rp, ty, y, tones, rate_hz)
         order = 2 if tones.size >= 6 else 1
         fits[name] = fit_transfer_function(tones, g, kind, max_order=order, fit_delay=True, weights=1.0 / sd)
-        if name == "hf" and tones.size >= 2 * order + 3:
+        if name == "hf" and tones.size >= min_frf_points(order, True, True):
             # the HF sensor's own bandwidth limit, if the FRF shows one: a pole above the tones that
             # explains at least half of the misfit (left out, it bends the fitted gain and corner)
             upper = fit_transfer_function(tones, g, kind, max_order=order, fit_delay=True, weights=1.0 / sd,
@@ -229,12 +241,23 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
                 fits[name] = mean
                 interval_mean = True
     hf_fit, lf_fit = fits["hf"], fits["lf"]
+    # the cleaned copy, each sensor on its own corrected clock (step 4)
+    hf_clean, hf_mask = without_outliers(t_hf, hf, tones)
+    lf_clean, lf_mask = without_outliers(t_lf, lf, tones)
+    replaced = (int(hf_mask.sum()), int(lf_mask.sum()))
+    if any(replaced):
+        notes.append(f"outliers replaced by each sensor's tone fit in the cleaned copy: {replaced[0]} HF and "
+                     f"{replaced[1]} LF samples of the whole record")
     if hf_fit.upper_hz is not None:
         hf = undo_upper_pole(hf, hf_fit.upper_hz, rate_hz)
+        hf_clean = undo_upper_pole(hf_clean, hf_fit.upper_hz, rate_hz) if replaced[0] else hf
         notes.append(f"HF upper pole at {hf_fit.upper_hz:.4g} Hz measured and undone "
                      f"(a {UPPER_POLE_HALF_WIDTH}-sample look-ahead filter)")
+    elif not replaced[0]:
+        hf_clean = hf
     if interval_mean:
         lf = undo_interval_mean(lf)
+        lf_clean = undo_interval_mean(lf_clean) if replaced[1] else lf
         notes.append(f"LF samples are means over their interval: sinc droop measured and undone "
                      f"(a {INTERVAL_MEAN_HALF_WIDTH}-sample look-ahead filter)")
     t_base = t_hf - hf_fit.delay_s
@@ -248,9 +271,11 @@ def fit_and_align(t_s, hf, lf, ref, tones_hz, rate_hz: float,
     i0, i1 = int(keep[0]), int(keep[-1]) + 1
     tb = t_base[i0:i1]
     aligned = {"t_s": tb, "hf": hf[i0:i1], "lf": resample(t_lf, lf, tb), "ref": resample(t, ref, tb)}
+    aligned["hf_clean"] = hf_clean[i0:i1] if replaced[0] else aligned["hf"]
+    aligned["lf_clean"] = resample(t_lf, lf_clean, tb) if replaced[1] else aligned["lf"]
     for name, fit in (("HF", hf_fit), ("LF", lf_fit)):
         if not math.isfinite(fit.residual) or fit.residual > 0.05:
             notes.append(f"{name} model misfit {fit.residual:.3g} (relative RMS over the tones): the fusion "
                          "will inherit it")
     return aligned, PairAlignment(hf_fit, lf_fit, clocks["hf"], clocks["lf"], i0, t.size - i1, tuple(notes),
-                                  interval_mean)
+                                  interval_mean, replaced)

@@ -147,6 +147,14 @@ def _phase_slope_delay(f: np.ndarray, g: np.ndarray) -> float:
     return float(-np.polyfit(w, phase, 1)[0])
 
 
+def min_frf_points(max_order: int, fit_delay: bool = False, upper_pole: bool = False) -> int:
+    """FRF points :func:`fit_transfer_function` needs: ``2·order + 1``, one more for a delay;
+    an upper pole adds one at order 1 only (order 2 with a delay and an upper pole fits five
+    real parameters to the twelve numbers of six points, as many spare as order 1 with a
+    delay has on four)."""
+    return 2 * max_order + 1 + int(bool(fit_delay)) + int(bool(upper_pole) and max_order == 1)
+
+
 def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max_order: int = 2,
                           fit_delay: bool = False, weights=None, upper_pole: bool = False) -> TransferFit:
     """Fit a high- or low-pass of order 1…``max_order`` (optionally times a pure delay) to a measured FRF.
@@ -181,7 +189,7 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
         raise ValueError(f"freq_hz has {f.size} values and response_complex {g.size}; they must match")
     if upper_pole and kind != "highpass":
         raise ValueError("upper_pole is for a high-pass sensor's bandwidth limit (kind 'highpass')")
-    n_min = 2 * max_order + 1 + int(bool(fit_delay)) + int(bool(upper_pole))
+    n_min = min_frf_points(max_order, fit_delay, upper_pole)
     if f.size < n_min:
         raise ValueError(f"{f.size} FRF points; at least {n_min} are needed for order {max_order}"
                          + (" with a delay" if fit_delay else "") + (" and an upper pole" if upper_pole else ""))

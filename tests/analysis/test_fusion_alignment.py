@@ -11,7 +11,8 @@ import pytest
 from scipy.signal import freqs
 
 from bench.analysis.fusion_alignment import fit_and_align, inverse_sinc_taps, undo_interval_mean
-from tests.analysis.fusion_pairs import analog_prototype, draw_spec, make_pair
+from bench.analysis.fusion_models import fit_transfer_function, min_frf_points
+from tests.analysis.fusion_pairs import Sensor, analog_prototype, draw_spec, make_pair
 
 
 def quiet_pair(seed: int, averaging: bool):
@@ -55,3 +56,43 @@ def test_the_inverse_of_an_interval_mean_restores_a_tone():
     assert np.max(np.abs(restored[inner] - truth[inner])) < 2e-3  # 16-point means are not the exact interval mean
     with pytest.raises(ValueError, match="must be"):
         undo_interval_mean(np.ones((3, 3)))
+
+
+@pytest.mark.parametrize("seed", [13, 38])
+def test_the_cleaned_copy_replaces_spikes_and_only_them(seed):
+    """Pairs with spikes on both sensors (seed 13 also an HF upper pole and an averaging LF
+    sensor: both look-ahead filters run after the cleaning): the cleaned copy is the record the
+    same pair without its spikes would give, to a few noise σ; the raw record keeps them."""
+    spec = draw_spec(seed, 80_000)
+    assert spec.hf.spikes and spec.lf.spikes and not spec.hf.dropouts and not spec.lf.dropouts
+    calm = dataclasses.replace(spec, hf=dataclasses.replace(spec.hf, spikes=()),
+                               lf=dataclasses.replace(spec.lf, spikes=()))
+    rec, rec_calm = make_pair(spec), make_pair(calm)
+    fit_part = slice(0, int(0.4 * rec["t"].size))
+    aligned, alignment = fit_and_align(rec["t"], rec["hf"], rec["lf"], rec["ref"], spec.tones_hz, spec.rate_hz,
+                                       fit_part)
+    calm_aligned, calm_alignment = fit_and_align(rec_calm["t"], rec_calm["hf"], rec_calm["lf"], rec_calm["ref"],
+                                                 spec.tones_hz, spec.rate_hz, fit_part)
+    assert calm_alignment.outliers_replaced == (0, 0) and calm_aligned["hf_clean"] is calm_aligned["hf"]
+    assert alignment.outliers_replaced == (len({i for i, _ in spec.hf.spikes}), len({i for i, _ in spec.lf.spikes}))
+    assert alignment.to_dict()["outliers_replaced"]["hf"] == alignment.outliers_replaced[0]
+    assert aligned["t_s"].size == calm_aligned["t_s"].size
+    for name, sensor in (("hf", spec.hf), ("lf", spec.lf)):
+        spike = min(abs(s) for _, s in sensor.spikes)
+        assert np.max(np.abs(aligned[name] - calm_aligned[name])) > 0.3 * spike  # the raw record keeps them
+        assert np.max(np.abs(aligned[f"{name}_clean"] - calm_aligned[name])) < 8 * sensor.noise_sd + 1e-3 * spike
+
+
+def test_six_tones_identify_a_second_order_hf_sensor_with_its_upper_pole():
+    """Six FRF points (the fewest a pair carries) fit an order-2 high-pass, a delay and an upper
+    pole — five real parameters on twelve numbers; below six the fit refuses."""
+    sensor = Sensor("highpass", 2, 0.54, 0.97, -0.62, 926.0, 0.0, 0.0, 0.0, 0.0, False)
+    tones = np.array([0.225, 0.925, 3.95, 15.65, 72.2, 308.8])
+    delay_s = 2.8e-5
+    g = freqs(*analog_prototype(sensor), worN=2 * np.pi * tones)[1] * np.exp(-2j * np.pi * tones * delay_s)
+    fit = fit_transfer_function(tones, g, "highpass", max_order=2, fit_delay=True, upper_pole=True)
+    assert fit.upper_hz == pytest.approx(926.0, rel=1e-3) and fit.delay_s == pytest.approx(delay_s, rel=1e-2)
+    assert fit.model.corner_hz == pytest.approx(0.54, rel=1e-3) and fit.model.gain == pytest.approx(-0.62, rel=1e-4)
+    assert min_frf_points(2, True, True) == 6 and min_frf_points(1, True, True) == 5
+    with pytest.raises(ValueError, match="at least 6"):
+        fit_transfer_function(tones[:5], g[:5], "highpass", max_order=2, fit_delay=True, upper_pole=True)

@@ -87,3 +87,10 @@ def test_the_recommendation_meets_the_criteria_on_independent_pairs(seed):
                                                                 best.excess_std_pct, best.sensor_std_pct)
     # and far better than either sensor alone: neither covers the band
     assert best.rms_error < 0.5 * min(grades["hf"].rms_error, grades["lf"].rms_error)
+    replaced = analysis.alignment.outliers_replaced
+    if spec.hf.spikes or spec.lf.spikes:  # seed 4: HF spikes; the cleaned record wins, and by far
+        assert replaced[0] >= len(spec.hf.spikes) and analysis.recommended.endswith("_clean")
+        assert best.rms_error < 0.05 * min(g.rms_error for k, g in grades.items() if not k.endswith("_clean"))
+    else:  # nothing to replace: the cleaned methods are the ones they clean
+        assert replaced == (0, 0)
+        assert analysis.estimates["complementary_smoother_clean"] is analysis.estimates["complementary_smoother"]
