@@ -109,10 +109,11 @@ def analyze_fusion_csv(args) -> int:
             excess = f"{j.worst_excess_pct(k):+.3g} pp ({j.worst_excess_sigma(k):.3g}σ)"
             print(f" {mark}{meth.label:<46} {j.rms_error[k]:11.5g} {float(max(abs(j.amplitude_error_pct[k]))):16.4g} "
                   f"{excess:>20}")
-        print(f"  {'f (Hz)':>10} " + " ".join(f"{k[:22]:>22}" for k in METHODS))
+        width = max(22, *(len(k) for k in METHODS))  # every method's whole name heads its column
+        print(f"  {'f (Hz)':>10} " + " ".join(f"{k:>{width}}" for k in METHODS))
         for i, f in enumerate(j.tones_hz):
             cells = [f"{j.amplitude_error_pct[k][i]:+8.3f}% {j.phase_error_deg[k][i]:+8.3f}°" for k in METHODS]
-            print(f"  {f:10.4g} " + " ".join(f"{c:>22}" for c in cells))
+            print(f"  {f:10.4g} " + " ".join(f"{c:>{width}}" for c in cells))
     for name, s in analysis.nis.items():
         print(f"  NIS {name}: mean {s.mean:.4g} (χ² bounds {s.lower:.4g}–{s.upper:.4g}, dof {s.dof}); "
               f"{'consistent' if s.consistent else 'inconsistent'}{', DIVERGED' if s.diverged else ''}")
