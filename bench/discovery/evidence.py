@@ -34,6 +34,7 @@ An :class:`Evidence` records which effect, whether its signature holds, and wher
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -158,27 +159,12 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
                     tuple(sorted({c.column for c in corr})))
 
 
-def _projection_p(q: np.ndarray, observed: float, draw, n_rep: int, chunk: int = 100,
-                  stop_after: int = 10) -> float:
-    """Monte-Carlo p of ``observed`` = ‖qᵀr‖² against ``draw(m)``'s columns, sequential both ways
-    as :func:`significance.bootstrap_p_value` (stop after ``stop_after`` exceedances; stop at
-    the floor once the observed value is :data:`significance.CLEAR_Z` null sds out)."""
-    exceed, done = 0, 0
-    nulls: list[np.ndarray] = []
-    while done < n_rep:
-        m = min(chunk, n_rep - done)
-        null = np.sum(np.einsum("ik,im->km", q, draw(m)) ** 2, axis=0)
-        nulls.append(null)
-        exceed += int(np.sum(null >= observed))
-        done += m
-        if exceed >= stop_after:
-            return exceed / done
-        if exceed == 0 and done >= 2 * chunk and done < n_rep:
-            every = np.concatenate(nulls)
-            sd = float(np.std(every))
-            if sd > 0 and (observed - float(np.mean(every))) / sd > sig.CLEAR_Z:
-                return 1.0 / (n_rep + 1.0)
-    return (1.0 + exceed) / (n_rep + 1.0)
+def _projection_p(q: np.ndarray, observed: float, draw: Callable[[int], np.ndarray], n_rep: int) -> float:
+    """Monte-Carlo p of ``observed`` = ‖qᵀr‖² against ``draw(m)``'s columns
+    (:func:`significance.sequential_p_value`: the same early stops as the bootstrap)."""
+    def null_scores(m: int) -> np.ndarray:
+        return np.sum(np.einsum("ik,im->km", q, draw(m)) ** 2, axis=0)
+    return sig.sequential_p_value(observed, null_scores, n_rep=n_rep)
 
 
 def shape_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA,
