@@ -20,6 +20,12 @@ tanh after K3) is not named either: that structure is reported as unexplained in
     filter (:func:`~bench.discovery.localize.input_correlations`): a wander that follows a
     logged quantity is not random.
 
+  The innovations are taken after refitting, under the process, the directions the model's
+  calibration fitted by least squares (the base and each named waveform, :func:`fitted_directions`:
+  their whitened columns projected out — generalised least squares): beside a strong process
+  those least-squares values are off, and their error follows their own columns (a K2's
+  input²) — an error of the joint fit, not a departure from the process.
+
   The three families share ``alpha`` (Bonferroni).
 * :func:`shape_evidence` — a waveform with a ``relaxed_basis``: the held-out score of those
   freer columns on the residual of the model with the effect, its p-value against the model's
@@ -113,6 +119,19 @@ def band_shape(x: np.ndarray, in_band: np.ndarray) -> tuple[float, str]:
                f"(χ² {chi2:.1f} on {dof} bins)")
 
 
+def fitted_directions(model: Model, rec: Record) -> np.ndarray:
+    """Columns of what the model's calibration fits by least squares: the base regressors and
+    each waveform effect's contribution (its prediction with it less without it)."""
+    cols = [base_regressors(rec)]
+    full = model.predict(rec)
+    for i, (e, _) in enumerate(model.entries()):
+        if e.waveform and not e.stochastic:
+            c = full - Model(model.base, model.effects[:i] + model.effects[i + 1:]).predict(rec)
+            if np.any(c != 0):
+                cols.append(c[:, None])
+    return np.column_stack(cols)
+
+
 def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *,
                      alpha: float = ALPHA) -> Evidence:
     """Does random process ``model.effects[index]`` hold on ``residual`` (= rec.y −
@@ -127,6 +146,12 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
     if not white > 0:
         white = float(model.base.noise_sd) or float(np.std(r)) or 1.0
     x = innovations(r, rate, white, procs)
+    # the base's and the named waveforms' directions refitted under the process (GLS, by
+    # projecting their whitened columns out): calibrated by least squares as if the noise were
+    # white, under a strong process their values are off by colour that follows their own
+    # columns (a K2's input²) — the joint model's error, not a departure from the process
+    xf = np.column_stack([innovations(c - c.mean(), rate, white, procs) for c in fitted_directions(model, rec).T])
+    x = project_out(x, xf)
     a = alpha / 3.0
     where: list[str] = []
     ps: list[float] = []
