@@ -132,3 +132,21 @@ def test_a_process_is_judged_after_the_waveforms_are_refitted_under_it():
     model = calibrate(Model(truth.base, truth.effects[:1]), rec).with_effect("gauss_markov", gm)
     ev = evidence(model, rec, 1, rec.y - model.predict(rec), rng=np.random.default_rng(0))
     assert ev.holds, ev.describe()
+
+
+def test_re_choosing_without_a_withdrawn_warm_up_gives_the_two_node_shape_its_turn():
+    """What the workflow's re-choice rests on: naming again with a withdrawn effect excluded
+    (``exclude``) never tries it, and the nesting shape is then the one named — a two-node
+    transient whose simpler one-exponential special case was preferred first."""
+    rng = np.random.default_rng(8)
+    rec = make_experiment("accelerometer", rng, n=3000)
+    truth = Model(base_model("accelerometer")).with_effect(
+        "thermal_two_node", {"amplitude": 2e-4, "fraction_slow": 0.6, "tau_fast_s": 40.0, "tau_slow_s": 400.0})
+    rec = rec.replace(y=truth.simulate(rec, rng))
+    model = calibrate(Model(base_model("accelerometer")), rec)
+    only = ("warmup_exponential", "thermal_two_node", "linear_drift")
+    first = name_effect(model, rec, seed=0, n_rep=199, only=only)
+    again = name_effect(model, rec, seed=0, n_rep=199, only=only, exclude=frozenset({"warmup_exponential"}))
+    assert first.best is not None and first.best.id in ("warmup_exponential", "thermal_two_node")
+    assert "warmup_exponential" not in {c.id for c in again.candidates}
+    assert again.best is not None and again.best.id == "thermal_two_node"
