@@ -21,7 +21,7 @@ tanh after K3) is not named either: that structure is reported as unexplained in
     logged quantity is not random.
 
   The innovations are taken after refitting, under the process, the directions the model's
-  calibration fitted by least squares (the base and each named waveform, :func:`fitted_directions`:
+  calibration fitted by least squares (each named waveform, :func:`fitted_directions`:
   their whitened columns projected out — generalised least squares): beside a strong process
   those least-squares values are off, and their error follows their own columns (a K2's
   input²) — an error of the joint fit, not a departure from the process.
@@ -120,9 +120,13 @@ def band_shape(x: np.ndarray, in_band: np.ndarray) -> tuple[float, str]:
 
 
 def fitted_directions(model: Model, rec: Record) -> np.ndarray:
-    """Columns of what the model's calibration fits by least squares: the base regressors and
-    each waveform effect's contribution (its prediction with it less without it)."""
-    cols = [base_regressors(rec)]
+    """Columns of the named waveforms the model's calibration fitted by least squares: each
+    waveform effect's contribution (its prediction with it less without it); (n, 0) without
+    one. Not the base's bias and input: under a walk a constant's whitened column is the
+    record's first samples and the input's is the input — refitting them would take out what
+    a missing warm-up or a logged column leaves in the innovations, the evidence against the
+    process."""
+    cols = [np.zeros((rec.n, 0))]
     full = model.predict(rec)
     for i, (e, _) in enumerate(model.entries()):
         if e.waveform and not e.stochastic:
@@ -146,12 +150,13 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
     if not white > 0:
         white = float(model.base.noise_sd) or float(np.std(r)) or 1.0
     x = innovations(r, rate, white, procs)
-    # the base's and the named waveforms' directions refitted under the process (GLS, by
+    # the named waveforms' directions refitted under the process (GLS, by
     # projecting their whitened columns out): calibrated by least squares as if the noise were
     # white, under a strong process their values are off by colour that follows their own
     # columns (a K2's input²) — the joint model's error, not a departure from the process
-    xf = np.column_stack([innovations(c - c.mean(), rate, white, procs) for c in fitted_directions(model, rec).T])
-    x = project_out(x, xf)
+    directions = fitted_directions(model, rec)
+    if directions.shape[1]:
+        x = project_out(x, np.column_stack([innovations(c - c.mean(), rate, white, procs) for c in directions.T]))
     a = alpha / 3.0
     where: list[str] = []
     ps: list[float] = []
