@@ -8,7 +8,7 @@ realised by different code and a different discretisation, using the simulator's
 ================================  ==========================================================
 effect                            realised as
 ================================  ==========================================================
-warmup_exponential                the self-heating of a ``ThermalNode`` switched on at power-on
+warmup_exponential                one self-heating node (``sim.physics.thermal_lti``) powered on
 linear_drift                      a rate integrated sample by sample (cumulative sum)
 temperature_bias                  ``np.polyval`` of the temperature rise
 temperature_scale_factor          a temperature-dependent gain multiplying the whole response
@@ -48,7 +48,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from sim.physics.thermal import ThermalNode
 
 from bench.discovery.data import Record
 from bench.discovery.model import Model
@@ -57,6 +56,7 @@ from sim.physics.gyro import indicated_rate_dps, quantise_pulses
 from sim.physics.gyro_noise import KnotBias
 from sim.physics.gyro_params import TACTICAL
 from sim.physics.noise import GaussMarkov, RandomWalk, WhiteNoise
+from sim.physics.thermal_lti import ExpPoly, LinearBlock
 
 T_REF_C = 25.0
 SUBSTEPS = 8
@@ -155,12 +155,15 @@ def static_response(kind: str, u: np.ndarray, rec: Record, effects: dict[str, Pa
 # ---- additive terms ------------------------------------------------------------------------
 
 def _warmup(p: Params, rec: Record) -> np.ndarray:
-    node = ThermalNode(ambient_c=23.0, self_heating_delta_c=4.0, tau_s=p["tau_s"])
+    # one self-heating node (ambient 23 °C, 4 °C rise) in the simulator's closed-form LTI
+    # solver (sim/physics/thermal_lti: the responses its thermal units are made of), switched
+    # on at power-on: dT/dt = (23 + 4 − T)/τ
+    ambient_c, delta_c, tau_s = 23.0, 4.0, p["tau_s"]
+    node = LinearBlock(np.array([[-1.0 / tau_s]]), np.array([[1.0 / tau_s]]))
     t_on = rec.column("t_on")
     start = float(rec.t_s[0] - t_on[0])  # power-on on the record's clock
-    node.set_power(start, True)
-    temp = node.temperature_c(np.maximum(rec.t_s, start))
-    return p["amplitude"] * (node.ambient_c + node.self_heating_delta_c - temp) / node.self_heating_delta_c
+    temp = node.respond([ambient_c], ExpPoly.constant(start, ambient_c + delta_c)).at(np.maximum(rec.t_s, start))[:, 0]
+    return p["amplitude"] * (ambient_c + delta_c - temp) / delta_c
 
 
 def _drift(p: Params, rec: Record) -> np.ndarray:

@@ -31,7 +31,7 @@ often as its look-alike, which the report then gives as a close competitor.
 
 Run: ``.venv/bin/python benchmarks/discovery_scorecard.py [--kinds accelerometer,gyro,mhd]
 [--seeds 5] [--independent-seeds 5] [--pairs 10] [--triples 10] [--clean 20] [--open 5]
-[--n 3000] [--jobs 2] [--json FILE]``. There is no peer library that names effects, so the
+[--n 3000] [--jobs 2] [--first N] [--json FILE]``. There is no peer library that names effects, so the
 figures stand alone (targets from the issues beside them).
 """
 
@@ -271,6 +271,9 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=3000, help="samples per record")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes")
     ap.add_argument("--effects", default=None, help="comma-separated subset of effect ids")
+    ap.add_argument("--first", type=int, default=None, metavar="N",
+                    help="only the first N cases in round order (a balanced sample; e.g. --pairs 6 --triples 10 "
+                         "--first 23 with the other rows at 0: the first 17 triples and 6 pairs)")
     ap.add_argument("--json", default=None, help="write every case's outcome here")
     ap.add_argument("--power", default=None,
                     help="comma-separated snr ratios (× MIN_SNR): the power curve instead of the scorecard")
@@ -302,7 +305,8 @@ def main(argv=None) -> int:
         if args.json:
             Path(args.json).write_text(json.dumps(cases, indent=1, default=float))
         return 0
-    cases = run_jobs(scorecard_jobs(args), args.jobs, args.json)
+    jobs = scorecard_jobs(args)
+    cases = run_jobs(jobs if args.first is None else jobs[:args.first], args.jobs, args.json)
     report(cases)
     print(f"total {time.perf_counter() - t_start:.0f} s; records of {args.n} samples, {args.jobs} process(es)")
     if args.json:

@@ -160,8 +160,10 @@ class Effect:
     columns, varying), ``big_enough`` (the size gate; ``size_noise_sd`` the sd it is judged
     against), ``identifiable`` (can the record resolve these parameters at all),
     ``colours_residual`` (once in the model, does it leave residual colour no random-process
-    null describes), ``localized`` (a deterministic explanation placed in time by what the
-    record logs — a jump, a warm-up when power-on is logged: tested before any catch-all),
+    χ² null describes: a process is then judged against the model's noise simulated through
+    it) with ``null_holds`` (is that simulation valid on the record), ``localized`` (a
+    deterministic explanation placed in time by what the record logs — a jump, a warm-up
+    when power-on is logged: tested before any catch-all),
     ``catch_all`` (a process or trend that can absorb any slow structure: named only on the
     evidence of its own signature), ``relaxed_basis`` (columns of a freer version of its shape:
     if they still explain the residual once it is in the model, its shape does not hold and it
@@ -533,8 +535,15 @@ class Effect:
     def colours_residual(self, p: Mapping[str, float], noise_sd: float) -> bool:
         """True when, in a model with white noise ``noise_sd``, this effect leaves residual colour
         that follows the signal (a coarse quantizer's rounding): a spectral-shape test of a random
-        process then has no valid null, and stochastic candidates are not tried."""
+        process then has no χ² reference: a stochastic candidate is judged against the model's
+        own noise through it (when ``null_holds``), otherwise not tried."""
         return False
+
+    def null_holds(self, p: Mapping[str, float], rec: Record) -> bool:
+        """Whether, on ``rec``, the model's own noise passed through this effect reproduces what
+        it does to the readings (a quantizer: the readings sit on its lattice) — the condition
+        for a simulated null beside an effect that ``colours_residual``."""
+        return True
 
     # ---- drawing ----------------------------------------------------------------------
     def draw(self, rng: np.random.Generator, rec: Record, *, kind: str | None = None,

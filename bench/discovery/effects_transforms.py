@@ -255,6 +255,10 @@ class Saturation(Effect):
         return max(q.low, 0.3 * top), max(min(q.high, top), q.low * 1.01)
 
 
+#: Median distance of the readings to a quantizer's lattice (in steps) below which they sit on it.
+ON_LATTICE_FRACTION = 0.05
+
+
 class Quantization(HistogramEffect):
     id = "quantization"
     description = "output resolution: readings on a grid of step (ADC/DMM digits, FOG angle pulses per sample)"
@@ -335,3 +339,15 @@ class Quantization(HistogramEffect):
         little dither, the residual around E[Q] is a deterministic function of the signal (its
         colour follows the input's)."""
         return p["step"] > COARSE_STEP_SD * float(noise_sd)
+
+    def null_holds(self, p: Mapping[str, float], rec: Record) -> bool:
+        """The readings sit on this lattice (``step·k``, no offset): the median distance to it
+        within :data:`ON_LATTICE_FRACTION` of a step. Readings on a shifted lattice (another
+        quantizer's offset, a step fitted a little off over many levels) leave a rounding error
+        the model's E[Q] does not follow, coloured with the signal: its noise through this
+        quantizer is then no null for a random process."""
+        s = float(p["step"])
+        if s <= 0:
+            return True
+        y = np.asarray(rec.y, float)
+        return float(np.median(np.abs(y - s * np.round(y / s)))) <= ON_LATTICE_FRACTION * s

@@ -20,6 +20,12 @@ tanh after K3) is not named either: that structure is reported as unexplained in
     filter (:func:`~bench.discovery.localize.input_correlations`): a wander that follows a
     logged quantity is not random.
 
+  The innovations are taken after refitting, under the process, the directions the model's
+  calibration fitted by least squares (each named waveform, :func:`fitted_directions`:
+  their whitened columns projected out — generalised least squares): beside a strong process
+  those least-squares values are off, and their error follows their own columns (a K2's
+  input²) — an error of the joint fit, not a departure from the process.
+
   The three families share ``alpha`` (Bonferroni).
 * :func:`shape_evidence` — a waveform with a ``relaxed_basis``: the held-out score of those
   freer columns on the residual of the model with the effect, its p-value against the model's
@@ -34,6 +40,7 @@ An :class:`Evidence` records which effect, whether its signature holds, and wher
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,6 +119,23 @@ def band_shape(x: np.ndarray, in_band: np.ndarray) -> tuple[float, str]:
                f"(χ² {chi2:.1f} on {dof} bins)")
 
 
+def fitted_directions(model: Model, rec: Record) -> np.ndarray:
+    """Columns of the named waveforms the model's calibration fitted by least squares: each
+    waveform effect's contribution (its prediction with it less without it); (n, 0) without
+    one. Not the base's bias and input: under a walk a constant's whitened column is the
+    record's first samples and the input's is the input — refitting them would take out what
+    a missing warm-up or a logged column leaves in the innovations, the evidence against the
+    process."""
+    cols = [np.zeros((rec.n, 0))]
+    full = model.predict(rec)
+    for i, (e, _) in enumerate(model.entries()):
+        if e.waveform and not e.stochastic:
+            c = full - Model(model.base, model.effects[:i] + model.effects[i + 1:]).predict(rec)
+            if np.any(c != 0):
+                cols.append(c[:, None])
+    return np.column_stack(cols)
+
+
 def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *,
                      alpha: float = ALPHA) -> Evidence:
     """Does random process ``model.effects[index]`` hold on ``residual`` (= rec.y −
@@ -126,6 +150,13 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
     if not white > 0:
         white = float(model.base.noise_sd) or float(np.std(r)) or 1.0
     x = innovations(r, rate, white, procs)
+    # the named waveforms' directions refitted under the process (GLS, by
+    # projecting their whitened columns out): calibrated by least squares as if the noise were
+    # white, under a strong process their values are off by colour that follows their own
+    # columns (a K2's input²) — the joint model's error, not a departure from the process
+    directions = fitted_directions(model, rec)
+    if directions.shape[1]:
+        x = project_out(x, np.column_stack([innovations(c - c.mean(), rate, white, procs) for c in directions.T]))
     a = alpha / 3.0
     where: list[str] = []
     ps: list[float] = []
@@ -158,27 +189,12 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
                     tuple(sorted({c.column for c in corr})))
 
 
-def _projection_p(q: np.ndarray, observed: float, draw, n_rep: int, chunk: int = 100,
-                  stop_after: int = 10) -> float:
-    """Monte-Carlo p of ``observed`` = ‖qᵀr‖² against ``draw(m)``'s columns, sequential both ways
-    as :func:`significance.bootstrap_p_value` (stop after ``stop_after`` exceedances; stop at
-    the floor once the observed value is :data:`significance.CLEAR_Z` null sds out)."""
-    exceed, done = 0, 0
-    nulls: list[np.ndarray] = []
-    while done < n_rep:
-        m = min(chunk, n_rep - done)
-        null = np.sum(np.einsum("ik,im->km", q, draw(m)) ** 2, axis=0)
-        nulls.append(null)
-        exceed += int(np.sum(null >= observed))
-        done += m
-        if exceed >= stop_after:
-            return exceed / done
-        if exceed == 0 and done >= 2 * chunk and done < n_rep:
-            every = np.concatenate(nulls)
-            sd = float(np.std(every))
-            if sd > 0 and (observed - float(np.mean(every))) / sd > sig.CLEAR_Z:
-                return 1.0 / (n_rep + 1.0)
-    return (1.0 + exceed) / (n_rep + 1.0)
+def _projection_p(q: np.ndarray, observed: float, draw: Callable[[int], np.ndarray], n_rep: int) -> float:
+    """Monte-Carlo p of ``observed`` = ‖qᵀr‖² against ``draw(m)``'s columns
+    (:func:`significance.sequential_p_value`: the same early stops as the bootstrap)."""
+    def null_scores(m: int) -> np.ndarray:
+        return np.sum(np.einsum("ik,im->km", q, draw(m)) ** 2, axis=0)
+    return sig.sequential_p_value(observed, null_scores, n_rep=n_rep)
 
 
 def shape_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA,

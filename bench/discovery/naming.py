@@ -4,8 +4,12 @@ For the current (calibrated) model and its residual ``r = y − predict``:
 
 1. Candidates: catalogue effects whose ``kinds`` include the model's kind, whose inputs are
    logged and vary (``t_on`` falls back to time since the first sample) and that are not yet
-   in the model; no random process when an effect of the model colours the residual with the
-   signal (``Effect.colours_residual``: a coarse quantizer).
+   in the model. When an effect of the model colours the residual with the signal
+   (``Effect.colours_residual``: a coarse quantizer) a random process's likelihood ratio has
+   no χ² reference: its p-value is then Monte-Carlo, against the same statistic on
+   realisations of the model's own noise through that effect (:func:`fit_process`) — when
+   that noise reproduces the readings (``Effect.null_holds``: on the quantizer's lattice);
+   otherwise no random process is tried.
 2. Each is fitted as its family says (:func:`fit_trial`):
    a waveform (:class:`~bench.discovery.effects_base.Effect`, :mod:`.fitting`): multi-start
    least squares of the model with the effect appended (bias and scale factor refitted with it)
@@ -133,18 +137,42 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
                  resid_full=rec.y - f.predict(full.x), cols=cols, lin=lin)
 
 
-def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarray, folds: np.ndarray) -> Trial:
+#: Replicates per chunk of the Monte-Carlo null of a random process beside a coarse quantizer
+#: (:func:`fit_process`): a clear result stops after two chunks.
+MC_CHUNK = 25
+#: At most this many replicates of that null (each a Whittle fit, ~40 ms): p resolves to
+#: 1/600, below the first Benjamini–Hochberg threshold over a kind's ~25 candidates (0.05/25).
+MC_MAX_REP = 599
+
+
+def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarray, folds: np.ndarray,
+                rng: np.random.Generator | None = None, n_rep: int = 999) -> Trial:
     """Whittle fit, held-out score and p-value of a stochastic candidate: the LR against the
-    model's own noise (white + its stochastic effects, their spectrum fixed) referred to χ²;
-    parameters clipped to the kind's ranges."""
+    model's own noise (white + its stochastic effects, their spectrum fixed) referred to χ² —
+    or, when an effect of the model colours the residual with the signal (a coarse quantizer's
+    rounding: no χ² reference) and ``rng`` is given, to the same statistic on realisations of
+    the model's own noise through it (:func:`.significance.sequential_p_value`, chunks of
+    :data:`MC_CHUNK`, at most :data:`MC_MAX_REP`); parameters clipped to the kind's ranges."""
     dt = rec.dt_s
-    full = sto.fit_stochastic(r - r.mean(), dt, effect, known=model.stochastic_effects())
+    known = model.stochastic_effects()
+    full = sto.fit_stochastic(r - r.mean(), dt, effect, known=known)
+    p_value = full.p_value
+    if rng is not None and any(e.colours_residual(p, model.base.noise_sd) for e, p in model.entries()):
+        gen = rng
+
+        def null_lr(m: int) -> np.ndarray:
+            out = []
+            for _ in range(m):
+                x = model.simulate_noise(rec, gen)
+                out.append(sto.fit_stochastic(x - x.mean(), dt, effect, known=known, bootstrap=False).lr)
+            return np.array(out)
+        p_value = sig.sequential_p_value(full.lr, null_lr, n_rep=min(n_rep, MC_MAX_REP), chunk=MC_CHUNK)
     score, err_c, err_b = sto.heldout_score(r, dt, effect, folds, np.array(full.theta))
     params, std = {}, {}
     for q in effect.params_for(model.base.kind):
         params[q.name] = float(np.clip(full.params[q.name], q.low, q.high))
         std[q.name] = float(full.params_std[q.name])
-    return Trial(effect, params, std, score, max(full.p_value, sig.P_FLOOR), err_c=err_c, err_b=err_b,
+    return Trial(effect, params, std, score, max(p_value, sig.P_FLOOR), err_c=err_c, err_b=err_b,
                  lr=full.lr, bic_gain=full.lr - math.log(rec.n / 2) * effect.n_coords)
 
 
@@ -159,7 +187,7 @@ def fit_trial(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds: n
     """The candidate fitted as its family says: a random process on the spectrum, a
     histogram-judged effect on the readings, any other effect as a waveform."""
     if isinstance(effect, StochasticEffect):
-        return fit_process(model, rec, effect, r, folds)
+        return fit_process(model, rec, effect, r, folds, rng, n_rep)
     if isinstance(effect, HistogramEffect):
         return fit_histogram(model, rec, effect, folds)
     return fit_waveform(model, rec, effect, r, folds, err_b, rng, n_rep)
@@ -192,10 +220,11 @@ def judge(trial: Trial, significant: bool, q_value: float, model: Model, rec: Re
 
 def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0, n_rep: int = 999,
                 n_blocks: int = sig.N_BLOCKS, only: tuple[str, ...] | None = None, catch_alls: bool = True,
-                progress: Callable[[str], None] | None = None) -> Naming:
+                exclude: frozenset[str] = frozenset(), progress: Callable[[str], None] | None = None) -> Naming:
     """Fit every applicable candidate to ``rec.y − model.predict(rec)``; see module docstring.
     ``only``: restrict to these ids (tests, quick runs); ``catch_alls`` False: no catch-all is
     tried (the slow structure is known to follow a logged column no effect explains);
+    ``exclude``: ids not tried (the workflow's withdrawn effects, when it re-chooses);
     ``progress``: called with a short message (``"gauss_markov (5/17)"``) before each
     candidate's fit."""
     if not 0 < alpha < 1:
@@ -206,12 +235,13 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     x_nuis = base_regressors(rec)
     err_b = _base_errors(r, x_nuis, folds)
     effects = applicable(model, rec)
-    if any(e.colours_residual(p, model.base.noise_sd) for e, p in model.entries()):
-        effects = [e for e in effects if not e.stochastic]  # no valid spectral null on its residual
     if only is not None:
         effects = [e for e in effects if e.id in only]
     if not catch_alls:
         effects = [e for e in effects if not e.catch_all]
+    effects = [e for e in effects if e.id not in exclude]
+    if not all(e.null_holds(p, rec) for e, p in model.entries() if e.colours_residual(p, model.base.noise_sd)):
+        effects = [e for e in effects if not e.stochastic]  # no valid null for a process beside it
     kind = model.base.kind
     trials = []
     for k, eff in enumerate(effects):

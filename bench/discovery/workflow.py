@@ -15,6 +15,11 @@ e. repeat until nothing is named (or ``max_effects``);
 f. audit: every named effect's own signature on the final model (:mod:`bench.discovery.evidence`:
    a waveform's relaxed shape, a random process's innovations); one that does not hold is
    withdrawn (the worst first, re-calibrating each time) — a wrong name is worse than none.
+g. re-choose: when the audit withdrew a name, name again (c–e) without the withdrawn effects,
+   from the audited model — the next-best candidate for the structure it stood for (the nesting
+   two-node warm-up after a one-exponential warm-up whose shape failed, a random process a
+   withdrawn deterministic fit had taken) gets its turn — and audit again (f); at most
+   :data:`MAX_ROUNDS` rounds, and a round that names nothing new ends the loop.
    Structure left that no candidate explains is reported as "unexplained structure" with where
    it is
    (:func:`bench.discovery.localize.unexplained_structure`: the residual, or its Kalman
@@ -110,6 +115,11 @@ class Discovery:
                 "last_naming": self.final_naming.to_dict()}
 
 
+#: Rounds of naming then auditing: after a round whose audit withdrew a name, the loop names again
+#: without the withdrawn effects (a re-choice) and audits again.
+MAX_ROUNDS = 3
+
+
 def model_noise(model: Model, rec: Record, seed: int) -> np.ndarray:
     """One realisation of the model's own noise (white + its stochastic effects) on rec's grid."""
     return model.simulate_noise(rec, np.random.default_rng(seed))
@@ -172,68 +182,89 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
     model = calibrate(model, rec)
     initial = model
     g0, rms0, floor, r0 = gap_of(model, rec, seed)
-    steps = []
+    steps: list[Step] = []
     gap_cur, rms_cur, r_cur = g0, rms0, r0
-    it = 0
+    it = 0  # naming rounds so far (each its own seed)
     unused_followed: set[str] = set()
-    while True:  # ends by a break (at it == max_effects at the latest), loc and naming describing r_cur
-        loc = _structure(model, rec, r_cur)
-
-        def step_say(msg: str, _it: int = it) -> None:
-            say(f"step {_it + 1}: {msg}")
-
-        naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
-                             catch_alls=not unused_followed, progress=step_say)
-        # a catch-all whose innovations follow a logged column no catalogue effect reads: the
-        # slow structure is that column's, out of the catalogue — no catch-all is named for it
-        new_cols = sorted(set(naming.followed_columns) - CATALOGUE.columns_used(model.base.kind) - unused_followed)
-        if new_cols:
-            unused_followed.update(new_cols)
-            notes.append(f"the slow structure follows {', '.join(new_cols)}, which no catalogue effect reads: "
-                         "no random process or drift is named for it")
-        if naming.best is None:
-            say(f"step {it + 1}: nothing significant; stopping")
-            break
-        if it == max_effects:
-            notes.append(f"stopped after max_effects = {max_effects}; {naming.best.id} was still significant")
-            break
-        best = naming.best
-        new = calibrate(model.with_effect(best.id, best.params), rec)
-        g1, rms1, floor, r1 = gap_of(new, rec, seed)
-        steps.append(Step(best.id, dict(new.effects[-1][1]), _step_std(new, rec, best.params_std), best.p_value,
-                          gap_cur, g1, rms_cur, rms1, naming, loc, r_cur, r1))
-        say(f"step {it + 1}: named {best.id}, rms {_fmt(rms_cur)} → {_fmt(rms1)}")
-        model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
-        it += 1
-    # every named effect's own signature on the final model: a shape that leaves structure where
-    # it acts (a sinusoid on a square wave, K3 on a tanh) or a process whose innovations are not
-    # white is withdrawn, the worst first, and what it stood for is reported as unexplained
     withdrawn: list[str] = []
+    withdrawn_ids: set[str] = set()
+    set_aside: tuple[str, ...] = ()
     audit_rng = np.random.default_rng(seed + 7919)
-    while steps:
-        named_ids = {st.effect_id for st in steps}
-        evs = [evidence(model, rec, i, r_cur, rng=audit_rng, n_rep=n_rep)
-               for i, eid in enumerate(model.effect_ids) if eid in named_ids]
-        if unexplained_structure(rec, r_cur, model, alpha=alpha):
-            # structure is left: a waveform must be significant beyond it, not only beyond white
-            evs += [beyond_leftover(model, rec, i, r_cur)
-                    for i, (e, _) in enumerate(model.entries())
-                    if e.id in named_ids and e.waveform and not e.stochastic]
-        failing = [ev for ev in evs if not ev.holds]
-        if not failing:
+    for _round in range(MAX_ROUNDS):
+        # c..e: name one effect at a time until nothing is significant (or max_effects)
+        named_now = 0
+        while True:  # ends by a break, loc and naming describing r_cur
+            loc = _structure(model, rec, r_cur)
+
+            def step_say(msg: str, _it: int = it) -> None:
+                say(f"step {_it + 1}: {msg}")
+
+            naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
+                                 catch_alls=not unused_followed, exclude=frozenset(withdrawn_ids),
+                                 progress=step_say)
+            set_aside = naming.set_aside
+            # a catch-all whose innovations follow a logged column no catalogue effect reads: the
+            # slow structure is that column's, out of the catalogue — no catch-all is named for it
+            new_cols = sorted(set(naming.followed_columns) - CATALOGUE.columns_used(model.base.kind)
+                              - unused_followed)
+            if new_cols:
+                unused_followed.update(new_cols)
+                notes.append(f"the slow structure follows {', '.join(new_cols)}, which no catalogue effect reads: "
+                             "no random process or drift is named for it")
+            if naming.best is None:
+                say(f"step {it + 1}: nothing significant; stopping")
+                break
+            if len(steps) == max_effects:
+                notes.append(f"stopped after max_effects = {max_effects}; {naming.best.id} was still significant")
+                break
+            best = naming.best
+            new = calibrate(model.with_effect(best.id, best.params), rec)
+            g1, rms1, floor, r1 = gap_of(new, rec, seed)
+            steps.append(Step(best.id, dict(new.effects[-1][1]), _step_std(new, rec, best.params_std),
+                              best.p_value, gap_cur, g1, rms_cur, rms1, naming, loc, r_cur, r1))
+            say(f"step {it + 1}: named {best.id}, rms {_fmt(rms_cur)} → {_fmt(rms1)}")
+            model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
+            it += 1
+            named_now += 1
+        if _round > 0 and named_now == 0:
+            break  # nothing re-chosen: the model passed its last audit
+        # f: every named effect's own signature on the final model: a shape that leaves structure
+        # where it acts (a sinusoid on a square wave, K3 on a tanh) or a process whose innovations
+        # are not white is withdrawn, the worst first, and what it stood for is reported as
+        # unexplained — unless a re-choice explains it
+        withdrawn_now = 0
+        while steps:
+            named_ids = {st.effect_id for st in steps}
+            evs = [evidence(model, rec, i, r_cur, rng=audit_rng, n_rep=n_rep)
+                   for i, eid in enumerate(model.effect_ids) if eid in named_ids]
+            if unexplained_structure(rec, r_cur, model, alpha=alpha):
+                # structure is left: a waveform must be significant beyond it, not only beyond white
+                evs += [beyond_leftover(model, rec, i, r_cur)
+                        for i, (e, _) in enumerate(model.entries())
+                        if e.id in named_ids and e.waveform and not e.stochastic]
+            failing = [ev for ev in evs if not ev.holds]
+            if not failing:
+                break
+            worst = min(failing, key=lambda ev: ev.p_value)
+            withdrawn.append(worst.describe())
+            withdrawn_ids.add(worst.effect_id)
+            withdrawn_now += 1
+            say(f"withdrawn: {worst.effect_id} (its signature does not hold)")
+            i = model.effect_ids.index(worst.effect_id)
+            model = calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec)
+            steps = [st for st in steps if st.effect_id != worst.effect_id]
+            gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
+            loc = _structure(model, rec, r_cur)
+        if not withdrawn_now:
             break
-        worst = min(failing, key=lambda ev: ev.p_value)
-        withdrawn.append(worst.describe())
-        say(f"withdrawn: {worst.effect_id} (its signature does not hold)")
-        i = model.effect_ids.index(worst.effect_id)
-        model = calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec)
-        steps = [st for st in steps if st.effect_id != worst.effect_id]
-        gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
-        loc = _structure(model, rec, r_cur)
+        # g: re-choose — name again without what was withdrawn: the next-best candidate for the
+        # structure it stood for (the nesting shape after its special case, a random process a
+        # withdrawn deterministic fit had absorbed) gets its turn, and is audited in its turn
+        say("re-choosing after the withdrawal")
     # what no catalogue effect explained: the residual (white model) or its Kalman innovations
     # (stochastic model) against the model's own noise, family-wise at alpha
     unexplained = unexplained_structure(rec, r_cur, model, alpha=alpha)
     if unexplained:
         say(f"unexplained structure: {len(unexplained)} finding(s)")
     return Discovery(initial, model, tuple(steps), unexplained, g0, gap_cur, rms0, rms_cur, floor, loc,
-                     naming, r0, r_cur, tuple(notes), tuple(withdrawn), naming.set_aside)
+                     naming, r0, r_cur, tuple(notes), tuple(withdrawn), set_aside)

@@ -117,6 +117,32 @@ def test_bootstrap_p_value_uniformish_on_noise_and_small_on_signal():
     assert sig.bootstrap_p_value(r, x0, xc, f, obs, n_rep=199, rng=rng) <= 0.01
 
 
+@settings(max_examples=40, deadline=None)
+@given(observed=st.floats(-3.0, 12.0), seed=st.integers(0, 2 ** 16), n_rep=st.sampled_from([99, 199, 999]))
+def test_sequential_p_value_is_the_full_runs_p_or_stops_where_it_cannot_change(observed, seed, n_rep):
+    """The one Monte-Carlo loop of the package (bootstrap and projection tests): p is the full
+    run's (1 + exceedances)/(n_rep + 1) unless it stopped early — after 10 exceedances (then
+    exceedances/drawn, within a chunk's worth of the full run's), or at the floor when the
+    observed value is beyond CLEAR_Z null sds (then no null value reached it)."""
+    null = np.random.default_rng(seed).standard_normal(n_rep)
+    drawn = []
+
+    def draw(m: int) -> np.ndarray:
+        out = null[len(drawn):len(drawn) + m]
+        drawn.extend(out)
+        return out
+    p = sig.sequential_p_value(observed, draw, n_rep=n_rep)
+    full = (1 + np.sum(null >= observed)) / (n_rep + 1)
+    assert 1 / (n_rep + 1) <= p <= 1
+    hits = int(np.sum(np.array(drawn) >= observed))
+    if hits >= 10:
+        assert p == pytest.approx(hits / len(drawn))
+    elif len(drawn) == n_rep:
+        assert p == pytest.approx(full)
+    else:  # the clear early stop: nothing reached it, and nothing in the rest would have
+        assert p == 1 / (n_rep + 1) and np.sum(null >= observed) == 0
+
+
 def test_gap_metrics_white_is_at_floor_and_ljung_box_matches_statsmodels():
     from statsmodels.stats.diagnostic import acorr_ljungbox
 
