@@ -186,7 +186,7 @@ class Answering:
     name = "Ann"
 
     def __init__(self, *answers: bool) -> None:
-        self.answers, self.asked = list(answers), []
+        self.answers, self.asked = list(answers), list[str]()
 
     def ask(self, text: str) -> bool:
         self.asked.append(text)
