@@ -38,7 +38,6 @@ with the opener of its kind (:data:`OPENERS`).
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Callable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -49,6 +48,7 @@ import pyvisa
 
 from bench.core.clock import Clock, SimulatedClock, WallClock
 from bench.core.site import DEFAULT_SITE
+from bench.core.toml_file import read_toml
 from instruments.base import open_resource
 from instruments.registry import DRIVERS, MODBUS, SERIAL, VISA, Option
 
@@ -282,14 +282,7 @@ def check_simulation(options: dict, source: str = "<station>") -> None:
 
 
 def load_station(path: str | Path) -> StationConfig:
-    path = Path(path)
-    if not path.is_file():
-        raise StationError(f"station file {str(path)!r} not found (or use --station sim)")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise StationError(f"station file {str(path)!r} is not valid TOML: {exc}") from None
-    return parse_station(data, str(path))
+    return parse_station(read_toml(path, "station file", StationError, " (or use --station sim)"), str(path))
 
 
 #: sensor kind → the simulated station's option naming that unit's serial

@@ -35,13 +35,13 @@ from __future__ import annotations
 
 import fnmatch
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from bench.core.operator import check_prompt
 from bench.core.step import Catalogue
+from bench.core.toml_file import read_toml
 
 #: unit → (dimension, value of one unit in the dimension's base unit)
 _ARCSEC_RAD = math.pi / 180 / 3600
@@ -279,14 +279,7 @@ def _prompts(entries: Any, procedures: dict[str, Any], source: str) -> dict[str,
 
 
 def load_spec(path: str | Path, catalogue: Catalogue) -> UnitSpec:
-    path = Path(path)
-    if not path.is_file():
-        raise SpecError(f"spec file {str(path)!r} not found")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SpecError(f"spec file {str(path)!r} is not valid TOML: {exc}") from None
-    return parse_spec(data, catalogue, str(path))
+    return parse_spec(read_toml(path, "spec file", SpecError), catalogue, str(path))
 
 
 __all__ = ["UNITS", "KINDS", "SpecError", "SpecMeasurement", "UnitSpec", "convert",

@@ -28,11 +28,12 @@ import hmac
 import json
 import os
 import secrets
-import tomllib
 from collections.abc import Awaitable, Callable, MutableMapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from bench.core.toml_file import read_toml
 
 ROLES = ("operator", "engineer")
 #: routes only an engineer may use
@@ -87,12 +88,7 @@ class Users:
     @classmethod
     def load(cls, path: str | Path) -> Users:
         path = Path(path)
-        if not path.is_file():
-            raise ValueError(f"users file {str(path)!r} not found (make it with `bench station user`)")
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"users file {str(path)!r} is not valid TOML: {exc}") from None
+        data = read_toml(path, "users file", ValueError, " (make it with `bench station user`)")
         extra = set(data) - {"users"}
         table = data.get("users")
         if extra or not isinstance(table, dict) or not table:
