@@ -4,9 +4,15 @@ import subprocess
 import sys
 from pathlib import Path
 
-here = Path(__file__).resolve().parent
-status = 0
-for script in sorted(here.glob("bench_*.py")):
-    print(f"\n== {script.name} ==", flush=True)
-    status |= subprocess.call([sys.executable, str(script)])
-sys.exit(status)
+
+def main() -> int:
+    here = Path(__file__).resolve().parent
+    status = 0
+    for script in sorted(here.glob("bench_*.py")):
+        print(f"\n== {script.name} ==", flush=True)
+        status |= subprocess.call([sys.executable, str(script)])
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
