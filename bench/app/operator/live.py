@@ -90,6 +90,8 @@ class LiveBatch:
     def ask(self, text: str) -> bool:
         """Show a prompt and wait for the operator: True on Continue, False on Abort."""
         with self._lock:
+            if self.abort_requested:  # Abort pressed before the prompt came up: it stands
+                return False
             self.prompt = {"text": text, "id": self.version + 1}
             self._answer.clear()
             self._touch()
