@@ -207,13 +207,17 @@ class ScanningDaq(ScpiDevice):
             return max(self.trig_timer_s, self.sweep_s)
         return self.sweep_s
 
+    def _sweep_start_times(self, first: int, n: int) -> np.ndarray:
+        """When sweeps ``first`` … ``first + n − 1`` start (their triggers have come)."""
+        if self.trig_source in ("IMMEDIATE", "TIMER"):
+            return self._t0 + np.arange(first, first + n, dtype=np.float64) * self.period_s
+        return np.array(self._sweep_starts[first:first + n], dtype=np.float64)
+
     def _sweep_start(self, k: int) -> float | None:
         """When sweep ``k`` starts, or None while its trigger has not come."""
-        if self.trig_source in ("IMMEDIATE", "TIMER"):
-            return self._t0 + k * self.period_s
-        if k < len(self._sweep_starts):
-            return self._sweep_starts[k]
-        return None
+        if self.trig_source not in ("IMMEDIATE", "TIMER") and k >= len(self._sweep_starts):
+            return None
+        return float(self._sweep_start_times(k, 1)[0])
 
     def completion_time(self) -> float | None:
         """When the last sweep ends, None if that cannot be known (a trigger still to come)."""
@@ -286,10 +290,7 @@ class ScanningDaq(ScpiDevice):
                 self.state = "WAIT_TRIGGER"
 
     def _take_sweeps(self, first: int, n: int) -> None:
-        if self.trig_source in ("IMMEDIATE", "TIMER"):  # _sweep_start's arithmetic, vectorised
-            starts = self._t0 + np.arange(first, first + n, dtype=np.float64) * self.period_s
-        else:
-            starts = np.array(self._sweep_starts[first:first + n], dtype=np.float64)
+        starts = self._sweep_start_times(first, n)
         out = np.empty((n, len(self.scan_list), 3))
         offset, tau = 0.0, self.settling_tau_s
         inputs: list[np.ndarray] = []
