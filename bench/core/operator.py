@@ -23,7 +23,12 @@ class OperatorAbort(KeyboardInterrupt):
 
 
 class Operator(Protocol):
-    """Whoever answers the station's prompts."""
+    """Whoever answers the station's prompts; ``name`` is who the record says answered."""
+
+    @property
+    def name(self) -> str:
+        """Who answers (an operator's name, ``terminal``, ``unattended``)."""
+        ...
 
     def ask(self, text: str) -> bool:
         """Show ``text`` and wait: True on Continue, False on Abort."""

@@ -113,8 +113,7 @@ class Context:
         self.run.event(self.clock.now(), "operator_prompt", text)
         go_on = self.operator.ask(text)
         answer = "continue" if go_on else "abort"
-        self.run.event(self.clock.now(), "operator_answer", answer,
-                       operator=getattr(self.operator, "name", type(self.operator).__name__))
+        self.run.event(self.clock.now(), "operator_answer", answer, operator=self.operator.name)
         if not go_on:
             raise OperatorAbort(f"aborted by the operator at the prompt: {text}")
 
