@@ -90,18 +90,6 @@ class BatchResult:
         return 2 if "aborted" in statuses else 1 if "failed" in statuses else 0
 
 
-def _written_here(store: RunStore, run_id: str, folder: Path) -> Future[str]:
-    """The report written in this process, as a finished future (its error kept in it)."""
-    from bench.app.reports.acceptance_report import write_acceptance_report
-
-    future: Future[str] = Future()
-    try:
-        future.set_result(str(write_acceptance_report(store, run_id, folder)))
-    except OSError as exc:
-        future.set_exception(exc)
-    return future
-
-
 def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed: int | None,
               report_root: Path | None, labels: dict[str, str], progress: Progress = no_progress,
               on_socket: Callable[[int, str, str | None], None] | None = None,
@@ -111,7 +99,7 @@ def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed
     each unit's report; ``on_station(station)`` is called once it is open (a live view's hook);
     ``operator`` answers the spec's prompts (default: nobody, every prompt continues)."""
     from bench.app.commands.common import attach_folder
-    from bench.app.reports.acceptance_report import acceptance_document
+    from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
     from bench.app.station import Station
     from bench.core.batch import execute_batch
     from procedures.batch_acceptance import BatchAcceptance
@@ -122,7 +110,7 @@ def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed
     with contextlib.ExitStack() as stack:
         # started now: the workers import matplotlib while the station runs, on an idle core
         writers = stack.enter_context(ReportWriters(workers)) if workers else None
-        reports: dict[int, Future[str] | None] = {}
+        pending: dict[int, Future[str]] = {}  # reports being written by the workers
         with Station(config, seed=seed, unit_kind=spec.kind, fixture=sockets) as station:
             if on_station is not None:
                 on_station(station)
@@ -130,23 +118,18 @@ def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed
                                      progress=progress, labels=labels, on_socket=on_socket,
                                      operator=operator)
             if writers is not None and report_root is not None:  # the workers start as the station closes
-                reports = {n: writers.submit(store, o.run_id, report_root / o.run_id)
+                pending = {n: writers.submit(store, o.run_id, report_root / o.run_id)
                            for n, o in sorted(outcomes.items())}
-        for n, outcome in sorted(outcomes.items()):
-            if n not in reports:
-                reports[n] = None if report_root is None else \
-                    _written_here(store, outcome.run_id, report_root / outcome.run_id)
         result = BatchResult()
         for n, outcome in sorted(outcomes.items()):
             doc = acceptance_document(store, outcome.run_id)
             doc.update(socket=n, report=None, store=str(store.path))
-            future = reports[n]
-            if future is not None:
-                folder = report_root / outcome.run_id if report_root is not None else None
+            if report_root is not None:
+                folder = report_root / outcome.run_id
                 try:
-                    doc["report"] = future.result()
-                    if folder is not None:
-                        attach_folder(store, outcome.run_id, folder, "analysis/acceptance/")
+                    doc["report"] = (pending[n].result() if n in pending
+                                     else str(write_acceptance_report(store, outcome.run_id, folder)))
+                    attach_folder(store, outcome.run_id, folder, "analysis/acceptance/")
                 except (OSError, BrokenProcessPool) as exc:
                     doc["report_error"] = (f"run {outcome.run_id} is stored, but the report could "
                                            f"not be written: {type(exc).__name__}: {exc}")
