@@ -43,9 +43,23 @@ innovation would not be free of the signal.  The model is therefore driven by th
 through :func:`inverse_foh_droop`, a symmetric 5-tap filter that undoes that droop to fourth
 order (residual ``O((f/fs)⁶)``: 10⁻⁴ at fs/10, 2·10⁻⁶ at fs/20).  It colours the HF noise only above the
 band where the LF reading sees it (its gain is 1 + O((f/fs)²)), so the noise model stays white;
-it looks two samples ahead, so the filter's output at sample ``k`` is the state updated with
-the readings up to ``k − 2`` predicted to ``k`` on the raw HF input (the HF path still has
-no lag; the LF reading is used two samples late).
+it looks two samples ahead.
+
+That corrects the hold's droop in the band, not its **images**: the linearly interpolated
+input also carries copies of each tone at ``f ± k·fs`` (scaled by ``sinc²(f/fs ± k)``), which
+the model's LF states low-pass and which land back on ``f`` when the LF prediction is sampled.
+Where the LF sensor reads little of a tone (far above its corner) the images are a visible
+part of what the model predicts it reads: for a first-order LF the prediction is 0.08 % low at
+fs/10 and 1.7 % low at fs/5.  When the LF noise is low the smoother leans on the LF reading
+there and the output inherits it (+0.09 % at 1.8 kHz on a 16.5 kHz pair).  The image sum is
+known in closed form from the two models (:func:`hold_response`), so the LF reading is put
+through a short filter with the same response (:func:`hold_correction_taps`,
+``HOLD_HALF_WIDTH`` taps each side, ≈ 10⁻⁶ up to ``HOLD_BAND``·fs): what the model then
+predicts and what the LF reading reads agree for any sampled band-limited rate.  That filter
+looks ``HOLD_HALF_WIDTH`` samples ahead, so the causal filter's output at sample ``k`` is the
+state updated with the LF readings up to ``k − HOLD_HALF_WIDTH`` predicted to ``k`` on the HF
+input (the HF path still has no lag; the LF reading, which corrects the low frequencies, is
+used ``HOLD_HALF_WIDTH`` samples late).
 
 **Smoother** (:func:`complementary_kalman` with ``smooth=True``): the fixed-interval
 Rauch–Tung–Striebel smoother of the same model, for post-processed references — non-causal,
@@ -73,8 +87,11 @@ from bench.analysis.fusion_models import SensorModel
 
 #: taps (centre, ±1, ±2) of the symmetric filter undoing the first-order hold's sinc² droop to 4th order
 INVERSE_DROOP_TAPS = (1 + 2 * (23 / 180 - 1 / 90), -23 / 180, 1 / 90)
-LOOK_AHEAD = 2  # samples the inverse-droop filter looks ahead: the filter's output is this many samples
-# behind the model's last update
+LOOK_AHEAD = 2  # samples the inverse-droop filter looks ahead (the kernel's u_near stands in for the last two)
+HOLD_HALF_WIDTH = 6  # taps each side of the LF reading's hold correction: the causal output is this many
+# samples behind the model's last update
+HOLD_BAND = 0.25  # ... fitted over 0 … this fraction of the sample rate (≈ 10⁻⁶ there; unused above)
+HOLD_IMAGES = 400  # images of the first-order hold summed each side (the terms fall at least as 1/k³)
 CHECKPOINT_EVERY = 2048  # samples between the smoother's checkpoints (memory: this × n² floats)
 STEADY_TOL = 1e-10  # the gain is frozen once P moves by less than this fraction of itself (fixed R)
 ML_RATE_PER_LF_CORNER = 20.0  # the likelihood is taken at this many times the LF corner (decimated)
@@ -190,6 +207,56 @@ def inverse_foh_droop(y) -> np.ndarray:
     return out
 
 
+def hold_response(hf_model: SensorModel, lf_model: SensorModel, rate_hz: float, freq_hz) -> np.ndarray:
+    """What the discrete model predicts the LF sensor reads of a tone at ``freq_hz`` (Hz, in
+    (0, rate_hz/2)), relative to what it does read, when the tone is sampled (band-limited) and
+    drives the model as the HF input through :func:`inverse_foh_droop` (module docstring):
+
+        D(f) = C(f) · Σ_k sinc²(f/fs + k) · [G_l(f_k) / G_l(f)] · [G_h(f) / G_h(f_k)],  f_k = f + k·fs,
+
+    ``C`` the inverse-droop filter's response, ``G_l`` the LF model, ``G_h`` the HF model (the
+    model recovers the rate from the HF input through the HF model's inverse, and each image of
+    the linearly interpolated input goes through that inverse and the LF model at its own
+    frequency).  ``D = 1`` would be a model exact for band-limited inputs."""
+    f = np.atleast_1d(np.asarray(freq_hz, dtype=float))
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz {rate_hz} must be a finite value > 0")
+    if np.any(~np.isfinite(f)) or np.any(f <= 0) or np.any(f >= rate_hz / 2):
+        raise ValueError(f"freq_hz must lie in (0, {rate_hz / 2:g}) Hz")
+    k = np.arange(-HOLD_IMAGES, HOLD_IMAGES + 1)[:, None]
+    fk = f[None, :] + k * rate_hz
+    images = np.sinc(f[None, :] / rate_hz + k) ** 2 * (lf_model.response(fk) / lf_model.response(f)[None, :]) \
+        * (hf_model.response(f)[None, :] / hf_model.response(fk))
+    c0, c1, c2 = INVERSE_DROOP_TAPS
+    theta = 2 * np.pi * f / rate_hz
+    return (c0 + 2 * c1 * np.cos(theta) + 2 * c2 * np.cos(2 * theta)) * images.sum(axis=0)
+
+
+def hold_correction_taps(hf_model: SensorModel, lf_model: SensorModel, rate_hz: float) -> np.ndarray:
+    """Real taps ``c_j``, ``j = −HOLD_HALF_WIDTH … HOLD_HALF_WIDTH``, of the filter
+    ``y'_k = Σ_j c_j y_{k−j}`` whose response ``Σ_j c_j e^{−i2πfj/fs}`` is :func:`hold_response`
+    over ``0 … HOLD_BAND``·fs (least squares on its real and imaginary parts; the error is the
+    relative error of the LF prediction that is left)."""
+    f = np.linspace(0.0, HOLD_BAND, 401)[1:] * rate_hz
+    target = hold_response(hf_model, lf_model, rate_hz, f)
+    j = np.arange(-HOLD_HALF_WIDTH, HOLD_HALF_WIDTH + 1)
+    basis = np.exp(-2j * np.pi * np.outer(f / rate_hz, j))
+    design = np.vstack([basis.real, basis.imag])
+    return np.linalg.lstsq(design, np.concatenate([target.real, target.imag]), rcond=None)[0]
+
+
+def hold_corrected(y, taps) -> np.ndarray:
+    """``y`` through the filter of :func:`hold_correction_taps` (``taps`` ordered ``j = −m … m``;
+    it looks ``m`` samples ahead); the ``m`` samples at each end keep their value."""
+    y = np.asarray(y, dtype=float)
+    taps = np.asarray(taps, dtype=float)
+    m = (taps.size - 1) // 2
+    out = y.copy()
+    if y.size > 2 * m:
+        out[m:y.size - m] = np.convolve(y, taps, mode="valid")
+    return out
+
+
 def near_inverse_droop(y) -> np.ndarray:
     """Two stand-ins for :func:`inverse_foh_droop` that look less far ahead, for the last samples
     before the one the causal filter outputs (rows: the 3-tap ``y − (Δ²y)/12`` centred on each
@@ -260,13 +327,14 @@ def complementary_kalman(hf, lf, ts_s: float, hf_model: SensorModel, lf_model: S
         a, b = np.array(lf_noise.a, dtype=float), np.array(lf_noise.b, dtype=float)
     args = (system.phi, system.row_kind, system.g0, system.g1, system.q(noise), system.h)
     u_model = inverse_foh_droop(u)
+    z = hold_corrected(lf, hold_correction_taps(hf_model, lf_model, 1.0 / ts_s))
     rate, nu, s, r, interval, ck_x, ck_p, k_steady, p, gain = kernel.complementary_forward(
-        u_model, u, near_inverse_droop(u), lf, *args, system.h_rate, r_lo, r_hi, a, b, lf_noise is not None,
-        tuple(x0.tolist()), p0, CHECKPOINT_EVERY, STEADY_TOL, LOOK_AHEAD)
+        u_model, u, near_inverse_droop(u), z, *args, system.h_rate, r_lo, r_hi, a, b, lf_noise is not None,
+        tuple(x0.tolist()), p0, CHECKPOINT_EVERY, STEADY_TOL, HOLD_HALF_WIDTH)
     smoothed = None
     if smooth:
         s_steady = float(s[k_steady]) if k_steady < s.size else 0.0
-        smoothed = kernel.complementary_smooth(u_model, u, lf, *args, system.h_rate, r, ck_x, ck_p,
+        smoothed = kernel.complementary_smooth(u_model, u, z, *args, system.h_rate, r, ck_x, ck_p,
                                                CHECKPOINT_EVERY, k_steady, p, gain, s_steady)
     return ComplementaryRun(rate, smoothed, nu * nu / s, r, interval, p, int(k_steady))
 
@@ -361,6 +429,9 @@ def fit_complementary_noise(hf, lf, ts_s: float, hf_model: SensorModel, lf_model
     unit = ComplementaryNoise(1.0, start.lf_var / start.hf_var, start.offset_rw / start.hf_var)
     x0, p0_start = initial_state(hf_model, lf_model, hf, lf, start, 1.0 / ts_s)
     p0_unit = p0_start / start.hf_var
+    # no hold correction here: the tones are fitted out, so its images do not matter, and near
+    # the decimated rate's Nyquist frequency its response (unconstrained above HOLD_BAND) would
+    # colour the LF noise whose white level is what the likelihood estimates
     u = inverse_foh_droop(hf / hf_model.gain)
     x0t = tuple(x0.tolist())
     rho0 = np.array([math.log(unit.lf_var), math.log(unit.offset_rw * ts_s)])

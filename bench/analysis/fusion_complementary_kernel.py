@@ -150,9 +150,10 @@ def _steady_update(n, x, h, gain, y):
 
 
 @numba.njit(cache=True)
-def _input_at(i, k, lag, u, u_near):
-    """The model input at sample ``i`` as known at sample ``k`` (see :func:`complementary_forward`)."""
-    if i <= k - lag:
+def _input_at(i, k, u, u_near):
+    """The model input at sample ``i`` as known at sample ``k`` (see :func:`complementary_forward`):
+    ``u`` looks two samples ahead, so its last two samples are ``u_near``'s."""
+    if i <= k - 2:
         return u[i]
     return u_near[1, i] if i == k else u_near[0, i]
 
@@ -165,11 +166,11 @@ def complementary_forward(u, u_out, u_near, z, phi, kind, g0, g1, q, h, h_rate, 
     functions, ``adaptive`` whether the rule is used (else ``R = r_lower``).
 
     **Output** ``rate_k = u_out_k + h_rate·x̂_k``, with ``x̂_k`` the posterior of sample
-    ``k − lag`` predicted to ``k``: when ``u`` is ``u_out`` through a filter that looks ``lag``
-    (≤ 2) samples ahead, the output at ``k`` still uses no reading after ``k``.  That prediction
-    takes the model input ``u`` up to sample ``k − lag``, then ``u_near[0]`` at ``k − 1`` (a
-    version of it that looks one sample ahead) and ``u_near[1]`` at ``k`` (one that looks
-    none).
+    ``k − lag`` predicted to ``k``: when ``z`` is the measurement through a filter that looks
+    ``lag`` samples ahead and ``u`` is ``u_out`` through one that looks two ahead (``lag`` ≥ 2),
+    the output at ``k`` still uses no reading after ``k``.  That prediction takes the model
+    input ``u`` up to sample ``k − 2``, then ``u_near[0]`` at ``k − 1`` (a version of it that
+    looks one sample ahead) and ``u_near[1]`` at ``k`` (one that looks none).
 
     **Steady state** (fixed R only; ``steady_tol`` > 0): once ``P`` has moved by less than
     ``steady_tol`` of its own scale (:func:`_converged`) for ``STEADY_RUN`` samples in a row,
@@ -233,8 +234,8 @@ def complementary_forward(u, u_out, u_near, z, phi, kind, g0, g1, q, h, h_rate, 
             for i in range(n):
                 x_out[i] = x0[i]
         for j in range(j0 + 1, k + 1):
-            _predict_state(n, x_out, phi, g0, g1, _input_at(j - 1, k, lag, u, u_near),
-                           _input_at(j, k, lag, u, u_near), xw)
+            _predict_state(n, x_out, phi, g0, g1, _input_at(j - 1, k, u, u_near),
+                           _input_at(j, k, u, u_near), xw)
         acc = u_out[k]
         for i in range(n):
             acc += h_rate[i] * x_out[i]

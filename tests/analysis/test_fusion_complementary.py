@@ -130,6 +130,80 @@ def test_no_lag_anywhere_in_the_band_on_exact_models(hf_order, lf_order, fh, rat
         assert np.max(np.abs(np.degrees(np.angle(ratio_)))) < 0.05
 
 
+@pytest.mark.parametrize("hf_order, lf_order", [(1, 1), (2, 1), (1, 2), (2, 2)])
+def test_the_smoother_on_a_quiet_lf_sensor_is_exact_up_to_an_eighth_of_the_rate(hf_order, lf_order):
+    """A quiet LF sensor (10⁴ times less noise variance than the HF: as a FOG beside an MHD), so
+    the smoother leans on the LF reading far above its corner, where the first-order hold's
+    images are a visible part of the model's LF prediction (module docstring): corrected, every
+    tone up to fs/8 within 3·10⁻⁵ in amplitude and 0.003° (without the correction a first-order LF
+    is 1.6·10⁻³ off at the top tone and the test fails; a second-order one's images are smaller)."""
+    fh, fl, fs = 2.0, 60.0, 16_000.0
+    hf_model, lf_model = SensorModel("highpass", hf_order, fh, 1.5, 0.8), SensorModel("lowpass", lf_order, fl, 0.9)
+    tones = np.geomspace(fh / 2, fs / 8, 7)
+    n = int(4.0 * fs)
+    t, hf, lf, ref = tones_record(hf_model, lf_model, tones, fs, n, 1e-4, 1e-6, 3)
+    run = fc.complementary_kalman(hf, lf, 1 / fs, hf_model, lf_model, fc.ComplementaryNoise(1e-8, 1e-12, 1e-12),
+                                  smooth=True)
+    keep = slice(n // 2, None)
+    a = sine_phasors(t[keep], np.column_stack([ref[keep], run.smoothed[keep]]), tones)
+    ratio_ = a[:, 1] / a[:, 0]
+    assert np.max(np.abs(np.abs(ratio_) - 1)) < 3e-5
+    assert np.max(np.abs(np.degrees(np.angle(ratio_)))) < 0.003
+
+
+@settings(max_examples=10, deadline=None)
+@given(hf_order=st.sampled_from([1, 2]), lf_order=st.sampled_from([1, 2]), fh=st.floats(0.5, 5.0),
+       ratio=st.floats(3.0, 300.0), fs_per_fl=st.floats(10.0, 200.0), zeta=st.floats(0.5, 1.0),
+       x=st.floats(0.02, 0.25))
+def test_the_hold_correction_makes_the_models_lf_prediction_exact(hf_order, lf_order, fh, ratio, fs_per_fl, zeta, x):
+    """Open loop, no noise: a sampled tone at ``x``·fs through the exact HF response drives the
+    discrete model (through the inverse droop, as the filter does); the tone in its LF prediction
+    ``h·x`` equals the tone in the exact LF reading put through the hold correction, to 10⁻⁵ of
+    that reading — and is the raw reading's tone times ``hold_response``, off by its image sum."""
+    fl = fh * ratio
+    fs = fl * fs_per_fl
+    hf_model = SensorModel("highpass", hf_order, fh, 1.7, zeta)
+    lf_model = SensorModel("lowpass", lf_order, fl, 0.8, zeta)
+    f = x * fs
+    n = 3000  # the LF states settle within ~40 samples; the HF inverse's integrators (open loop) only
+    t = np.arange(n) / fs  # add a polynomial of the order of the HF model, fitted out below
+    g_h, g_l = hf_model.response(f), lf_model.response(f)
+    hf = abs(g_h) * np.sin(2 * np.pi * f * t + np.angle(g_h))
+    lf = abs(g_l) * np.sin(2 * np.pi * f * t + np.angle(g_l))
+    system = fc.complementary_system(hf_model, lf_model, 1 / fs)
+    u = fc.inverse_foh_droop(hf / hf_model.gain)
+    xs = np.zeros(system.phi.shape[0])
+    pred = np.empty(n)
+    for k in range(n):
+        if k:
+            xs = system.phi @ xs + system.g0 * u[k - 1] + system.g1 * u[k]
+        pred[k] = system.h @ xs
+    tail = slice(1000, n - fc.HOLD_HALF_WIDTH)
+    tt = t[tail] - t[tail].mean()
+    design = np.column_stack([tt ** j for j in range(hf_order + 1)]
+                             + [np.cos(2 * np.pi * f * tt), np.sin(2 * np.pi * f * tt)])
+    held = fc.hold_corrected(lf, fc.hold_correction_taps(hf_model, lf_model, fs))
+
+    def tone(y):
+        c = np.linalg.lstsq(design, y[tail], rcond=None)[0]
+        return complex(c[-2], -c[-1])
+
+    d = complex(fc.hold_response(hf_model, lf_model, fs, f)[0])
+    assert abs(tone(pred) - tone(held)) < 1e-5 * abs(g_l)
+    assert abs(tone(pred) - d * tone(lf)) < 1e-5 * abs(g_l)  # what the correction corrects
+    if x >= 0.15:  # ... the images: ten times the tolerance and more by fs/7 (first order: 1.7 % at fs/5)
+        assert abs(d - 1) > 1e-4
+
+
+def test_hold_response_rejects_frequencies_outside_the_band():
+    hf_model, lf_model = SensorModel("highpass", 1, 2.0), SensorModel("lowpass", 1, 30.0)
+    for f in (0.0, 500.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="freq_hz"):
+            fc.hold_response(hf_model, lf_model, 1000.0, f)
+    with pytest.raises(ValueError, match="rate_hz"):
+        fc.hold_response(hf_model, lf_model, 0.0, 10.0)
+
+
 @pytest.mark.parametrize("hf_sd, lf_sd, seed", [(0.02, 0.02, 0), (0.25, 0.003, 1), (0.005, 0.005, 2)])
 def test_maximum_likelihood_recovers_the_noise_with_the_tones_fitted_out(hf_sd, lf_sd, seed):
     # (where the HF noise is far below the LF's at every frequency the LF reading sees, its level is
