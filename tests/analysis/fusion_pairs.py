@@ -203,10 +203,14 @@ def _record(spec: PairSpec, sensor: Sensor, rng: np.random.Generator) -> np.ndar
     return y
 
 
-def make_pair(spec: PairSpec) -> dict:
+def make_pair(spec: PairSpec, noise_draw: int = 0) -> dict:
     """``{"t", "hf", "lf", "ref"}``: the record as a CSV would hold it — one time column (the
-    reference's clock), both sensors' readings, the reference rate at those instants."""
-    rng = np.random.default_rng([SEED_BASE, spec.seed, 1])
+    reference's clock), both sensors' readings, the reference rate at those instants.
+    ``noise_draw`` > 0: the same pair with another realisation of its noise (the battery asks
+    whether a miss is the pair's or its noise's)."""
+    if not (isinstance(noise_draw, int) and noise_draw >= 0):
+        raise ValueError(f"noise_draw {noise_draw!r} must be an integer ≥ 0")
+    rng = np.random.default_rng([SEED_BASE, spec.seed, 1] + ([noise_draw] if noise_draw else []))
     n = int(round(spec.duration_s * spec.rate_hz))
     t = np.arange(n) / spec.rate_hz
     # a sample is stamped at the end of its interval; the point-sampling sensor reads there too

@@ -94,3 +94,15 @@ def test_the_recommendation_meets_the_criteria_on_independent_pairs(seed):
     else:  # nothing to replace: the cleaned methods are the ones they clean
         assert replaced == (0, 0)
         assert analysis.estimates["complementary_smoother_clean"] is analysis.estimates["complementary_smoother"]
+
+
+def test_another_noise_draw_is_the_same_pair_with_other_noise():
+    spec = draw_spec(5, 20_000)
+    a, b, again = make_pair(spec), make_pair(spec, 1), make_pair(spec, 1)
+    assert all(np.array_equal(b[k], again[k]) for k in b)  # a redraw is reproducible too
+    assert np.array_equal(a["t"], b["t"]) and np.array_equal(a["ref"], b["ref"])
+    for name, sensor in (("hf", spec.hf), ("lf", spec.lf)):
+        diff = a[name] - b[name]  # the signal cancels: two independent realisations of the white noise
+        assert np.std(diff) == pytest.approx(math.sqrt(2) * sensor.noise_sd, rel=0.05)
+    with pytest.raises(ValueError, match="noise_draw"):
+        make_pair(spec, -1)
