@@ -69,9 +69,12 @@ def test_pairs_are_reproducible_and_span_the_regimes():
 
 
 #: a fixed subset, short records (≤ 80 000 samples): HF spikes with an 86-ppm LF clock, an 80-ppm LF
-#: clock at 10⁻⁴ HF noise, a plain pair. A regression guard on pairs where the criteria hold — the
-#: full battery (benchmarks/fusion_battery.py) reports how often they hold over all regimes.
-SUBSET = (4, 40, 46)
+#: clock at 10⁻⁴ HF noise, a plain pair, and an LF sensor 100× quieter than the HF (seed 15: the
+#: smoother leans on it up to 1.8 kHz at 16.5 kHz, where without the hold correction the model's LF
+#: prediction carried the interpolation's images and the output was +0.12 % off). A regression guard
+#: on pairs where the criteria hold — the full battery (benchmarks/fusion_battery.py) reports how
+#: often they hold over all regimes.
+SUBSET = (4, 15, 40, 46)
 
 
 @pytest.mark.parametrize("seed", SUBSET)
