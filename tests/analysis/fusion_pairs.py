@@ -29,7 +29,7 @@ spectrum beside the tone).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.signal import bilinear, lfilter, lfilter_zi
@@ -231,6 +231,19 @@ class Grade:
     excess_pct: np.ndarray
     excess_std_pct: np.ndarray
     sensor_std_pct: np.ndarray
+    #: with the record (``judge(..., record=)``): the excess over the better sensor's *noise-free*
+    #: amplitude error (:func:`alone_noise_free_pct`) and the estimate's own amplitude σ (pp)
+    exact_excess_pct: np.ndarray | None = None
+    own_std_pct: np.ndarray | None = None
+
+    @property
+    def within_2_own_sigma_of_exact(self) -> bool:
+        """Amplitude error within two of its own standard errors of the better sensor's noise-free
+        amplitude error at every tone: the bar carries no noise, so an estimate that removed a sensor
+        error the sensor's noise happened to hide is not failed for it, and one that adds an error is."""
+        if self.exact_excess_pct is None or self.own_std_pct is None:
+            raise ValueError("the exact bar needs the record: judge(..., record=make_pair(spec))")
+        return bool(np.all(self.exact_excess_pct <= 2 * self.own_std_pct))
 
     @property
     def within_2_sigma(self) -> bool:
@@ -269,9 +282,44 @@ def _noise_at(residual: np.ndarray, rate_hz: float, freqs: np.ndarray, half: int
     return out
 
 
-def judge(spec: PairSpec, t_s: np.ndarray, estimates: dict, sensors: tuple = ("hf", "lf")) -> dict:
+def sample_instants(spec: PairSpec, sensor: Sensor) -> np.ndarray:
+    """When (s, reference clock) each of ``sensor``'s samples is taken: its nominal stamp on its own
+    skewed clock, less its delay (:func:`_record`; an averaging sensor's interval ends there)."""
+    n = int(round(spec.duration_s * spec.rate_hz))
+    nominal = np.arange(n) / spec.rate_hz + (OVERSAMPLE - 1) / (OVERSAMPLE * spec.rate_hz)
+    return nominal * (1 + sensor.clock_ppm * 1e-6) - sensor.delay_s
+
+
+def alone_noise_free_pct(spec: PairSpec, record: dict, t_s: np.ndarray, alone: np.ndarray, which: str) -> np.ndarray:
+    """The amplitude error (%) at every tone that the single-sensor estimate ``alone`` (on
+    ``t_s``, made from ``record[which]`` by the code under test) would have without the sensor's
+    noise, spikes and dropouts.
+
+    Whatever that code did to the reading — gain, delay, clock, filters, resampling — is linear
+    and time-invariant at a tone, so at each tone its effect is the ratio of the estimate's phasor
+    to the raw reading's over the same stretch, on the instants the reading was really taken
+    (noise and all: the ratio is the operation's, not the signal's).  The same ratio times the
+    phasor of the noise-free reading (the generator's twin of the record) is the estimate's
+    noise-free phasor.  No knowledge of the code under test is needed."""
+    sensor = getattr(spec, which)
+    quiet = replace(sensor, noise_sd=0.0, spikes=(), dropouts=())
+    twin = _record(spec, quiet, np.random.default_rng(0))
+    t_raw = sample_instants(spec, sensor)
+    window = (t_raw >= t_s[0]) & (t_raw <= t_s[-1])
+    freqs = spec.tones_hz
+    raw_ph, _ = _phasors(t_raw[window], np.asarray(record[which], dtype=float)[window], freqs)
+    twin_ph, _ = _phasors(t_raw[window], twin[window], freqs)
+    alone_ph, _ = _phasors(t_s, np.asarray(alone, dtype=float), freqs)
+    a_true, _ = _phasors(t_s, spec.rate(t_s), freqs)
+    return 100 * (np.abs(alone_ph / raw_ph * twin_ph / a_true) - 1)
+
+
+def judge(spec: PairSpec, t_s: np.ndarray, estimates: dict, sensors: tuple = ("hf", "lf"),
+          record: dict | None = None) -> dict:
     """Grade every estimate (series on ``t_s``, reference clock) against the exact rate there;
-    ``sensors`` name the two single-sensor estimates whose better one is the bar at each tone."""
+    ``sensors`` name the two single-sensor estimates whose better one is the bar at each tone.
+    With ``record`` (the pair as :func:`make_pair` gave it to the code under test) each grade
+    also carries the excess over the better sensor's noise-free error (:class:`Grade`)."""
     truth = spec.rate(t_s)
     freqs = spec.tones_hz
     rate_hz = (t_s.size - 1) / (t_s[-1] - t_s[0])
@@ -282,10 +330,17 @@ def judge(spec: PairSpec, t_s: np.ndarray, estimates: dict, sensors: tuple = ("h
     best = np.argmin(singles, axis=0)
     idx = np.arange(freqs.size)
     own = np.vstack([_noise_at(fits[s][1], rate_hz, freqs) for s in sensors])[best, idx]
+    exact_bar = None
+    if record is not None:  # the better sensor at each tone by its noise-free error: no selection on noise
+        exact_bar = np.min(np.abs(np.vstack([alone_noise_free_pct(spec, record, t_s, estimates[s], s)
+                                             for s in sensors])), axis=0)
     grades = {}
     for k, v in estimates.items():
         err = np.asarray(v, dtype=float) - truth
         sd = np.vstack([_noise_at(fits[k][1] - fits[s][1], rate_hz, freqs) for s in sensors])[best, idx]
+        own_k = 100 * _noise_at(fits[k][1], rate_hz, freqs) / np.abs(a_true)
         grades[k] = Grade(float(np.sqrt(np.mean(err * err))), amp[k], np.abs(amp[k]) - singles[best, idx],
-                          100 * sd / np.abs(a_true), 100 * own / np.abs(a_true))
+                          100 * sd / np.abs(a_true), 100 * own / np.abs(a_true),
+                          None if exact_bar is None else np.abs(amp[k]) - exact_bar,
+                          None if exact_bar is None else own_k)
     return grades

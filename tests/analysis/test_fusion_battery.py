@@ -15,9 +15,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.signal import lfilter
 
 from bench.analysis.fusion_analysis import BASELINES, analyze_fusion
-from tests.analysis.fusion_pairs import analog_prototype, draw_spec, judge, make_pair
+from tests.analysis.fusion_pairs import (
+    alone_noise_free_pct,
+    analog_prototype,
+    draw_spec,
+    judge,
+    make_pair,
+    sample_instants,
+)
 
 
 def test_the_generator_imports_nothing_of_the_bench_or_the_simulator():
@@ -83,11 +91,12 @@ def test_the_recommendation_meets_the_criteria_on_independent_pairs(seed):
     rec = make_pair(spec)
     analysis = analyze_fusion(rec["t"], rec["hf"], rec["lf"], rec["ref"], spec.rate_hz, tones_hz=spec.tones_hz)
     judged = slice(analysis.judged_from, None)
-    grades = judge(spec, analysis.t_s[judged], {k: v[judged] for k, v in analysis.estimates.items()})
+    grades = judge(spec, analysis.t_s[judged], {k: v[judged] for k, v in analysis.estimates.items()}, record=rec)
     best = grades[analysis.recommended]
     assert best.rms_error <= min(grades[k].rms_error for k in BASELINES) * (1 + 1e-9)
     assert best.within_2_sigma and best.within_2_sensor_sigma, (analysis.recommended, best.excess_pct,
                                                                 best.excess_std_pct, best.sensor_std_pct)
+    assert best.within_2_own_sigma_of_exact, (analysis.recommended, best.exact_excess_pct, best.own_std_pct)
     # and far better than either sensor alone: neither covers the band
     assert best.rms_error < 0.5 * min(grades["hf"].rms_error, grades["lf"].rms_error)
     replaced = analysis.alignment.outliers_replaced
@@ -109,3 +118,28 @@ def test_another_noise_draw_is_the_same_pair_with_other_noise():
         assert np.std(diff) == pytest.approx(math.sqrt(2) * sensor.noise_sd, rel=0.05)
     with pytest.raises(ValueError, match="noise_draw"):
         make_pair(spec, -1)
+
+
+@pytest.mark.parametrize("seed", [8, 22])
+def test_the_noise_free_bar_is_what_a_linear_estimate_reads_without_noise(seed):
+    """A single-sensor estimate made by any linear operation the judge does not know (here a
+    two-tap average and a gain, on the sensor's true instants): the bar the judge derives from
+    the estimate, the raw reading and its noise-free twin equals that operation applied to the
+    noise-free reading — to 2·10⁻⁴ pp, a hundredth of what the noisy estimate's own error is off by."""
+    spec = draw_spec(seed, max_samples=40_000)
+    rec = make_pair(spec)
+    quiet = replace(spec, hf=replace(spec.hf, noise_sd=0.0, spikes=(), dropouts=()),
+                    lf=replace(spec.lf, noise_sd=0.0, spikes=(), dropouts=()))
+    twin = make_pair(quiet)
+    for which in ("hf", "lf"):
+        gain = getattr(spec, which).gain
+        t = sample_instants(spec, getattr(spec, which))[100:-100]
+        alone = lfilter([0.6, 0.4], [1.0], rec[which])[100:-100] / (0.97 * gain)
+        clean = lfilter([0.6, 0.4], [1.0], twin[which])[100:-100] / (0.97 * gain)
+        bar = alone_noise_free_pct(spec, rec, t, alone, which)
+        expected = judge(spec, t, {"hf": clean, "lf": clean})["hf"].amplitude_error_pct
+        measured = judge(spec, t, {"hf": alone, "lf": alone})["hf"].amplitude_error_pct
+        passed = np.abs(expected) < 99  # tones the sensor passes at all
+        off = np.abs(bar - expected)[passed]  # what is left: the record's two ends (a tap's noise over N samples)
+        noise = np.abs(measured - expected)[passed]  # what the bar leaves out
+        assert off.max() < 1e-3 and off.max() < 0.02 * noise.max()
