@@ -182,6 +182,9 @@ class CandidateFitter:
         self._stages = None if model.has_output_stage() else model.stages(rec)
         self._linear = (self._stages is not None and effect.stage == "additive" and bool(self.qs)
                         and all(q.linear for q in self.qs))
+        # an additive effect that states its term's derivatives: the fit's Jacobian is analytic
+        self._analytic = (self._stages is not None and effect.stage == "additive"
+                          and effect.term_gradient(self.template, rec, ()) is not None)
 
     # ---- coordinates ------------------------------------------------------------------
     def pack(self, p: Mapping[str, float], bias: float, sf: float) -> np.ndarray:
@@ -261,6 +264,25 @@ class CandidateFitter:
                 h[self.n_base + k] = 1e-4 * max(abs(x[self.n_base + k]), 1.0)
         return h
 
+    def analytic_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """(n, 1 + SF + q) derivatives of the full-record prediction w.r.t. every coordinate of
+        ``x`` from the effect's ``term_gradient`` (log coordinates by the chain rule); only for
+        an additive effect that gives it, on a model without an output stage."""
+        if not self._analytic or self._stages is None:
+            raise ValueError(f"{self.effect.id}: no analytic Jacobian (an additive effect with term_gradient, "
+                             "on a model without an output stage)")
+        p, _, _ = self.unpack(x)
+        u, _ = self._stages
+        grads = self.effect.term_gradient(p, self.rec, [q.name for q in self.qs])
+        assert grads is not None  # _analytic: the effect gives them
+        jac = np.empty((self.rec.n, x.size), order="F")
+        jac[:, 0] = 1.0
+        if self.with_sf:
+            jac[:, 1] = u
+        for k, (q, g) in enumerate(zip(self.qs, grads)):
+            jac[:, self.n_base + k] = g * p[q.name] if q.log else g  # d/d log q = q·d/dq
+        return jac
+
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """(n, q) derivatives of the full-record prediction w.r.t. the effect coordinates."""
         return finite_difference_jacobian(self.predict, x, self.steps(x), upper=self.bounds()[1],
@@ -281,13 +303,14 @@ class CandidateFitter:
                 return Fit(p, self._std(x, rows, sse), bias, sf, sse, x, bool(np.isfinite(sse)))
         best_x, best_cost = None, np.inf
         fun = lambda x: (y - self.predict(x))[rows]
+        jac = (lambda x: -self.analytic_jacobian(x)[rows]) if self._analytic else "2-point"
         for x0 in starts:
             x0 = np.clip(x0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
             c0 = float(np.sum(fun(x0) ** 2))
             if c0 < best_cost:
                 best_x, best_cost = x0, c0
             try:
-                res = optimize.least_squares(fun, x0, bounds=(lo, hi), x_scale=self.x_scale(),
+                res = optimize.least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=self.x_scale(),
                                              max_nfev=max_nfev, method="trf")
             except (ValueError, np.linalg.LinAlgError):
                 continue

@@ -231,19 +231,26 @@ class Model:
         roots = [_root(rng) for _ in range(int(m))]
         if not roots:
             return np.empty((0, rec.n)).T
+        if map_fn is map:  # in this process: one block, written in place (no copy of the null)
+            return _noise_block(self, rec, roots).T
         return np.concatenate(list(map_fn(partial(_noise_block, self, rec), batches(roots)))).T
 
-    def _noise_from_root(self, rec: Record, root: int) -> np.ndarray:
-        """One realisation of the model's noise from the streams seeded by ``root``."""
+    def _noise_from_root(self, rec: Record, root: int, out: np.ndarray | None = None) -> np.ndarray:
+        """One realisation of the model's noise from the streams seeded by ``root`` (into
+        ``out`` when given: a row of a null, filled in place)."""
+        y = np.empty(rec.n) if out is None else out
         if self.has_output_stage():
-            return self._run(rec, root) - self.predict(rec)
-        y = np.zeros(rec.n)
+            np.subtract(self._run(rec, root), self.predict(rec), out=y)
+            return y
+        y[:] = 0.0
         for i, (e, p) in enumerate(self.entries()):
             if e.stage == "additive" and isinstance(e, StochasticEffect):
                 e.check_inputs(rec)
-                y = y + e.noise(p, rec, _stream(root, f"{i}:{e.id}"))
+                y += e.noise(p, rec, _stream(root, f"{i}:{e.id}"))
         if self.base.noise_sd > 0:
-            y = y + self.base.noise_sd * _stream(root, "white").standard_normal(rec.n)
+            white = _stream(root, "white").standard_normal(rec.n)
+            white *= self.base.noise_sd
+            y += white
         return y
 
     def _run(self, rec: Record, root: int | None) -> np.ndarray:
@@ -268,7 +275,7 @@ def _noise_block(model: Model, rec: Record, roots: Sequence[int]) -> np.ndarray:
     """(len(roots), n): the model's noise realised from each seed (a batch of a null)."""
     out = np.empty((len(roots), rec.n))
     for j, root in enumerate(roots):
-        out[j] = model._noise_from_root(rec, root)
+        model._noise_from_root(rec, root, out[j])
     return out
 
 

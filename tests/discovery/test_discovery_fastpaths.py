@@ -14,6 +14,7 @@ from bench.discovery import significance as sig
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.experiments import make_experiment
+from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import autocorrelation
 from bench.discovery.model import Model, base_model
 
@@ -209,3 +210,32 @@ def test_simulate_noise_many_is_the_successive_draws(effects):
     assert model.simulate_noise_many(rec, 3, 0).shape == (rec.n, 0)
     with pytest.raises(ValueError, match="m = -1"):
         model.simulate_noise_many(rec, 3, -1)
+
+
+@pytest.mark.parametrize("eid,p", [
+    ("warmup_exponential", {"amplitude": 7e-5, "tau_s": 120.0}),
+    ("thermal_two_node", {"amplitude": 8e-5, "fraction_slow": 0.7, "tau_fast_s": 18.0, "tau_slow_s": 160.0}),
+    ("sinusoidal_interference", {"amplitude": 3e-6, "freq_hz": 0.37, "phase_rad": 1.1}),
+])
+@pytest.mark.parametrize("kind", ["accelerometer", "gyro"])
+def test_analytic_jacobian_equals_the_differenced_prediction(eid, p, kind):
+    rec = make_experiment(kind, np.random.default_rng(3), n=4000)
+    model = Model(base_model(kind))
+    f = CandidateFitter(model, rec, CATALOGUE[eid], template=p)
+    assert f._analytic
+    x = f.pack(p, 1e-3, float(model.base.scale_factor))
+    ana = f.analytic_jacobian(x)
+    # the prediction is linear in bias and scale factor: their columns are 1 and the input
+    assert np.all(ana[:, 0] == 1.0) and (not f.with_sf or np.array_equal(ana[:, 1], model.stages(rec)[0]))
+    # the effect's coordinates: central differences of its term through the fitter's own
+    # coordinates (log ones included), steps of 1e-6 of their scales — the straightforward Jacobian,
+    # to its rounding (a sinusoid's phase of thousands of radians leaves ~1e-5 of the column)
+
+    def term(xx):
+        return f.effect.term(f.unpack(xx)[0], rec)
+
+    h = 1e-6 * f.x_scale() * np.eye(x.size)
+    num = np.column_stack([(term(x + h[j]) - term(x - h[j])) / (2 * h[j, j]) for j in range(f.n_base, x.size)])
+    assert np.all(np.abs(ana[:, f.n_base:] - num) <= 1e-3 * np.max(np.abs(num), axis=0))
+    # an output-stage effect (saturation) has no term: its fit differences the prediction
+    assert not CandidateFitter(model, rec, CATALOGUE["saturation"])._analytic
