@@ -165,7 +165,8 @@ def test_candidates_fitted_in_worker_processes_give_the_same_discovery():
     rec = rec.replace(y=truth.simulate(rec, rng))
     start = Model(base_model("accelerometer"))
     msgs_1: list[str] = []
-    one = discover(rec, start, n_rep=199, progress=msgs_1.append)
+    with candidate_map(1) as map_fn:
+        one = discover(rec, start, n_rep=199, progress=msgs_1.append, map_fn=map_fn)
     msgs_2: list[str] = []
     with candidate_map(2) as map_fn:
         two = discover(rec, start, n_rep=199, progress=msgs_2.append, map_fn=map_fn)

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.app.blas import blas_threads, set_blas_threads
 from bench.app.commands.discover_runs import read_run
 from bench.discovery.data import CSV_COLUMNS, Record
 
@@ -143,16 +144,21 @@ def candidate_map(jobs: int) -> Iterator:
     """The ``map`` each naming step fits its candidates with (``workflow.discover``'s
     ``map_fn``): the builtin one for ``jobs`` = 1, else that of ``jobs`` worker processes,
     forked from a server that has imported the discovery library (never from this process,
-    whose status line runs a thread). The fits draw no random numbers: the same answer."""
+    whose status line runs a thread). The fits draw no random numbers: the same answer.
+    BLAS runs one thread a process, here and in the workers (:mod:`bench.app.blas`: on these
+    tall, narrow matrices a second thread doubled the CPU time and saved no wall time), so
+    every ``jobs`` computes with the same BLAS and gives the same numbers."""
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"--jobs {jobs!r}; allowed: an integer >= 1")
-    if jobs == 1:
-        yield map
-        return
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(["bench.discovery.naming"])
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
-        yield pool.map
+    with blas_threads(1):
+        if jobs == 1:
+            yield map
+            return
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(["bench.discovery.naming"])
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=set_blas_threads,
+                                 initargs=(1,)) as pool:
+            yield pool.map
 
 
 @contextlib.contextmanager
