@@ -22,7 +22,10 @@ For the current (calibrated) model and its residual ``r = y − predict``:
    p-value against the model's own noise (white + its stochastic effects);
    histogram-judged (:class:`~bench.discovery.effects_base.HistogramEffect`): its own
    ``fit_histogram`` (quantization: readings on a lattice, Rayleigh-tail p-value).
-   p-values are floored at :data:`.significance.P_FLOOR`.
+   p-values are floored at :data:`.significance.P_FLOOR`. The fits draw no random number
+   (:func:`fit_trial`, mapped over the candidates by the caller's ``map_fn``, :mod:`.mapping`:
+   side by side in worker processes if it likes); the Monte-Carlo p-values follow, one
+   candidate after the other on the step's generator (:func:`with_p_value`).
 3. Benjamini–Hochberg over all candidates' p-values at ``alpha``; a candidate is *named* only
    if BH-significant, its held-out score is positive, its main parameter is physically
    meaningful (``Effect.big_enough``: |main| ≥ ``min_effect``, or ≤ it for a decreasing effect
