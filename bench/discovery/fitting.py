@@ -289,9 +289,12 @@ class CandidateFitter:
                                           columns=range(self.n_base, x.size))
 
     # ---- fitting ----------------------------------------------------------------------
-    def fit(self, starts: list[np.ndarray], rows: np.ndarray | None = None, max_nfev: int = 60) -> Fit:
+    def fit(self, starts: list[np.ndarray], rows: np.ndarray | None = None, max_nfev: int = 60,
+            with_std: bool = True) -> Fit:
         """Best of a bounded trust-region fit from each start (and the start itself) on ``rows``;
-        an effect linear in every free parameter: the bounded linear least-squares solution."""
+        an effect linear in every free parameter: the bounded linear least-squares solution.
+        ``with_std`` False: no standard errors (NaN; a fold's fit, whose errors nothing reads,
+        skips the HAC sandwich)."""
         y = self.rec.y
         rows = np.ones(self.rec.n, bool) if rows is None else rows
         lo, hi = self.bounds()
@@ -300,7 +303,7 @@ class CandidateFitter:
             if x is not None:
                 p, bias, sf = self.unpack(x)
                 sse = float(np.sum((y - self.predict(x))[rows] ** 2))
-                return Fit(p, self._std(x, rows, sse), bias, sf, sse, x, bool(np.isfinite(sse)))
+                return Fit(p, self._std(x, rows, sse, with_std), bias, sf, sse, x, bool(np.isfinite(sse)))
         best_x, best_cost = None, np.inf
         fun = lambda x: (y - self.predict(x))[rows]
         jac = (lambda x: -self.analytic_jacobian(x)[rows]) if self._analytic else "2-point"
@@ -321,7 +324,7 @@ class CandidateFitter:
             raise ValueError(f"{self.effect.id}: no start of the fit gives a finite residual "
                              f"({len(starts)} starts); allowed: at least one start inside the bounds")
         p, bias, sf = self.unpack(best_x)
-        std = self._std(best_x, rows, best_cost)
+        std = self._std(best_x, rows, best_cost, with_std)
         return Fit(p, std, bias, sf, best_cost, best_x, bool(np.isfinite(best_cost)))
 
     def _linear_solution(self, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | None:
@@ -355,9 +358,11 @@ class CandidateFitter:
             return None
         return x
 
-    def _std(self, x: np.ndarray, rows: np.ndarray, sse: float) -> dict:
+    def _std(self, x: np.ndarray, rows: np.ndarray, sse: float, wanted: bool = True) -> dict:
         """Standard errors of the effect parameters from the stationary-error HAC sandwich at the
-        residual's bandwidth (NaN when not finite)."""
+        residual's bandwidth (NaN when not finite, or not ``wanted``)."""
+        if not wanted:
+            return {q.name: float("nan") for q in self.qs}
         f0 = self.predict(x)
         jac = finite_difference_jacobian(self.predict, x, self.steps(x), upper=self.bounds()[1], f0=f0)
         e = self.rec.y - f0

@@ -115,7 +115,7 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
         # with the held-out samples in view would leak them into the held-out score
         starts_k = effect.fit_starts(rec, r, kind=kind, rows=~te)[:2]
         fk_fitter = CandidateFitter(model, rec, effect, template=starts_k[0] if starts_k else None)
-        fk = fk_fitter.fit([fk_fitter.pack(p, b0, s0) for p in starts_k], rows=~te, max_nfev=40)
+        fk = fk_fitter.fit([fk_fitter.pack(p, b0, s0) for p in starts_k], rows=~te, max_nfev=40, with_std=False)
         pred = fk_fitter.predict(fk.x)
         err_c[te] = (rec.y - pred)[te] ** 2
         g = pred - fk_fitter.predict_without(fk.x)
