@@ -158,6 +158,8 @@ def candidate_map(jobs: int) -> Iterator:
         context.set_forkserver_preload(["bench.discovery.naming"])
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=set_blas_threads,
                                  initargs=(1,)) as pool:
+            for _ in range(jobs):  # start the server and the workers now, while this process calibrates
+                pool.submit(int)
             yield pool.map
 
 
