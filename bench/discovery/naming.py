@@ -127,17 +127,16 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
 
 
 def waveform_p_value(trial: Trial, model: Model, rec: Record, folds: np.ndarray, rng: np.random.Generator,
-                     n_rep: int, map_fn: MapFn = map) -> float:
+                     n_rep: int) -> float:
     """Bootstrap p-value of a fitted waveform's held-out linear score (1 without an
-    out-of-sample gain: conservatively not significant); ``map_fn`` builds a parametric
-    null's realisations (:mod:`.mapping`)."""
+    out-of-sample gain: conservatively not significant)."""
     if not trial.score > 0 or trial.resid_full is None or trial.cols is None:
         return 1.0
     draw: Callable[[int], np.ndarray] | None = None
     if model.stochastic_effects():
 
         def model_noise(m: int) -> np.ndarray:  # the model's own noise: white + its stochastic effects
-            return model.simulate_noise_many(rec, rng, m, map_fn)
+            return model.simulate_noise_many(rec, rng, m)
         draw = model_noise
     # the null's residual is the record's with the candidate's fit taken out: it keeps the
     # noise's autocorrelation but not the effect itself — a block holding a start-up
@@ -212,7 +211,7 @@ def fit_trial(model: Model, rec: Record, r: np.ndarray, folds: np.ndarray, err_b
 
 
 def with_p_value(trial: Trial, model: Model, rec: Record, folds: np.ndarray, rng: np.random.Generator,
-                 n_rep: int, map_fn: MapFn = map) -> Trial:
+                 n_rep: int) -> Trial:
     """``trial`` with its Monte-Carlo p-value (floored at :data:`.significance.P_FLOOR`): the
     bootstrap of a waveform's held-out score, a random process's null beside a coarse
     quantizer; the candidates take their turns on ``rng`` in the catalogue's order."""
@@ -220,7 +219,7 @@ def with_p_value(trial: Trial, model: Model, rec: Record, folds: np.ndarray, rng
         return replace(trial, p_value=process_p_value(trial, model, rec, rng, n_rep))
     if isinstance(trial.effect, HistogramEffect):
         return trial
-    return replace(trial, p_value=max(waveform_p_value(trial, model, rec, folds, rng, n_rep, map_fn), sig.P_FLOOR))
+    return replace(trial, p_value=max(waveform_p_value(trial, model, rec, folds, rng, n_rep), sig.P_FLOOR))
 
 
 def judge(trial: Trial, significant: bool, q_value: float, model: Model, rec: Record, reading_sd: float,
@@ -284,7 +283,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         if progress is not None:
             progress(f"{eff.id} ({k + 1}/{len(effects)})")
         # a worker process returns a copy of the effect: the catalogue's own object is kept
-        trials.append(with_p_value(replace(trial, effect=eff), model, rec, folds, rng, n_rep, map_fn))
+        trials.append(with_p_value(replace(trial, effect=eff), model, rec, folds, rng, n_rep))
     if not trials:
         return Naming((), None, (), ())
     reject, q = sig.benjamini_hochberg([t.p_value for t in trials], alpha)
@@ -306,7 +305,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         m_s = model.with_effect(s.id, s.params)
 
         def draw(m: int) -> np.ndarray:
-            return m_s.simulate_noise_many(rec, rng, m, map_fn)
+            return m_s.simulate_noise_many(rec, rng, m)
         return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw)
 
     def signature_of(t: Trial) -> Evidence:
@@ -314,7 +313,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         m_t = model.with_effect(t.id, t.params)
         # a waveform's residual is its own fit's (bias and scale factor refitted with it)
         res = t.resid_full if t.resid_full is not None else rec.y - m_t.predict(rec)
-        return evidence(m_t, rec, len(m_t.effects) - 1, res, rng=rng, n_rep=n_rep, map_fn=map_fn)
+        return evidence(m_t, rec, len(m_t.effects) - 1, res, rng=rng, n_rep=n_rep)
 
     # the deterministic term's significance against the process: Bonferroni over the catalogue
     # (a realisation of a walk is as trendy as 1 % of walks about 1 % of the time)

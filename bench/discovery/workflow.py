@@ -169,8 +169,8 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
              progress: Callable[[str], None] | None = None, map_fn: MapFn = map) -> Discovery:
     """Run the loop a..e on ``rec`` from ``model``; see the module docstring. ``progress``:
     called with a short human message as each candidate is judged and after each step;
-    ``map_fn``: how the candidates' fits and the nulls' realisations are mapped (:mod:`.mapping`:
-    an executor's ``map`` runs them side by side; the answer is the same)."""
+    ``map_fn``: how each naming step maps the candidates' fits over them (:mod:`.mapping`: an
+    executor's ``map`` runs them side by side; the answer is the same)."""
     if not isinstance(max_effects, int) or not 0 <= max_effects <= len(CATALOGUE):
         raise ValueError(f"max_effects = {max_effects!r}; allowed: an integer in [0, {len(CATALOGUE)}]")
     if not 0 < alpha < 1:
@@ -238,7 +238,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         withdrawn_now = 0
         while steps:
             named_ids = {st.effect_id for st in steps}
-            evs = [evidence(model, rec, i, r_cur, rng=audit_rng, n_rep=n_rep, map_fn=map_fn)
+            evs = [evidence(model, rec, i, r_cur, rng=audit_rng, n_rep=n_rep)
                    for i, eid in enumerate(model.effect_ids) if eid in named_ids]
             if unexplained_structure(rec, r_cur, model, alpha=alpha):
                 # structure is left: a waveform must be significant beyond it, not only beyond white
