@@ -13,5 +13,7 @@ The modules, in the order the workflow uses them (``docs/ARCHITECTURE.md``, "Dis
   → name (``naming``: ``fitting`` for waveforms, ``stochastic`` / ``whittle`` for random
   processes, ``lattice`` for the quantizer's histogram; ``significance`` for held-out scores,
   the bootstrap null and the gap; ``choosing``, ``separating``; results in ``candidates``) →
-  add → repeat, then ``localize.unexplained_structure`` (on ``whiten``'s innovations).
+  add → repeat, then ``localize.unexplained_structure`` (on ``whiten``'s innovations);
+  ``mapping`` — how the candidates' fits are mapped, in this process or the caller's worker
+  processes, with the same answer.
 """

@@ -313,6 +313,12 @@ class Effect:
         """Additive effects: the term added to the output (sensor unit)."""
         raise NotImplementedError(f"{self.id} is not an additive effect")
 
+    def term_gradient(self, p: Mapping[str, float], rec: Record, names: Sequence[str]) -> list[np.ndarray] | None:
+        """Additive effects: ∂term/∂p of each parameter in ``names`` at ``p`` (the least-squares
+        fit's analytic Jacobian, :mod:`.fitting`); None (the default): not given, the fit
+        differences its prediction numerically."""
+        return None
+
     def transform_input(self, p: Params, rec: Record, u: np.ndarray) -> np.ndarray:
         """Input-stage effects: the transformed input (same unit)."""
         raise NotImplementedError(f"{self.id} is not an input-stage effect")

@@ -86,16 +86,32 @@ class ComponentEstimate:
     params_std: Params
 
 
-@numba.njit(cache=True)
-def _gauss_markov(dt, w, sigma, tau):
-    """x_0 = σ·w_0 (stationary); x_k = φ_k·x_{k−1} + σ·sqrt(1 − φ_k²)·w_k, φ_k = exp(−dt_k/τ)."""
-    n = w.size
-    x = np.empty(n)
-    x[0] = sigma * w[0]
-    for k in range(1, n):
-        phi = math.exp(-dt[k - 1] / tau)
-        x[k] = phi * x[k - 1] + sigma * math.sqrt(1.0 - phi * phi) * w[k]
-    return x
+@numba.njit(cache=True, nogil=True)
+def _gauss_markov_add(out, dt, w, sigma, tau):
+    """``out += x``: x_0 = σ·w_0 (stationary); x_k = φ_k·x_{k−1} + σ·sqrt(1 − φ_k²)·w_k,
+    φ_k = exp(−dt_k/τ). φ_k and its gain are recomputed only where dt_k differs from dt_{k−1}
+    (a uniform record's intervals repeat: the same numbers without an exp and a sqrt a sample)."""
+    x = sigma * w[0]
+    out[0] += x
+    last = math.nan
+    phi = gain = 0.0
+    for k in range(1, w.size):
+        if dt[k - 1] != last:
+            last = dt[k - 1]
+            phi = math.exp(-last / tau)
+            gain = sigma * math.sqrt(1.0 - phi * phi)
+        x = phi * x + gain * w[k]
+        out[k] += x
+
+
+@numba.njit(cache=True, nogil=True)
+def _gauss_markov_sum(dt, w, sigma, taus):
+    """Σ_j of the Gauss–Markov realisations of correlation time ``taus[j]`` driven by row j of
+    ``w`` (:func:`_gauss_markov_add`), summed in row order from zero."""
+    out = np.zeros(w.shape[1])
+    for j in range(taus.size):
+        _gauss_markov_add(out, dt, w[j], sigma, taus[j])
+    return out
 
 
 def _allan_z(avar_fn: Callable[[float], float], rec: Record, noise_sd: float) -> float:
@@ -190,7 +206,7 @@ class GaussMarkov(StochasticEffect):
         w = rng.standard_normal(rec.n)
         if p["sigma"] == 0:
             return np.zeros(rec.n)
-        return _gauss_markov(np.diff(rec.t_s), w, float(p["sigma"]), float(p["tau_s"]))
+        return _gauss_markov_sum(np.diff(rec.t_s), w[None, :], float(p["sigma"]), np.array([float(p["tau_s"])]))
 
     @staticmethod
     def avar(sigma: float, tau_s: float, t_s: float) -> float:
@@ -399,11 +415,8 @@ class FlickerNoise(StochasticEffect):
         if p["b"] == 0:
             return np.zeros(rec.n)
         taus, s = self._terms(p, rec.dt_s, rec.n)
-        dt = np.diff(rec.t_s)
-        out = np.zeros(rec.n)
-        for tau in taus:
-            out += _gauss_markov(dt, rng.standard_normal(rec.n), s, float(tau))
-        return out
+        # one state after the other from the stream: row j of the draw is state j's
+        return _gauss_markov_sum(np.diff(rec.t_s), rng.standard_normal((taus.size, rec.n)), s, taus)
 
     @staticmethod
     def avar(b: float) -> float:

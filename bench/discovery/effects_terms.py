@@ -68,6 +68,12 @@ class WarmupExponential(Effect):
     def term(self, p, rec):
         return p["amplitude"] * np.exp(-rec.column("t_on") / p["tau_s"])
 
+    def term_gradient(self, p, rec, names):
+        t = rec.column("t_on")
+        e = np.exp(-t / p["tau_s"])
+        d = {"amplitude": lambda: e, "tau_s": lambda: p["amplitude"] * e * t / p["tau_s"] ** 2}
+        return [d[k]() for k in names]
+
     def drawable_range(self, q, rec, kind):
         if q.name == "tau_s":  # resolvable: a few samples up to a quarter of the record
             return _time_range(rec, q.low, q.high, 5.0, 0.2)
@@ -324,6 +330,13 @@ class SinusoidalInterference(Effect):
 
     def term(self, p, rec):
         return p["amplitude"] * np.sin(2 * np.pi * p["freq_hz"] * (rec.t_s - rec.t_s[0]) + p["phase_rad"])
+
+    def term_gradient(self, p, rec, names):
+        tt = rec.t_s - rec.t_s[0]
+        ph = 2 * np.pi * p["freq_hz"] * tt + p["phase_rad"]
+        d = {"amplitude": lambda: np.sin(ph), "phase_rad": lambda: p["amplitude"] * np.cos(ph),
+             "freq_hz": lambda: p["amplitude"] * np.cos(ph) * (2 * np.pi * tt)}
+        return [d[k]() for k in names]
 
     def drawable_range(self, q, rec, kind):
         if q.name == "freq_hz":  # at least 20 cycles in the record, below 0.4 × the sample rate

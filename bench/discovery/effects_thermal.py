@@ -11,7 +11,7 @@ the play (backlash) operator of the temperature history, started in the middle o
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numba
@@ -57,6 +57,14 @@ class ThermalTwoNode(Effect):
         t = rec.column("t_on")
         f = p["fraction_slow"]
         return p["amplitude"] * ((1 - f) * np.exp(-t / p["tau_fast_s"]) + f * np.exp(-t / p["tau_slow_s"]))
+
+    def term_gradient(self, p: Mapping[str, float], rec: Record, names: Sequence[str]) -> list[np.ndarray]:
+        t = rec.column("t_on")
+        a, f, tf, ts = p["amplitude"], p["fraction_slow"], p["tau_fast_s"], p["tau_slow_s"]
+        ef, es = np.exp(-t / tf), np.exp(-t / ts)
+        d = {"amplitude": lambda: (1 - f) * ef + f * es, "fraction_slow": lambda: a * (es - ef),
+             "tau_fast_s": lambda: a * (1 - f) * ef * t / tf ** 2, "tau_slow_s": lambda: a * f * es * t / ts ** 2}
+        return [d[k]() for k in names]
 
     def localized(self, rec: Record) -> bool:
         return rec.logged("t_on")

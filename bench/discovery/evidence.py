@@ -229,7 +229,7 @@ def shape_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, 
     noisy = model.with_base(noise_sd=min(floor, float(model.base.noise_sd)) if procs else floor)
 
     def draw(m: int) -> np.ndarray:  # the model's own noise: white + its random processes
-        return np.column_stack([noisy.simulate_noise(rec, rng) for _ in range(m)])
+        return noisy.simulate_noise_many(rec, rng, m)
     p_val = _projection_p(q, observed, draw, n_rep)
     if p_val >= alpha:
         return Evidence(eff.id, True, p_val)

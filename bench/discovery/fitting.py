@@ -182,6 +182,9 @@ class CandidateFitter:
         self._stages = None if model.has_output_stage() else model.stages(rec)
         self._linear = (self._stages is not None and effect.stage == "additive" and bool(self.qs)
                         and all(q.linear for q in self.qs))
+        # an additive effect that states its term's derivatives: the fit's Jacobian is analytic
+        self._analytic = (self._stages is not None and effect.stage == "additive"
+                          and effect.term_gradient(self.template, rec, ()) is not None)
 
     # ---- coordinates ------------------------------------------------------------------
     def pack(self, p: Mapping[str, float], bias: float, sf: float) -> np.ndarray:
@@ -261,15 +264,37 @@ class CandidateFitter:
                 h[self.n_base + k] = 1e-4 * max(abs(x[self.n_base + k]), 1.0)
         return h
 
+    def analytic_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """(n, 1 + SF + q) derivatives of the full-record prediction w.r.t. every coordinate of
+        ``x`` from the effect's ``term_gradient`` (log coordinates by the chain rule); only for
+        an additive effect that gives it, on a model without an output stage."""
+        if not self._analytic or self._stages is None:
+            raise ValueError(f"{self.effect.id}: no analytic Jacobian (an additive effect with term_gradient, "
+                             "on a model without an output stage)")
+        p, _, _ = self.unpack(x)
+        u, _ = self._stages
+        grads = self.effect.term_gradient(p, self.rec, [q.name for q in self.qs])
+        assert grads is not None  # _analytic: the effect gives them
+        jac = np.empty((self.rec.n, x.size), order="F")
+        jac[:, 0] = 1.0
+        if self.with_sf:
+            jac[:, 1] = u
+        for k, (q, g) in enumerate(zip(self.qs, grads)):
+            jac[:, self.n_base + k] = g * p[q.name] if q.log else g  # d/d log q = q·d/dq
+        return jac
+
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """(n, q) derivatives of the full-record prediction w.r.t. the effect coordinates."""
         return finite_difference_jacobian(self.predict, x, self.steps(x), upper=self.bounds()[1],
                                           columns=range(self.n_base, x.size))
 
     # ---- fitting ----------------------------------------------------------------------
-    def fit(self, starts: list[np.ndarray], rows: np.ndarray | None = None, max_nfev: int = 60) -> Fit:
+    def fit(self, starts: list[np.ndarray], rows: np.ndarray | None = None, max_nfev: int = 60,
+            with_std: bool = True) -> Fit:
         """Best of a bounded trust-region fit from each start (and the start itself) on ``rows``;
-        an effect linear in every free parameter: the bounded linear least-squares solution."""
+        an effect linear in every free parameter: the bounded linear least-squares solution.
+        ``with_std`` False: no standard errors (NaN; a fold's fit, whose errors nothing reads,
+        skips the HAC sandwich)."""
         y = self.rec.y
         rows = np.ones(self.rec.n, bool) if rows is None else rows
         lo, hi = self.bounds()
@@ -278,16 +303,17 @@ class CandidateFitter:
             if x is not None:
                 p, bias, sf = self.unpack(x)
                 sse = float(np.sum((y - self.predict(x))[rows] ** 2))
-                return Fit(p, self._std(x, rows, sse), bias, sf, sse, x, bool(np.isfinite(sse)))
+                return Fit(p, self._std(x, rows, sse, with_std), bias, sf, sse, x, bool(np.isfinite(sse)))
         best_x, best_cost = None, np.inf
         fun = lambda x: (y - self.predict(x))[rows]
+        jac = (lambda x: -self.analytic_jacobian(x)[rows]) if self._analytic else "2-point"
         for x0 in starts:
             x0 = np.clip(x0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
             c0 = float(np.sum(fun(x0) ** 2))
             if c0 < best_cost:
                 best_x, best_cost = x0, c0
             try:
-                res = optimize.least_squares(fun, x0, bounds=(lo, hi), x_scale=self.x_scale(),
+                res = optimize.least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=self.x_scale(),
                                              max_nfev=max_nfev, method="trf")
             except (ValueError, np.linalg.LinAlgError):
                 continue
@@ -298,7 +324,7 @@ class CandidateFitter:
             raise ValueError(f"{self.effect.id}: no start of the fit gives a finite residual "
                              f"({len(starts)} starts); allowed: at least one start inside the bounds")
         p, bias, sf = self.unpack(best_x)
-        std = self._std(best_x, rows, best_cost)
+        std = self._std(best_x, rows, best_cost, with_std)
         return Fit(p, std, bias, sf, best_cost, best_x, bool(np.isfinite(best_cost)))
 
     def _linear_solution(self, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | None:
@@ -332,9 +358,11 @@ class CandidateFitter:
             return None
         return x
 
-    def _std(self, x: np.ndarray, rows: np.ndarray, sse: float) -> dict:
+    def _std(self, x: np.ndarray, rows: np.ndarray, sse: float, wanted: bool = True) -> dict:
         """Standard errors of the effect parameters from the stationary-error HAC sandwich at the
-        residual's bandwidth (NaN when not finite)."""
+        residual's bandwidth (NaN when not finite, or not ``wanted``)."""
+        if not wanted:
+            return {q.name: float("nan") for q in self.qs}
         f0 = self.predict(x)
         jac = finite_difference_jacobian(self.predict, x, self.steps(x), upper=self.bounds()[1], f0=f0)
         e = self.rec.y - f0

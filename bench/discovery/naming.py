@@ -22,7 +22,10 @@ For the current (calibrated) model and its residual ``r = y − predict``:
    p-value against the model's own noise (white + its stochastic effects);
    histogram-judged (:class:`~bench.discovery.effects_base.HistogramEffect`): its own
    ``fit_histogram`` (quantization: readings on a lattice, Rayleigh-tail p-value).
-   p-values are floored at :data:`.significance.P_FLOOR`.
+   p-values are floored at :data:`.significance.P_FLOOR`. The fits draw no random number
+   (:func:`fit_trial`, mapped over the candidates by the caller's ``map_fn``, :mod:`.mapping`:
+   side by side in worker processes if it likes); the Monte-Carlo p-values follow, one
+   candidate after the other on the step's generator (:func:`with_p_value`).
 3. Benjamini–Hochberg over all candidates' p-values at ``alpha``; a candidate is *named* only
    if BH-significant, its held-out score is positive, its main parameter is physically
    meaningful (``Effect.big_enough``: |main| ≥ ``min_effect``, or ≤ it for a decreasing effect
@@ -45,6 +48,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -59,6 +64,7 @@ from bench.discovery.effects_linalg import base_regressors
 from bench.discovery.effects_noise import StochasticEffect
 from bench.discovery.evidence import Evidence, evidence
 from bench.discovery.fitting import CandidateFitter
+from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.separating import separating_experiment
 
@@ -92,8 +98,9 @@ def _base_errors(r: np.ndarray, x_nuis: np.ndarray, folds: np.ndarray) -> np.nda
 
 
 def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds: np.ndarray,
-                 err_b: np.ndarray, rng: np.random.Generator, n_rep: int) -> Trial:
-    """Full-record fit (reported params), fold fits (held-out score), bootstrap p-value."""
+                 err_b: np.ndarray) -> Trial:
+    """Full-record fit (reported params), fold fits (held-out score) and the linearised
+    regressors of the bootstrap p-value (:func:`waveform_p_value`; p is NaN until then)."""
     kind = model.base.kind
     b0, s0 = float(model.base.bias), float(model.base.scale_factor)
     # the effect's starts share the parameters a fit moves (effect.free_params of the first)
@@ -108,72 +115,80 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
         # with the held-out samples in view would leak them into the held-out score
         starts_k = effect.fit_starts(rec, r, kind=kind, rows=~te)[:2]
         fk_fitter = CandidateFitter(model, rec, effect, template=starts_k[0] if starts_k else None)
-        fk = fk_fitter.fit([fk_fitter.pack(p, b0, s0) for p in starts_k], rows=~te, max_nfev=40)
+        fk = fk_fitter.fit([fk_fitter.pack(p, b0, s0) for p in starts_k], rows=~te, max_nfev=40, with_std=False)
         pred = fk_fitter.predict(fk.x)
         err_c[te] = (rec.y - pred)[te] ** 2
         g = pred - fk_fitter.predict_without(fk.x)
         cols.append(np.column_stack([g, fk_fitter.jacobian(fk.x)]))
     score = 1.0 - err_c.sum() / err_b.sum() if err_b.sum() > 0 else 0.0
-    x_nuis = base_regressors(rec)
-    lin = float("nan")
-    if score > 0:
-        lin = float(sig.heldout_linear_scores(r, x_nuis, cols, folds)[0])
-        draw: Callable[[int], np.ndarray] | None = None
-        if model.stochastic_effects():
-
-            def model_noise(m: int) -> np.ndarray:  # the model's own noise: white + its stochastic effects
-                return np.column_stack([model.simulate_noise(rec, rng) for _ in range(m)])
-            draw = model_noise
-        # the null's residual is the record's with the candidate's fit taken out: it keeps the
-        # noise's autocorrelation but not the effect itself — a block holding a start-up
-        # transient or a jump, pasted at the start by the bootstrap, would score like the data
-        # (a 94-σ warm-up of 16 s got p = 0.004 from 1 in ~100 replicates starting there)
-        r_null = rec.y - f.predict(full.x)
-        p = sig.bootstrap_p_value(r_null - r_null.mean(), x_nuis, cols, folds, lin, n_rep=n_rep, rng=rng,
-                                  draw=draw)
-    else:
-        p = 1.0  # no out-of-sample gain: conservatively not significant
-    return Trial(effect, full.params, full.params_std, float(score), float(p), err_c=err_c, err_b=err_b,
+    lin = float(sig.heldout_linear_scores(r, base_regressors(rec), cols, folds)[0]) if score > 0 else float("nan")
+    return Trial(effect, full.params, full.params_std, float(score), float("nan"), err_c=err_c, err_b=err_b,
                  resid_full=rec.y - f.predict(full.x), cols=cols, lin=lin)
 
 
+def waveform_p_value(trial: Trial, model: Model, rec: Record, folds: np.ndarray, rng: np.random.Generator,
+                     n_rep: int) -> float:
+    """Bootstrap p-value of a fitted waveform's held-out linear score (1 without an
+    out-of-sample gain: conservatively not significant)."""
+    if not trial.score > 0 or trial.resid_full is None or trial.cols is None:
+        return 1.0
+    draw: Callable[[int], np.ndarray] | None = None
+    if model.stochastic_effects():
+
+        def model_noise(m: int) -> np.ndarray:  # the model's own noise: white + its stochastic effects
+            return model.simulate_noise_many(rec, rng, m)
+        draw = model_noise
+    # the null's residual is the record's with the candidate's fit taken out: it keeps the
+    # noise's autocorrelation but not the effect itself — a block holding a start-up
+    # transient or a jump, pasted at the start by the bootstrap, would score like the data
+    # (a 94-σ warm-up of 16 s got p = 0.004 from 1 in ~100 replicates starting there)
+    r_null = trial.resid_full
+    return sig.bootstrap_p_value(r_null - r_null.mean(), base_regressors(rec), trial.cols, folds, trial.lin,
+                                 n_rep=n_rep, rng=rng, draw=draw)
+
+
 #: Replicates per chunk of the Monte-Carlo null of a random process beside a coarse quantizer
-#: (:func:`fit_process`): a clear result stops after two chunks.
+#: (:func:`process_p_value`): a clear result stops after two chunks.
 MC_CHUNK = 25
 #: At most this many replicates of that null (each a Whittle fit, ~40 ms): p resolves to
 #: 1/600, below the first Benjamini–Hochberg threshold over a kind's ~25 candidates (0.05/25).
 MC_MAX_REP = 599
 
 
-def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarray, folds: np.ndarray,
-                rng: np.random.Generator | None = None, n_rep: int = 999) -> Trial:
+def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarray, folds: np.ndarray) -> Trial:
     """Whittle fit, held-out score and p-value of a stochastic candidate: the LR against the
-    model's own noise (white + its stochastic effects, their spectrum fixed) referred to χ² —
-    or, when an effect of the model colours the residual with the signal (a coarse quantizer's
-    rounding: no χ² reference) and ``rng`` is given, to the same statistic on realisations of
-    the model's own noise through it (:func:`.significance.sequential_p_value`, chunks of
-    :data:`MC_CHUNK`, at most :data:`MC_MAX_REP`); parameters clipped to the kind's ranges."""
-    dt = rec.dt_s
+    model's own noise (white + its stochastic effects, their spectrum fixed) referred to χ²
+    (a Monte-Carlo null replaces it where there is no χ² reference: :func:`process_p_value`);
+    parameters clipped to the kind's ranges."""
     known = model.stochastic_effects()
-    full = sto.fit_stochastic(r - r.mean(), dt, effect, known=known)
-    p_value = full.p_value
-    if rng is not None and any(e.colours_residual(p, model.base.noise_sd) for e, p in model.entries()):
-        gen = rng
-
-        def null_lr(m: int) -> np.ndarray:
-            out = []
-            for _ in range(m):
-                x = model.simulate_noise(rec, gen)
-                out.append(sto.fit_stochastic(x - x.mean(), dt, effect, known=known, bootstrap=False).lr)
-            return np.array(out)
-        p_value = sig.sequential_p_value(full.lr, null_lr, n_rep=min(n_rep, MC_MAX_REP), chunk=MC_CHUNK)
-    score, err_c, err_b = sto.heldout_score(r, dt, effect, folds, np.array(full.theta))
+    full = sto.fit_stochastic(r - r.mean(), rec.dt_s, effect, known=known)
+    score, err_c, err_b = sto.heldout_score(r, rec.dt_s, effect, folds, np.array(full.theta))
     params, std = {}, {}
     for q in effect.params_for(model.base.kind):
         params[q.name] = float(np.clip(full.params[q.name], q.low, q.high))
         std[q.name] = float(full.params_std[q.name])
-    return Trial(effect, params, std, score, max(p_value, sig.P_FLOOR), err_c=err_c, err_b=err_b,
+    return Trial(effect, params, std, score, max(full.p_value, sig.P_FLOOR), err_c=err_c, err_b=err_b,
                  lr=full.lr, bic_gain=full.lr - math.log(rec.n / 2) * effect.n_coords)
+
+
+def process_p_value(trial: Trial, model: Model, rec: Record, rng: np.random.Generator, n_rep: int) -> float:
+    """A fitted random process's p-value: its χ² one — or, when an effect of the model colours
+    the residual with the signal (a coarse quantizer's rounding: no χ² reference), the same
+    statistic on realisations of the model's own noise through it
+    (:func:`.significance.sequential_p_value`, chunks of :data:`MC_CHUNK`, at most
+    :data:`MC_MAX_REP`)."""
+    if not any(e.colours_residual(p, model.base.noise_sd) for e, p in model.entries()):
+        return trial.p_value
+    effect, known, dt = trial.effect, model.stochastic_effects(), rec.dt_s
+
+    def null_lr(m: int) -> np.ndarray:
+        out = []
+        for _ in range(m):
+            x = model.simulate_noise(rec, rng)
+            out.append(sto.fit_stochastic(x - x.mean(), dt, effect, known=known, bootstrap=False).lr)
+        return np.array(out)
+    p_value = sig.sequential_p_value(trial.lr, null_lr, n_rep=min(n_rep, MC_MAX_REP), chunk=MC_CHUNK)
+    return max(p_value, sig.P_FLOOR)
 
 
 def fit_histogram(model: Model, rec: Record, effect: HistogramEffect, folds: np.ndarray) -> Trial:
@@ -182,15 +197,29 @@ def fit_histogram(model: Model, rec: Record, effect: HistogramEffect, folds: np.
     return Trial(effect, fit.params, fit.params_std, fit.score, max(fit.p_value, sig.P_FLOOR))
 
 
-def fit_trial(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds: np.ndarray,
-              err_b: np.ndarray, rng: np.random.Generator, n_rep: int) -> Trial:
-    """The candidate fitted as its family says: a random process on the spectrum, a
-    histogram-judged effect on the readings, any other effect as a waveform."""
+def fit_trial(model: Model, rec: Record, r: np.ndarray, folds: np.ndarray, err_b: np.ndarray,
+              effect: Effect) -> Trial:
+    """The candidate fitted as its family says — a random process on the spectrum, a
+    histogram-judged effect on the readings, any other effect as a waveform — without drawing
+    a random number: a Monte-Carlo p-value is left to :func:`with_p_value`, so candidates can
+    be fitted in any order, or side by side, and give the same numbers."""
     if isinstance(effect, StochasticEffect):
-        return fit_process(model, rec, effect, r, folds, rng, n_rep)
+        return fit_process(model, rec, effect, r, folds)
     if isinstance(effect, HistogramEffect):
         return fit_histogram(model, rec, effect, folds)
-    return fit_waveform(model, rec, effect, r, folds, err_b, rng, n_rep)
+    return fit_waveform(model, rec, effect, r, folds, err_b)
+
+
+def with_p_value(trial: Trial, model: Model, rec: Record, folds: np.ndarray, rng: np.random.Generator,
+                 n_rep: int) -> Trial:
+    """``trial`` with its Monte-Carlo p-value (floored at :data:`.significance.P_FLOOR`): the
+    bootstrap of a waveform's held-out score, a random process's null beside a coarse
+    quantizer; the candidates take their turns on ``rng`` in the catalogue's order."""
+    if isinstance(trial.effect, StochasticEffect):
+        return replace(trial, p_value=process_p_value(trial, model, rec, rng, n_rep))
+    if isinstance(trial.effect, HistogramEffect):
+        return trial
+    return replace(trial, p_value=max(waveform_p_value(trial, model, rec, folds, rng, n_rep), sig.P_FLOOR))
 
 
 def judge(trial: Trial, significant: bool, q_value: float, model: Model, rec: Record, reading_sd: float,
@@ -220,13 +249,16 @@ def judge(trial: Trial, significant: bool, q_value: float, model: Model, rec: Re
 
 def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0, n_rep: int = 999,
                 n_blocks: int = sig.N_BLOCKS, only: tuple[str, ...] | None = None, catch_alls: bool = True,
-                exclude: frozenset[str] = frozenset(), progress: Callable[[str], None] | None = None) -> Naming:
+                exclude: frozenset[str] = frozenset(), progress: Callable[[str], None] | None = None,
+                map_fn: MapFn = map) -> Naming:
     """Fit every applicable candidate to ``rec.y − model.predict(rec)``; see module docstring.
     ``only``: restrict to these ids (tests, quick runs); ``catch_alls`` False: no catch-all is
     tried (the slow structure is known to follow a logged column no effect explains);
     ``exclude``: ids not tried (the workflow's withdrawn effects, when it re-chooses);
-    ``progress``: called with a short message (``"gauss_markov (5/17)"``) before each
-    candidate's fit."""
+    ``progress``: called with a short message (``"gauss_markov (5/17)"``) as each candidate's
+    p-value is drawn; ``map_fn``: how the candidates' fits (:func:`fit_trial`, no random
+    numbers) are mapped over them — the builtin ``map``, or an executor's ``map`` running them
+    side by side (the same numbers either way)."""
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
     rng = np.random.default_rng(seed)
@@ -243,11 +275,15 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     if not all(e.null_holds(p, rec) for e, p in model.entries() if e.colours_residual(p, model.base.noise_sd)):
         effects = [e for e in effects if not e.stochastic]  # no valid null for a process beside it
     kind = model.base.kind
+    # the fits draw no random numbers: side by side when the caller's map_fn runs them so; then
+    # the p-values, one candidate after the other on rng in the catalogue's order
     trials = []
-    for k, eff in enumerate(effects):
+    fitted = map_fn(partial(fit_trial, model, rec, r, folds, err_b), effects)
+    for k, (eff, trial) in enumerate(zip(effects, fitted)):
         if progress is not None:
             progress(f"{eff.id} ({k + 1}/{len(effects)})")
-        trials.append(fit_trial(model, rec, eff, r, folds, err_b, rng, n_rep))
+        # a worker process returns a copy of the effect: the catalogue's own object is kept
+        trials.append(with_p_value(replace(trial, effect=eff), model, rec, folds, rng, n_rep))
     if not trials:
         return Naming((), None, (), ())
     reject, q = sig.benjamini_hochberg([t.p_value for t in trials], alpha)
@@ -269,7 +305,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         m_s = model.with_effect(s.id, s.params)
 
         def draw(m: int) -> np.ndarray:
-            return np.column_stack([m_s.simulate_noise(rec, rng) for _ in range(m)])
+            return m_s.simulate_noise_many(rec, rng, m)
         return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw)
 
     def signature_of(t: Trial) -> Evidence:

@@ -88,19 +88,20 @@ def white_nll(r: np.ndarray, dt_s: float, known: Processes = ()) -> float:
     diff = _judged_on_differences(known)  # as in fit_stochastic
     w, i = periodogram(np.diff(r) if diff else r)
     comps, th_k = _known_coords(known, dt_s)
-    return float(_null(comps, th_k, w, i, diff).fun)
+    return float(_null(comps, th_k, np.cos(w), i, diff).fun)
 
 
-def _null(comps: tuple[StochasticEffect, ...], th_k: np.ndarray, w: np.ndarray, i: np.ndarray,
+def _null(comps: tuple[StochasticEffect, ...], th_k: np.ndarray, c: np.ndarray, i: np.ndarray,
           diff: bool) -> optimize.OptimizeResult:
-    """Fit of white noise of free level plus the known components (all parameters free)."""
+    """Fit of white noise of free level plus the known components (all parameters free); ``c``
+    = cos ω at the periodogram ``i``'s frequencies."""
     v = float(np.mean(i)) / (2.0 if diff else 1.0)
     if not comps:
-        res = optimize.minimize_scalar(lambda a: nll(np.array([a]), (), w, i, diff),
+        res = optimize.minimize_scalar(lambda a: nll(np.array([a]), (), c, i, diff),
                                        bounds=(np.log(v) - 20, np.log(v) + 2), method="bounded")
         return optimize.OptimizeResult(x=np.array([res.x]), fun=float(res.fun))
     # the white floor nearly all of the variance, or half of it; the components as in the model
-    return minimize(comps, [np.r_[np.log(v * share), th_k] for share in (0.5, 0.99)], w, i, diff)
+    return minimize(comps, [np.r_[np.log(v * share), th_k] for share in (0.5, 0.99)], c, i, diff)
 
 
 def fit_stochastic(r: np.ndarray, dt_s: float, effect: Effect, start: np.ndarray | None = None,
@@ -118,8 +119,9 @@ def fit_stochastic(r: np.ndarray, dt_s: float, effect: Effect, start: np.ndarray
     r = np.asarray(r, dtype=float)
     diff = _judged_on_differences(known)
     w, i = periodogram(np.diff(r) if diff else r)
+    c = np.cos(w)  # once: every likelihood evaluation of the fits reads it
     known_comps, th_k = _known_coords(known, dt_s)
-    null = _null(known_comps, th_k, w, i, diff)
+    null = _null(known_comps, th_k, c, i, diff)
     th_k = np.asarray(null.x, float)[1:]  # the known components as the null fits them
     comps = (effect, *known_comps)
     v = float(np.mean(i)) / (2.0 if diff else 1.0)
@@ -128,11 +130,11 @@ def fit_stochastic(r: np.ndarray, dt_s: float, effect: Effect, start: np.ndarray
         starts = [np.r_[np.asarray(start, float)[:1 + n_c], th_k]]
     else:
         starts = [np.r_[s, th_k] for s in effect.whittle_starts(v)]
-    best = minimize(comps, starts, w, i, diff)
+    best = minimize(comps, starts, c, i, diff)
     th = best.x
     lr = max(0.0, 2.0 * (float(null.fun) - best.fun))
     p = max(float(stats.chi2.sf(lr, n_c)), P_FLOOR)
-    cov = inv_hessian(lambda x: nll(x, comps, w, i, diff), th)
+    cov = inv_hessian(lambda x: nll(x, comps, c, i, diff), th)
     white_sd = float(np.sqrt(np.exp(th[0])))
     own = slice(1, 1 + n_c)
     est = effect.estimate(r, th[own], cov[own, own], dt_s, alone=not known, bootstrap=bootstrap)

@@ -57,20 +57,20 @@ def level_spectrum(components: Sequence[SpectralComponent], th: np.ndarray, c: n
     return lev, parts
 
 
-def nll(th: np.ndarray, components: Sequence[SpectralComponent], w: np.ndarray, i: np.ndarray,
+def nll(th: np.ndarray, components: Sequence[SpectralComponent], c: np.ndarray, i: np.ndarray,
         diff: bool = False) -> float:
     """The Whittle NLL alone (the Hessian's and the null's scalar search's evaluations)."""
-    return nll_grad(th, components, w, i, diff, grad=False)[0]
+    return nll_grad(th, components, c, i, diff, grad=False)[0]
 
 
-def nll_grad(th: np.ndarray, components: Sequence[SpectralComponent], w: np.ndarray, i: np.ndarray,
+def nll_grad(th: np.ndarray, components: Sequence[SpectralComponent], c: np.ndarray, i: np.ndarray,
              diff: bool = False, grad: bool = True) -> tuple[float, np.ndarray | None]:
     """(Whittle NLL of white + ``components``, its gradient in ``th``): Σ (1/S − I/S²)·∂S/∂θ (the
-    optimiser's hot loop). ``diff``: ``i`` is the periodogram of the first differences. ``grad``
-    False: the gradient is not computed (None)."""
+    optimiser's hot loop). ``c``: cos ω at the periodogram's frequencies (computed once by the
+    caller, not at every evaluation); ``diff``: ``i`` is the periodogram of the first
+    differences. ``grad`` False: the gradient is not computed (None)."""
     th = np.asarray(th, float)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # a wild trial step: inf
-        c = np.cos(w)
         g = (2 - 2 * c) if diff else 1.0
         lev, parts = level_spectrum(tuple(components), th, c, grad)
         s = lev * g
@@ -82,13 +82,13 @@ def nll_grad(th: np.ndarray, components: Sequence[SpectralComponent], w: np.ndar
         return float(np.sum(np.log(s) + i / s)), np.array([float(np.sum(k * d)) for d in parts])
 
 
-def minimize(components: Sequence[SpectralComponent], starts: Sequence[np.ndarray], w: np.ndarray,
+def minimize(components: Sequence[SpectralComponent], starts: Sequence[np.ndarray], c: np.ndarray,
              i: np.ndarray, diff: bool) -> optimize.OptimizeResult:
     """The best of a BFGS minimisation of the NLL from each start."""
     best = None
     for th0 in starts:
         # unbounded log coordinates: plain BFGS (L-BFGS-B costs ms per iteration in its driver here)
-        res = optimize.minimize(nll_grad, th0, args=(tuple(components), w, i, diff), jac=True, method="BFGS")
+        res = optimize.minimize(nll_grad, th0, args=(tuple(components), c, i, diff), jac=True, method="BFGS")
         if best is None or res.fun < best.fun:
             best = res
     if best is None:

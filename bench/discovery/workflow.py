@@ -44,6 +44,7 @@ from bench.discovery.evidence import beyond_leftover, evidence
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import localize, unexplained_structure
+from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.naming import name_effect
 from bench.discovery.significance import Gap, gap_metrics
@@ -165,9 +166,11 @@ def _fmt(v: float) -> str:
 
 def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 0.05, seed: int = 0,
              n_rep: int = 999, only: tuple[str, ...] | None = None,
-             progress: Callable[[str], None] | None = None) -> Discovery:
+             progress: Callable[[str], None] | None = None, map_fn: MapFn = map) -> Discovery:
     """Run the loop a..e on ``rec`` from ``model``; see the module docstring. ``progress``:
-    called with a short human message before each candidate fit and after each step."""
+    called with a short human message as each candidate is judged and after each step;
+    ``map_fn``: how each naming step maps the candidates' fits over them (:mod:`.mapping`: an
+    executor's ``map`` runs them side by side; the answer is the same)."""
     if not isinstance(max_effects, int) or not 0 <= max_effects <= len(CATALOGUE):
         raise ValueError(f"max_effects = {max_effects!r}; allowed: an integer in [0, {len(CATALOGUE)}]")
     if not 0 < alpha < 1:
@@ -201,7 +204,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
 
             naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
                                  catch_alls=not unused_followed, exclude=frozenset(withdrawn_ids),
-                                 progress=step_say)
+                                 progress=step_say, map_fn=map_fn)
             set_aside = naming.set_aside
             # a catch-all whose innovations follow a logged column no catalogue effect reads: the
             # slow structure is that column's, out of the catalogue — no catch-all is named for it

@@ -148,3 +148,30 @@ def test_a_jittered_record_runs_without_the_sampled_filters(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert any("lowpass_bandwidth" in n and "not tried" in n for n in doc["notes"])
     assert all(c["id"] not in ("lowpass_bandwidth", "highpass_rolloff") for c in doc["last_naming"]["candidates"])
+
+
+def test_candidates_fitted_in_worker_processes_give_the_same_discovery():
+    # a warm-up and Gauss–Markov noise, on which a random walk and a Gauss–Markov are named: the
+    # first step weighs a deterministic candidate against a null holding a process, the later
+    # ones' nulls are the model's noise — realisations built in the workers, fits there too
+    from bench.app.commands.discover import candidate_map
+    from bench.discovery.model import base_model
+    from bench.discovery.workflow import discover
+
+    rng = np.random.default_rng(5)
+    rec = make_experiment("accelerometer", rng, n=3000)
+    truth = (Model(base_model("accelerometer")).with_effect("warmup_exponential", {"amplitude": 6e-5, "tau_s": 300.0})
+             .with_effect("gauss_markov", {"sigma": 6e-6, "tau_s": 40.0}))
+    rec = rec.replace(y=truth.simulate(rec, rng))
+    start = Model(base_model("accelerometer"))
+    msgs_1: list[str] = []
+    with candidate_map(1) as map_fn:
+        one = discover(rec, start, n_rep=199, progress=msgs_1.append, map_fn=map_fn)
+    msgs_2: list[str] = []
+    with candidate_map(2) as map_fn:
+        two = discover(rec, start, n_rep=199, progress=msgs_2.append, map_fn=map_fn)
+    assert json.dumps(one.to_dict(), default=repr) == json.dumps(two.to_dict(), default=repr)
+    assert msgs_1 == msgs_2 and [s.effect_id for s in one.steps]
+    with pytest.raises(ValueError, match="--jobs 0"):
+        with candidate_map(0):
+            pass

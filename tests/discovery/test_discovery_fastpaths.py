@@ -1,15 +1,22 @@
-"""The fast lattice visibility, held-out scorer and block bootstrap equal the straightforward
-implementations they replaced (kept here as the references) to floating-point noise."""
+"""The fast lattice visibility, held-out scorer, block bootstrap and model-noise realisations
+equal the straightforward implementations they replaced (kept here as the references) to
+floating-point noise — the noise draws to the bit, for a fixed seed."""
 
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.discovery import lattice as lat
 from bench.discovery import significance as sig
+from bench.discovery.data import Record
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.experiments import make_experiment
+from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import autocorrelation
+from bench.discovery.model import Model, base_model
 
 
 def visibility_reference(y, s):
@@ -145,3 +152,90 @@ def test_acf_equals_reference(seed, n, frac):
     x = np.cumsum(np.random.default_rng(seed).standard_normal(n))
     lag = int(frac * (n - 1))
     assert np.allclose(autocorrelation(x, lag), acf_reference(x, lag), rtol=0, atol=1e-12)
+
+
+def gauss_markov_reference(dt, w, sigma, tau):
+    """The original: φ = exp(−dt/τ) and its gain recomputed at every sample."""
+    x = np.empty(w.size)
+    x[0] = sigma * w[0]
+    for k in range(1, w.size):
+        phi = math.exp(-dt[k - 1] / tau)
+        x[k] = phi * x[k - 1] + sigma * math.sqrt(1.0 - phi * phi) * w[k]
+    return x
+
+
+def flicker_reference(p, rec, rng):
+    """The original: one state after the other, each its own draw and recursion, summed."""
+    taus, s = CATALOGUE["flicker_noise"]._terms(p, rec.dt_s, rec.n)
+    out = np.zeros(rec.n)
+    for tau in taus:
+        out += gauss_markov_reference(np.diff(rec.t_s), rng.standard_normal(rec.n), s, float(tau))
+    return out
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 31), n=st.integers(2, 3000), jitter=st.sampled_from([0.0, 1e-6, 0.3]),
+       tau_min=st.floats(0.01, 30.0))
+def test_flicker_and_gauss_markov_equal_the_per_sample_recursion(seed, n, jitter, tau_min):
+    # uniform (intervals repeat: φ reused), nearly uniform (ulps apart) and irregular time stamps
+    dt = 0.1 * (1 + jitter * np.random.default_rng(seed + 1).uniform(0, 1, n - 1))
+    rec = Record(t_s=np.concatenate([[0.0], np.cumsum(dt)]), y=np.zeros(n))
+    flicker, gm = CATALOGUE["flicker_noise"], CATALOGUE["gauss_markov"]
+    p = {"b": 1e-5, "tau_min_s": tau_min}
+    fast = flicker.noise(p, rec, np.random.default_rng(seed))
+    assert np.allclose(fast, flicker_reference(p, rec, np.random.default_rng(seed)), rtol=1e-12, atol=0)
+    q = {"sigma": 2e-6, "tau_s": tau_min}
+    ref = gauss_markov_reference(np.diff(rec.t_s), np.random.default_rng(seed).standard_normal(n), 2e-6, tau_min)
+    assert np.allclose(gm.noise(q, rec, np.random.default_rng(seed)), ref, rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("effects", [
+    (("flicker_noise", {"b": 3e-6, "tau_min_s": 0.05}), ("gauss_markov", {"sigma": 4e-6, "tau_s": 20.0})),
+    (("rate_random_walk", {"k_per_rs": 1e-7}),),
+    (("gauss_markov", {"sigma": 4e-6, "tau_s": 2.0}), ("quantization", {"step": 2e-5})),  # an output stage
+])
+def test_simulate_noise_many_is_the_successive_draws(effects):
+    rec = make_experiment("accelerometer", np.random.default_rng(0), n=2000)
+    model = Model(base_model("accelerometer"))
+    for eid, p in effects:
+        model = model.with_effect(eid, p)
+    rng = np.random.default_rng(11)
+    ref = np.column_stack([model.simulate_noise(rec, rng) for _ in range(5)])
+    after = rng.integers(0, 2 ** 63)
+    rng = np.random.default_rng(11)
+    many = model.simulate_noise_many(rec, rng, 5)
+    assert many.shape == (rec.n, 5) and np.array_equal(many, ref)
+    assert many.T.flags.c_contiguous  # each realisation contiguous: the scorer reads rows
+    assert rng.integers(0, 2 ** 63) == after  # the caller's generator moved on exactly as before
+    assert model.simulate_noise_many(rec, 3, 0).shape == (rec.n, 0)
+    with pytest.raises(ValueError, match="m = -1"):
+        model.simulate_noise_many(rec, 3, -1)
+
+
+@pytest.mark.parametrize("eid,p", [
+    ("warmup_exponential", {"amplitude": 7e-5, "tau_s": 120.0}),
+    ("thermal_two_node", {"amplitude": 8e-5, "fraction_slow": 0.7, "tau_fast_s": 18.0, "tau_slow_s": 160.0}),
+    ("sinusoidal_interference", {"amplitude": 3e-6, "freq_hz": 0.37, "phase_rad": 1.1}),
+])
+@pytest.mark.parametrize("kind", ["accelerometer", "gyro"])
+def test_analytic_jacobian_equals_the_differenced_prediction(eid, p, kind):
+    rec = make_experiment(kind, np.random.default_rng(3), n=4000)
+    model = Model(base_model(kind))
+    f = CandidateFitter(model, rec, CATALOGUE[eid], template=p)
+    assert f._analytic
+    x = f.pack(p, 1e-3, float(model.base.scale_factor))
+    ana = f.analytic_jacobian(x)
+    # the prediction is linear in bias and scale factor: their columns are 1 and the input
+    assert np.all(ana[:, 0] == 1.0) and (not f.with_sf or np.array_equal(ana[:, 1], model.stages(rec)[0]))
+    # the effect's coordinates: central differences of its term through the fitter's own
+    # coordinates (log ones included), steps of 1e-6 of their scales — the straightforward Jacobian,
+    # to its rounding (a sinusoid's phase of thousands of radians leaves ~1e-5 of the column)
+
+    def term(xx):
+        return f.effect.term(f.unpack(xx)[0], rec)
+
+    h = 1e-6 * f.x_scale() * np.eye(x.size)
+    num = np.column_stack([(term(x + h[j]) - term(x - h[j])) / (2 * h[j, j]) for j in range(f.n_base, x.size)])
+    assert np.all(np.abs(ana[:, f.n_base:] - num) <= 1e-3 * np.max(np.abs(num), axis=0))
+    # an output-stage effect (saturation) has no term: its fit differences the prediction
+    assert not CandidateFitter(model, rec, CATALOGUE["saturation"])._analytic

@@ -20,16 +20,22 @@ from __future__ import annotations
 import contextlib
 import csv
 import json
+import multiprocessing
+import os
 import sys
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
+from bench.app.blas import blas_threads, set_blas_threads
 from bench.app.commands.discover_runs import read_run
 from bench.discovery.data import CSV_COLUMNS, Record
 
 SENSORS = ("accelerometer", "gyro", "mhd")
 DEFAULT_OUT = "bench-data/discover"
+
 
 def register(sub) -> None:
     p = sub.add_parser("discover", help="name the effect the model lacks (discrepancy workflow)")
@@ -47,6 +53,8 @@ def register(sub) -> None:
     p.add_argument("--max-effects", type=int, default=4, help="most effects to add [4]")
     p.add_argument("--alpha", type=float, default=0.05, help="false-discovery rate [0.05]")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap null [0]")
+    p.add_argument("--jobs", type=int, default=default_jobs(),
+                   help=f"worker processes fitting the candidates side by side (same answer) [{default_jobs()}]")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
     p.set_defaults(func=discover_command)
@@ -107,10 +115,10 @@ def discover_command(args) -> int:
         raise ValueError(f"{label}: {rec.n} samples; discover needs at least 64")
     if not rec.is_uniform(rtol=0.05):
         raise ValueError(f"{label}: sample intervals vary by more than 5 %; discover needs a uniform record")
-    with status_line(not args.no_progress and not args.json) as say:
+    with status_line(not args.no_progress and not args.json) as say, candidate_map(args.jobs) as map_fn:
         say(f"{label}: {rec.n} samples at {rec.rate_hz:.6g} Hz; calibrating the {model.base.kind} model")
         result = discover(rec, model, max_effects=args.max_effects, alpha=args.alpha, seed=args.seed,
-                          progress=say)
+                          progress=say, map_fn=map_fn)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model_file = out / "discovered_model.toml"
@@ -124,6 +132,35 @@ def discover_command(args) -> int:
     else:
         print(summary(result, label, model_file, report))
     return 0
+
+
+def default_jobs() -> int:
+    """Worker processes for the candidates' fits: one per core this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+@contextlib.contextmanager
+def candidate_map(jobs: int) -> Iterator:
+    """The ``map`` each naming step fits its candidates with (``workflow.discover``'s
+    ``map_fn``): the builtin one for ``jobs`` = 1, else that of ``jobs`` worker processes,
+    forked from a server that has imported the discovery library (never from this process,
+    whose status line runs a thread). The fits draw no random numbers: the same answer.
+    BLAS runs one thread a process, here and in the workers (:mod:`bench.app.blas`: on these
+    tall, narrow matrices a second thread doubled the CPU time and saved no wall time), so
+    every ``jobs`` computes with the same BLAS and gives the same numbers."""
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"--jobs {jobs!r}; allowed: an integer >= 1")
+    with blas_threads(1):
+        if jobs == 1:
+            yield map
+            return
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(["bench.discovery.naming"])
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=set_blas_threads,
+                                 initargs=(1,)) as pool:
+            for _ in range(jobs):  # start the server and the workers now, while this process calibrates
+                pool.submit(int)
+            yield pool.map
 
 
 @contextlib.contextmanager
