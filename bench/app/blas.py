@@ -26,7 +26,7 @@ _SYMBOLS = (("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_thread
             ("openblas_set_num_threads", "openblas_get_num_threads"))
 
 
-def _openblas() -> list[tuple[Any, Any]]:
+def loaded_openblas() -> list[tuple[Any, Any]]:
     """(setter, getter) of each OpenBLAS this process has loaded."""
     try:
         with open("/proc/self/maps", encoding="utf-8", errors="replace") as fh:
@@ -51,14 +51,14 @@ def set_blas_threads(n: int) -> None:
     """Set every loaded OpenBLAS to ``n`` threads (a worker process's initializer)."""
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ValueError(f"BLAS threads {n!r}; allowed: an integer >= 1")
-    for setter, _ in _openblas():
+    for setter, _ in loaded_openblas():
         setter(n)
 
 
 @contextlib.contextmanager
 def blas_threads(n: int) -> Iterator[None]:
     """Every loaded OpenBLAS at ``n`` threads for the duration of the block, then as before."""
-    before = [(setter, int(getter())) for setter, getter in _openblas()]
+    before = [(setter, int(getter())) for setter, getter in loaded_openblas()]
     set_blas_threads(n)
     try:
         yield

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 import scipy.linalg  # noqa: F401 — scipy's own OpenBLAS, loaded beside numpy's
 
-from bench.app.blas import _openblas, blas_threads, set_blas_threads
+from bench.app.blas import blas_threads, loaded_openblas, set_blas_threads
 
 
 def test_blas_threads_sets_every_openblas_and_restores_it():
-    libs = _openblas()
+    libs = loaded_openblas()
     assert libs, "numpy and scipy ship OpenBLAS: both should be found"
     before = [int(get()) for _, get in libs]
     with blas_threads(1):
