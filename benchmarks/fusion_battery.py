@@ -22,7 +22,7 @@ Printed (the issue's criteria):
   and against the better sensor's *noise-free* amplitude error (what its estimate would read
   without its noise, from the generator's twin of the record: a bar that carries no noise, so
   a method that removed a sensor error which that sensor's noise happened to hide at a tone is
-  not failed for it), σ the method's own;
+  not failed for it), σ the better sensor's own and, sharpest, the method's own;
 * the count of pairs meeting each criterion, and both;
 * the win table: how often each method has the lowest RMS error, how often it is recommended,
   how often it meets the amplitude rule;

@@ -87,7 +87,6 @@ from bench.analysis.fusion_models import SensorModel
 
 #: taps (centre, ±1, ±2) of the symmetric filter undoing the first-order hold's sinc² droop to 4th order
 INVERSE_DROOP_TAPS = (1 + 2 * (23 / 180 - 1 / 90), -23 / 180, 1 / 90)
-LOOK_AHEAD = 2  # samples the inverse-droop filter looks ahead (the kernel's u_near stands in for the last two)
 HOLD_HALF_WIDTH = 6  # taps each side of the LF reading's hold correction: the causal output is this many
 # samples behind the model's last update
 HOLD_BAND = 0.25  # ... fitted over 0 … this fraction of the sample rate (≈ 10⁻⁶ there; unused above)
