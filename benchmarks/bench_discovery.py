@@ -131,7 +131,7 @@ def _tree_cpu_s() -> float:
 def startup_run(jobs: int) -> int:
     """Time ``discover`` on a fresh 30-min start-up run of the simulated station, the candidates
     fitted by ``jobs`` worker processes (as ``bench discover --jobs``)."""
-    from bench.app.commands.discover import candidate_map
+    from bench.app.commands.discover import candidate_map, realisation_map
     from bench.app.commands.discover_runs import read_run
     from bench.discovery.model import Model, base_model
     from bench.discovery.workflow import discover
@@ -147,13 +147,13 @@ def startup_run(jobs: int) -> int:
     print(f"start-up run: {rec.n} samples at {rec.rate_hz:g} Hz ({kind}); `bench run startup` {t_run:.1f} s")
     marks: list[tuple[float, str]] = []
     load0 = os.getloadavg()[0]
-    with candidate_map(jobs) as map_fn:
+    with candidate_map(jobs) as map_fn, realisation_map(jobs) as fill_map:
         t0, c0, cpu0 = time.perf_counter(), time.process_time(), _tree_cpu_s()
 
         def progress(msg: str) -> None:
             marks.append((time.perf_counter() - t0, msg))
 
-        d = discover(rec, Model(base_model(kind)), progress=progress, map_fn=map_fn)
+        d = discover(rec, Model(base_model(kind)), progress=progress, map_fn=map_fn, fill_map=fill_map)
         wall, cpu, cpu_all = time.perf_counter() - t0, time.process_time() - c0, _tree_cpu_s() - cpu0
     for t, msg in marks:
         if "named" in msg or "stopping" in msg:

@@ -52,6 +52,7 @@ from bench.discovery.effects_base import MIN_SNR
 from bench.discovery.effects_linalg import base_regressors, orthonormal, project_out
 from bench.discovery.effects_noise import StochasticEffect
 from bench.discovery.localize import input_correlations, jumps, time_segments
+from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.whiten import block_psd, innovations
 
@@ -198,7 +199,7 @@ def _projection_p(q: np.ndarray, observed: float, draw: Callable[[int], np.ndarr
 
 
 def shape_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA,
-                   rng: np.random.Generator, n_rep: int = 999) -> Evidence:
+                   rng: np.random.Generator, n_rep: int = 999, fill_map: MapFn = map) -> Evidence:
     """Does waveform ``model.effects[index]`` keep its shape on ``residual`` (= rec.y −
     model.predict(rec))? The variance its ``relaxed_basis`` explains in the residual (in-sample:
     a held-out score cannot see a transient inside one block) against the same on the model's
@@ -229,7 +230,7 @@ def shape_evidence(model: Model, rec: Record, index: int, residual: np.ndarray, 
     noisy = model.with_base(noise_sd=min(floor, float(model.base.noise_sd)) if procs else floor)
 
     def draw(m: int) -> np.ndarray:  # the model's own noise: white + its random processes
-        return noisy.simulate_noise_many(rec, rng, m)
+        return noisy.simulate_noise_many(rec, rng, m, fill_map=fill_map)
     p_val = _projection_p(q, observed, draw, n_rep)
     if p_val >= alpha:
         return Evidence(eff.id, True, p_val)
@@ -272,11 +273,12 @@ def beyond_leftover(model: Model, rec: Record, index: int, residual: np.ndarray,
 
 
 def evidence(model: Model, rec: Record, index: int, residual: np.ndarray, *, alpha: float = ALPHA,
-             rng: np.random.Generator, n_rep: int = 999) -> Evidence:
+             rng: np.random.Generator, n_rep: int = 999, fill_map: MapFn = map) -> Evidence:
     """The evidence for ``model.effects[index]`` as its family asks: a random process on its
-    innovations, a waveform on its relaxed shape (:func:`process_evidence`, :func:`shape_evidence`)."""
+    innovations, a waveform on its relaxed shape (:func:`process_evidence`, :func:`shape_evidence`;
+    ``fill_map`` fills the latter's noise realisations, :meth:`.Model.simulate_noise_many`)."""
     eff = model.entries()[index][0]
     if isinstance(eff, StochasticEffect):
         return process_evidence(model, rec, index, residual, alpha=alpha)
-    return shape_evidence(model, rec, index, residual, alpha=alpha, rng=rng, n_rep=n_rep)
+    return shape_evidence(model, rec, index, residual, alpha=alpha, rng=rng, n_rep=n_rep, fill_map=fill_map)
 

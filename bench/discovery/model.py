@@ -35,6 +35,7 @@ from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import DEFAULT_NOISE_SD, KINDS, Effect, reference_input
 from bench.discovery.effects_noise import StochasticEffect
+from bench.discovery.mapping import MapFn
 
 #: Allowed base-parameter ranges per kind (sensor unit): a raw QA-2000 bias < 4 mg (allow 50 mg),
 #: a FOG's ±1 deg/s (3600 deg/h), an MHD offset; scale factor normalised near 1; noise sd ≥ 0.
@@ -216,17 +217,25 @@ class Model:
         drawn alone, not as a difference of two full predictions (a null of many replicates)."""
         return self._noise_from_root(rec, _root(_generator(rng)))
 
-    def simulate_noise_many(self, rec: Record, rng, m: int) -> np.ndarray:
+    def simulate_noise_many(self, rec: Record, rng, m: int, *, fill_map: MapFn = map) -> np.ndarray:
         """(n, m): ``m`` successive :meth:`simulate_noise` draws from ``rng`` as columns (the same
         numbers), each realisation written in place into its row of an (m, n) array seen
         transposed — how a null's scorer reads replicates (no stacking, no copy). (Built in
-        worker processes they cost more CPU in moving 1.4 MB a realisation than they saved.)"""
+        worker processes they cost more CPU in moving 1.4 MB a realisation than they saved.)
+        Each realisation comes from its own root, drawn from ``rng`` first, so ``fill_map`` may
+        fill them in any order or side by side — a thread pool's ``map``: numpy's normal draws and
+        the compiled recursions release the GIL — with the same numbers."""
         rng = _generator(rng)
         if isinstance(m, bool) or int(m) != m or m < 0:
             raise ValueError(f"m = {m!r}; allowed: an integer >= 0")
+        roots = [_root(rng) for _ in range(int(m))]
         out = np.empty((int(m), rec.n))
-        for j in range(int(m)):
-            self._noise_from_root(rec, _root(rng), out[j])
+
+        def fill(j: int) -> None:
+            self._noise_from_root(rec, roots[j], out[j])
+
+        for _ in fill_map(fill, range(int(m))):
+            pass
         return out.T
 
     def _noise_from_root(self, rec: Record, root: int, out: np.ndarray | None = None) -> np.ndarray:

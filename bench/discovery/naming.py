@@ -127,16 +127,17 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
 
 
 def waveform_p_value(trial: Trial, model: Model, rec: Record, folds: np.ndarray, rng: np.random.Generator,
-                     n_rep: int) -> float:
+                     n_rep: int, fill_map: MapFn = map) -> float:
     """Bootstrap p-value of a fitted waveform's held-out linear score (1 without an
-    out-of-sample gain: conservatively not significant)."""
+    out-of-sample gain: conservatively not significant); ``fill_map``: how the model's noise
+    realisations are filled (:meth:`.Model.simulate_noise_many`)."""
     if not trial.score > 0 or trial.resid_full is None or trial.cols is None:
         return 1.0
     draw: Callable[[int], np.ndarray] | None = None
     if model.stochastic_effects():
 
         def model_noise(m: int) -> np.ndarray:  # the model's own noise: white + its stochastic effects
-            return model.simulate_noise_many(rec, rng, m)
+            return model.simulate_noise_many(rec, rng, m, fill_map=fill_map)
         draw = model_noise
     # the null's residual is the record's with the candidate's fit taken out: it keeps the
     # noise's autocorrelation but not the effect itself — a block holding a start-up
@@ -211,7 +212,7 @@ def fit_trial(model: Model, rec: Record, r: np.ndarray, folds: np.ndarray, err_b
 
 
 def with_p_value(trial: Trial, model: Model, rec: Record, folds: np.ndarray, rng: np.random.Generator,
-                 n_rep: int) -> Trial:
+                 n_rep: int, fill_map: MapFn = map) -> Trial:
     """``trial`` with its Monte-Carlo p-value (floored at :data:`.significance.P_FLOOR`): the
     bootstrap of a waveform's held-out score, a random process's null beside a coarse
     quantizer; the candidates take their turns on ``rng`` in the catalogue's order."""
@@ -219,7 +220,8 @@ def with_p_value(trial: Trial, model: Model, rec: Record, folds: np.ndarray, rng
         return replace(trial, p_value=process_p_value(trial, model, rec, rng, n_rep))
     if isinstance(trial.effect, HistogramEffect):
         return trial
-    return replace(trial, p_value=max(waveform_p_value(trial, model, rec, folds, rng, n_rep), sig.P_FLOOR))
+    return replace(trial, p_value=max(waveform_p_value(trial, model, rec, folds, rng, n_rep, fill_map),
+                                      sig.P_FLOOR))
 
 
 def judge(trial: Trial, significant: bool, q_value: float, model: Model, rec: Record, reading_sd: float,
@@ -250,7 +252,7 @@ def judge(trial: Trial, significant: bool, q_value: float, model: Model, rec: Re
 def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0, n_rep: int = 999,
                 n_blocks: int = sig.N_BLOCKS, only: tuple[str, ...] | None = None, catch_alls: bool = True,
                 exclude: frozenset[str] = frozenset(), progress: Callable[[str], None] | None = None,
-                map_fn: MapFn = map) -> Naming:
+                map_fn: MapFn = map, fill_map: MapFn = map) -> Naming:
     """Fit every applicable candidate to ``rec.y − model.predict(rec)``; see module docstring.
     ``only``: restrict to these ids (tests, quick runs); ``catch_alls`` False: no catch-all is
     tried (the slow structure is known to follow a logged column no effect explains);
@@ -258,7 +260,8 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     ``progress``: called with a short message (``"gauss_markov (5/17)"``) as each candidate's
     p-value is drawn; ``map_fn``: how the candidates' fits (:func:`fit_trial`, no random
     numbers) are mapped over them — the builtin ``map``, or an executor's ``map`` running them
-    side by side (the same numbers either way)."""
+    side by side (the same numbers either way); ``fill_map``: how the nulls' noise realisations
+    are filled in this process (a thread pool's ``map``: the same numbers)."""
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
     rng = np.random.default_rng(seed)
@@ -283,7 +286,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         if progress is not None:
             progress(f"{eff.id} ({k + 1}/{len(effects)})")
         # a worker process returns a copy of the effect: the catalogue's own object is kept
-        trials.append(with_p_value(replace(trial, effect=eff), model, rec, folds, rng, n_rep))
+        trials.append(with_p_value(replace(trial, effect=eff), model, rec, folds, rng, n_rep, fill_map))
     if not trials:
         return Naming((), None, (), ())
     reject, q = sig.benjamini_hochberg([t.p_value for t in trials], alpha)
@@ -305,7 +308,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         m_s = model.with_effect(s.id, s.params)
 
         def draw(m: int) -> np.ndarray:
-            return m_s.simulate_noise_many(rec, rng, m)
+            return m_s.simulate_noise_many(rec, rng, m, fill_map=fill_map)
         return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw)
 
     def signature_of(t: Trial) -> Evidence:
@@ -313,7 +316,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         m_t = model.with_effect(t.id, t.params)
         # a waveform's residual is its own fit's (bias and scale factor refitted with it)
         res = t.resid_full if t.resid_full is not None else rec.y - m_t.predict(rec)
-        return evidence(m_t, rec, len(m_t.effects) - 1, res, rng=rng, n_rep=n_rep)
+        return evidence(m_t, rec, len(m_t.effects) - 1, res, rng=rng, n_rep=n_rep, fill_map=fill_map)
 
     # the deterministic term's significance against the process: Bonferroni over the catalogue
     # (a realisation of a walk is as trendy as 1 % of walks about 1 % of the time)

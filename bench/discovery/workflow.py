@@ -166,11 +166,14 @@ def _fmt(v: float) -> str:
 
 def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 0.05, seed: int = 0,
              n_rep: int = 999, only: tuple[str, ...] | None = None,
-             progress: Callable[[str], None] | None = None, map_fn: MapFn = map) -> Discovery:
+             progress: Callable[[str], None] | None = None, map_fn: MapFn = map,
+             fill_map: MapFn = map) -> Discovery:
     """Run the loop a..e on ``rec`` from ``model``; see the module docstring. ``progress``:
     called with a short human message as each candidate is judged and after each step;
     ``map_fn``: how each naming step maps the candidates' fits over them (:mod:`.mapping`: an
-    executor's ``map`` runs them side by side; the answer is the same)."""
+    executor's ``map`` runs them side by side; the answer is the same); ``fill_map``: how the
+    nulls' noise realisations are filled in this process (a thread pool's ``map`` fills them side
+    by side: the same numbers, :meth:`.Model.simulate_noise_many`)."""
     if not isinstance(max_effects, int) or not 0 <= max_effects <= len(CATALOGUE):
         raise ValueError(f"max_effects = {max_effects!r}; allowed: an integer in [0, {len(CATALOGUE)}]")
     if not 0 < alpha < 1:
@@ -204,7 +207,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
 
             naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
                                  catch_alls=not unused_followed, exclude=frozenset(withdrawn_ids),
-                                 progress=step_say, map_fn=map_fn)
+                                 progress=step_say, map_fn=map_fn, fill_map=fill_map)
             set_aside = naming.set_aside
             # a catch-all whose innovations follow a logged column no catalogue effect reads: the
             # slow structure is that column's, out of the catalogue — no catch-all is named for it
@@ -238,7 +241,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         withdrawn_now = 0
         while steps:
             named_ids = {st.effect_id for st in steps}
-            evs = [evidence(model, rec, i, r_cur, rng=audit_rng, n_rep=n_rep)
+            evs = [evidence(model, rec, i, r_cur, rng=audit_rng, n_rep=n_rep, fill_map=fill_map)
                    for i, eid in enumerate(model.effect_ids) if eid in named_ids]
             if unexplained_structure(rec, r_cur, model, alpha=alpha):
                 # structure is left: a waveform must be significant beyond it, not only beyond white

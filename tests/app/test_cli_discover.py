@@ -153,8 +153,9 @@ def test_a_jittered_record_runs_without_the_sampled_filters(tmp_path, capsys):
 def test_candidates_fitted_in_worker_processes_give_the_same_discovery():
     # a warm-up and Gauss–Markov noise, on which a random walk and a Gauss–Markov are named: the
     # first step weighs a deterministic candidate against a null holding a process, the later
-    # ones' nulls are the model's noise — realisations built in the workers, fits there too
-    from bench.app.commands.discover import candidate_map
+    # ones' nulls are the model's noise — the fits in worker processes, the nulls' realisations
+    # filled by two threads
+    from bench.app.commands.discover import candidate_map, realisation_map
     from bench.discovery.model import base_model
     from bench.discovery.workflow import discover
 
@@ -168,10 +169,13 @@ def test_candidates_fitted_in_worker_processes_give_the_same_discovery():
     with candidate_map(1) as map_fn:
         one = discover(rec, start, n_rep=199, progress=msgs_1.append, map_fn=map_fn)
     msgs_2: list[str] = []
-    with candidate_map(2) as map_fn:
-        two = discover(rec, start, n_rep=199, progress=msgs_2.append, map_fn=map_fn)
+    with candidate_map(2) as map_fn, realisation_map(2) as fill_map:
+        two = discover(rec, start, n_rep=199, progress=msgs_2.append, map_fn=map_fn, fill_map=fill_map)
     assert json.dumps(one.to_dict(), default=repr) == json.dumps(two.to_dict(), default=repr)
     assert msgs_1 == msgs_2 and [s.effect_id for s in one.steps]
     with pytest.raises(ValueError, match="--jobs 0"):
         with candidate_map(0):
+            pass
+    with pytest.raises(ValueError, match="--jobs 0"):
+        with realisation_map(0):
             pass

@@ -3,6 +3,7 @@ equal the straightforward implementations they replaced (kept here as the refere
 floating-point noise — the noise draws to the bit, for a fixed seed."""
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -210,6 +211,10 @@ def test_simulate_noise_many_is_the_successive_draws(effects):
     assert model.simulate_noise_many(rec, 3, 0).shape == (rec.n, 0)
     with pytest.raises(ValueError, match="m = -1"):
         model.simulate_noise_many(rec, 3, -1)
+    # filled side by side by threads (each realisation from its own pre-drawn root): the same numbers
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        threaded = model.simulate_noise_many(rec, np.random.default_rng(11), 5, fill_map=pool.map)
+    assert np.array_equal(threaded, ref)
 
 
 @pytest.mark.parametrize("eid,p", [
