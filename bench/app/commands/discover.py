@@ -54,7 +54,8 @@ def register(sub) -> None:
     p.add_argument("--alpha", type=float, default=0.05, help="false-discovery rate [0.05]")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap null [0]")
     p.add_argument("--jobs", type=int, default=default_jobs(),
-                   help=f"worker processes fitting the candidates side by side (same answer) [{default_jobs()}]")
+                   help=f"worker processes fitting the candidates, and threads filling the nulls, side by side "
+                        f"(same answer) [{default_jobs()}]")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
     p.set_defaults(func=discover_command)
