@@ -203,6 +203,13 @@ def _record(spec: PairSpec, sensor: Sensor, rng: np.random.Generator) -> np.ndar
     return y
 
 
+def nominal_stamps(spec: PairSpec) -> np.ndarray:
+    """The record's time column (s): a sample is stamped at the end of its interval, where the
+    point-sampling sensor reads too (the last fine step of :func:`_record`'s interval)."""
+    n = int(round(spec.duration_s * spec.rate_hz))
+    return np.arange(n) / spec.rate_hz + (OVERSAMPLE - 1) / (OVERSAMPLE * spec.rate_hz)
+
+
 def make_pair(spec: PairSpec, noise_draw: int = 0) -> dict:
     """``{"t", "hf", "lf", "ref"}``: the record as a CSV would hold it — one time column (the
     reference's clock), both sensors' readings, the reference rate at those instants.
@@ -211,10 +218,7 @@ def make_pair(spec: PairSpec, noise_draw: int = 0) -> dict:
     if not (isinstance(noise_draw, int) and noise_draw >= 0):
         raise ValueError(f"noise_draw {noise_draw!r} must be an integer ≥ 0")
     rng = np.random.default_rng([SEED_BASE, spec.seed, 1] + ([noise_draw] if noise_draw else []))
-    n = int(round(spec.duration_s * spec.rate_hz))
-    t = np.arange(n) / spec.rate_hz
-    # a sample is stamped at the end of its interval; the point-sampling sensor reads there too
-    t = t + (OVERSAMPLE - 1) / (OVERSAMPLE * spec.rate_hz)
+    t = nominal_stamps(spec)
     return {"t": t, "hf": _record(spec, spec.hf, rng), "lf": _record(spec, spec.lf, rng), "ref": spec.rate(t)}
 
 
@@ -297,9 +301,7 @@ def _noise_at(residual: np.ndarray, rate_hz: float, freqs: np.ndarray, half: int
 def sample_instants(spec: PairSpec, sensor: Sensor) -> np.ndarray:
     """When (s, reference clock) each of ``sensor``'s samples is taken: its nominal stamp on its own
     skewed clock, less its delay (:func:`_record`; an averaging sensor's interval ends there)."""
-    n = int(round(spec.duration_s * spec.rate_hz))
-    nominal = np.arange(n) / spec.rate_hz + (OVERSAMPLE - 1) / (OVERSAMPLE * spec.rate_hz)
-    return nominal * (1 + sensor.clock_ppm * 1e-6) - sensor.delay_s
+    return nominal_stamps(spec) * (1 + sensor.clock_ppm * 1e-6) - sensor.delay_s
 
 
 def alone_noise_free_pct(spec: PairSpec, record: dict, t_s: np.ndarray, alone: np.ndarray, which: str) -> np.ndarray:

@@ -141,6 +141,12 @@ def default_jobs() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
+def check_jobs(jobs: int) -> None:
+    """``--jobs``: an integer >= 1 (ValueError naming the value otherwise)."""
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"--jobs {jobs!r}; allowed: an integer >= 1")
+
+
 @contextlib.contextmanager
 def candidate_map(jobs: int) -> Iterator:
     """The ``map`` each naming step fits its candidates with (``workflow.discover``'s
@@ -150,8 +156,7 @@ def candidate_map(jobs: int) -> Iterator:
     BLAS runs one thread a process, here and in the workers (:mod:`bench.app.blas`: on these
     tall, narrow matrices a second thread doubled the CPU time and saved no wall time), so
     every ``jobs`` computes with the same BLAS and gives the same numbers."""
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise ValueError(f"--jobs {jobs!r}; allowed: an integer >= 1")
+    check_jobs(jobs)
     with blas_threads(1):
         if jobs == 1:
             yield map
@@ -172,8 +177,7 @@ def realisation_map(jobs: int) -> Iterator:
     comes from its own pre-drawn root and numpy's normal draws and the compiled recursions release
     the GIL, so they fill side by side with the same numbers (the flicker nulls 2.1× faster on two
     cores; in worker processes their 1.4 MB each cost more to move than they saved)."""
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise ValueError(f"--jobs {jobs!r}; allowed: an integer >= 1")
+    check_jobs(jobs)
     if jobs == 1:
         yield map
         return
