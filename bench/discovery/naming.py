@@ -301,15 +301,21 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
                             kind, reading_sd)
     named = ([det_pick] if det_pick is not None else []) + [t for t in named if t is not det_pick]
 
+    # the deterministic term's significance against the process: Bonferroni over the catalogue
+    # (a realisation of a walk is as trendy as 1 % of walks about 1 % of the time)
+    det_alpha = alpha / max(len(trials), 1)
+
     def det_p_under(s: Trial, d: Trial) -> float:
-        """p of ``d``'s held-out score when the model's noise includes stochastic ``s``."""
+        """p of ``d``'s held-out score when the model's noise includes stochastic ``s`` — drawn
+        only as far as needed to tell whether it is below ``det_alpha`` (all it is used for)."""
         if d.cols is None or not np.isfinite(d.lin):
             return 1.0
         m_s = model.with_effect(s.id, s.params)
 
         def draw(m: int) -> np.ndarray:
             return m_s.simulate_noise_many(rec, rng, m, fill_map=fill_map)
-        return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw)
+        return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw,
+                                     below=det_alpha)
 
     def signature_of(t: Trial) -> Evidence:
         """A catch-all's evidence (:mod:`.evidence`): the model with it, on the residual it leaves."""
@@ -318,9 +324,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         res = t.resid_full if t.resid_full is not None else rec.y - m_t.predict(rec)
         return evidence(m_t, rec, len(m_t.effects) - 1, res, rng=rng, n_rep=n_rep, fill_map=fill_map)
 
-    # the deterministic term's significance against the process: Bonferroni over the catalogue
-    # (a realisation of a walk is as trendy as 1 % of walks about 1 % of the time)
-    best, rejected = choose(named, model, rec, kind, det_p_under, alpha / max(len(trials), 1), signature_of)
+    best, rejected = choose(named, model, rec, kind, det_p_under, det_alpha, signature_of)
     set_aside = tuple(ev.describe() for ev in rejected)
     followed = tuple(sorted({c for ev in rejected for c in ev.columns}))
     if best is None or best.err_c is None or best.err_b is None:

@@ -167,7 +167,7 @@ CLEAR_Z = 8.0
 def bootstrap_p_value(r: np.ndarray, x_nuis: np.ndarray, x_cand: list[np.ndarray], folds: np.ndarray,
                       observed: float, *, n_rep: int = 999, block_len: int | None = None,
                       rng: np.random.Generator, chunk: int = 100, stop_after: int = 10,
-                      draw: Callable[[int], np.ndarray] | None = None) -> float:
+                      draw: Callable[[int], np.ndarray] | None = None, below: float | None = None) -> float:
     """``(1 + #{null ≥ observed}) / (n_rep + 1)`` under the circular block bootstrap of ``r``.
 
     Sequential both ways: replicates are drawn in chunks and drawing stops once ``stop_after``
@@ -177,17 +177,19 @@ def bootstrap_p_value(r: np.ndarray, x_nuis: np.ndarray, x_cand: list[np.ndarray
     the remaining replicates cannot change the answer (a Gaussian tail beyond 8 sd is 6e-16 per
     replicate) and p is the full run's floor ``1/(n_rep + 1)``. ``draw(m)``: an (n, m) array of
     null residuals replacing the block bootstrap (the workflow passes the model's own noise when
-    the model has stochastic effects: a random walk's memory is longer than any bootstrap block)."""
+    the model has stochastic effects: a random walk's memory is longer than any bootstrap block);
+    ``below``: only whether p < ``below`` is asked (:func:`sequential_p_value`)."""
     block_len = default_block_len(r.size) if block_len is None else block_len
     scorer = LinearScorer(x_nuis, x_cand, folds)
 
     def null_scores(m: int) -> np.ndarray:
         return scorer.scores(block_bootstrap(r, block_len, m, rng) if draw is None else draw(m))
-    return sequential_p_value(observed, null_scores, n_rep=n_rep, chunk=chunk, stop_after=stop_after)
+    return sequential_p_value(observed, null_scores, n_rep=n_rep, chunk=chunk, stop_after=stop_after,
+                              below=below)
 
 
 def sequential_p_value(observed: float, draw: Callable[[int], np.ndarray], *, n_rep: int = 999,
-                       chunk: int = 100, stop_after: int = 10) -> float:
+                       chunk: int = 100, stop_after: int = 10, below: float | None = None) -> float:
     """Monte-Carlo p ``(1 + #{null ≥ observed}) / (n_rep + 1)`` of ``observed`` against the null
     statistics ``draw(m)`` returns (m of them a call), drawn in chunks of ``chunk`` and stopped
     early both ways: once ``stop_after`` null scores reached the observed one, p = exceedances /
@@ -196,7 +198,15 @@ def sequential_p_value(observed: float, draw: Callable[[int], np.ndarray], *, n_
     null sds above the null's mean — p is the full run's floor ``1/(n_rep + 1)`` (a Gaussian
     tail beyond 8 sd is 6e-16 per replicate: the remaining replicates cannot change the answer).
     One loop for every Monte-Carlo test of the package (the bootstrap of a candidate's held-out
-    score, the projection test of a shape's relaxed basis)."""
+    score, the projection test of a shape's relaxed basis).
+
+    ``below``: the caller asks only whether p < ``below`` (a decision, its p reported nowhere):
+    drawing also stops once ``(1 + exceedances) / (n_rep + 1) ≥ below`` — the full run's p can
+    only be larger, so the answer is already known — and that bound is returned. (A
+    deterministic term judged against a flicker null at 0.05/21 stopped after 100 replicates
+    instead of 700.)"""
+    if below is not None and not 0 < below <= 1:
+        raise ValueError(f"below = {below!r}; allowed: (0, 1]")
     exceed, done = 0, 0
     nulls: list[np.ndarray] = []
     while done < n_rep:
@@ -207,6 +217,8 @@ def sequential_p_value(observed: float, draw: Callable[[int], np.ndarray], *, n_
         done += m
         if exceed >= stop_after:
             return exceed / done
+        if below is not None and (1.0 + exceed) / (n_rep + 1.0) >= below:
+            return (1.0 + exceed) / (n_rep + 1.0)
         if exceed == 0 and done >= 2 * chunk and done < n_rep:
             every = np.concatenate(nulls)
             sd = float(np.std(every))

@@ -143,6 +143,36 @@ def test_sequential_p_value_is_the_full_runs_p_or_stops_where_it_cannot_change(o
         assert p == 1 / (n_rep + 1) and np.sum(null >= observed) == 0
 
 
+@settings(max_examples=60, deadline=None)
+@given(observed=st.floats(-1.0, 5.0), seed=st.integers(0, 2 ** 16), n_rep=st.sampled_from([99, 199, 999]),
+       below=st.sampled_from([0.002, 0.0024, 0.01, 0.05]))
+def test_a_decision_below_a_level_stops_early_and_decides_as_the_full_run(observed, seed, n_rep, below):
+    """``below``: only whether p < below is asked (the workflow's deterministic term against a
+    random process). The answer is the same as without it, never more replicates are drawn, and
+    once one exceedance rules it out drawing stops within a chunk."""
+    null = np.random.default_rng(seed).standard_normal(n_rep)
+
+    def counted():
+        drawn = []
+
+        def draw(m: int) -> np.ndarray:
+            out = null[len(drawn):len(drawn) + m]
+            drawn.extend(out)
+            return out
+        return drawn, draw
+    drawn_all, draw_all = counted()
+    drawn_dec, draw_dec = counted()
+    p_all = sig.sequential_p_value(observed, draw_all, n_rep=n_rep)
+    p_dec = sig.sequential_p_value(observed, draw_dec, n_rep=n_rep, below=below)
+    assert (p_dec < below) == (p_all < below)
+    assert len(drawn_dec) <= len(drawn_all)
+    first = np.flatnonzero(np.cumsum(null >= observed) + 1 >= below * (n_rep + 1))
+    if first.size:  # drawing stops in the chunk of 100 where the bound reached the level
+        assert len(drawn_dec) <= (first[0] // 100 + 1) * 100
+    with pytest.raises(ValueError, match="below = 0"):
+        sig.sequential_p_value(observed, draw_dec, n_rep=n_rep, below=0.0)
+
+
 def test_gap_metrics_white_is_at_floor_and_ljung_box_matches_statsmodels():
     from statsmodels.stats.diagnostic import acorr_ljungbox
 
