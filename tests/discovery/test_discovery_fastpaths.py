@@ -18,6 +18,7 @@ from bench.discovery.experiments import make_experiment
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import autocorrelation
 from bench.discovery.model import Model, base_model
+from bench.discovery.whiten import state_space
 
 
 def visibility_reference(y, s):
@@ -244,3 +245,44 @@ def test_analytic_jacobian_equals_the_differenced_prediction(eid, p, kind):
     assert np.all(np.abs(ana[:, f.n_base:] - num) <= 1e-3 * np.max(np.abs(num), axis=0))
     # an output-stage effect (saturation) has no term: its fit differences the prediction
     assert not CandidateFitter(model, rec, CATALOGUE["saturation"])._analytic
+
+
+def kalman_reference(y, ss, white_var):
+    """The textbook filter in matrix form, every covariance update done (no steady-state switch)."""
+    x, p = np.zeros(ss.m), ss.p0.copy()
+    e, s = np.empty(y.size), np.empty(y.size)
+    for k in range(y.size):
+        ph = p @ ss.h
+        s[k] = white_var + ss.h @ ph
+        e[k] = y[k] - ss.h @ x
+        x = ss.f @ (x + ph * e[k] / s[k])
+        p = ss.f @ (p - np.outer(ph, ph) / s[k]) @ ss.f.T + ss.q
+    return e, s
+
+
+@pytest.mark.parametrize("kind,effects,steady", [
+    ("accelerometer", (("gauss_markov", {"sigma": 4e-6, "tau_s": 2.0}),), True),
+    ("accelerometer", (("rate_random_walk", {"k_per_rs": 1e-7}),), True),
+    # flicker's slowest state outlives the record: no steady state, every update done
+    ("accelerometer", (("flicker_noise", {"b": 3e-6, "tau_min_s": 0.05}),
+                       ("gauss_markov", {"sigma": 4e-6, "tau_s": 20.0})), False),
+    # white angle noise: a moving-average block, F not diagonal (the general kernel)
+    ("gyro", (("angle_quantization", {"q_angle": 2e-4}), ("gauss_markov", {"sigma": 1e-3, "tau_s": 5.0})), True),
+], ids=["gm", "rw", "flicker+gm", "angle-quantization+gm"])
+def test_the_kalman_filter_is_the_full_recursion(kind, effects, steady):
+    """The compiled filters (F diagonal, or block-diagonal) give the textbook recursion's
+    innovations and variances; once a covariance update leaves P bit for bit unchanged they only
+    propagate the state (the same gain from there on)."""
+    rate_hz, n = 10.0, 6000
+    sd = base_model(kind).noise_sd
+    model = Model(base_model(kind))
+    for eid, p in effects:
+        model = model.with_effect(eid, p)
+    rec = make_experiment(kind, np.random.default_rng(1), n=n, rate_hz=rate_hz)
+    y = model.simulate_noise(rec, np.random.default_rng(5))
+    ss = state_space(rate_hz, n, model.stochastic_effects())
+    e, s = ss.filter(y, sd ** 2)
+    e_ref, s_ref = kalman_reference(y, ss, sd ** 2)
+    assert np.allclose(s, s_ref, rtol=1e-9, atol=0) and np.allclose(e, e_ref, rtol=1e-7, atol=1e-9 * sd)
+    # where it is reached, the steady state comes well inside the record: the switch is exercised
+    assert np.all(s[n // 2:] == s[-1]) == steady
