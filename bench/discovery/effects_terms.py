@@ -334,8 +334,9 @@ class SinusoidalInterference(Effect):
     def term_gradient(self, p, rec, names):
         tt = rec.t_s - rec.t_s[0]
         ph = 2 * np.pi * p["freq_hz"] * tt + p["phase_rad"]
-        d = {"amplitude": lambda: np.sin(ph), "phase_rad": lambda: p["amplitude"] * np.cos(ph),
-             "freq_hz": lambda: p["amplitude"] * np.cos(ph) * (2 * np.pi * tt)}
+        a_cos = p["amplitude"] * np.cos(ph) if {"phase_rad", "freq_hz"} & set(names) else None  # once for both
+        d = {"amplitude": lambda: np.sin(ph), "phase_rad": lambda: a_cos,
+             "freq_hz": lambda: a_cos * (2 * np.pi * tt)}
         return [d[k]() for k in names]
 
     def drawable_range(self, q, rec, kind):

@@ -305,8 +305,17 @@ class CandidateFitter:
                 sse = float(np.sum((y - self.predict(x))[rows] ** 2))
                 return Fit(p, self._std(x, rows, sse, with_std), bias, sf, sse, x, bool(np.isfinite(sse)))
         best_x, best_cost = None, np.inf
-        fun = lambda x: (y - self.predict(x))[rows]
-        jac = (lambda x: -self.analytic_jacobian(x)[rows]) if self._analytic else "2-point"
+        every = bool(rows.all())  # the full record: no row selection (a copy per evaluation)
+
+        def fun(x: np.ndarray) -> np.ndarray:
+            e = y - self.predict(x)
+            return e if every else e[rows]
+
+        def neg_jacobian(x: np.ndarray) -> np.ndarray:  # of fun: minus the prediction's, in place
+            j = self.analytic_jacobian(x)
+            j = j if every else j[rows]
+            return np.negative(j, out=j)
+        jac = neg_jacobian if self._analytic else "2-point"
         for x0 in starts:
             x0 = np.clip(x0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
             c0 = float(np.sum(fun(x0) ** 2))
