@@ -259,9 +259,12 @@ class Effect:
             raise ValueError(f"effect {self.id!r}: missing parameter(s) {missing}; required: {list(names)}")
         return {q.name: q.check(p[q.name], self.id) for q in (self.params_for(kind) if kind else self.params)}
 
-    def free_params(self, p: Mapping[str, float], kind: str, rec: Record) -> tuple[Param, ...]:
+    def free_params(self, p: Mapping[str, float], kind: str, rec: Record,
+                    rows: np.ndarray | None = None) -> tuple[Param, ...]:
         """The parameters a fit on rec moves from the values ``p``, with the bounds it keeps them
-        in (default: all of the kind's, in their physical ranges)."""
+        in (default: all of the kind's, in their physical ranges); ``rows``: the samples the fit
+        sees when not all (a fold's training blocks), where a range the rows cannot resolve may
+        be narrowed (a transient's fast node: :class:`.effects_thermal.ThermalTwoNode`)."""
         return self.params_for(kind)
 
     def coordinate_scale(self, q: Param, rec: Record) -> float | None:

@@ -112,7 +112,8 @@ class BiasJump(Effect):
     def localized(self, rec: Record) -> bool:
         return True
 
-    def free_params(self, p: Mapping[str, float], kind: str, rec: Record) -> tuple[Param, ...]:
+    def free_params(self, p: Mapping[str, float], kind: str, rec: Record,
+                    rows: np.ndarray | None = None) -> tuple[Param, ...]:
         """Size and time of each used slot (the first always), times inside the record."""
         used = {1} | {k for k in range(2, MAX_JUMPS + 1) if p.get(f"size_{k}", 0.0) != 0.0}
         t0, t1 = float(rec.t_s[0]), float(rec.t_s[-1])

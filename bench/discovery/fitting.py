@@ -162,17 +162,19 @@ class CandidateFitter:
     linear least-squares solve — both give the full model's numbers."""
 
     def __init__(self, model: Model, rec: Record, effect: Effect, *, noise_is_floor: bool = True,
-                 template: Mapping[str, float] | None = None):
+                 template: Mapping[str, float] | None = None, rows: np.ndarray | None = None):
         """``noise_is_floor``: ``model.base.noise_sd`` is the residual floor measured without the
         effect (the naming step), so an output transform's own noise share is taken out of it
         (``Effect.pre_transform_sd``: the rounding error for quantization) before its dithered
-        prediction; False when it is already the noise sd before the transform."""
+        prediction; False when it is already the noise sd before the transform. ``rows``: the
+        samples its fits will see, when not all (``Effect.free_params`` may narrow a range they
+        cannot resolve)."""
         self.model, self.rec, self.effect = model, rec, effect
         self.noise_is_floor = noise_is_floor
         self.kind = model.base.kind
         every = effect.params_for(self.kind)
         self.template = dict(template) if template is not None else {q.name: q.low for q in every}
-        self.qs = effect.free_params(self.template, self.kind, rec) if template is not None else every
+        self.qs = effect.free_params(self.template, self.kind, rec, rows) if template is not None else every
         self.with_sf = rec.varies("input")  # a constant input leaves the scale factor out
         self.n_base = 2 if self.with_sf else 1
         sd = max(float(model.base.noise_sd), 1e-300)

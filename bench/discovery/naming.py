@@ -88,7 +88,9 @@ def _block_ids(n: int, n_blocks: int) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(np.diff(folds) != 0)]).astype(int)
 
 
-def _base_errors(r: np.ndarray, x_nuis: np.ndarray, folds: np.ndarray) -> np.ndarray:
+def base_errors(r: np.ndarray, x_nuis: np.ndarray, folds: np.ndarray) -> np.ndarray:
+    """Squared held-out errors of the nuisance regressors alone (each fold fitted on the other):
+    the baseline of every candidate's held-out score."""
     err = np.zeros_like(r)
     for k in (0, 1):
         te = folds == k
@@ -114,7 +116,7 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
         # starts from the training blocks alone: a shape (a frequency, a time constant) chosen
         # with the held-out samples in view would leak them into the held-out score
         starts_k = effect.fit_starts(rec, r, kind=kind, rows=~te)[:2]
-        fk_fitter = CandidateFitter(model, rec, effect, template=starts_k[0] if starts_k else None)
+        fk_fitter = CandidateFitter(model, rec, effect, template=starts_k[0] if starts_k else None, rows=~te)
         fk = fk_fitter.fit([fk_fitter.pack(p, b0, s0) for p in starts_k], rows=~te, max_nfev=40, with_std=False)
         pred = fk_fitter.predict(fk.x)
         err_c[te] = (rec.y - pred)[te] ** 2
@@ -268,7 +270,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     r = rec.y - model.predict(rec)
     folds = sig.block_folds(rec.n, n_blocks)
     x_nuis = base_regressors(rec)
-    err_b = _base_errors(r, x_nuis, folds)
+    err_b = base_errors(r, x_nuis, folds)
     effects = applicable(model, rec)
     if only is not None:
         effects = [e for e in effects if e.id in only]
