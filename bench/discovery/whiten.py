@@ -50,34 +50,18 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - 
         for i in range(m):
             pred += h[i] * x[i]
         e = y[k] - pred
-        if steady:  # hp and s are those of the fixed point
-            out_e[k] = e
-            out_s[k] = s
-            for i in range(m):
-                x[i] += hp[i] * e / s
+        if not steady:  # else hp and s are those of the fixed point
+            s = r_var
             for i in range(m):
                 acc = 0.0
-                for a in range(lo[i], hi[i]):
-                    acc += f[i, a] * x[a]
-                xn[i] = acc
-            for i in range(m):
-                x[i] = xn[i]
-            continue
-        s = r_var
-        for i in range(m):
-            acc = 0.0
-            for j in range(m):
-                acc += p[i, j] * h[j]
-            hp[i] = acc  # (P hᵀ)_i
-            s += h[i] * acc
+                for j in range(m):
+                    acc += p[i, j] * h[j]
+                hp[i] = acc  # (P hᵀ)_i
+                s += h[i] * acc
         out_e[k] = e
         out_s[k] = s
         for i in range(m):  # update with gain K = P hᵀ / S
             x[i] += hp[i] * e / s
-        for i in range(m):
-            for j in range(m):
-                prev[i, j] = p[i, j]
-                p[i, j] -= hp[i] * hp[j] / s
         # predict: x ← F x, P ← F P Fᵀ + Q, F block-diagonal (row i reads columns lo[i]..hi[i])
         for i in range(m):
             acc = 0.0
@@ -86,6 +70,13 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - 
             xn[i] = acc
         for i in range(m):
             x[i] = xn[i]
+        if steady:
+            continue
+        for i in range(m):
+            for j in range(m):
+                prev[i, j] = p[i, j]
+                p[i, j] -= hp[i] * hp[j] / s
+        for i in range(m):
             for j in range(m):
                 acc = 0.0
                 for a in range(lo[i], hi[i]):
