@@ -108,13 +108,18 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
 
 
 def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray, n_blocks: int,
-                 kind: str, noise_sd: float = 0.0) -> Trial | None:
+                 kind: str, noise_sd: float = 0.0,
+                 refitted_sse: Callable[[Trial], float] | None = None) -> Trial | None:
     """Among deterministic named candidates whose held-out score is within one (paired, block
     jackknife) standard error of the best's, the one with the fewest parameters (Occam: a long
     warm-up time constant is a drift on a short record) — unless the best explains, in-sample,
     more than ``MIN_SNR²·noise_sd²`` beyond it: what the richer shape adds is then an effect of
     its own size (a two-node warm-up's fast node lives in the first blocks of the record, where
-    held-out blocks barely see it)."""
+    held-out blocks barely see it). That gain is judged on ``refitted_sse`` when given — the sum of
+    squares with the model's other effects refitted beside each shape: a shape that nests the pick
+    also absorbs the error an earlier effect was fitted with (a temperature scale factor fitted
+    before a warm-up was known; two nodes took 26 σ² more of it than one, 12 once both had the
+    scale factor refitted)."""
     if best is None or best.effect.stochastic or best.err_c is None or best.err_b is None:
         return best
 
@@ -138,7 +143,9 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
         pick = c
     # a named shape that holds the pick as a special case (Effect.nests) and adds more than the
     # size gate to it in-sample is the better name, whatever the held-out blocks say
+    gate = MIN_SNR ** 2 * noise_sd ** 2
     for c in named:
-        if pick.id in c.effect.nests and noise_sd > 0 and sse(pick) - sse(c) > MIN_SNR ** 2 * noise_sd ** 2:
-            pick = c
+        if pick.id in c.effect.nests and noise_sd > 0 and sse(pick) - sse(c) > gate:
+            if refitted_sse is None or refitted_sse(pick) - refitted_sse(c) > gate:
+                pick = c
     return pick

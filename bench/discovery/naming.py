@@ -55,6 +55,7 @@ import numpy as np
 
 from bench.discovery import significance as sig
 from bench.discovery import stochastic as sto
+from bench.discovery.calibration import calibrate
 from bench.discovery.candidates import Candidate, Naming, Trial
 from bench.discovery.choosing import choose, parsimonious
 from bench.discovery.data import Record
@@ -299,8 +300,13 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     judged.sort(key=lambda tc: -tc[1].score)
     candidates = tuple(c for _, c in judged)
     named = [t for t, c in judged if c.named]
+    def refitted_sse(t: Trial) -> float:
+        """Sum of squares of the residual with ``t`` added and every parameter refitted."""
+        res = rec.y - calibrate(model.with_effect(t.id, t.params), rec).predict(rec)
+        return float(np.sum((res - res.mean()) ** 2))
+
     det_pick = parsimonious(next((t for t in named if not t.effect.stochastic), None), named, blocks, n_blocks,
-                            kind, reading_sd)
+                            kind, reading_sd, refitted_sse)
     named = ([det_pick] if det_pick is not None else []) + [t for t in named if t is not det_pick]
 
     # the deterministic term's significance against the process: Bonferroni over the catalogue
