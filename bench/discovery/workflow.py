@@ -18,8 +18,11 @@ f. audit: every named effect's own signature on the final model (:mod:`bench.dis
 g. re-choose: when the audit withdrew a name, name again (c–e) without the withdrawn effects,
    from the audited model — the next-best candidate for the structure it stood for (the nesting
    two-node warm-up after a one-exponential warm-up whose shape failed, a random process a
-   withdrawn deterministic fit had taken) gets its turn — and audit again (f); at most
-   :data:`MAX_ROUNDS` rounds, and a round that names nothing new ends the loop.
+   withdrawn deterministic fit had taken, a look-alike) gets its turn — and audit again (f). The
+   audit withdraws one effect a round (the worst) while a re-choice can follow, so the others
+   are judged beside what replaced it; the last round, and a re-choice that named nothing, audit
+   to the end. At most :data:`MAX_ROUNDS` rounds; a round whose audit withdraws nothing ends the
+   loop.
    Structure left that no candidate explains is reported as "unexplained structure" with where
    it is
    (:func:`bench.discovery.localize.unexplained_structure`: the residual, or its Kalman
@@ -117,8 +120,9 @@ class Discovery:
 
 
 #: Rounds of naming then auditing: after a round whose audit withdrew a name, the loop names again
-#: without the withdrawn effects (a re-choice) and audits again.
-MAX_ROUNDS = 3
+#: without the withdrawn effects (a re-choice) and audits again (one withdrawal a round but the
+#: last: five rounds where three held a whole audit each).
+MAX_ROUNDS = 5
 
 
 def model_noise(model: Model, rec: Record, seed: int) -> np.ndarray:
@@ -232,12 +236,15 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
             model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
             it += 1
             named_now += 1
-        if _round > 0 and named_now == 0:
-            break  # nothing re-chosen: the model passed its last audit
         # f: every named effect's own signature on the final model: a shape that leaves structure
         # where it acts (a sinusoid on a square wave, K3 on a tanh) or a process whose innovations
         # are not white is withdrawn, the worst first, and what it stood for is reported as
-        # unexplained — unless a re-choice explains it
+        # unexplained — unless a re-choice explains it. One withdrawal a round, then the re-choice,
+        # while rounds are left and the last re-choice named something: the others are judged
+        # beside what replaced it (K2 named for a scale-factor asymmetry failed its shape, and a
+        # temperature scale factor and a jump named beside it failed theirs while the asymmetry
+        # was missing — all three were withdrawn; now K2 alone, then the asymmetry is named)
+        full_audit = _round == MAX_ROUNDS - 1 or (_round > 0 and named_now == 0)
         withdrawn_now = 0
         while steps:
             named_ids = {st.effect_id for st in steps}
@@ -261,6 +268,8 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
             steps = [st for st in steps if st.effect_id != worst.effect_id]
             gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
             loc = _structure(model, rec, r_cur)
+            if not full_audit:
+                break  # re-choose before judging the others
         if not withdrawn_now:
             break
         # g: re-choose — name again without what was withdrawn: the next-best candidate for the

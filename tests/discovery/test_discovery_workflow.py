@@ -3,7 +3,9 @@ calibration and the whole loop on data with a hidden effect (a fast subset of th
 
 from __future__ import annotations
 
+import importlib
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -493,3 +495,24 @@ def test_a_shape_nesting_the_pick_must_add_beyond_what_an_earlier_effects_error_
         assert best is not None
         one += best.id == "warmup_exponential"
     assert one >= 9
+
+
+def test_the_audit_withdraws_one_name_then_re_chooses_before_judging_the_others(monkeypatch):
+    """The scorecard's triple scale-factor asymmetry + temperature scale factor + bias jump
+    (accelerometer, seed 3002): K2 is named for the asymmetry (its look-alike), then the scale
+    factor and the jump beside it. K2's shape fails its audit; judged beside the missing
+    asymmetry the scale factor and the jump failed theirs too and all were withdrawn — nothing
+    named, gap 2.5. Withdrawing K2 alone and re-choosing names the asymmetry, and the three
+    hold."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    scorecard = importlib.import_module("discovery_scorecard")
+    hidden = ("scale_factor_asymmetry", "temperature_scale_factor", "bias_jump")
+    rec, _, _ = scorecard.hidden_case("accelerometer", hidden, 3002, 3000)
+    said: list[str] = []
+    d = discover(rec, Model(base_model("accelerometer")), max_effects=4, seed=3002, progress=said.append)
+    assert sorted(s.effect_id for s in d.steps) == sorted(hidden)
+    assert any(w.startswith("k2_nonlinearity") for w in d.withdrawn)
+    # after each withdrawal but the last round's, the next thing said is the re-choice
+    for i, msg in enumerate(said[:-1]):
+        if msg.startswith("withdrawn"):
+            assert said[i + 1] == "re-choosing after the withdrawal"
