@@ -21,8 +21,10 @@ g. re-choose: when the audit withdrew a name, name again (c–e) without the wit
    withdrawn deterministic fit had taken, a look-alike) gets its turn — and audit again (f). The
    audit withdraws one effect a round (the worst) while a re-choice can follow, so the others
    are judged beside what replaced it; the last round, and a re-choice that named nothing, audit
-   to the end. At most :data:`MAX_ROUNDS` rounds; a round whose audit withdraws nothing ends the
-   loop.
+   to the end. The withdrawn effects sit out a re-choice until it names something; beside that
+   new name they may be named again (K2 withdrawn when named for an asymmetry, named again beside
+   the asymmetry when both are there; a note says so). At most :data:`MAX_ROUNDS` rounds; a round
+   whose audit withdraws nothing ends the loop.
    Structure left that no candidate explains is reported as "unexplained structure" with where
    it is
    (:func:`bench.discovery.localize.unexplained_structure`: the residual, or its Kalman
@@ -209,8 +211,12 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
             def step_say(msg: str, _it: int = it) -> None:
                 say(f"step {_it + 1}: {msg}")
 
+            # the withdrawn effects sit out the re-choice until it names something: beside a new
+            # name (the look-alike of the one that failed) they may hold again (K2 beside the
+            # asymmetry it had been named for)
             naming = name_effect(model, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=only,
-                                 catch_alls=not unused_followed, exclude=frozenset(withdrawn_ids),
+                                 catch_alls=not unused_followed,
+                                 exclude=frozenset(withdrawn_ids) if named_now == 0 else frozenset(),
                                  progress=step_say, map_fn=map_fn, fill_map=fill_map)
             set_aside = naming.set_aside
             # a catch-all whose innovations follow a logged column no catalogue effect reads: the
@@ -276,6 +282,9 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         # structure it stood for (the nesting shape after its special case, a random process a
         # withdrawn deterministic fit had absorbed) gets its turn, and is audited in its turn
         say("re-choosing after the withdrawal")
+    for eid in sorted(withdrawn_ids & {st.effect_id for st in steps}):
+        notes.append(f"{eid} was withdrawn (above) and named again beside an effect named after it; "
+                     "its signature holds in the final model")
     # what no catalogue effect explained: the residual (white model) or its Kalman innovations
     # (stochastic model) against the model's own noise, family-wise at alpha
     unexplained = unexplained_structure(rec, r_cur, model, alpha=alpha)

@@ -516,3 +516,20 @@ def test_the_audit_withdraws_one_name_then_re_chooses_before_judging_the_others(
     for i, msg in enumerate(said[:-1]):
         if msg.startswith("withdrawn"):
             assert said[i + 1] == "re-choosing after the withdrawal"
+
+
+def test_a_withdrawn_effect_may_be_named_again_beside_its_look_alike(monkeypatch):
+    """The scorecard's pair scale-factor asymmetry + K2 (gyro, seed 1001): K2 is named first, with
+    the asymmetry folded into it; beside that biased K2 the asymmetry is not significant, and
+    K2's shape fails its audit (|input| still explains the residual). The re-choice names the
+    asymmetry; K2, withdrawn, sat out every re-choice after — its shape failed the asymmetry's
+    audit in turn and nothing was named (gap 14). Beside the asymmetry K2 may come back."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    scorecard = importlib.import_module("discovery_scorecard")
+    hidden = ("scale_factor_asymmetry", "k2_nonlinearity")
+    rec, _, _ = scorecard.hidden_case("gyro", hidden, 1001, 3000)
+    d = discover(rec, Model(base_model("gyro")), max_effects=3, seed=1001)
+    assert sorted(s.effect_id for s in d.steps) == sorted(hidden)
+    assert any(w.startswith("k2_nonlinearity") for w in d.withdrawn)
+    assert any(n.startswith("k2_nonlinearity was withdrawn (above) and named again") for n in d.notes)
+    assert d.gap_final.rms_ratio < 1.1
