@@ -150,3 +150,24 @@ def test_re_choosing_without_a_withdrawn_warm_up_gives_the_two_node_shape_its_tu
     assert first.best is not None and first.best.id in ("warmup_exponential", "thermal_two_node")
     assert "warmup_exponential" not in {c.id for c in again.candidates}
     assert again.best is not None and again.best.id == "thermal_two_node"
+
+
+def test_a_temperature_term_beside_a_gauss_markov_is_not_taken_by_flicker():
+    """The scorecard's accelerometer triple (temperature bias, K3, a Gauss–Markov; seed 3019):
+    fitted alone, the Gauss–Markov stretched its correlation time (41 s for 19 s) to take the
+    slow temperature term as well and lost to flicker alone by a few BIC units, and against
+    flicker the temperature term looked typical — flicker was named for both. Jointly, the
+    temperature term with the Gauss–Markov fitted beside it explains the record best on the
+    common Whittle likelihood, and against that process (its own τ) the term is significant:
+    all three are named."""
+    rng = np.random.default_rng(0)
+    rec = make_experiment("accelerometer", rng, n=3000)
+    truth = (Model(base_model("accelerometer")).with_base(bias=1e-3)
+             .with_effect("temperature_bias", {"coef_per_c": 5.6e-7, "coef_per_c2": -7.4e-9})
+             .with_effect("k3_nonlinearity", {"k3_per_u2": 9.7e-5})
+             .with_effect("gauss_markov", {"sigma": 2.56e-6, "tau_s": 19.1}))
+    rec = rec.replace(y=truth.simulate(rec, rng))
+    d = discover(rec, Model(base_model("accelerometer")), seed=0)
+    assert sorted(s.effect_id for s in d.steps) == ["gauss_markov", "k3_nonlinearity", "temperature_bias"]
+    gm = d.final_model.effects[-1][1]
+    assert gm["tau_s"] == pytest.approx(19.1, rel=0.5)
