@@ -89,8 +89,12 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     a walk alone only because, fitted alone, it stretched its correlation time to take a drift or
     temperature term beside it).
 
-    Returns (the choice, the process the look-ahead fitted beside it or None): :func:`choose`
-    judges the choice's signature with that process in the noise, as the joint explanation claims.
+    Returns (the choice, the process fitted beside it or None): a deterministic (non-localized)
+    choice over named processes comes with the one that, fitted to the residual it leaves, makes
+    the best joint explanation and is clearly significant there (the look-ahead's, or else
+    :func:`joint_alternative` over all of them) — the process named next; :func:`choose` judges
+    the choice's signature with that process in the noise, as the joint explanation claims (the
+    wander beside a drift is then that process, not the drift's misfit).
 
     Without a named deterministic candidate, the best stochastic one. (Between stochastic
     shapes the spectrum decides: BIC on the Whittle likelihood, so a Gauss–Markov needs a
@@ -114,44 +118,44 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     r0 = rec.y - model.predict(rec)
     lr_d = 2.0 * (sto.white_nll(r0, rec.dt_s, known) - sto.white_nll(d.resid_full, rec.dt_s, known))
     bic_d = lr_d - math.log(rec.n / 2) * len(d.effect.params_for(kind))
+    r_d = d.resid_full - d.resid_full.mean()
+
+    def with_companion() -> tuple[Trial, Trial | None]:
+        # d chosen over the processes: what it leaves may still hold one (named next)
+        return d, joint_alternative(r_d, sto_, rec, kind, known, bic_d, floor=bic_d)
     if s.bic_gain <= bic_d:
-        return d, None
-    after = sto.fit_stochastic(d.resid_full - d.resid_full.mean(), rec.dt_s, s.effect, known=known,
-                               bootstrap=False)
+        return with_companion()
+    after = sto.fit_stochastic(r_d, rec.dt_s, s.effect, known=known, bootstrap=False)
     if not (after.p_value < SURVIVE_P and after.lr >= SURVIVE_FRACTION * s.lr):
-        return d, None
+        return with_companion()
     if det_p_under is not None and det_p_under(s, d) < alpha:
-        return d, None
-    beside = joint_alternative(d, sto_, rec, kind, known, bic_d, s.bic_gain,
-                               joint_s=bic_d + after.lr - (s.lr - s.bic_gain))
+        return with_companion()
+    beside = joint_alternative(r_d, sto_[1:], rec, kind, known, bic_d,
+                               floor=max(s.bic_gain, bic_d + after.lr - (s.lr - s.bic_gain)))
     if beside is not None and det_p_under is not None and det_p_under(beside, d) < alpha:
         return d, beside
     return s, None
 
 
-def joint_alternative(d: Trial, sto_: Sequence[Trial], rec: Record, kind: str, known: Processes,
-                      bic_d: float, bic_s: float, joint_s: float) -> Trial | None:
-    """The look-ahead of :func:`preferred`: another named process that, fitted beside the
-    deterministic candidate ``d`` (to the residual ``d``'s fit leaves), makes the best joint
-    explanation of the record — its joint BIC gain (``bic_d`` + its likelihood-ratio statistic
-    there − ln(n/2) per coordinate, on the same white + known-stochastic Whittle likelihood) above
-    both the best process alone (``bic_s``) and ``d`` beside that process (``joint_s``) — returned
-    with the parameters it has beside ``d`` (clipped to the kind's ranges), if the record resolves
-    them (``Effect.identifiable``); None when there is none.
+def joint_alternative(r_d: np.ndarray, processes: Sequence[Trial], rec: Record, kind: str, known: Processes,
+                      bic_d: float, floor: float) -> Trial | None:
+    """The process of ``processes`` that, fitted beside a deterministic candidate (to ``r_d``, the
+    residual its fit leaves, mean removed), makes the best joint explanation of the record: joint
+    BIC gain ``bic_d`` + its likelihood-ratio statistic there − ln(n/2) per coordinate (the same
+    white + known-stochastic Whittle likelihood) above ``floor`` and clearly significant there
+    (p < ``SURVIVE_P``) — returned with its parameters beside the candidate (clipped to the kind's
+    ranges), if the record resolves them (``Effect.identifiable``); None when there is none.
 
     A process fitted alone takes whatever slow structure the record has: a Gauss–Markov whose
     correlation time grows to absorb a drift beside it loses to a walk or flicker alone, and a
     null holding that stretched process makes the drift look typical. Fitted beside the drift it
-    keeps its own correlation time, and the drift is judged against that (the caller's
-    ``det_p_under``)."""
-    best, best_gain = None, max(bic_s, joint_s)
-    r_d = d.resid_full - d.resid_full.mean() if d.resid_full is not None else None
-    if r_d is None:
-        return None
-    for c in sto_[1:]:
+    keeps its own correlation time: :func:`preferred` judges the drift against that, and the
+    drift's signature is judged with it in the noise."""
+    best, best_gain = None, floor
+    for c in processes:
         fit = sto.fit_stochastic(r_d, rec.dt_s, c.effect, known=known, bootstrap=False)
         gain = bic_d + fit.lr - (c.lr - c.bic_gain)  # its own penalty: ln(n/2) per coordinate
-        if gain > best_gain and c.effect.identifiable(fit.params, rec):
+        if gain > best_gain and fit.p_value < SURVIVE_P and c.effect.identifiable(fit.params, rec):
             params = {q.name: float(np.clip(fit.params[q.name], q.low, q.high)) for q in c.effect.params_for(kind)}
             best, best_gain = replace(c, params=params), gain
     return best
