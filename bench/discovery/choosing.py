@@ -2,13 +2,15 @@
 :mod:`.naming` has fitted and judged each one): a catch-all only on the evidence of its own
 signature (:func:`choose`); deterministic first, localized explanations before any process, a
 stochastic candidate only on evidence that the colour is a random process and not a missing
-waveform (:func:`preferred`); Occam among deterministic ones within a standard error
-(:func:`parsimonious`)."""
+waveform — the deterministic candidate judged also against the process that, fitted beside it,
+explains the record best together with it (:func:`preferred`, :func:`joint_alternative`); Occam
+among deterministic ones within a standard error (:func:`parsimonious`)."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -16,6 +18,7 @@ from bench.discovery import stochastic as sto
 from bench.discovery.candidates import Trial
 from bench.discovery.data import Record
 from bench.discovery.effects_base import MIN_SNR
+from bench.discovery.effects_noise import Processes
 from bench.discovery.evidence import Evidence
 from bench.discovery.model import Model
 from bench.discovery.significance import jackknife_ratio
@@ -27,22 +30,25 @@ SURVIVE_FRACTION = 0.1
 
 def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
            det_p_under: Callable[[Trial, Trial], float] | None = None, alpha: float = 0.05,
-           holds: Callable[[Trial], Evidence] | None = None) -> tuple[Trial | None, tuple[Evidence, ...]]:
+           holds: Callable[[Trial, Trial | None], Evidence] | None = None,
+           ) -> tuple[Trial | None, tuple[Evidence, ...]]:
     """The best of the named candidates and the catch-alls set aside on the way.
 
     A catch-all (``Effect.catch_all``: a random process, a drift) is named only on the evidence
-    of its own signature: ``holds(trial)`` (:mod:`.evidence`) — a catch-all that would be chosen
+    of its own signature: ``holds(trial, beside)`` (:mod:`.evidence`; ``beside``: the process
+    :func:`preferred`'s look-ahead fitted beside it, part of the noise it is judged against, or
+    None) — a catch-all that would be chosen
     but whose signature does not hold is set aside (its evidence returned) and the choice made
     again among the others; when none is left, nothing is named (its structure is reported as
     unexplained). Among the rest, :func:`preferred`."""
     remaining = list(named)
     rejected: list[Evidence] = []
     while remaining:
-        pick = preferred(remaining, model, rec, kind, det_p_under, alpha)
+        pick, beside = preferred(remaining, model, rec, kind, det_p_under, alpha)
         if pick is None:
             break
         if holds is not None and pick.effect.catch_all:
-            ev = holds(pick)
+            ev = holds(pick, beside)
             if not ev.holds:
                 rejected.append(ev)
                 remaining = [t for t in remaining if t is not pick]
@@ -52,7 +58,8 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
 
 
 def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
-              det_p_under: Callable[[Trial, Trial], float] | None = None, alpha: float = 0.05) -> Trial | None:
+              det_p_under: Callable[[Trial, Trial], float] | None = None,
+              alpha: float = 0.05) -> tuple[Trial | None, Trial | None]:
     """Deterministic first: the highest held-out score among the named deterministic candidates
     (then :func:`parsimonious`). A localized one (``Effect.localized``: a jump, a warm-up once
     power-on is logged) is tested first: a random process replaces it only when it is not
@@ -74,37 +81,84 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
       clearly significant (p < ``SURVIVE_P``) and keeps a tenth of its likelihood-ratio
       statistic (a random walk stays a random walk once a straight line is removed).
 
+    When all three hold, a look-ahead (:func:`joint_alternative`): a named process of another
+    shape that, fitted beside the deterministic candidate, makes the best joint explanation of
+    the record (above the best process alone and above the deterministic one beside it) becomes
+    the null instead — at its parameters beside it — and if the deterministic candidate is
+    significant against that null it is chosen after all (a Gauss–Markov that loses to flicker or
+    a walk alone only because, fitted alone, it stretched its correlation time to take a drift or
+    temperature term beside it).
+
+    Returns (the choice, the process fitted beside it or None): a deterministic (non-localized)
+    choice over named processes comes with the one that, fitted to the residual it leaves, makes
+    the best joint explanation and is clearly significant there (the look-ahead's, or else
+    :func:`joint_alternative` over all of them) — the process named next; :func:`choose` judges
+    the choice's signature with that process in the noise, as the joint explanation claims (the
+    wander beside a drift is then that process, not the drift's misfit).
+
     Without a named deterministic candidate, the best stochastic one. (Between stochastic
     shapes the spectrum decides: BIC on the Whittle likelihood, so a Gauss–Markov needs a
     clearly better fit than a random walk for its extra parameter; one whose parameters the
     record cannot resolve — ``Effect.identifiable`` — was not named.)"""
     if not named:
-        return None
+        return None, None
     det = [c for c in named if not c.effect.stochastic]
     sto_ = sorted((c for c in named if c.effect.stochastic), key=lambda c: -c.bic_gain)
     if not det:
-        return sto_[0] if sto_ else None
+        return (sto_[0] if sto_ else None), None
     d = det[0]
     if not sto_ or d.resid_full is None:
-        return d
+        return d, None
     s = sto_[0]
     if d.effect.localized(rec):
         if det_p_under is None or det_p_under(s, d) < alpha:
-            return d
-        return s
+            return d, None
+        return s, None
     known = model.stochastic_effects()
     r0 = rec.y - model.predict(rec)
     lr_d = 2.0 * (sto.white_nll(r0, rec.dt_s, known) - sto.white_nll(d.resid_full, rec.dt_s, known))
     bic_d = lr_d - math.log(rec.n / 2) * len(d.effect.params_for(kind))
+    r_d = d.resid_full - d.resid_full.mean()
+
+    def with_companion() -> tuple[Trial, Trial | None]:
+        # d chosen over the processes: what it leaves may still hold one (named next)
+        return d, joint_alternative(r_d, sto_, rec, kind, known, bic_d, floor=bic_d)
     if s.bic_gain <= bic_d:
-        return d
-    after = sto.fit_stochastic(d.resid_full - d.resid_full.mean(), rec.dt_s, s.effect, known=known,
-                               bootstrap=False)
+        return with_companion()
+    after = sto.fit_stochastic(r_d, rec.dt_s, s.effect, known=known, bootstrap=False)
     if not (after.p_value < SURVIVE_P and after.lr >= SURVIVE_FRACTION * s.lr):
-        return d
+        return with_companion()
     if det_p_under is not None and det_p_under(s, d) < alpha:
-        return d
-    return s
+        return with_companion()
+    beside = joint_alternative(r_d, sto_[1:], rec, kind, known, bic_d,
+                               floor=max(s.bic_gain, bic_d + after.lr - (s.lr - s.bic_gain)))
+    if beside is not None and det_p_under is not None and det_p_under(beside, d) < alpha:
+        return d, beside
+    return s, None
+
+
+def joint_alternative(r_d: np.ndarray, processes: Sequence[Trial], rec: Record, kind: str, known: Processes,
+                      bic_d: float, floor: float) -> Trial | None:
+    """The process of ``processes`` that, fitted beside a deterministic candidate (to ``r_d``, the
+    residual its fit leaves, mean removed), makes the best joint explanation of the record: joint
+    BIC gain ``bic_d`` + its likelihood-ratio statistic there − ln(n/2) per coordinate (the same
+    white + known-stochastic Whittle likelihood) above ``floor`` and clearly significant there
+    (p < ``SURVIVE_P``) — returned with its parameters beside the candidate (clipped to the kind's
+    ranges), if the record resolves them (``Effect.identifiable``); None when there is none.
+
+    A process fitted alone takes whatever slow structure the record has: a Gauss–Markov whose
+    correlation time grows to absorb a drift beside it loses to a walk or flicker alone, and a
+    null holding that stretched process makes the drift look typical. Fitted beside the drift it
+    keeps its own correlation time: :func:`preferred` judges the drift against that, and the
+    drift's signature is judged with it in the noise."""
+    best, best_gain = None, floor
+    for c in processes:
+        fit = sto.fit_stochastic(r_d, rec.dt_s, c.effect, known=known, bootstrap=False)
+        gain = bic_d + fit.lr - (c.lr - c.bic_gain)  # its own penalty: ln(n/2) per coordinate
+        if gain > best_gain and fit.p_value < SURVIVE_P and c.effect.identifiable(fit.params, rec):
+            params = {q.name: float(np.clip(fit.params[q.name], q.low, q.high)) for q in c.effect.params_for(kind)}
+            best, best_gain = replace(c, params=params), gain
+    return best
 
 
 def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray, n_blocks: int,

@@ -35,7 +35,9 @@ For the current (calibrated) model and its residual ``r = y − predict``:
    (a simpler candidate within one standard error is preferred); a named stochastic candidate
    replaces it only when it explains more on a common (Whittle) likelihood, survives the
    deterministic fit, and the deterministic one is not significant against a null that includes
-   the stochastic process (:func:`.choosing.choose`); close competitors = other candidates whose
+   the stochastic process (:func:`.choosing.choose`) — or against another named process that,
+   fitted beside it, makes the better joint explanation (the look-ahead of
+   :func:`.choosing.preferred`); close competitors = other candidates whose
    score is within two jackknife standard errors (over held-out blocks) of the best's; for each
    a separating experiment.
 
@@ -325,9 +327,11 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         return sig.bootstrap_p_value(r, x_nuis, d.cols, folds, d.lin, n_rep=n_rep, rng=rng, draw=draw,
                                      below=det_alpha)
 
-    def signature_of(t: Trial) -> Evidence:
-        """A catch-all's evidence (:mod:`.evidence`): the model with it, on the residual it leaves."""
-        m_t = model.with_effect(t.id, t.params)
+    def signature_of(t: Trial, beside: Trial | None) -> Evidence:
+        """A catch-all's evidence (:mod:`.evidence`): the model with it (and with the process
+        ``beside`` it, when the choice was of the two together), on the residual it leaves."""
+        m_b = model if beside is None else model.with_effect(beside.id, beside.params)
+        m_t = m_b.with_effect(t.id, t.params)
         # a waveform's residual is its own fit's (bias and scale factor refitted with it)
         res = t.resid_full if t.resid_full is not None else rec.y - m_t.predict(rec)
         return evidence(m_t, rec, len(m_t.effects) - 1, res, rng=rng, n_rep=n_rep, fill_map=fill_map)
