@@ -12,11 +12,10 @@ candidates fitted by ``--jobs`` worker processes as ``bench discover --jobs`` do
 cores; BLAS one thread a process), printing each step's time, the effects named, the wall time,
 the CPU time of this process and its workers, and the load average before and after.
 
-Measured for issue 15 item 4 (2-core machine shared with another engineer, load 3.3–3.9 from
-their work): ``--jobs 1`` 55.1 s wall, 53.4 s CPU; ``--jobs 2`` 58.4 s wall, 56.8 s CPU in all
-(no free core for the second worker); before the item 105 s wall and 127 s CPU at load 2.2.
+Measured for issue 15 item 4 (2-core machine, quiet: load 0.3–1.4, three runs): ``--jobs 2``
+22.7–23.3 s wall, 39.6–40.2 s CPU in all; before the item 105 s wall and 127 s CPU at load 2.2.
 Same steps (thermal_two_node, then gauss_markov, then nothing) and parameters before and after.
-The ≤ 30 s wall goal is not met: see the README ("Where its time goes") for what remains.
+The ≤ 30 s wall goal is met; the README ("Where its time goes") says what remains.
 
 The audit (issue 7, #11) profiled `bench discover` on a default start-up run (180,100 samples,
 150 s wall): lattice.visibility 34 s in 3 quantization fits, LinearScorer.scores 32 s and
