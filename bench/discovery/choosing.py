@@ -172,8 +172,8 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
     held-out blocks barely see it). That gain is judged on ``refitted_sse`` when given — the sum of
     squares with the model's other effects refitted beside each shape: a shape that nests the pick
     also absorbs the error an earlier effect was fitted with (a temperature scale factor fitted
-    before a warm-up was known; two nodes took 26 σ² more of it than one, 12 once both had the
-    scale factor refitted)."""
+    before a warm-up was known: two nodes explained 30 σ² more than one — the gate is 25 — and
+    12 once both had the scale factor refitted)."""
     if best is None or best.effect.stochastic or best.err_c is None or best.err_b is None:
         return best
 
