@@ -302,6 +302,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     judged.sort(key=lambda tc: -tc[1].score)
     candidates = tuple(c for _, c in judged)
     named = [t for t, c in judged if c.named]
+
     def refitted_sse(t: Trial) -> float:
         """Sum of squares of the residual with ``t`` added and every parameter refitted."""
         res = rec.y - calibrate(model.with_effect(t.id, t.params), rec).predict(rec)

@@ -281,7 +281,8 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         # g: re-choose — name again without what was withdrawn: the next-best candidate for the
         # structure it stood for (the nesting shape after its special case, a random process a
         # withdrawn deterministic fit had absorbed) gets its turn, and is audited in its turn
-        say("re-choosing after the withdrawal")
+        if _round < MAX_ROUNDS - 1:
+            say("re-choosing after the withdrawal")
     for eid in sorted(withdrawn_ids & {st.effect_id for st in steps}):
         notes.append(f"{eid} was withdrawn (above) and named again beside an effect named after it; "
                      "its signature holds in the final model")
