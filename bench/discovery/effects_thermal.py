@@ -146,7 +146,7 @@ class ThermalTwoNode(Effect):
         well by a large amplitude at a shorter time constant — the least squares took −0.27 °/s
         at 1.5 s on a gyro whose fast node was −0.02 °/s at 3.2 s (independent generator), and
         extrapolated it into the held-out first block: a held-out score of −3 for a two-node
-        transient the full record fitted to within 5 % (0.74 with the bound)."""
+        transient the full record fitted to within 6 % (0.74 with the bound)."""
         kind = kind or guess_kind(rec)
         rows = np.ones(rec.n, bool) if rows is None else np.asarray(rows, bool)
         a = base_regressors(rec)[rows]
