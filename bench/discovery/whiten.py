@@ -27,6 +27,28 @@ import numpy as np
 from bench.discovery.effects_noise import Processes, StateBlock, StochasticEffect
 
 
+@numba.njit(cache=True, inline="always")
+def _innovation(y_k, h, x):  # pragma: no cover - compiled
+    """y_k − h·x: the measurement less its one-step prediction."""
+    pred = 0.0
+    for i in range(h.size):
+        pred += h[i] * x[i]
+    return y_k - pred
+
+
+@numba.njit(cache=True, inline="always")
+def _gain(p, h, r_var, hp):  # pragma: no cover - compiled
+    """Writes P hᵀ into ``hp`` and returns the innovation variance S = h P hᵀ + r_var."""
+    s = r_var
+    for i in range(h.size):
+        acc = 0.0
+        for j in range(h.size):
+            acc += p[i, j] * h[j]
+        hp[i] = acc
+        s += h[i] * acc
+    return s
+
+
 @numba.njit(cache=True)
 def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - compiled
     """Time-varying Kalman filter of y under the block-diagonal state space (f, q, h, p0);
@@ -46,18 +68,9 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - 
     s = r_var
     steady = False
     for k in range(n):
-        pred = 0.0
-        for i in range(m):
-            pred += h[i] * x[i]
-        e = y[k] - pred
+        e = _innovation(y[k], h, x)
         if not steady:  # else hp and s are those of the fixed point
-            s = r_var
-            for i in range(m):
-                acc = 0.0
-                for j in range(m):
-                    acc += p[i, j] * h[j]
-                hp[i] = acc  # (P hᵀ)_i
-                s += h[i] * acc
+            s = _gain(p, h, r_var, hp)
         out_e[k] = e
         out_s[k] = s
         for i in range(m):  # update with gain K = P hᵀ / S
@@ -113,18 +126,9 @@ def _filter_diagonal(y, f, q, h, p0, r_var, out_e, out_s):  # pragma: no cover -
     s = r_var
     steady = False
     for k in range(n):
-        pred = 0.0
-        for i in range(m):
-            pred += h[i] * x[i]
-        e = y[k] - pred
+        e = _innovation(y[k], h, x)
         if not steady:
-            s = r_var
-            for i in range(m):
-                acc = 0.0
-                for j in range(m):
-                    acc += p[i, j] * h[j]
-                hp[i] = acc
-                s += h[i] * acc
+            s = _gain(p, h, r_var, hp)
         out_e[k] = e
         out_s[k] = s
         for i in range(m):
