@@ -14,6 +14,6 @@ The modules, in the order the workflow uses them (``docs/ARCHITECTURE.md``, "Dis
   processes, ``lattice`` for the quantizer's histogram; ``significance`` for held-out scores,
   the bootstrap null and the gap; ``choosing``, ``separating``; results in ``candidates``) →
   add → repeat, then ``localize.unexplained_structure`` (on ``whiten``'s innovations);
-  ``mapping`` — how the candidates' fits are mapped, in this process or the caller's worker
-  processes, with the same answer.
+  ``mapping`` — how the candidates' fits and the nulls' realisations are mapped, in this
+  process or side by side in the caller's workers or threads, with the same answer.
 """

@@ -90,7 +90,8 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     temperature term beside it).
 
     Returns (the choice, the process fitted beside it or None): a deterministic (non-localized)
-    choice over named processes comes with the one that, fitted to the residual it leaves, makes
+    catch-all (a drift: the only choice whose signature :func:`choose` judges) chosen over named
+    processes comes with the one that, fitted to the residual it leaves, makes
     the best joint explanation and is clearly significant there (the look-ahead's, or else
     :func:`joint_alternative` over all of them) — the process named next; :func:`choose` judges
     the choice's signature with that process in the noise, as the joint explanation claims (the
@@ -121,7 +122,10 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     r_d = d.resid_full - d.resid_full.mean()
 
     def with_companion() -> tuple[Trial, Trial | None]:
-        # d chosen over the processes: what it leaves may still hold one (named next)
+        # d chosen over the processes: what it leaves may still hold one (named next), in the
+        # noise of d's signature — judged only for a catch-all, so only then fitted
+        if not d.effect.catch_all:
+            return d, None
         return d, joint_alternative(r_d, sto_, rec, kind, known, bic_d, floor=bic_d)
     if s.bic_gain <= bic_d:
         return with_companion()

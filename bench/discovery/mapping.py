@@ -1,7 +1,9 @@
-"""How the naming step's candidates' fits are mapped over the candidates: the caller's choice
-of ``map`` (:class:`MapFn`) — the builtin one, or an executor's running them side by side in
-worker processes. A fit draws no random number (the p-values are drawn afterwards, in turn, on
-the step's generator), so the answer does not depend on the choice."""
+"""How the workflow's independent pieces of work are mapped: the caller's choice of ``map``
+(:class:`MapFn`) — the builtin one, or an executor's running them side by side. Two uses: the
+naming step's candidates' fits (``map_fn``, worker processes: a fit draws no random number, the
+p-values are drawn afterwards, in turn, on the step's generator) and a null's noise realisations
+(``fill_map``, threads: each from its own root, drawn first — :meth:`.Model.simulate_noise_many`).
+Either way the answer does not depend on the choice."""
 
 from __future__ import annotations
 
