@@ -194,6 +194,18 @@ class Model:
         """True when an effect of the model transforms the whole output (saturation, quantization)."""
         return any(e.stage == "output" for e, _ in self.entries())
 
+    def follows_input(self, rec: Record) -> np.ndarray:
+        """Samples where the output follows a small change of the signal before the output stage:
+        the secant gain of ``predict`` over one white-noise sd added to the bias is above one
+        half — False where a saturation clips or a dead zone swallows it (a missing term leaves
+        no trace in the residual there); all True without an output stage (the dithered mean of
+        a quantizer follows its input)."""
+        if not self.has_output_stage():
+            return np.ones(rec.n, bool)
+        step = math.copysign(self.base.noise_sd or 1e-9, -self.base.bias)  # toward 0: inside the range
+        moved = Model(replace(self.base, bias=self.base.bias + step), self.effects)
+        return np.asarray((moved.predict(rec) - self.predict(rec)) / step > 0.5)
+
     def stages(self, rec: Record) -> tuple[np.ndarray, np.ndarray]:
         """(input after the model's input-stage effects, sum of its deterministic additive terms)
         on rec: ``predict`` is ``bias + scale_factor·u + terms`` when the model has no output

@@ -108,8 +108,11 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
     regressors of the bootstrap p-value (:func:`waveform_p_value`; p is NaN until then)."""
     kind = model.base.kind
     b0, s0 = float(model.base.bias), float(model.base.scale_factor)
-    # the effect's starts share the parameters a fit moves (effect.free_params of the first)
-    starts = effect.fit_starts(rec, r, kind=kind)
+    # the effect's starts share the parameters a fit moves (effect.free_params of the first);
+    # they read the residual's shape where the output follows its input (a jump inside a clipped
+    # stretch leaves no step in the residual; the clip's edges leave steps of their own)
+    seen = model.follows_input(rec)
+    starts = effect.fit_starts(rec, r, kind=kind, rows=None if seen.all() else seen)
     f = CandidateFitter(model, rec, effect, template=starts[0] if starts else None)
     full = f.fit([f.pack(p, b0, s0) for p in starts])
     err_c = np.zeros(rec.n)
@@ -118,7 +121,7 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
         te = folds == k
         # starts from the training blocks alone: a shape (a frequency, a time constant) chosen
         # with the held-out samples in view would leak them into the held-out score
-        starts_k = effect.fit_starts(rec, r, kind=kind, rows=~te)[:2]
+        starts_k = effect.fit_starts(rec, r, kind=kind, rows=~te & seen)[:2]
         fk_fitter = CandidateFitter(model, rec, effect, template=starts_k[0] if starts_k else None, rows=~te)
         fk = fk_fitter.fit([fk_fitter.pack(p, b0, s0) for p in starts_k], rows=~te, max_nfev=40, with_std=False)
         pred = fk_fitter.predict(fk.x)

@@ -189,3 +189,37 @@ def test_a_drift_beside_a_gauss_markov_is_named_with_it_not_taken_by_a_walk():
     d = discover(rec, Model(base_model("gyro")), seed=0)
     assert [s.effect_id for s in d.steps] == ["linear_drift", "gauss_markov"]
     assert d.steps[0].params["slope_per_s"] == pytest.approx(-5.5e-5, rel=0.3)
+
+
+# ---- the triples' defects, second round: where a fit looks, what it holds fixed, what it sees
+
+def _record(kind: str, seed: int, effects: list[tuple[str, dict]], **base) -> tuple[Record, Model]:
+    rng = np.random.default_rng(seed)
+    rec = make_experiment(kind, rng, n=3000)
+    truth = Model(base_model(kind)).with_base(**base)
+    for eid, p in effects:
+        truth = truth.with_effect(eid, p)
+    return rec.replace(y=truth.simulate(rec, rng)), truth
+
+
+def test_a_jump_behind_a_clipping_output_is_found_where_the_output_follows_the_input():
+    """The scorecard's gyro triple (seed 3018): a bias jump beside a saturation the rate table
+    drives into, and a scale-factor asymmetry. The jump's start came from change points of the
+    whole residual, where the clipped stretches (no trace of the jump) made steps of their own:
+    the fit settled on a jump at the wrong time, lost to a warm-up exponential, and the audit then
+    withdrew everything. The starts now read the residual only where the output follows its
+    input (``Model.follows_input``)."""
+    rec, truth = _record("gyro", 3, [("bias_jump", {"size_1": -0.037, "time_1_s": 46.7, "size_2": 0.0,
+                                                    "time_2_s": 0.0, "size_3": 0.0, "time_3_s": 0.0}),
+                                     ("saturation", {"limit": 76.95}),
+                                     ("scale_factor_asymmetry", {"asymmetry": 1.64e-3})], bias=-0.045)
+    model = calibrate(Model(truth.base, truth.effects[1:]), rec)
+    seen = model.follows_input(rec)
+    assert 0.02 < 1 - seen.mean() < 0.5  # the table drives the output into the clip for a while
+    naming = name_effect(model, rec, seed=0, n_rep=199,
+                         only=("bias_jump", "warmup_exponential", "thermal_two_node", "linear_drift"))
+    assert naming.best is not None and naming.best.id == "bias_jump"
+    p = naming.best.params
+    # the jump of the truth (the first sample the output follows after the clip it fell in)
+    k = min(range(1, 4), key=lambda j: abs(p[f"time_{j}_s"] - 46.7))
+    assert abs(p[f"time_{k}_s"] - 46.7) < 2.0 and p[f"size_{k}"] == pytest.approx(-0.037, rel=0.1)
