@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import median_filter
 from scipy.signal import lombscargle
 
 from bench.discovery.data import Record
@@ -20,6 +21,8 @@ from bench.discovery.effects_linalg import base_regressors, project_out
 #: mean the same on any record (the record's first temperature would tie them to one run);
 #: the constant part at the record's temperatures is absorbed by bias / scale factor.
 T_REF_C = 25.0
+#: Width (bins) of the running median a sinusoid's start line is judged against.
+LINE_BACKGROUND_BINS = 31
 
 
 def _time_range(rec: Record, lo: float, hi: float, min_samples: float = 3.0, frac: float = 0.25):
@@ -351,8 +354,10 @@ class SinusoidalInterference(Effect):
 
     def fit_starts(self, rec, residual, *, kind=None, rows=None):
         """The three strongest periodogram lines of the residual on ``rows`` (others zero; uniform
-        records: FFT with a Hann window; else a Lomb-Scargle grid), amplitude and phase by least
-        squares."""
+        records: FFT with a Hann window; else a Lomb-Scargle grid), each judged against the
+        periodogram's running median over :data:`LINE_BACKGROUND_BINS` bins around it (a line
+        stands out of its neighbourhood; beside a red process the strongest bins are its low
+        frequencies, not the line), amplitude and phase by least squares."""
         kind = kind or guess_kind(rec)
         r = np.asarray(residual, float) if rows is None else np.where(rows, residual, 0.0)
         r = project_out(r, base_regressors(rec))
@@ -368,7 +373,10 @@ class SinusoidalInterference(Effect):
         idx = np.flatnonzero(ok)
         if idx.size == 0:
             return []
-        order = idx[np.argsort(spec[idx])[::-1]]
+        power = spec ** 2
+        background = median_filter(power, size=LINE_BACKGROUND_BINS, mode="nearest")
+        tiny = np.finfo(float).tiny
+        order = idx[np.argsort((power / np.maximum(background, tiny))[idx], kind="stable")[::-1]]
         starts, used = [], []
         for i in order:
             if any(abs(i - j) < 3 for j in used):

@@ -223,3 +223,17 @@ def test_a_jump_behind_a_clipping_output_is_found_where_the_output_follows_the_i
     # the jump of the truth (the first sample the output follows after the clip it fell in)
     k = min(range(1, 4), key=lambda j: abs(p[f"time_{j}_s"] - 46.7))
     assert abs(p[f"time_{k}_s"] - 46.7) < 2.0 and p[f"size_{k}"] == pytest.approx(-0.037, rel=0.1)
+
+
+def test_a_sinusoid_start_stands_out_of_its_neighbourhood_not_of_a_red_process():
+    """The scorecard's MHD triple (seed 3011): beside a Gauss–Markov the strongest periodogram
+    bins are the process's low frequencies, and the 112-Hz interference line — reported as
+    unexplained structure — was never a start. Lines are now ranked against the periodogram's
+    running median around them."""
+    rng = np.random.default_rng(11)
+    rec = make_experiment("mhd", rng, n=3000)
+    gm = CATALOGUE["gauss_markov"].noise({"sigma": 0.2, "tau_s": 0.05}, rec, rng)
+    line = 0.042 * np.sin(2 * np.pi * 111.7 * rec.t_s + 1.2)
+    r = gm + line + 0.06 * rng.standard_normal(rec.n)
+    starts = CATALOGUE["sinusoidal_interference"].fit_starts(rec, r, kind="mhd")
+    assert abs(starts[0]["freq_hz"] - 111.7) < 2.0 / rec.duration_s
