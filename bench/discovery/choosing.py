@@ -173,8 +173,9 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
     warm-up time constant is a drift on a short record) — unless the best explains, in-sample,
     more than ``MIN_SNR²·noise_sd²`` beyond it: what the richer shape adds is then an effect of
     its own size (a two-node warm-up's fast node lives in the first blocks of the record, where
-    held-out blocks barely see it). That gain is judged on ``refitted_sse`` when given — the sum of
-    squares with the model's other effects refitted beside each shape: a shape that nests the pick
+    held-out blocks barely see it). That gain — here and in the nesting rule below — is judged on
+    ``refitted_sse`` when given — the sum of squares with the model's other effects refitted
+    beside each shape: a shape that nests the pick
     also absorbs the error an earlier effect was fitted with (a temperature scale factor fitted
     before a warm-up was known: two nodes explained 30 σ² more than one — the gate is 25 — and
     12 once both had the scale factor refitted)."""
@@ -196,7 +197,8 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
         se = jackknife_ratio(d_num, den)
         if not (np.isfinite(se) and d_num.sum() / den.sum() <= se):
             continue
-        if noise_sd > 0 and sse(c) - sse(best) > MIN_SNR ** 2 * noise_sd ** 2:
+        if noise_sd > 0 and sse(c) - sse(best) > MIN_SNR ** 2 * noise_sd ** 2 and (
+                refitted_sse is None or refitted_sse(c) - refitted_sse(best) > MIN_SNR ** 2 * noise_sd ** 2):
             continue
         pick = c
     # a named shape that holds the pick as a special case (Effect.nests) and adds more than the

@@ -93,6 +93,13 @@ class ThermalTwoNode(Effect):
             return qs
         return tuple(replace(q, low=min(max(q.low, seen), q.high / 4)) if q.name == "tau_fast_s" else q for q in qs)
 
+    def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
+        """Both nodes settle inside the record (the slow time constant at most the record's
+        t_on span): a slower node is a straight line on it — a drift, not a node (a warm-up
+        beside a wandering process was named two-node, its slow node 20 000 s on 3 000 s)."""
+        t = rec.column("t_on")
+        return p.get("tau_slow_s", 0.0) <= float(t.max() - t.min()) and p.get("tau_fast_s", 0.0) <= float(t.max())
+
     def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
         if q.name == "fraction_slow":
             return 0.3, 0.7

@@ -86,9 +86,10 @@ def applicable(model: Model, rec: Record) -> list[Effect]:
 
 
 def _block_ids(n: int, n_blocks: int) -> np.ndarray:
-    """Index of each sample's contiguous block: the blocks of :func:`.significance.block_folds`."""
-    folds = sig.block_folds(n, n_blocks)
-    return np.concatenate([[0], np.cumsum(np.diff(folds) != 0)]).astype(int)
+    """Index of each sample's contiguous block (:func:`.significance.block_edges`: the blocks of
+    the folds; the first one whole, though its spans alternate between the folds)."""
+    edges = sig.block_edges(n, n_blocks)
+    return np.repeat(np.arange(edges.size - 1), np.diff(edges))
 
 
 def base_errors(r: np.ndarray, x_nuis: np.ndarray, folds: np.ndarray) -> np.ndarray:

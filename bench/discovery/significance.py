@@ -5,10 +5,14 @@ Pure numpy/scipy; residuals in the sensor unit, rates in Hz, τ in s.
 Held-out scoring (never shuffled samples): the record is cut into ``n_blocks`` (48)
 contiguous blocks — short enough that a start-up transient spans several of them; fold 0 holds
 out the even blocks, fold 1 the odd ones (interleaved, so both folds see the start-up and the
-end of the record). A candidate is fitted on a fold's training blocks and
-scored on its held-out blocks; the score is the out-of-sample variance reduction
-``1 − Σ SSE_test(candidate) / Σ SSE_test(nuisance only)`` over both folds (every sample held
-out once). Under "no effect" it is ≤ 0 on average: an over-fitted shape does not carry over.
+end of the record). The first block is cut again into spans of 2, 2, 4, 8, 16 … samples,
+alternately labelled (:func:`block_folds`): a power-on transient of a few samples (a warm-up of
+τ = 5 s in a 3000-s record lives in the first of 48 blocks) is then seen by both folds' training
+rows at every time scale, instead of by one fold only — whose held-out blocks never see it.
+A candidate is fitted on a fold's training blocks and scored on its held-out blocks; the score
+is the out-of-sample variance reduction ``1 − Σ SSE_test(candidate) / Σ SSE_test(nuisance only)``
+over both folds (every sample held out once). Under "no effect" it is ≤ 0 on average: an
+over-fitted shape does not carry over.
 
 Null (documented choice): a **circular moving-block bootstrap of the residual** — blocks of
 ``block_len`` (n/32) consecutive samples drawn with replacement from the residual wrapped on a circle.
@@ -45,16 +49,30 @@ BOOT_BLOCKS = 32
 
 
 def block_folds(n: int, n_blocks: int = N_BLOCKS) -> np.ndarray:
-    """Fold label (0 or 1) of each of ``n`` samples: contiguous blocks, alternately labelled."""
+    """Fold label (0 or 1) of each of ``n`` samples: contiguous blocks (:func:`block_edges`),
+    alternately labelled, the first cut again geometrically (module docstring)."""
+    labels = np.empty(n, dtype=int)
+    edges = block_edges(n, n_blocks)
+    for b, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
+        labels[lo:hi] = b % 2
+    # the first block in spans of 2, 2, 4, 8 … samples, alternately labelled (module docstring)
+    lo, span, k = 0, 2, 0
+    while lo < edges[1]:
+        hi = min(lo + span, int(edges[1]))
+        labels[lo:hi] = k % 2
+        lo, k = hi, k + 1
+        span = 2 if k == 1 else 2 * span
+    return labels
+
+
+def block_edges(n: int, n_blocks: int = N_BLOCKS) -> np.ndarray:
+    """Edges of the ``n_blocks`` contiguous blocks of :func:`block_folds` (fewer on a short
+    record: two samples a block at least) — the units of the block jackknife."""
     if n < 2 * n_blocks:
         n_blocks = max(2, n // 2)
     if n_blocks < 2:
         raise ValueError(f"n_blocks = {n_blocks}; allowed: >= 2")
-    edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    labels = np.empty(n, dtype=int)
-    for b, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
-        labels[lo:hi] = b % 2
-    return labels
+    return np.linspace(0, n, n_blocks + 1).astype(int)
 
 
 RCOND = 1e-8

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
+from bench.discovery import significance as sig
 from bench.discovery.calibration import calibrate
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
@@ -237,3 +238,31 @@ def test_a_sinusoid_start_stands_out_of_its_neighbourhood_not_of_a_red_process()
     r = gm + line + 0.06 * rng.standard_normal(rec.n)
     starts = CATALOGUE["sinusoidal_interference"].fit_starts(rec, r, kind="mhd")
     assert abs(starts[0]["freq_hz"] - 111.7) < 2.0 / rec.duration_s
+
+
+def test_a_warm_up_of_a_few_samples_is_seen_by_both_folds():
+    """The scorecard's accelerometer triple (seed 3012): a warm-up of τ = 5.5 s in a 3000-s record
+    lived inside the first of the 48 held-out blocks — one fold's training rows never saw it, the
+    other's held-out rows held none of it: score −0.01, p = 1, not named (beside the wander of a
+    Gauss–Markov, three jumps scored higher). The first block is now cut into spans of 2, 2, 4,
+    8 … samples alternating between the folds."""
+    folds = sig.block_folds(3000)
+    head = folds[:63]
+    assert list(head[:16]) == [0, 0, 1, 1, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1]
+    assert np.count_nonzero(np.diff(folds[62:])) == 46  # the other 47 blocks as before
+    rec, truth = _record("accelerometer", 12, [("warmup_exponential", {"amplitude": 1.5e-4, "tau_s": 5.5}),
+                                               ("gauss_markov", {"sigma": 7e-6, "tau_s": 43.0})])
+    naming = name_effect(calibrate(Model(base_model("accelerometer")), rec), rec, seed=0, n_rep=199,
+                         only=("warmup_exponential", "linear_drift", "bias_jump"))
+    assert naming.best is not None and naming.best.id == "warmup_exponential"
+    assert naming.best.params["tau_s"] == pytest.approx(5.5, rel=0.2)
+
+
+def test_a_two_node_whose_slow_node_outlasts_the_record_is_not_identifiable():
+    """A slow node of 20 000 s on a 3 000-s record is a straight line there (a warm-up beside a
+    wandering Gauss–Markov was named two-node that way): not a thermal node."""
+    rec = make_experiment("accelerometer", np.random.default_rng(0), n=3000)
+    two = CATALOGUE["thermal_two_node"]
+    p = {"amplitude": 7.6e-5, "fraction_slow": -1.03, "tau_fast_s": 6.3, "tau_slow_s": 2e4}
+    assert not two.identifiable(p, rec)
+    assert two.identifiable(p | {"tau_slow_s": 400.0}, rec)
