@@ -226,6 +226,21 @@ def test_a_jump_behind_a_clipping_output_is_found_where_the_output_follows_the_i
     assert abs(p[f"time_{k}_s"] - 46.7) < 2.0 and p[f"size_{k}"] == pytest.approx(-0.037, rel=0.1)
 
 
+def test_a_drift_beside_an_earlier_two_node_warm_up_is_chosen_with_the_warm_up_refitted():
+    """The scorecard's accelerometer triple (seed 3006): a two-node warm-up fitted first, with the
+    drift beside it not yet known, bent its slow node toward the ramp; the drift candidate — its
+    fit holding the warm-up fixed — then explained less than three jumps stepping along what was
+    left, and a wrong name led the audit to withdraw them all. With the earlier effects refitted
+    beside each of the best candidates (``naming.refitted_choice``) the drift is chosen."""
+    two_node = {"amplitude": -1.54e-3, "fraction_slow": 0.395, "tau_fast_s": 11.2, "tau_slow_s": 51.3}
+    rec, truth = _record("accelerometer", 6, [("linear_drift", {"slope_per_s": 1.47e-8}),
+                                              ("thermal_two_node", two_node)], bias=-5e-4)
+    model = calibrate(Model(truth.base, truth.effects[1:]), rec)
+    only = ("linear_drift", "bias_jump", "warmup_exponential", "temperature_rate")
+    naming = name_effect(model, rec, seed=0, n_rep=199, only=only)
+    assert naming.best is not None and naming.best.id == "linear_drift"
+
+
 def test_a_sinusoid_start_stands_out_of_its_neighbourhood_not_of_a_red_process():
     """The scorecard's MHD triple (seed 3011): beside a Gauss–Markov the strongest periodogram
     bins are the process's low frequencies, and the 112-Hz interference line — reported as
@@ -266,3 +281,21 @@ def test_a_two_node_whose_slow_node_outlasts_the_record_is_not_identifiable():
     p = {"amplitude": 7.6e-5, "fraction_slow": -1.03, "tau_fast_s": 6.3, "tau_slow_s": 2e4}
     assert not two.identifiable(p, rec)
     assert two.identifiable(p | {"tau_slow_s": 400.0}, rec)
+
+
+@pytest.mark.parametrize("seed", [1, 9])
+def test_jumps_along_a_walk_do_not_take_a_temperature_term_on_an_in_sample_refit(seed):
+    """The joint refit (``naming.refitted_choice``) weighs an in-sample criterion; beside a random
+    walk three jumps along its wander win that criterion over a temperature-rate term whatever
+    the refit does (the earlier effect here, a sinusoid, does not move). The switch is made only
+    when the refit is what tells the candidates apart (its gain for the challenger beyond the
+    gate): the held-out choice stands — the temperature term (scorecard gyro triple, seed 3008)."""
+    rec, truth = _record("gyro", seed, [("temperature_rate", {"coef_per_c_per_s": -0.0307}),
+                                        ("sinusoidal_interference", {"amplitude": 0.0144, "freq_hz": 1.207,
+                                                                     "phase_rad": -1.57}),
+                                        ("rate_random_walk", {"k_per_rs": 3.5e-4})], bias=-0.03)
+    model = calibrate(Model(truth.base, truth.effects[1:2]), rec)
+    naming = name_effect(model, rec, seed=0, n_rep=199,
+                         only=("temperature_rate", "bias_jump", "thermal_hysteresis", "rate_random_walk",
+                               "gauss_markov", "flicker_noise"))
+    assert naming.best is not None and naming.best.id == "temperature_rate"
