@@ -63,7 +63,11 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     """Deterministic first: the highest held-out score among the named deterministic candidates
     (then :func:`parsimonious`). A localized one (``Effect.localized``: a jump, a warm-up once
     power-on is logged) is tested first: a random process replaces it only when it is not
-    significant against a null that includes the process. Any other is replaced by a named
+    significant against a null that includes the process, and it does not explain the record
+    better than the process on their common likelihood (its BIC gain defined below above the
+    process's by ``MIN_SNR²``: a walk fitted alone grows to follow a warm-up, and against that
+    walk the warm-up looks typical); when it is the process's, the next named deterministic candidate is judged
+    in its place (jumps along a walk's wander scored a hair above a temperature term). Any other is replaced by a named
     stochastic candidate (best BIC gain of its spectral fit) only if all hold:
 
     * it explains more: its BIC gain over the model's noise (Whittle likelihood ratio −
@@ -107,19 +111,40 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     sto_ = sorted((c for c in named if c.effect.stochastic), key=lambda c: -c.bic_gain)
     if not det:
         return (sto_[0] if sto_ else None), None
-    d = det[0]
-    if not sto_ or d.resid_full is None:
-        return d, None
+    if not sto_ or det[0].resid_full is None:
+        return det[0], None
     s = sto_[0]
-    if d.effect.localized(rec):
+    known = model.stochastic_effects()
+    white0 = sto.white_nll(rec.y - model.predict(rec), rec.dt_s, known)
+    for d in det:
+        if d.resid_full is None:
+            continue
+        lr_d = 2.0 * (white0 - sto.white_nll(d.resid_full, rec.dt_s, known))
+        bic_d = lr_d - math.log(rec.n / 2) * len(d.effect.params_for(kind))
+        r_d = d.resid_full - d.resid_full.mean()
+        if not d.effect.localized(rec):
+            return _versus_process(d, s, sto_, rec, kind, known, bic_d, r_d, det_p_under, alpha)
         if det_p_under is None or det_p_under(s, d) < alpha:
             return d, None
-        return s, None
-    known = model.stochastic_effects()
-    r0 = rec.y - model.predict(rec)
-    lr_d = 2.0 * (sto.white_nll(r0, rec.dt_s, known) - sto.white_nll(d.resid_full, rec.dt_s, known))
-    bic_d = lr_d - math.log(rec.n / 2) * len(d.effect.params_for(kind))
-    r_d = d.resid_full - d.resid_full.mean()
+        # the process fitted alone took the term's structure (a walk's level grown to follow a
+        # warm-up) and makes it look typical; on the common likelihood the term alone explains
+        # the record clearly better than that process (by the size gate, MIN_SNR²: a jump's times
+        # are searched, which the BIC's ln(n/2) a parameter does not count — three jumps along a
+        # Gauss–Markov's wander came 10-24 above it). Not the term with a process beside it: a
+        # walk's levels periodogram leaks at the record's ends, and a warm-up fitted to a walk's
+        # first excursion "improved" the walk's own likelihood by 57 on a record of a walk alone
+        if bic_d > s.bic_gain + MIN_SNR ** 2:
+            return d, None
+        # the process explains this one (jumps along a walk's wander): the next named
+        # deterministic candidate has its turn (a temperature term scored a hair below them)
+    return s, None
+
+
+def _versus_process(d: Trial, s: Trial, sto_: Sequence[Trial], rec: Record, kind: str, known: Processes,
+                    bic_d: float, r_d: np.ndarray, det_p_under: Callable[[Trial, Trial], float] | None,
+                    alpha: float) -> tuple[Trial, Trial | None]:
+    """:func:`preferred`'s judgement of a non-localized deterministic candidate ``d`` against the
+    best named process ``s`` (the three conditions and the look-ahead of its docstring)."""
 
     def with_companion() -> tuple[Trial, Trial | None]:
         # d chosen over the processes: what it leaves may still hold one (named next), in the
