@@ -41,11 +41,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bench.discovery import stochastic as sto
 from bench.discovery.calibration import calibrate
 from bench.discovery.candidates import Naming
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
-from bench.discovery.evidence import beyond_leftover, evidence
+from bench.discovery.evidence import Evidence, beyond_leftover, evidence
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import localize, unexplained_structure
@@ -149,6 +150,40 @@ def gap_of(model: Model, rec: Record, seed: int) -> tuple[Gap, float, float, np.
     return g, float(np.sqrt(np.mean(r ** 2))), floor, r
 
 
+def refit_processes(model: Model, rec: Record, alpha: float = 0.05) -> tuple[Model, dict[str, float]]:
+    """The model with each random process re-estimated (Whittle, the effect's own estimate) on
+    the residual the model leaves now, the other processes beside it, and each one's p-value
+    there: ``calibrate`` refits every waveform but keeps a process's values, which were estimated
+    on the residual of the step that named it — before the effects named after it were known (a
+    random walk named before a dead zone kept twice its level, and its innovations then fell
+    short of its spectrum: its signature failed and it was withdrawn). Values clipped to the
+    kind's ranges; a process no longer significant there (p ≥ ``alpha``) keeps the values it was
+    named with — the audit withdraws it (a walk named for a look-alike's misfit, 3·10⁻⁷ g/√s,
+    refitted to 6·10⁻⁹ at p = 1 once the right effect was named)."""
+    procs = [(i, e) for i, (e, _) in enumerate(model.entries()) if e.stochastic]
+    kind = model.base.kind
+    p_values: dict[str, float] = {}
+    for k, (i, eff) in enumerate(procs):  # k-th process of the model, its i-th effect
+        r = rec.y - model.predict(rec)
+        others = tuple(ep for j, ep in enumerate(model.stochastic_effects()) if j != k)
+        fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=others)
+        params = {q.name: float(np.clip(fit.params[q.name], q.low, q.high)) for q in eff.params_for(kind)}
+        p_values[eff.id] = float(fit.p_value)
+        if fit.p_value < alpha and all(np.isfinite(v) for v in params.values()):
+            model = model.with_params(i, params)
+    return model, p_values
+
+
+def faded_processes(model: Model, p_values: dict[str, float], named: set[str], alpha: float) -> list[Evidence]:
+    """The audit's evidence against the model's named random processes that
+    :func:`refit_processes` found no longer significant beside the effects named after them."""
+    return [Evidence(e.id, False, p_values[e.id],
+                     (f"{e.id} is no longer significant on the final model's residual (p = {p_values[e.id]:.2g}): "
+                      "what it stood for was explained by an effect named after it",))
+            for e, _ in model.entries()
+            if e.stochastic and e.id in named and p_values.get(e.id, 0.0) >= alpha]
+
+
 def _structure(model: Model, rec: Record, r: np.ndarray) -> Localization:
     return localize(rec, r - r.mean(), model.residual_sd())
 
@@ -202,6 +237,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
     withdrawn_ids: set[str] = set()
     set_aside: tuple[str, ...] = ()
     audit_rng = np.random.default_rng(seed + 7919)
+    process_p: dict[str, float] = {}  # the processes' p-values at their last refit (refit_processes)
     for _round in range(MAX_ROUNDS):
         # c..e: name one effect at a time until nothing is significant (or max_effects)
         named_now = 0
@@ -235,6 +271,8 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                 break
             best = naming.best
             new = calibrate(model.with_effect(best.id, best.params), rec)
+            if not best.stochastic:  # the residual the model's processes were estimated on changed
+                new, process_p = refit_processes(new, rec, alpha)
             g1, rms1, floor, r1 = gap_of(new, rec, seed)
             steps.append(Step(best.id, dict(new.effects[-1][1]), _step_std(new, rec, best.params_std),
                               best.p_value, gap_cur, g1, rms_cur, rms1, naming, loc, r_cur, r1))
@@ -261,6 +299,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                 evs += [beyond_leftover(model, rec, i, r_cur)
                         for i, (e, _) in enumerate(model.entries())
                         if e.id in named_ids and e.waveform and not e.stochastic]
+            evs += faded_processes(model, process_p, named_ids, alpha)
             failing = [ev for ev in evs if not ev.holds]
             if not failing:
                 break
@@ -270,7 +309,8 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
             withdrawn_now += 1
             say(f"withdrawn: {worst.effect_id} (its signature does not hold)")
             i = model.effect_ids.index(worst.effect_id)
-            model = calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec)
+            model, process_p = refit_processes(
+                calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec), rec, alpha)
             steps = [st for st in steps if st.effect_id != worst.effect_id]
             gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
             loc = _structure(model, rec, r_cur)

@@ -17,7 +17,7 @@ from bench.discovery.evidence import evidence
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import Model, base_model
 from bench.discovery.naming import name_effect
-from bench.discovery.workflow import discover
+from bench.discovery.workflow import discover, refit_processes
 
 GYRO_SD = 3e-3  # deg/s per sample at 10 Hz
 
@@ -312,3 +312,23 @@ def test_a_slow_warm_up_is_not_taken_by_the_walk_it_grew():
                          bias=1.4e-3)
         naming = name_effect(calibrate(Model(base_model("accelerometer")), rec), rec, seed=0, n_rep=199)
         assert naming.best is not None and naming.best.id == "warmup_exponential", seed
+
+
+def test_a_process_named_before_a_waveform_is_re_estimated_beside_it():
+    """The scorecard's accelerometer triple (low-pass, dead zone, random walk; seed 3015): the walk
+    was named before the dead zone at 2.2× its level and kept it (``calibrate`` refits the
+    waveforms, not the processes); its innovations then fell short of its spectrum, the audit
+    withdrew it and a two-node warm-up took its wander. ``workflow.refit_processes``
+    re-estimates the processes on the residual the model leaves after each waveform step."""
+    ks = []
+    for seed in range(6):
+        rec, truth = _record("accelerometer", seed, [("lowpass_bandwidth", {"bandwidth_hz": 1.22}),
+                                                     ("dead_zone", {"half_width": 2.3e-6}),
+                                                     ("rate_random_walk", {"k_per_rs": 1.42e-7})], bias=-2e-4)
+        stale = calibrate(Model(truth.base, truth.effects[:2]), rec).with_effect("rate_random_walk",
+                                                                                 {"k_per_rs": 3.2e-7})
+        fresh, p_values = refit_processes(stale, rec)
+        assert p_values["rate_random_walk"] < 0.05
+        assert fresh.effects[:2] == stale.effects[:2] and fresh.base == stale.base
+        ks.append(fresh.effects[2][1]["k_per_rs"])
+    assert 1.42e-7 / 1.5 < float(np.median(ks)) < 1.42e-7 * 1.5

@@ -507,7 +507,9 @@ def test_the_audit_withdraws_one_name_then_re_chooses_before_judging_the_others(
     factor and the jump beside it. K2's shape fails its audit; judged beside the missing
     asymmetry the scale factor and the jump failed theirs too and all were withdrawn — nothing
     named, gap 2.5. Withdrawing K2 alone and re-choosing names the asymmetry, and the three
-    hold."""
+    hold. A random walk named beside K2 for its misfit, re-estimated once the asymmetry is named
+    (``workflow.refit_processes``), is no longer significant there (p = 1) and is withdrawn
+    (``workflow.faded_processes``) — refitted and kept, it was an extra name."""
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
     scorecard = importlib.import_module("discovery_scorecard")
     hidden = ("scale_factor_asymmetry", "temperature_scale_factor", "bias_jump")
