@@ -31,6 +31,7 @@ SURVIVE_FRACTION = 0.1
 def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
            det_p_under: Callable[[Trial, Trial], float] | None = None, alpha: float = 0.05,
            holds: Callable[[Trial, Trial | None], Evidence] | None = None,
+           tie: Callable[[Trial, Trial], bool] | None = None,
            ) -> tuple[Trial | None, tuple[Evidence, ...]]:
     """The best of the named candidates and the catch-alls set aside on the way.
 
@@ -40,11 +41,11 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     None) — a catch-all that would be chosen
     but whose signature does not hold is set aside (its evidence returned) and the choice made
     again among the others; when none is left, nothing is named (its structure is reported as
-    unexplained). Among the rest, :func:`preferred`."""
+    unexplained). Among the rest, :func:`preferred` (``tie`` passed on)."""
     remaining = list(named)
     rejected: list[Evidence] = []
     while remaining:
-        pick, beside = preferred(remaining, model, rec, kind, det_p_under, alpha)
+        pick, beside = preferred(remaining, model, rec, kind, det_p_under, alpha, tie)
         if pick is None:
             break
         if holds is not None and pick.effect.catch_all:
@@ -59,16 +60,21 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
 
 def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
               det_p_under: Callable[[Trial, Trial], float] | None = None,
-              alpha: float = 0.05) -> tuple[Trial | None, Trial | None]:
+              alpha: float = 0.05, tie: Callable[[Trial, Trial], bool] | None = None,
+              ) -> tuple[Trial | None, Trial | None]:
     """Deterministic first: the highest held-out score among the named deterministic candidates
     (then :func:`parsimonious`). A localized one (``Effect.localized``: a jump, a warm-up once
     power-on is logged) is tested first: a random process replaces it only when it is not
     significant against a null that includes the process, and it does not explain the record
     better than the process on their common likelihood (its BIC gain defined below above the
     process's by ``MIN_SNR²``: a walk fitted alone grows to follow a warm-up, and against that
-    walk the warm-up looks typical); when it is the process's, the next named deterministic candidate is judged
-    in its place (jumps along a walk's wander scored a hair above a temperature term). Any other is replaced by a named
-    stochastic candidate (best BIC gain of its spectral fit) only if all hold:
+    walk the warm-up looks typical); when it is the process's, a named deterministic candidate
+    whose held-out score ties with it (``tie(localized, other)``: within one paired standard
+    error) is judged in its place (three jumps along a Gauss–Markov's wander scored 0.001 above a
+    temperature term) — not one it clearly out-scored (a temperature term that follows a
+    start-up's warming is not judged for the two-node transient a walk made look typical). Any
+    other is replaced by a named stochastic candidate (best BIC gain of its spectral fit) only if
+    all hold:
 
     * it explains more: its BIC gain over the model's noise (Whittle likelihood ratio −
       ln(n/2)·parameters) exceeds the deterministic one's on the same likelihood (the white +
@@ -116,9 +122,12 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     s = sto_[0]
     known = model.stochastic_effects()
     white0 = sto.white_nll(rec.y - model.predict(rec), rec.dt_s, known)
+    failed: Trial | None = None  # the first localized candidate the process made look typical
     for d in det:
         if d.resid_full is None:
             continue
+        if failed is not None and (tie is None or not tie(failed, d)):
+            break
         lr_d = 2.0 * (white0 - sto.white_nll(d.resid_full, rec.dt_s, known))
         bic_d = lr_d - math.log(rec.n / 2) * len(d.effect.params_for(kind))
         r_d = d.resid_full - d.resid_full.mean()
@@ -135,8 +144,9 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
         # first excursion "improved" the walk's own likelihood by 57 on a record of a walk alone
         if bic_d > s.bic_gain + MIN_SNR ** 2:
             return d, None
-        # the process explains this one (jumps along a walk's wander): the next named
-        # deterministic candidate has its turn (a temperature term scored a hair below them)
+        failed = failed or d
+        # the process explains this one (jumps along a walk's wander): a deterministic
+        # candidate that ties with it has its turn (a temperature term scored a hair below them)
     return s, None
 
 

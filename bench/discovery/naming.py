@@ -404,7 +404,15 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         res = t.resid_full if t.resid_full is not None else rec.y - m_t.predict(rec)
         return evidence(m_t, rec, len(m_t.effects) - 1, res, rng=rng, n_rep=n_rep, fill_map=fill_map)
 
-    best, rejected = choose(named, model, rec, kind, det_p_under, det_alpha, signature_of)
+    def tie(a: Trial, b: Trial) -> bool:
+        """Is ``b``'s held-out score within one paired (block jackknife) standard error of ``a``'s?"""
+        if a.err_c is None or b.err_c is None or a.err_b is None:
+            return False
+        d_num = np.bincount(blocks, b.err_c - a.err_c, n_blocks)
+        se = sig.jackknife_ratio(d_num, np.bincount(blocks, a.err_b, n_blocks))
+        return bool(np.isfinite(se) and abs(d_num.sum() / np.sum(a.err_b)) <= se)
+
+    best, rejected = choose(named, model, rec, kind, det_p_under, det_alpha, signature_of, tie)
     set_aside = tuple(ev.describe() for ev in rejected)
     followed = tuple(sorted({c for ev in rejected for c in ev.columns}))
     if best is None or best.err_c is None or best.err_b is None:
