@@ -9,10 +9,13 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
+from bench.discovery import naming
 from bench.discovery import significance as sig
 from bench.discovery.calibration import calibrate
+from bench.discovery.choosing import preferred
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_linalg import base_regressors
 from bench.discovery.evidence import evidence
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import Model, base_model
@@ -332,3 +335,34 @@ def test_a_process_named_before_a_waveform_is_re_estimated_beside_it():
         assert fresh.effects[:2] == stale.effects[:2] and fresh.base == stale.base
         ks.append(fresh.effects[2][1]["k_per_rs"])
     assert 1.42e-7 / 1.5 < float(np.median(ks)) < 1.42e-7 * 1.5
+
+
+def test_after_a_localized_term_a_process_makes_typical_only_a_tie_is_judged_in_its_place():
+    """When the process makes the best localized term look typical, a deterministic candidate is
+    judged in its place only if it ties with it (``tie``: held-out score within one paired
+    standard error): on the station's 30-min start-up run a temperature term — temperature follows
+    the warming — was judged after the two-node transient a walk had made look typical, and named
+    (the run's answer changed). Here with the decisions stubbed: nothing is significant against
+    the walk; without a tie the walk is the choice, with one the temperature term is judged."""
+    rec, _ = _record("accelerometer", 0, [("warmup_exponential", {"amplitude": 4e-5, "tau_s": 150.0}),
+                                          ("rate_random_walk", {"k_per_rs": 6e-7})], bias=1e-3)
+    model = calibrate(Model(base_model("accelerometer")), rec)
+    r = rec.y - model.predict(rec)
+    folds = sig.block_folds(rec.n)
+    err_b = naming.base_errors(r, base_regressors(rec), folds)
+    warm = naming.fit_trial(model, rec, r, folds, err_b, CATALOGUE["warmup_exponential"])
+    temp = naming.fit_trial(model, rec, r, folds, err_b, CATALOGUE["temperature_bias"])
+    walk = naming.fit_trial(model, rec, r, folds, err_b, CATALOGUE["rate_random_walk"])
+    assert warm.effect.localized(rec) and not temp.effect.localized(rec)
+    named = [warm, temp, walk]
+    def never(s, d):  # a stub: no term is significant against the walk
+        return 1.0
+    pick, _ = preferred(named, model, rec, "accelerometer", never, 0.05, tie=lambda a, b: False)
+    assert pick is walk
+    judged: list[str] = []
+
+    def record(s, d):
+        judged.append(d.id)
+        return 1.0
+    preferred(named, model, rec, "accelerometer", record, 0.05, tie=lambda a, b: True)
+    assert judged[0] == "warmup_exponential" and "temperature_bias" in judged
