@@ -68,8 +68,8 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     significant against a null that includes the process, and it does not explain the record
     better than the process on their common likelihood (its BIC gain defined below above the
     process's by ``MIN_SNR²``: a walk fitted alone grows to follow a warm-up, and against that
-    walk the warm-up looks typical); when it is the process's, a named deterministic candidate
-    whose held-out score ties with it (``tie(localized, other)``: within one paired standard
+    walk the warm-up looks typical); when it is the process's, a named non-localized
+    deterministic candidate whose held-out score ties with it (``tie(localized, other)``: within one paired standard
     error) is judged in its place (three jumps along a Gauss–Markov's wander scored 0.001 above a
     temperature term) — not one it clearly out-scored (a temperature term that follows a
     start-up's warming is not judged for the two-node transient a walk made look typical). Any
@@ -126,6 +126,8 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     for d in det:
         if d.resid_full is None:
             continue
+        if failed is not None and d.effect.localized(rec):
+            continue  # another localized shape for the structure the process made look typical
         if failed is not None and (tie is None or not tie(failed, d)):
             break
         lr_d = 2.0 * (white0 - sto.white_nll(d.resid_full, rec.dt_s, known))
