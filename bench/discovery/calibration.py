@@ -141,7 +141,8 @@ def calibrate(model: Model, rec: Record, *, noise: bool = True, max_nfev: int = 
     waveform effects already in it — time constants, frequencies, delays too, so a frozen
     shape misfit does not linger in the residual as colour), starting from the current values,
     each bounded by its range; with ``noise``, the white-noise sd is set to the residual's
-    high-frequency floor. Random processes and histogram-judged effects keep their values.
+    high-frequency floor. Random processes and histogram-judged effects keep their values (the
+    workflow re-estimates the processes on the new residual: ``workflow.refit_processes``).
 
     Bias and scale factor are first solved linearly (unconstrained); outside the kind's range
     that is a ValueError naming the value (a wrong unit or a missing input column), never a clip."""

@@ -32,7 +32,9 @@ For the current (calibrated) model and its residual ``r = y − predict``:
    such as a bandwidth, against the sd ``Effect.size_noise_sd`` says; a size that cannot be
    judged is not big enough) and the record resolves it (``Effect.identifiable``).
 4. Best: deterministic first — the highest held-out score among the named deterministic ones
-   (a simpler candidate within one standard error is preferred); a named stochastic candidate
+   (a simpler candidate within one standard error is preferred; when the model already holds
+   waveforms, the best few are weighed again with those refitted beside each:
+   :func:`refitted_choice`); a named stochastic candidate
    replaces it only when it explains more on a common (Whittle) likelihood, survives the
    deterministic fit, and the deterministic one is not significant against a null that includes
    the stochastic process (:func:`.choosing.choose`) — or against another named process that,

@@ -8,13 +8,16 @@ a. :func:`bench.discovery.calibration.calibrate` — bounded least squares of al
    residual's high-frequency floor;
 b. :func:`bench.discovery.localize.localize` of the residual;
 c. :func:`bench.discovery.naming.name_effect` over the catalogue;
-d. add the named effect with its fitted parameters, re-calibrate, and measure the gap before
-   and after (:class:`bench.discovery.significance.Gap`: rms / model-noise rms, Allan distance,
-   spectral distance, Ljung–Box whiteness p) against a simulation of the model's own noise;
+d. add the named effect with its fitted parameters, re-calibrate (after a waveform, the model's
+   random processes are re-estimated on the residual it leaves: :func:`refit_processes`), and
+   measure the gap before and after (:class:`bench.discovery.significance.Gap`: rms / model-noise
+   rms, Allan distance, spectral distance, Ljung–Box whiteness p) against a simulation of the
+   model's own noise;
 e. repeat until nothing is named (or ``max_effects``);
 f. audit: every named effect's own signature on the final model (:mod:`bench.discovery.evidence`:
-   a waveform's relaxed shape, a random process's innovations); one that does not hold is
-   withdrawn (the worst first, re-calibrating each time) — a wrong name is worse than none.
+   a waveform's relaxed shape, a random process's innovations — and its significance at its
+   last re-estimate, :func:`faded_processes`); one that does not hold is withdrawn (the worst
+   first, re-calibrating each time) — a wrong name is worse than none.
 g. re-choose: when the audit withdrew a name, name again (c–e) without the withdrawn effects,
    from the audited model — the next-best candidate for the structure it stood for (the nesting
    two-node warm-up after a one-exponential warm-up whose shape failed, a random process a
