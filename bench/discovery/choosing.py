@@ -69,12 +69,12 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     better than the process on their common likelihood (its BIC gain defined below above the
     process's by ``MIN_SNR²``: a walk fitted alone grows to follow a warm-up, and against that
     walk the warm-up looks typical); when it is the process's, a named non-localized
-    deterministic candidate whose held-out score ties with it (``tie(localized, other)``: within one paired standard
-    error) is judged in its place (three jumps along a Gauss–Markov's wander scored 0.001 above a
-    temperature term) — not one it clearly out-scored (a temperature term that follows a
-    start-up's warming is not judged for the two-node transient a walk made look typical). Any
-    other is replaced by a named stochastic candidate (best BIC gain of its spectral fit) only if
-    all hold:
+    deterministic candidate whose held-out score ties with it (``tie(localized, other)``: within
+    one paired standard error) is judged in its place (three jumps along a Gauss–Markov's wander
+    scored 0.001 above a temperature term) — not one it clearly out-scored (a temperature term
+    that follows a start-up's warming is not judged for the two-node transient a walk made look
+    typical). Any other is replaced by a named stochastic candidate (best BIC gain of its
+    spectral fit) only if all hold:
 
     * it explains more: its BIC gain over the model's noise (Whittle likelihood ratio −
       ln(n/2)·parameters) exceeds the deterministic one's on the same likelihood (the white +
@@ -212,8 +212,8 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
     its own size (a two-node warm-up's fast node lives in the first blocks of the record, where
     held-out blocks barely see it). That gain — here and in the nesting rule below — is judged on
     ``refitted_sse`` when given — the sum of squares with the model's other effects refitted
-    beside each shape: a shape that nests the pick
-    also absorbs the error an earlier effect was fitted with (a temperature scale factor fitted
+    beside each shape: a shape that nests the pick also absorbs the error an earlier effect was
+    fitted with (a temperature scale factor fitted
     before a warm-up was known: two nodes explained 30 σ² more than one — the gate is 25 — and
     12 once both had the scale factor refitted)."""
     if best is None or best.effect.stochastic or best.err_c is None or best.err_b is None:
