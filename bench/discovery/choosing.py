@@ -21,7 +21,7 @@ from bench.discovery.effects_base import MIN_SNR
 from bench.discovery.effects_noise import Processes
 from bench.discovery.evidence import Evidence
 from bench.discovery.model import Model
-from bench.discovery.significance import jackknife_ratio
+from bench.discovery.significance import score_difference
 
 # A stochastic candidate must survive the best deterministic one (see choose).
 SURVIVE_P = 1e-6
@@ -229,10 +229,8 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
     for c in named:
         if c.effect.stochastic or c.err_c is None or c.id == best.id or n_par(c) >= n_par(pick):
             continue
-        d_num = np.bincount(blocks, c.err_c - best.err_c, n_blocks)
-        den = np.bincount(blocks, best.err_b, n_blocks)
-        se = jackknife_ratio(d_num, den)
-        if not (np.isfinite(se) and d_num.sum() / den.sum() <= se):
+        diff, se = score_difference(best.err_c, c.err_c, best.err_b, blocks, n_blocks)
+        if not (np.isfinite(se) and diff <= se):
             continue
         if noise_sd > 0 and sse(c) - sse(best) > MIN_SNR ** 2 * noise_sd ** 2 and (
                 refitted_sse is None or refitted_sse(c) - refitted_sse(best) > MIN_SNR ** 2 * noise_sd ** 2):

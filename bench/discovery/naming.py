@@ -410,9 +410,8 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         """Is ``b``'s held-out score within one paired (block jackknife) standard error of ``a``'s?"""
         if a.err_c is None or b.err_c is None or a.err_b is None:
             return False
-        d_num = np.bincount(blocks, b.err_c - a.err_c, n_blocks)
-        se = sig.jackknife_ratio(d_num, np.bincount(blocks, a.err_b, n_blocks))
-        return bool(np.isfinite(se) and abs(d_num.sum() / np.sum(a.err_b)) <= se)
+        diff, se = sig.score_difference(a.err_c, b.err_c, a.err_b, blocks, n_blocks)
+        return bool(np.isfinite(se) and abs(diff) <= se)
 
     best, rejected = choose(named, model, rec, kind, det_p_under, det_alpha, signature_of, tie)
     set_aside = tuple(ev.describe() for ev in rejected)
@@ -426,10 +425,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
             continue
         if t.err_c is None:  # histogram-judged: no per-block errors to compare
             continue
-        d_num = np.bincount(blocks, t.err_c - best.err_c, n_blocks)
-        den = np.bincount(blocks, best.err_b, n_blocks)
-        diff = d_num.sum() / den.sum()
-        se = sig.jackknife_ratio(d_num, den)
+        diff, se = sig.score_difference(best.err_c, t.err_c, best.err_b, blocks, n_blocks)
         if np.isfinite(se) and diff <= 2 * se:
             comps.append(t.id)
             seps.append(separating_experiment(best.id, t.id))

@@ -254,6 +254,17 @@ def jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
     return float(np.sqrt((k - 1) / k * np.nansum((loo - np.nanmean(loo)) ** 2)))
 
 
+def score_difference(err_ref: np.ndarray, err_other: np.ndarray, err_base: np.ndarray, blocks: np.ndarray,
+                     n_blocks: int) -> tuple[float, float]:
+    """How far another candidate's held-out score falls below a reference's, and that
+    difference's paired standard error (block jackknife): ``(score_ref − score_other, se)``,
+    from the per-sample held-out squared errors of the two (``err_ref``, ``err_other``) and of
+    the nuisance alone (``err_base``, the reference's), ``blocks`` the block of each sample."""
+    d_num = np.bincount(blocks, err_other - err_ref, n_blocks)
+    den = np.bincount(blocks, err_base, n_blocks)
+    return float(d_num.sum() / den.sum()), jackknife_ratio(d_num, den)
+
+
 def benjamini_hochberg(p_values, alpha: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
     """BH step-up: (rejected mask, adjusted p-values) in the input order."""
     p = np.asarray(p_values, dtype=float)
