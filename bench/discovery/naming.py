@@ -268,7 +268,7 @@ REFIT_TOP = 3
 
 
 def refitted_choice(pick: Trial | None, named: list[Trial], model: Model, rec: Record, kind: str,
-                    noise_sd: float) -> Trial | None:
+                    noise_sd: float, joint_residual: Callable[[Trial], np.ndarray]) -> Trial | None:
     """The deterministic choice once the model's waveform effects are refitted beside each of the
     best named waveform candidates (the first :data:`REFIT_TOP` by held-out score, and ``pick``):
     a candidate's fit holds the earlier effects fixed, so an effect fitted before a missing one
@@ -285,7 +285,8 @@ def refitted_choice(pick: Trial | None, named: list[Trial], model: Model, rec: R
     ``pick``'s by the same gate — an in-sample criterion beside a random process rewards any
     flexible shape (three jumps along a walk's wander), which the held-out score had judged.
     ``pick`` unchanged without earlier waveform effects (nothing to refit) or when no other
-    waveform candidate is named."""
+    waveform candidate is named. ``joint_residual(t)``: the residual, mean removed, with ``t``
+    added to the model and every parameter refitted."""
     if pick is None or pick.effect.stochastic or not pick.effect.waveform or noise_sd <= 0:
         return pick
     if not any(e.waveform and not e.stochastic for e, _ in model.entries()):
@@ -302,10 +303,7 @@ def refitted_choice(pick: Trial | None, named: list[Trial], model: Model, rec: R
         res = res - res.mean()
         return n * math.log(float(np.sum(res ** 2)) / n) + math.log(n) * len(t.effect.params_for(kind))
 
-    def refit(t: Trial) -> tuple[float, np.ndarray]:
-        res = rec.y - calibrate(model.with_effect(t.id, t.params), rec).predict(rec)
-        return crit(t, res), res - res.mean()
-    fits = {id(t): refit(t) for t in pool}
+    fits = {id(t): (crit(t, joint_residual(t)), joint_residual(t)) for t in pool}
 
     def refit_gain(t: Trial) -> float:  # what refitting the earlier effects beside t adds to t's own fit
         return crit(t, np.asarray(t.resid_full, float)) - fits[id(t)][0]
@@ -367,14 +365,22 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     candidates = tuple(c for _, c in judged)
     named = [t for t, c in judged if c.named]
 
+    refits: dict[str, np.ndarray] = {}
+
+    def joint_residual(t: Trial) -> np.ndarray:
+        """The residual (mean removed) with ``t`` added and every parameter refitted — once a
+        candidate: the nesting rule, Occam's check and :func:`refitted_choice` all weigh it."""
+        if t.id not in refits:
+            res = rec.y - calibrate(model.with_effect(t.id, t.params), rec).predict(rec)
+            refits[t.id] = res - res.mean()
+        return refits[t.id]
+
     def refitted_sse(t: Trial) -> float:
-        """Sum of squares of the residual with ``t`` added and every parameter refitted."""
-        res = rec.y - calibrate(model.with_effect(t.id, t.params), rec).predict(rec)
-        return float(np.sum((res - res.mean()) ** 2))
+        return float(np.sum(joint_residual(t) ** 2))
 
     det_pick = parsimonious(next((t for t in named if not t.effect.stochastic), None), named, blocks, n_blocks,
                             kind, reading_sd, refitted_sse)
-    det_pick = refitted_choice(det_pick, named, model, rec, kind, reading_sd)
+    det_pick = refitted_choice(det_pick, named, model, rec, kind, reading_sd, joint_residual)
     named = ([det_pick] if det_pick is not None else []) + [t for t in named if t is not det_pick]
 
     # the deterministic term's significance against the process: Bonferroni over the catalogue

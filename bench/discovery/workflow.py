@@ -166,8 +166,8 @@ def refit_processes(model: Model, rec: Record, alpha: float = 0.05) -> tuple[Mod
     procs = [(i, e) for i, (e, _) in enumerate(model.entries()) if e.stochastic]
     kind = model.base.kind
     p_values: dict[str, float] = {}
+    r = rec.y - model.predict(rec)  # the processes are not in the prediction: one residual for all
     for k, (i, eff) in enumerate(procs):  # k-th process of the model, its i-th effect
-        r = rec.y - model.predict(rec)
         others = tuple(ep for j, ep in enumerate(model.stochastic_effects()) if j != k)
         fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=others)
         params = {q.name: float(np.clip(fit.params[q.name], q.low, q.high)) for q in eff.params_for(kind)}
