@@ -343,6 +343,15 @@ class Effect:
         """Output stage: variance of a reading about the model's mean (default noise_sd²)."""
         return noise_sd ** 2
 
+    def residual_moments_at(self, p: Params, rec: Record, y: np.ndarray, noise_sd: float,
+                            wander_sd: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Output stage: (variance, fourth central moment) of a reading about its mean per
+        sample, at the signal ``y`` before the transform, with a slow unpredicted offset of sd
+        ``wander_sd`` (the model's random processes) moving the signal. Default:
+        ``residual_var`` everywhere, Gaussian (a homoscedastic transform)."""
+        v = np.full(np.shape(y), self.residual_var(p, noise_sd))
+        return v, 3 * v * v
+
     # ---- detectability ----------------------------------------------------------------
     def reference_output(self, rec: Record) -> np.ndarray:
         """The output the detectability rule perturbs: ``input`` (unit SF, zero bias) or 0."""

@@ -69,6 +69,99 @@ def expected_quantized(x: np.ndarray, step: float, noise_sd: float) -> np.ndarra
     return step * out
 
 
+def quantized_variance(x: np.ndarray, step: float, noise_sd: float, wander_sd: float = 0.0) -> np.ndarray:
+    """``Var[step·round((x + n)/step)]`` per sample for Gaussian ``n`` of sd ``noise_sd``: the
+    spread of a reading about its mean (:func:`expected_quantized`); :func:`quantized_moments`."""
+    return quantized_moments(x, step, noise_sd, wander_sd)[0]
+
+
+def quantized_moments(x: np.ndarray, step: float, noise_sd: float,
+                      wander_sd: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(variance, fourth central moment) per sample of ``step·round((x + n)/step)``, n Gaussian
+    of sd ``noise_sd``. With little dither they depend on where x sits on the lattice — the
+    variance near 0 on a level, up to step²/4 between two — so a coarse quantizer's residual is
+    heteroscedastic, and far from Gaussian (a rare flip of a whole step: kurtosis 1/p for a flip
+    of probability p, against 3). ``wander_sd``: sd of a slow offset the model does not predict
+    (its random processes) that moves x along the lattice; the moments at x are averaged over it
+    (the phase profile's k-th harmonic damped by e^{−2π²k²w²/step²}). Exact level sums over the
+    thresholds within 9σ; the Gaussian-free flat level (``Quantization.residual_var``, kurtosis
+    of the phase average) once σ or the wander reaches a step (a first harmonic below 3e-9)."""
+    x = np.asarray(x, dtype=float)
+    sd, w = float(noise_sd), float(wander_sd)
+    if not (sd >= 0 and w >= 0 and math.isfinite(sd) and math.isfinite(w)):
+        raise ValueError(f"noise_sd = {noise_sd!r}, wander_sd = {wander_sd!r}; allowed: finite values >= 0")
+    if step <= 0:
+        return np.full(x.shape, sd * sd), np.full(x.shape, 3 * sd ** 4)
+    if w == 0 and sd < step:
+        v, m4 = _level_moments(x / step, sd / step)
+        return step * step * v, step ** 4 * m4
+    grid = (np.arange(QUANT_PHASES) + 0.5) / QUANT_PHASES
+    gv, gm4 = _level_moments(grid, sd / step)
+    if sd >= step or w >= step:
+        return np.full(x.shape, _phase_averaged_var(step, sd)), np.full(x.shape, step ** 4 * float(np.mean(gm4)))
+    k = np.arange(QUANT_PHASES // 2 + 1)
+    damp = np.exp(-2 * math.pi ** 2 * k * k * (w / step) ** 2)
+    phase = np.mod(x / step, 1.0) * QUANT_PHASES - 0.5
+    knots = np.arange(-1, QUANT_PHASES + 1)
+
+    def smoothed(g: np.ndarray) -> np.ndarray:
+        prof = np.fft.irfft(np.fft.rfft(g) * damp, QUANT_PHASES)
+        return np.maximum(np.interp(phase, knots, np.r_[prof[-1], prof, prof[0]]), 0.0)
+    return step * step * smoothed(gv), step ** 4 * smoothed(gm4)
+
+
+#: Phases of one lattice step on which :func:`quantized_moments` smooths the profile by a wander.
+QUANT_PHASES = 256
+
+
+def _level_moments(u: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """(variance, fourth central moment), in steps, of round(U), U ~ N(u, τ²): over the levels
+    within 9τ + 2 of u."""
+    a = np.floor(u)
+    f = u - a
+    if tau == 0:
+        return np.zeros(f.shape), np.zeros(f.shape)
+    raw = [np.zeros(f.shape) for _ in range(4)]
+    reach = int(math.ceil(9 * tau)) + 2
+    for d in range(-reach, reach + 1):  # level a + d takes U in [a + d − ½, a + d + ½)
+        pd = ndtr((d + 0.5 - f) / tau) - ndtr((d - 0.5 - f) / tau)
+        for k in range(4):
+            raw[k] += d ** (k + 1) * pd
+    m1, m2, m3, m4 = raw
+    var = np.maximum(m2 - m1 * m1, 0.0)
+    return var, np.maximum(m4 - 4 * m1 * m3 + 6 * m1 * m1 * m2 - 3 * m1 ** 4, var * var)
+
+
+def _phase_averaged_var(step: float, sd: float) -> float:
+    """``Var[Q(x + n) | x]`` averaged over the phase of x (``Quantization.residual_var``)."""
+    if step <= 0:
+        return sd * sd
+    tau = sd / step
+    if tau < 1e-4:
+        return sd * sd + step * sd / math.sqrt(math.pi)
+    k = np.arange(1, int(math.ceil(4.0 / tau)) + 2, dtype=float)
+    return float(sd * sd + step * step / 12.0
+                 - step * step * np.sum(np.exp(-4 * math.pi ** 2 * k * k * tau * tau) / (k * k)) / (2 * math.pi ** 2))
+
+
+def clipped_variance(x: np.ndarray, limit: float, noise_sd: float) -> np.ndarray:
+    """``Var[clip(x + n, −limit, limit)]`` per sample, n Gaussian of sd ``noise_sd``
+    (truncated-normal moments): the noise's own variance inside the range, near 0 where the
+    signal is clipped — a saturation's residual is quiet there."""
+    x = np.asarray(x, dtype=float)
+    sd = float(noise_sd)
+    if sd <= 0:
+        return np.zeros(x.shape)
+    a, b = (-limit - x) / sd, (limit - x) / sd
+    pa, pb = ndtr(a), ndtr(b)
+    da, db = np.exp(-0.5 * a * a) / math.sqrt(2 * math.pi), np.exp(-0.5 * b * b) / math.sqrt(2 * math.pi)
+    inside = pb - pa
+    m1 = -limit * pa + limit * (1 - pb) + x * inside + sd * (da - db)
+    m2 = (limit * limit * (pa + 1 - pb) + x * x * inside + 2 * x * sd * (da - db)
+          + sd * sd * (inside + a * da - b * db))
+    return np.maximum(m2 - m1 * m1, 0.0)
+
+
 #: A quantizer step above this many white-noise sd makes the residual's colour follow the signal.
 COARSE_STEP_SD = 2.0
 
@@ -229,6 +322,12 @@ class Saturation(Effect):
     def transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])
 
+    def residual_moments_at(self, p, rec, y, noise_sd, wander_sd=0.0):
+        """Per sample at the signal y: :func:`clipped_variance` with the wander counted as noise
+        (near 0 where the signal is clipped), Gaussian fourth moment."""
+        v = clipped_variance(y, p["limit"], math.hypot(float(noise_sd), float(wander_sd)))
+        return v, 3 * v * v
+
     def draw(self, rng, rec, *, kind=None, noise_sd=None, at_snr=None):
         """limit log-uniform in [0.6, 0.95] × the largest |reference output| (inside the kind's
         range): a part of the excursions clips, never most of the signal — the snr of clipping
@@ -294,15 +393,12 @@ class Quantization(HistogramEffect):
         x: ``σ² + step²/12 − Σ_k step²·e^{−4π²k²σ²/step²}/(2π²k²)`` (0 at σ = 0, σ² + step²/12
         once σ ≳ step/2); for σ < 1e-4·step the limit ``σ² + step·σ/√π`` (a Bernoulli flip within
         a few σ of each threshold)."""
-        s, sd = p["step"], float(noise_sd)
-        if s <= 0:
-            return sd ** 2
-        tau = sd / s
-        if tau < 1e-4:
-            return sd * sd + s * sd / math.sqrt(math.pi)
-        k = np.arange(1, int(math.ceil(4.0 / tau)) + 2, dtype=float)
-        return float(sd * sd + s * s / 12.0
-                     - s * s * np.sum(np.exp(-4 * math.pi ** 2 * k * k * tau * tau) / (k * k)) / (2 * math.pi ** 2))
+        return _phase_averaged_var(p["step"], float(noise_sd))
+
+    def residual_moments_at(self, p, rec, y, noise_sd, wander_sd=0.0):
+        """Per sample at the signal y: :func:`quantized_moments` (heteroscedastic and heavy-tailed
+        with little dither)."""
+        return quantized_moments(y, p["step"], noise_sd, wander_sd)
 
     def snr(self, p, rec, noise_sd):
         """Lattice visibility: |E exp(2πi·y/step)| = exp(−2π²σ²/step²) for Gaussian noise σ,

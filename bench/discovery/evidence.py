@@ -51,7 +51,7 @@ from bench.discovery.data import Record
 from bench.discovery.effects_base import MIN_SNR
 from bench.discovery.effects_linalg import base_regressors, orthonormal, project_out
 from bench.discovery.effects_noise import StochasticEffect
-from bench.discovery.localize import input_correlations, jumps, time_segments
+from bench.discovery.localize import innovations_profile, input_correlations, jumps, time_segments
 from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.whiten import block_psd, innovations
@@ -169,9 +169,10 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
     if p_band < a:
         where.append(what)
     # time: segments, CUSUM, single innovations (Bonferroni over the three inside)
-    sd, dof = sig.white_floor(x, rate)
-    segs, cusum_p = time_segments(x, rec.t_s, sd, 16, a / 3, floor_dof=dof)
-    jmp = jumps(x, rec.t_s, sd, a / 3, floor_dof=dof)
+    moments = innovations_profile(model, rec, white, procs)
+    sd, dof = sig.white_floor(x, rate, sample_var=None if moments is None else moments[0])
+    segs, cusum_p = time_segments(x, rec.t_s, sd, 16, a / 3, floor_dof=dof, sample_moments=moments)
+    jmp = jumps(x, rec.t_s, sd, a / 3, floor_dof=dof, sample_moments=moments)
     ps.append(min(1.0, 3 * cusum_p))
     if segs or jmp or cusum_p < a / 3:
         where += [s.describe() for s in segs[:2]] + [j.describe() for j in jmp[:2]]

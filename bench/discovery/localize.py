@@ -43,10 +43,11 @@ from scipy import signal, special, stats
 from bench.analysis.allan import averaging_factors
 from bench.analysis.allan_stats import edf_greenhall
 from bench.discovery.data import Record
+from bench.discovery.effects_noise import StochasticEffect
 from bench.discovery.findings import INPUT_COLUMNS, Band, InputCorrelation, Jump, Localization, Segment, TauRange
 from bench.discovery.model import Model
-from bench.discovery.significance import welch_dof, welch_nperseg, white_floor
-from bench.discovery.whiten import innovations
+from bench.discovery.significance import spread_factor, welch_dof, welch_nperseg, white_floor
+from bench.discovery.whiten import innovation_var, innovations, wander_sd
 
 
 def _check(residual, rec: Record, noise_sd: float) -> np.ndarray:
@@ -85,9 +86,21 @@ def _floor_average(sf, x: float, floor_dof: float, n_q: int = 64) -> float:
 
 
 def time_segments(r: np.ndarray, t_s: np.ndarray, noise_sd: float, n_segments: int = 16,
-                  alpha: float = 0.01, *, floor_dof: float = np.inf) -> tuple[tuple[Segment, ...], float]:
+                  alpha: float = 0.01, *, floor_dof: float = np.inf,
+                  sample_moments: tuple[np.ndarray, np.ndarray, float] | None = None,
+                  ) -> tuple[tuple[Segment, ...], float]:
     """Flagged segments and the CUSUM p-value (Kolmogorov limit of max|S_k|/(σ√n)).
-    ``floor_dof``: dof of ``noise_sd``² when it was estimated (∞: known)."""
+    ``floor_dof``: dof of ``noise_sd``² when it was estimated (∞: known). ``sample_moments``:
+    each sample's expected variance and fourth central moment relative to ``noise_sd``² and
+    ``noise_sd``⁴ (variance mean 1; :func:`innovations_profile`) when the residual is
+    heteroscedastic and heavy-tailed — a coarse quantizer's readings between two levels flip,
+    on a level they barely move, and then by a whole step — and the relative variance of an
+    offset common to all samples (the calibrated parameters' error, ~k/n: negligible beside
+    white noise, all there is where readings sit on a level). A segment's floor is then
+    ``noise_sd``² times its mean variance plus the offset's, and its mean square is referred to
+    χ² with the Satterthwaite dof 2(v̄ + o)²/(Σ(μ₄ − v²)/m² + 2o²) instead of its length (187
+    samples of rare whole-step flips carry the information of ~20 Gaussian ones); None: white
+    Gaussian."""
     n = r.size
     n_segments = max(1, min(n_segments, n // 8))
     edges = np.linspace(0, n, n_segments + 1).astype(int)
@@ -95,25 +108,58 @@ def time_segments(r: np.ndarray, t_s: np.ndarray, noise_sd: float, n_segments: i
     m = np.diff(edges)
     mean = np.add.reduceat(r, edges[:-1]) / m
     ms = np.add.reduceat(r * r, edges[:-1]) / m
-    z = mean / (noise_sd / np.sqrt(m))
+    rel, dof, mean_var = np.ones(n_segments), m.astype(float), 1.0 / m
+    heavy = np.zeros(n_segments, bool)
+    ms_var = 2.0 / m
+    if sample_moments is not None:
+        v, m4 = (np.asarray(x, float) for x in sample_moments[:2])
+        off = float(sample_moments[2])
+        rel_v = np.add.reduceat(v, edges[:-1]) / m
+        rel = rel_v + off
+        ms_var = np.add.reduceat(m4 - v * v, edges[:-1]) / m ** 2 + 2 * off * off
+        dof = np.clip(2 * rel ** 2 / np.maximum(ms_var, 1e-300), 1.0, m)
+        mean_var = rel_v / m + off
+        heavy = np.add.reduceat(m4, edges[:-1]) > HEAVY_KURTOSIS * np.add.reduceat(v * v, edges[:-1])
+    floor = noise_sd * np.sqrt(rel)  # each segment's own floor sd
+    z = mean / (noise_sd * np.sqrt(mean_var * np.ones(n_segments)))
+    ratio = ms / floor ** 2
+    p_mean, p_ms = _z_sf2(z, floor_dof), _ratio_sf(ratio, dof, floor_dof)
+    if np.any(heavy):
+        # a few whole-step flips: the χ² and normal laws are far too thin-tailed (one flip of
+        # probability 0.03 would read as p = 1e-8); Chebyshev's and Cantelli's bounds hold for
+        # any law with those moments
+        excess = np.maximum(ms / noise_sd ** 2 - rel, 0.0)
+        cantelli = ms_var / (ms_var + excess ** 2)
+        chebyshev = np.minimum(1.0, 1.0 / np.maximum(z * z, 1e-300))
+        p_mean = np.where(heavy, np.maximum(p_mean, chebyshev), p_mean)
+        p_ms = np.where(heavy, np.maximum(p_ms, cantelli), p_ms)
     # only excess variance is structure: a quiet segment is not something the model misses
-    bad = (_z_sf2(z, floor_dof) < a) | (_ratio_sf(ms / noise_sd ** 2, m, floor_dof) < a)
+    bad = (p_mean < a) | (p_ms < a)
     out = tuple(Segment(float(t_s[edges[i]]), float(t_s[edges[i + 1] - 1]), float(mean[i]),
-                        float(np.sqrt(ms[i]) / noise_sd), float(z[i])) for i in np.flatnonzero(bad))
-    # a bridge: the residual's own mean is removed, max |B| has the Kolmogorov law
-    s = np.cumsum(r - r.mean()) / (noise_sd * np.sqrt(n))
+                        float(np.sqrt(ms[i]) / floor[i]), float(z[i])) for i in np.flatnonzero(bad))
+    # a bridge: the residual's own mean is removed, max |B| has the Kolmogorov law — in the
+    # time of its accumulated variance when it is heteroscedastic (each sample takes its share
+    # of the mean by its variance; B(τ_k) − τ_k·B(1) is then a Brownian bridge again)
+    if sample_moments is None:
+        s = np.cumsum(r - r.mean()) / (noise_sd * np.sqrt(n))
+    else:
+        w = np.asarray(sample_moments[0], float)
+        s = np.cumsum(r - w * (r.sum() / w.sum())) / (noise_sd * np.sqrt(w.sum()))
     cusum_p = _floor_average(special.kolmogorov, float(np.max(np.abs(s))), floor_dof)
     return out, cusum_p
 
 
 def spectral_bands(r: np.ndarray, rate_hz: float, noise_sd: float, alpha: float = 0.01,
-                   nperseg: int | None = None, *, floor_dof: float = np.inf):
-    """Welch PSD, the white floor and the flagged lines and bands (excess power only)."""
+                   nperseg: int | None = None, *, floor_dof: float = np.inf,
+                   sample_var: np.ndarray | None = None):
+    """Welch PSD, the white floor and the flagged lines and bands (excess power only).
+    ``sample_var``: each sample's relative variance when the series is heteroscedastic (its
+    Welch dof scaled by :func:`spread_factor` over the segments)."""
     n = r.size
     nperseg = int(nperseg or welch_nperseg(n))
     f, p = signal.welch(r, fs=rate_hz, window="hann", nperseg=nperseg, detrend=False)
     floor = 2.0 * noise_sd ** 2 / rate_hz
-    nu = welch_dof(n, nperseg)
+    nu = welch_dof(n, nperseg) * spread_factor(sample_var, nperseg)
     flag = _ratio_sf(p / floor, nu, floor_dof) < alpha / max(f.size, 1)
     flag[0] = False  # DC: the calibrated bias
     bands = []
@@ -131,10 +177,11 @@ def _runs(flag: np.ndarray) -> list[tuple[int, int]]:
 
 
 def allan_taus(r: np.ndarray, rate_hz: float, noise_sd: float, alpha: float = 0.01, *,
-               floor_dof: float = np.inf):
+               floor_dof: float = np.inf, sample_moments: tuple[np.ndarray, np.ndarray, float] | None = None):
     """τ ranges where the ADEV exceeds the white expectation σ/√(τ·fs): one-sided test of
     AVAR/white against χ²(edf)/edf (Greenhall's EDF for white rate noise, the null), or the F
-    law when σ was estimated; Bonferroni over the octave τ list. A deficit is not flagged."""
+    law when σ was estimated; Bonferroni over the octave τ list. A deficit is not flagged.
+    ``sample_moments``: as :func:`time_segments` (each τ's EDF scaled, below)."""
     if r.size < 16:
         return (), np.zeros(0), np.zeros(0), np.zeros(0)
     n_tau = max(1, int(np.log2(r.size // 2)) + 1)  # octave τ list length: Bonferroni over it
@@ -145,6 +192,12 @@ def allan_taus(r: np.ndarray, rate_hz: float, noise_sd: float, alpha: float = 0.
     tau, adev = ms / rate_hz, np.sqrt(avar)
     white = noise_sd / np.sqrt(tau * rate_hz)
     edf = _white_edf(r.size, tuple(int(m) for m in ms))
+    if sample_moments is not None:
+        # each τ's EDF scaled by the spread over blocks of 2m and by the kurtosis of an m-sample
+        # sum, 3 + (κ − 3)/m (a coarse quantizer's whole-step flips at the shortest τ)
+        v, m4 = sample_moments[0], sample_moments[1]
+        kappa = float(np.mean(m4)) / float(np.mean(v * v))
+        edf = edf * np.array([spread_factor(v, 2 * int(m)) * 2.0 / (2.0 + max(kappa - 3.0, 0.0) / m) for m in ms])
     bad = _ratio_sf((adev / white) ** 2, edf, floor_dof) < alpha / n_tau
     out = []
     for i, j in _runs(bad):
@@ -160,18 +213,36 @@ def _white_edf(n: int, ms: tuple[int, ...]) -> np.ndarray:
 
 
 def jumps(r: np.ndarray, t_s: np.ndarray, noise_sd: float, alpha: float = 0.01, *,
-          floor_dof: float = np.inf, max_report: int = 4) -> tuple[Jump, ...]:
+          floor_dof: float = np.inf, max_report: int = 4,
+          sample_moments: tuple[np.ndarray, np.ndarray, float] | None = None) -> tuple[Jump, ...]:
     """Single samples beyond the Gaussian extreme of n white samples (Bonferroni over n), on the
     larger of ``noise_sd`` and the series' MAD sd: in Kalman innovations a step of the output
-    shows as one such sample."""
+    shows as one such sample. ``sample_moments`` (:func:`time_segments`): each sample on its own
+    sd, and where its fourth moment is well above a Gaussian's (kurtosis > 4: a coarse
+    quantizer's reading that flips by a whole step once in a while) its tail is Markov's bound
+    μ₄/x⁴ on the fourth power instead of the Gaussian one — exact for a rare flip, so a flip
+    of probability p is not a jump at p·n."""
     # the series' own overall scale (MAD), not the upper-half floor: a slightly mis-set filter
     # leaves low-frequency power in innovations, and extremes come from the whole spectrum
     mad_sd = 1.4826 * float(np.median(np.abs(r - np.median(r))))
-    z = r / max(noise_sd, mad_sd)
-    p = _z_sf2(z, floor_dof) * r.size
-    idx = np.flatnonzero(p < alpha)
+    scale = max(noise_sd, mad_sd)
+    z = r / scale
+    p = _z_sf2(z, floor_dof)
+    if sample_moments is not None:
+        v, m4 = (np.asarray(x, float) for x in sample_moments[:2])
+        v = np.maximum(v + float(sample_moments[2]), 1e-9)
+        z = r / (scale * np.sqrt(v))
+        kurt = m4 / v ** 2
+        with np.errstate(divide="ignore"):
+            markov = np.minimum(1.0, kurt / z ** 4)
+        p = np.where(kurt > HEAVY_KURTOSIS, np.maximum(_z_sf2(z, floor_dof), markov), _z_sf2(z, floor_dof))
+    idx = np.flatnonzero(p * r.size < alpha)
     idx = idx[np.argsort(-np.abs(z[idx]))][:max_report]
     return tuple(Jump(float(t_s[i]), float(r[i]), float(z[i])) for i in sorted(idx))
+
+
+#: Kurtosis above which :func:`jumps` takes a sample's tail from its fourth moment (Gaussian: 3).
+HEAVY_KURTOSIS = 4.0
 
 
 def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
@@ -230,24 +301,57 @@ def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01, *,
 
 def localize(rec: Record, residual, noise_sd: float, *, alpha: float = 0.01,
              n_segments: int = 16, floor_dof: float = np.inf, transform=None,
-             find_jumps: bool = False) -> Localization:
+             find_jumps: bool = False,
+             sample_moments: tuple[np.ndarray, np.ndarray, float] | None = None) -> Localization:
     """Localize the departure of ``residual`` (= y − model prediction) from white noise of sd
     ``noise_sd``: time segments, spectral lines/bands, Allan τ ranges, input correlations (and,
     with ``find_jumps``, single outlying samples). Each of these families is tested at
     ``alpha``. ``floor_dof``: dof of ``noise_sd``² when it was estimated from the same data
-    (∞: known); ``transform``: see :func:`input_correlations`."""
+    (∞: known); ``transform``: see :func:`input_correlations`; ``sample_moments``: see
+    :func:`time_segments`."""
     r = _check(residual, rec, float(noise_sd))
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
     if not floor_dof > 0:
         raise ValueError(f"floor_dof = {floor_dof!r}; allowed: > 0 (inf: a known floor)")
     rate = rec.rate_hz
-    segs, cusum_p = time_segments(r, rec.t_s, noise_sd, n_segments, alpha, floor_dof=floor_dof)
-    bands, f, p, floor = spectral_bands(r, rate, noise_sd, alpha, floor_dof=floor_dof)
-    taus, tau, adev, white = allan_taus(r, rate, noise_sd, alpha, floor_dof=floor_dof)
+    segs, cusum_p = time_segments(r, rec.t_s, noise_sd, n_segments, alpha, floor_dof=floor_dof,
+                                  sample_moments=sample_moments)
+    v = None if sample_moments is None else sample_moments[0]
+    bands, f, p, floor = spectral_bands(r, rate, noise_sd, alpha, floor_dof=floor_dof, sample_var=v)
+    taus, tau, adev, white = allan_taus(r, rate, noise_sd, alpha, floor_dof=floor_dof,
+                                        sample_moments=sample_moments)
     corr = input_correlations(r, rec, alpha, transform=transform)
-    jmp = jumps(r, rec.t_s, noise_sd, alpha, floor_dof=floor_dof) if find_jumps else ()
+    jmp = jumps(r, rec.t_s, noise_sd, alpha, floor_dof=floor_dof, sample_moments=sample_moments) if find_jumps else ()
     return Localization(segs, cusum_p, bands, taus, corr, f, p, floor, tau, adev, white, alpha, jmp)
+
+
+def innovations_profile(model: Model, rec: Record, white: float, procs,
+                        ) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Each standardized innovation's expected variance and fourth central moment (relative:
+    variance mean 1) when the model's residual is heteroscedastic (``Model.residual_profile``: a
+    coarse quantizer's flips between levels, a clipping's quiet stretches), for
+    :func:`time_segments`. Innovation i is the reading's own spread w (variance white²·ρᵢ, ρ
+    the profile over its mean; fourth moment from the profile too) plus the states' Gaussian
+    prediction error of variance cᵢ: variance white²ρᵢ + cᵢ, fourth moment μ₄(w) + 6·white²ρᵢcᵢ
+    + 3cᵢ²; and the relative variance of the offset the calibration's k parameters leave
+    (k/n: the bias, scale factor and each deterministic effect's parameters). Without it a
+    tumble's orientations that sit between two levels read as segments 1.3× the floor under
+    any process. None without an output stage or for a flat profile."""
+    if not model.has_output_stage():
+        return None
+    var, m4 = model.residual_profile(rec, wander_sd(rec.rate_hz, rec.n, procs))
+    mean = float(np.mean(var))
+    if not mean > 0 or float(np.ptp(var)) <= 1e-3 * mean:
+        return None
+    s = innovation_var(rec.rate_hz, rec.n, white, procs)
+    c = np.maximum(s - white ** 2, 0.0)
+    rho, kappa = var / mean, m4 / mean ** 2
+    v = (white ** 2 * rho + c) / s
+    w4 = (white ** 4 * kappa + 6 * white ** 2 * rho * c + 3 * c * c) / s ** 2
+    norm = float(np.mean(v))
+    k = 2 + sum(len(p) for e, p in model.entries() if not isinstance(e, StochasticEffect))
+    return v / norm, w4 / norm ** 2, k / rec.n
 
 
 #: test families of :func:`unexplained_structure` (segments, CUSUM, spectrum, Allan, inputs,
@@ -283,6 +387,7 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
     transform: Callable[[np.ndarray], np.ndarray] | None = None
     prefix = ""
     x = r
+    white = float(np.std(r))
     if sto:
         # the white level is re-estimated beside the model's stochastic spectrum: a level that
         # counted a short-τ GM's high-frequency power as white would colour the innovations
@@ -295,9 +400,10 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
             return innovations(v - v.mean(), rate, white, sto)
         transform = whiten
         prefix = "in the Kalman innovations under the model's noise: "
-    sd, dof = white_floor(x, rate)
+    moments = innovations_profile(model, rec, white or float(model.base.noise_sd) or 1.0, sto)
+    sd, dof = white_floor(x, rate, sample_var=None if moments is None else moments[0])
     if not (np.isfinite(sd) and sd > 0):
         return ()
     loc = localize(rec, x, sd, alpha=alpha / N_FAMILIES, floor_dof=dof, transform=transform,
-                   find_jumps=True)
+                   find_jumps=True, sample_moments=moments)
     return tuple(prefix + d for d in loc.descriptions())

@@ -162,6 +162,28 @@ class Model:
                 v = e.residual_var(p, math.sqrt(v))
         return math.sqrt(v)
 
+    def residual_profile(self, rec: Record, wander_sd: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(variance, fourth central moment) of ``y − predict`` per sample on rec: ``noise_sd²``
+        and Gaussian everywhere without an output stage; through a coarse quantizer or a clipping
+        they follow where the signal sits (``Effect.residual_moments_at``) — a reading on a
+        lattice level barely moves and then by a whole step, one between two levels flips.
+        ``wander_sd``: sd of the slow offset the model's random processes add before the output
+        stage (it moves the signal along the lattice)."""
+        b = self.base
+        var = np.full(rec.n, b.noise_sd ** 2)
+        m4 = 3 * var * var
+        if not self.has_output_stage():
+            return var, m4
+        u, add = self.stages(rec)
+        y = b.bias + b.scale_factor * u + add
+        sd = b.noise_sd
+        for e, p in self.entries():
+            if e.stage == "output":
+                var, m4 = e.residual_moments_at(p, rec, y, sd, wander_sd)
+                y = e.expected_transform(p, rec, y, sd)
+                sd = math.sqrt(float(np.mean(var)))
+        return var, m4
+
     def with_noise_floor(self, floor_sd: float) -> Model:
         """This model with ``noise_sd`` set so that its residual ``y − predict`` has white sd
         ``floor_sd`` (what a calibration measures): equal without output transforms; with

@@ -323,7 +323,22 @@ def welch_dof(n: int, nperseg: int) -> float:
 FLOOR_DOF_PER_SAMPLE = 0.35
 
 
-def white_floor(x: np.ndarray, rate_hz: float, stochastic_effects: Processes = ()) -> tuple[float, float]:
+def spread_factor(v: np.ndarray | None, length: int) -> float:
+    """How much of an average's information a heteroscedastic series keeps: over blocks of
+    ``length`` samples with mean variances b_k, (Σb)²/(K·Σb²) — 1 for a homoscedastic series,
+    1/K when one block holds all the variance. An average of per-block statistics (Welch's
+    periodograms, Allan's differences) has its equivalent dof scaled by it (Satterthwaite)."""
+    if v is None:
+        return 1.0
+    v = np.asarray(v, float)
+    k = max(1, v.size // max(1, int(length)))
+    b = v[:k * (v.size // k)].reshape(k, -1).mean(axis=1)
+    den = k * float(np.sum(b * b))
+    return float(np.sum(b)) ** 2 / den if den > 0 else 1.0
+
+
+def white_floor(x: np.ndarray, rate_hz: float, stochastic_effects: Processes = (), *,
+                sample_var: np.ndarray | None = None) -> tuple[float, float]:
     """(white-noise sd, dof of its variance) from the upper half of the Welch PSD of ``x``
     (median, bias-corrected): immune to slow structure and to a few spectral lines. The dof
     ν (σ̂²/σ² ~ χ²_ν/ν on white noise) lets a test allow for the floor being estimated.
@@ -331,15 +346,21 @@ def white_floor(x: np.ndarray, rate_hz: float, stochastic_effects: Processes = (
     ``stochastic_effects`` ((effect, params), ``Model.stochastic_effects()``): their PSD
     is part of the model's spectrum, so the white level is the one at which the median of
     PSD/(white + theirs) over those bins is the χ² median — a short-τ Gauss–Markov puts power
-    in the upper half that a plain median would count as white."""
+    in the upper half that a plain median would count as white.
+
+    ``sample_var``: each sample's relative variance when ``x`` is heteroscedastic (a coarse
+    quantizer's readings): Welch's segments then carry unequal levels, each bin's estimate has
+    fewer dof (:func:`spread_factor`) and a more skewed law whose median sits lower — the
+    bias correction and the floor's dof use that."""
     x = np.asarray(x, float)
     nperseg = welch_nperseg(x.size)
     f, p = signal.welch(x, fs=rate_hz, window="hann", nperseg=nperseg, detrend="constant")
     sel = (f >= 0.5 * f[-1]) & (np.arange(f.size) < f.size - 1) if f.size > 4 else np.ones(f.size, bool)
     upper, fu = p[sel], f[sel]
-    nu = welch_dof(x.size, nperseg)
+    spread = spread_factor(sample_var, nperseg)
+    nu = welch_dof(x.size, nperseg) * spread
     med = stats.chi2.median(nu) / nu
-    dof = max(FLOOR_DOF_PER_SAMPLE * x.size, 1.0)
+    dof = max(FLOOR_DOF_PER_SAMPLE * x.size * spread, 1.0)
     plain = float(np.median(upper) / med * rate_hz / 2.0)
     effects = list(stochastic_effects)
     if not effects or plain <= 0:

@@ -254,6 +254,29 @@ def innovations(residual: np.ndarray, rate_hz: float, white_sd: float,
     return e / np.sqrt(s)
 
 
+def innovation_var(rate_hz: float, n: int, white_sd: float, stochastic_effects: Processes = ()) -> np.ndarray:
+    """Per-sample one-step innovation variance (sensor unit²) of ``innovations`` under white noise
+    of sd ``white_sd`` plus ``stochastic_effects``: ``white_sd²`` plus the states' prediction
+    variance (large at the start, settling to the filter's steady state)."""
+    ss = state_space(float(rate_hz), int(n), list(stochastic_effects))
+    if ss.m == 0:
+        return np.full(int(n), float(white_sd) ** 2)
+    return np.asarray(ss.filter(np.zeros(int(n)), float(white_sd) ** 2)[1], float)
+
+
+def wander_sd(rate_hz: float, n: int, stochastic_effects: Processes = ()) -> float:
+    """Sd of the random processes' sum about its record mean on ``n`` samples at ``rate_hz``
+    (their spectra summed over the record's Fourier frequencies, DC excluded): how far they move
+    the signal in a record — along a quantizer's lattice, for one."""
+    w = 2 * np.pi * np.arange(1, (int(n) - 1) // 2 + 1) / int(n)
+    total = 0.0
+    for eff, p in stochastic_effects:
+        if not isinstance(eff, StochasticEffect):
+            raise ValueError(f"effect {eff.id!r} is not a random process; allowed: StochasticEffect pairs")
+        total += 2.0 / int(n) * float(np.sum(block_psd(eff.state_space(p, 1.0 / float(rate_hz), int(n)), w)))
+    return math.sqrt(total)
+
+
 def one_step_prediction(r: np.ndarray, block: StateBlock, white_sd: float) -> np.ndarray:
     """Kalman one-step prediction of ``r`` from its past under white noise of sd ``white_sd``
     plus the states of ``block`` (a fitted process's own ``state_space``)."""

@@ -204,3 +204,31 @@ def test_innovations_reject_bad_arguments():
         innovations(np.zeros(10), -1.0, 1.0, ())
     with pytest.raises(ValueError, match="non-finite"):
         innovations(np.array([0.0, np.nan]), 1.0, 1.0, ())
+
+
+def _tumble(n, seed):
+    """A record whose input holds 16 levels (a tumble's orientations): each sits somewhere else
+    on a quantizer's lattice."""
+    t = np.arange(n) / RATE_HZ
+    levels = np.random.default_rng(seed).uniform(-1.0, 1.0, 16)
+    return Record(t_s=t, y=np.zeros(n), input=np.repeat(levels, -(-n // 16))[:n],
+                  temp_c=20 + 5 * np.sin(2 * np.pi * t / t[-1]))
+
+
+@pytest.mark.parametrize("effects,step_sd", [((), 4), ((GM,), 4), ((), 12)], ids=["white", "gm", "white-coarse"])
+def test_a_coarse_quantizers_heteroscedastic_noise_is_not_structure(effects, step_sd):
+    # step 4 noise sd: a level that sits on the lattice barely flips, one between two levels
+    # flips half the time — segments of the record differ 3× in rms, all of it the model's own
+    # noise (Model.residual_profile); at 12 sd a rare flip is a whole step, many floor sd: not
+    # a jump (its fourth moment, not a Gaussian tail). Ignoring it, records "depart"
+    m = _model(*effects).with_effect("quantization", {"step": step_sd * SD})
+    hits = 0
+    for s in range(40):
+        rec = _tumble(3000, s)
+        hits += bool(loc.unexplained_structure(rec, _noise(m, rec, 500 + s), m))
+    assert hits <= stats.binom.ppf(0.95, 40, 0.05)
+    # and a segment of real excess is still found where it is
+    rec = _tumble(3000, 99)
+    r = _noise(m, rec, 7)
+    r[1500:1687] += step_sd * SD * np.random.default_rng(8).standard_normal(187)
+    assert _where(loc.unexplained_structure(rec, r, m), r"segment 1[45]\d(\.\d)?–1[67]\d(\.\d)? s")

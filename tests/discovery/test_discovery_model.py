@@ -9,12 +9,17 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.special import ndtr
+from scipy.special import ndtr, ndtri
 
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import KINDS
-from bench.discovery.effects_transforms import expected_quantized
+from bench.discovery.effects_transforms import (
+    clipped_variance,
+    expected_quantized,
+    quantized_moments,
+    quantized_variance,
+)
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, base_model, model_from_toml, model_to_toml, read_model, write_model
 
@@ -130,6 +135,67 @@ def test_simulated_quantization_acts_on_the_noisy_output():
     y = m.simulate(rec, 1)
     np.testing.assert_allclose(y / 0.004, np.round(y / 0.004), atol=1e-9)
     assert len(np.unique(np.round(y / 0.004))) > 5  # the noise spreads over several steps
+
+
+@settings(max_examples=15, deadline=None, derandomize=True)
+@given(tau=st.floats(0.02, 1.5), x=st.floats(-3.0, 3.0), wander=st.sampled_from([0.0, 0.1, 0.4]))
+def test_quantized_variance_matches_the_spread_of_simulated_readings(tau, x, wander):
+    # Var[Q(x + φ + n) | φ] averaged over a slow offset φ ~ N(0, w²), by Monte Carlo
+    rng = np.random.default_rng(3)
+    phi = wander * ndtri((np.arange(1000) + 0.5) / 1000) if wander else np.zeros(1)  # stratified
+    draws = [np.round(x + f + tau * rng.standard_normal(4000)) for f in phi]
+    mc = np.mean([np.var(d) for d in draws])
+    mc4 = np.mean([np.mean((d - d.mean()) ** 4) for d in draws])
+    got, got4 = (float(m[0]) for m in quantized_moments(np.array([x]), 1.0, tau, wander))
+    assert got == pytest.approx(mc, rel=0.08, abs=2e-3)
+    assert got == pytest.approx(float(quantized_variance(np.array([x]), 1.0, tau, wander)[0]))
+    assert got4 == pytest.approx(mc4, rel=0.15, abs=2e-3)
+
+
+def test_quantized_variance_averages_to_the_phase_averaged_level_and_flattens_with_dither():
+    q = CATALOGUE["quantization"]
+    u = (np.arange(4096) + 0.5) / 4096 * 2e-3  # uniform phases over two steps of 1e-3
+    for sd in (5e-5, 2e-4, 6e-4):
+        v = quantized_variance(u, 1e-3, sd)
+        assert np.mean(v) == pytest.approx(q.residual_var({"step": 1e-3}, sd), rel=1e-3)
+        assert np.mean(quantized_variance(u, 1e-3, sd, 3e-4)) == pytest.approx(np.mean(v), rel=1e-3)
+    coarse = quantized_variance(u, 1e-3, 5e-5)
+    assert coarse.min() < 1e-3 * coarse.max()  # on a level nothing flips, between two levels half
+    assert coarse.max() == pytest.approx(0.25e-6, rel=1e-3)
+    np.testing.assert_allclose(quantized_variance(u, 1e-3, 1.2e-3), q.residual_var({"step": 1e-3}, 1.2e-3))
+    with pytest.raises(ValueError, match="wander_sd = -1"):
+        quantized_variance(u, 1e-3, 1e-4, -1)
+
+
+def test_clipped_variance_matches_simulated_clipping():
+    rng = np.random.default_rng(4)
+    x = np.array([-3.0, -1.05, 0.0, 0.95, 1.0, 1.2, 4.0])
+    mc = [np.var(np.clip(v + 0.1 * rng.standard_normal(200_000), -1.0, 1.0)) for v in x]
+    np.testing.assert_allclose(clipped_variance(x, 1.0, 0.1), mc, rtol=0.02, atol=1e-6)
+
+
+def test_residual_profile_follows_the_quantizer_lattice_and_is_flat_without_one():
+    rec = _rec(2000, input=np.linspace(-1e-2, 1e-2, 2000))
+    plain = Model(BaseModel("gyro", noise_sd=1e-4))
+    v0, m40 = plain.residual_profile(rec)
+    np.testing.assert_array_equal(v0, np.full(2000, 1e-8))
+    np.testing.assert_allclose(m40, 3e-16)
+    m = plain.with_effect("quantization", {"step": 1e-3})
+    prof, m4 = m.residual_profile(rec)
+    assert np.mean(prof) == pytest.approx(m.residual_sd() ** 2, rel=0.02)
+    assert prof.max() > 20 * prof.min()  # readings on a level barely move
+    # the profile is the readings' own spread: realisations around the prediction
+    sims = np.array([m.simulate(rec, s) for s in range(300)]) - m.predict(rec)
+    np.testing.assert_allclose(np.var(sims, axis=0).reshape(20, 100).mean(axis=1),
+                               prof.reshape(20, 100).mean(axis=1), rtol=0.15)
+    central = sims - sims.mean(axis=0)
+    np.testing.assert_allclose(np.mean(central ** 4, axis=0).reshape(20, 100).mean(axis=1),
+                               m4.reshape(20, 100).mean(axis=1), rtol=0.3)
+    # a clipping: quiet where the signal is beyond the limit
+    sat = Model(BaseModel("gyro", noise_sd=1e-4)).with_effect("saturation", {"limit": 1.0})
+    rec2 = _rec(1000, input=np.r_[np.zeros(500), np.full(500, 5.0)])
+    prof2 = sat.residual_profile(rec2)[0]
+    assert prof2[:500] == pytest.approx(1e-8) and np.all(prof2[500:] < 1e-12)
 
 
 @settings(max_examples=5, deadline=None)
