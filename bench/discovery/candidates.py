@@ -69,7 +69,8 @@ class Trial:
     ``resid_full`` (y − the fitted prediction), ``cols`` (per fold, its linearised regressors)
     and ``lin`` (their held-out score, the bootstrap's statistic); a random process ``lr`` (its
     likelihood-ratio statistic against the model's noise) and ``bic_gain`` (lr − ln(n/2)·its
-    parameters)."""
+    parameters), and when its shape is a close call with another process's ``shape_bic`` (the
+    exact likelihood's, :func:`.stochastic.exact_shape_bic`: the order among those)."""
 
     effect: Effect
     params: Params
@@ -83,6 +84,7 @@ class Trial:
     lin: float = math.nan
     lr: float = math.nan
     bic_gain: float = math.nan
+    shape_bic: float = math.nan
 
     @property
     def id(self) -> str:

@@ -110,11 +110,15 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     Without a named deterministic candidate, the best stochastic one. (Between stochastic
     shapes the spectrum decides: BIC on the Whittle likelihood, so a Gauss–Markov needs a
     clearly better fit than a random walk for its extra parameter; one whose parameters the
-    record cannot resolve — ``Effect.identifiable`` — was not named.)"""
+    record cannot resolve — ``Effect.identifiable`` — was not named; shapes within a few units
+    of each other are ordered by their exact likelihood, ``Trial.shape_bic``.)"""
     if not named:
         return None, None
     det = [c for c in named if not c.effect.stochastic]
     sto_ = sorted((c for c in named if c.effect.stochastic), key=lambda c: -c.bic_gain)
+    close = sorted((c for c in sto_ if math.isfinite(c.shape_bic)), key=lambda c: -c.shape_bic)
+    if len(close) > 1:  # a close call of shape: the exact likelihood's order (naming.shape_ranked)
+        sto_ = close + [c for c in sto_ if not math.isfinite(c.shape_bic)]
     if not det:
         return (sto_[0] if sto_ else None), None
     if not sto_ or det[0].resid_full is None:

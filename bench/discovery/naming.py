@@ -167,6 +167,33 @@ MC_CHUNK = 25
 MC_MAX_REP = 599
 
 
+#: Named random processes whose Whittle BIC gains lie within this of the best one are a close
+#: call of shape: their order is the exact likelihood's (:func:`shape_ranked`).
+SHAPE_TIE = 4.0
+
+
+def shape_ranked(named: list[Trial], model: Model, rec: Record, r: np.ndarray) -> list[Trial]:
+    """``named`` with ``shape_bic`` set on the random processes whose Whittle BIC gain is within
+    :data:`SHAPE_TIE` of the best named one's, when there are two or more: their exact (Kalman)
+    likelihood at the shape's own states, the model's processes beside them
+    (:func:`.stochastic.exact_shape_bic`), by which :func:`.choosing.preferred` orders them. A
+    Gauss–Markov whose plateau spans a few Fourier bins and a flicker band are a few Whittle
+    units apart either way; the Whittle spectrum of flicker is the idealised 1/f band, its
+    draw the sum of Gauss–Markov states the exact likelihood holds."""
+    procs = [t for t in named if t.effect.stochastic and np.isfinite(t.bic_gain)]
+    if len(procs) < 2:
+        return named
+    top = max(t.bic_gain for t in procs)
+    close = [t for t in procs if t.bic_gain >= top - SHAPE_TIE]
+    if len(close) < 2:
+        return named
+    x = r - r.mean()
+    white = float(model.residual_sd()) or float(np.std(x)) or 1.0
+    known = model.stochastic_effects()
+    shape = {t.id: sto.exact_shape_bic(x, rec.dt_s, t.effect, t.params, white, known) for t in close}
+    return [replace(t, shape_bic=shape[t.id]) if t.id in shape else t for t in named]
+
+
 def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarray, folds: np.ndarray) -> Trial:
     """Whittle fit, held-out score and p-value of a stochastic candidate: the LR against the
     model's own noise (white + its stochastic effects, their spectrum fixed) referred to χ²
@@ -378,6 +405,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     def refitted_sse(t: Trial) -> float:
         return float(np.sum(joint_residual(t) ** 2))
 
+    named = shape_ranked(named, model, rec, r)
     det_pick = parsimonious(next((t for t in named if not t.effect.stochastic), None), named, blocks, n_blocks,
                             kind, reading_sd, refitted_sse)
     det_pick = refitted_choice(det_pick, named, model, rec, kind, reading_sd, joint_residual)

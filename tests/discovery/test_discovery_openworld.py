@@ -16,6 +16,7 @@ from bench.discovery.choosing import preferred
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_linalg import base_regressors
+from bench.discovery.effects_noise import StochasticEffect
 from bench.discovery.evidence import evidence
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import Model, base_model
@@ -366,3 +367,37 @@ def test_after_a_localized_term_a_process_makes_typical_only_a_tie_is_judged_in_
         return 1.0
     preferred(named, model, rec, "accelerometer", record, 0.05, tie=lambda a, b: True)
     assert judged[0] == "warmup_exponential" and "temperature_bias" in judged
+
+
+def _process_choice(effect_id: str, params: dict, seed: int, exact: bool) -> str:
+    """The process :func:`preferred` picks among the three shapes fitted to one record of a
+    single random process over white noise (3000 s at 1 Hz), with or without the exact
+    likelihood's order on close calls (``naming.shape_ranked``)."""
+    n = 3000
+    rec0 = Record(t_s=np.arange(n, dtype=float), y=np.zeros(n))
+    model = Model(base_model("accelerometer")).with_base(bias=0.0, noise_sd=5.1e-6)
+    y = model.with_effect(effect_id, params).simulate_noise(rec0, seed)
+    rec = Record(t_s=rec0.t_s, y=y)
+    r = rec.y - model.predict(rec)
+    folds = sig.block_folds(n)
+    shapes = [CATALOGUE[e] for e in ("gauss_markov", "flicker_noise", "rate_random_walk")]
+    named = [naming.fit_process(model, rec, e, r, folds) for e in shapes if isinstance(e, StochasticEffect)]
+    if exact:
+        named = naming.shape_ranked(named, model, rec, r)
+    pick, _ = preferred(named, model, rec, "accelerometer")
+    assert pick is not None
+    return pick.id
+
+
+def test_a_close_call_between_process_shapes_is_the_exact_likelihoods():
+    """A Gauss–Markov whose plateau spans a few Fourier bins (τ = 75 s in 3000 s) and a flicker
+    band are a few Whittle units apart: the Whittle spectrum of flicker is the idealised 1/f band,
+    its draw a sum of Gauss–Markov states. The scorecard's triples named flicker for a GM 4 times
+    in 25; with the exact likelihood ordering shapes within ``SHAPE_TIE`` the GM is named, and a
+    flicker of a wide band stays flicker."""
+    gm = {"sigma": 2.1e-6, "tau_s": 75.0}
+    whittle = [_process_choice("gauss_markov", gm, 1000 + s, exact=False) for s in range(12)]
+    exact = [_process_choice("gauss_markov", gm, 1000 + s, exact=True) for s in range(12)]
+    assert exact.count("gauss_markov") >= 11 > whittle.count("gauss_markov")
+    fl = {"b": 5e-6, "tau_min_s": 2.0}
+    assert [_process_choice("flicker_noise", fl, 1000 + s, exact=True) for s in range(12)].count("flicker_noise") >= 11
