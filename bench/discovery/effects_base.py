@@ -54,6 +54,11 @@ DRAW_SPAN = 30.0
 #: Starting points a grid search keeps for a nonlinear fit (:func:`grid_starts`).
 N_STARTS = 3
 
+#: Golden-section steps and bracket (log units) at which ``direction_matching`` stops on a
+#: main parameter.
+MATCH_STEPS = 80
+MATCH_XTOL = 1e-9
+
 #: An effect's parameter values by name (in the kind's units).
 Params = dict[str, float]
 
@@ -382,7 +387,13 @@ class Effect:
         that best matches ``delta`` (already orthogonal to q) up to a scale — what it could absorb
         of another effect's: all-linear effects have one direction; otherwise a 13-point grid of
         its shape parameter (the main parameter when nonlinear, else its one nonlinear
-        parameter) over its resolvable range, then 8 golden-section steps."""
+        parameter) over its resolvable range, then 8 golden-section steps. The main parameter
+        is searched over its whole physical range, 25 points then golden section to
+        convergence: a look-alike may match beyond the range a fit starts from (a sub-sample
+        delay of 0.02 s on a 1-Hz record is a low-pass at 8 Hz, above the low-pass's grid that
+        stops at the sampling rate — matched only up to 1 Hz, such a delay read as snr 17 from
+        its look-alike and was drawn as distinguishable when no record can tell them apart),
+        and a large effect's match is narrow (8 steps leave a bracket of 3 %)."""
         if kind not in self.ranges:
             kind = self.kinds[0]
         y0 = self.reference_output(rec)
@@ -401,22 +412,24 @@ class Effect:
 
         if shape is None or shape.linear:
             return direction(None)
-        lo, hi = (self.main_grid_range(rec, kind) if shape.name == self.main_param
-                  else self.drawable_range(shape, rec, kind))
-        to_v, from_v = ((math.exp, math.log) if shape.log or shape.name == self.main_param
-                        else (float, float))
+        main = shape.name == self.main_param
+        lo, hi = ((max(shape.low, 1e-300), shape.high) if main and shape.log
+                  else self.main_grid_range(rec, kind) if main else self.drawable_range(shape, rec, kind))
+        to_v, from_v = ((math.exp, math.log) if shape.log or main else (float, float))
 
         def fit(c: float) -> float:  # captured fraction of delta (maximise)
             return abs(vdot(direction(to_v(c)), delta))
 
-        grid = np.linspace(from_v(lo), from_v(hi), 13)
+        grid = np.linspace(from_v(lo), from_v(hi), 25 if main and shape.log else 13)
         vals = [fit(g) for g in grid]
         i = int(np.argmax(vals))
         x0, x1 = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
         g = (math.sqrt(5) - 1) / 2
         c, d = x1 - g * (x1 - x0), x0 + g * (x1 - x0)
         fc, fd = fit(c), fit(d)
-        for _ in range(8):
+        for _ in range(MATCH_STEPS if main and shape.log else 8):
+            if x1 - x0 <= MATCH_XTOL * max(1.0, abs(x0)):
+                break
             if fc > fd:
                 x1, d, fd = d, c, fc
                 c = x1 - g * (x1 - x0)

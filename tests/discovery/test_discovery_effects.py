@@ -33,8 +33,28 @@ def records():
     return {k: make_experiment(k, np.random.default_rng(3), n=SHORT[k][0], rate_hz=SHORT[k][1]) for k in KINDS}
 
 
+#: Applicable but not drawable on the short experiments: on the accelerometer's 1-Hz tumble a
+#: sub-sample delay is a first-order low-pass exactly (what tells them apart is below 1e-6 σ for
+#: every delay in range), so no delay is distinguishable from its look-alike there.
+UNDRAWABLE = {("accelerometer", "time_delay")}
+
+
 def _pairs():
-    return [(k, e.id) for k in KINDS for e in CATALOGUE.for_kind(k)]
+    return [(k, e.id) for k in KINDS for e in CATALOGUE.for_kind(k) if (k, e.id) not in UNDRAWABLE]
+
+
+def test_a_delay_on_the_accelerometers_1_hz_record_is_its_low_pass_look_alike(records):
+    rec, d = records["accelerometer"], CATALOGUE["time_delay"]
+    for delay in (1e-3, 0.1, 1.0):
+        p = {"delay_s": delay}
+        assert d.plain_snr(p, rec, NOISE["accelerometer"]) > 100  # a large effect ...
+        assert d.snr(p, rec, NOISE["accelerometer"]) < 1e-3  # ... all of it a low-pass's
+    with pytest.raises(ValueError, match="no delay_s inside .* is detectable on this record"):
+        d.draw(np.random.default_rng(5), rec, kind="accelerometer", noise_sd=NOISE["accelerometer"])
+    # on the gyro's 10-Hz record a delay is drawn, distinguishable from the low-pass
+    g = records["gyro"]
+    p = d.draw(np.random.default_rng(5), g, kind="gyro", noise_sd=NOISE["gyro"])
+    assert d.snr(p, g, NOISE["gyro"]) >= DRAW_SNR_FACTOR * MIN_SNR * 0.98
 
 
 def test_catalogue_has_the_issue_ids_in_order_and_complete_metadata():
