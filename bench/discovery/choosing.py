@@ -41,7 +41,7 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     None) — a catch-all that would be chosen
     but whose signature does not hold is set aside (its evidence returned) and the choice made
     again among the others; when none is left, nothing is named (its structure is reported as
-    unexplained). Among the rest, :func:`preferred` (``tie`` passed on), then :func:`following`."""
+    unexplained). Among the rest, :func:`preferred` (``tie`` passed on)."""
     remaining = list(named)
     rejected: list[Evidence] = []
     while remaining:
@@ -54,24 +54,8 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
                 rejected.append(ev)
                 remaining = [t for t in remaining if t is not pick]
                 continue
-        return following(pick, remaining, rejected), tuple(rejected)
+        return pick, tuple(rejected)
     return None, tuple(rejected)
-
-
-def following(pick: Trial, remaining: Sequence[Trial], rejected: Sequence[Evidence]) -> Trial:
-    """The choice once random processes were set aside because their innovations follow a logged
-    column (``Evidence.columns``, every one of them the same column): a deterministic pick that
-    reads none of those columns gives way to the best named deterministic candidate that does —
-    the processes' own evidence places the structure on that column, not in time (three jumps
-    out-scored a g-sensitivity term while every process's innovations correlated with accel)."""
-    if pick.effect.stochastic or not rejected:
-        return pick
-    cols = set(rejected[0].columns)
-    for ev in rejected[1:]:
-        cols &= set(ev.columns)
-    if not cols or set(pick.effect.inputs) & cols:
-        return pick
-    return next((t for t in remaining if not t.effect.stochastic and set(t.effect.inputs) & cols), pick)
 
 
 def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,

@@ -12,13 +12,12 @@ from scipy.signal import lfilter
 from bench.discovery import naming
 from bench.discovery import significance as sig
 from bench.discovery.calibration import calibrate
-from bench.discovery.candidates import Trial
-from bench.discovery.choosing import following, preferred
+from bench.discovery.choosing import preferred
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_linalg import base_regressors
 from bench.discovery.effects_noise import StochasticEffect
-from bench.discovery.evidence import Evidence, evidence
+from bench.discovery.evidence import evidence
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import Model, base_model
 from bench.discovery.naming import name_effect
@@ -402,25 +401,3 @@ def test_a_close_call_between_process_shapes_is_the_exact_likelihoods():
     assert exact.count("gauss_markov") >= 11 > whittle.count("gauss_markov")
     fl = {"b": 5e-6, "tau_min_s": 2.0}
     assert [_process_choice("flicker_noise", fl, 1000 + s, exact=True) for s in range(12)].count("flicker_noise") >= 11
-
-
-def test_processes_set_aside_on_a_column_hand_the_choice_to_a_term_that_reads_it():
-    """Gyro triple (temperature rate, g-sensitivity, Gauss–Markov; scorecard seed 3012): every
-    process's innovations correlated with accel and the processes were set aside — then three
-    jumps, the best-scoring waveform, were named, and the g-sensitivity never was. The evidence
-    places the structure on the accel column: a term that reads it is chosen instead."""
-    def trial(eid: str, score: float) -> Trial:
-        return Trial(CATALOGUE[eid], {}, {}, score, 1e-3)
-    jump, g_sens, temp = trial("bias_jump", 0.36), trial("g_sensitivity", 0.27), trial("temperature_rate", 0.26)
-
-    def aside(eid: str, *cols: str) -> Evidence:
-        return Evidence(eid, False, 0.0, ("correlation …",), cols)
-    on_accel = [aside("rate_random_walk", "accel"), aside("gauss_markov", "accel", "input")]
-    assert following(jump, [jump, g_sens, temp], on_accel) is g_sens
-    assert following(g_sens, [jump, g_sens, temp], on_accel) is g_sens  # it reads the column already
-    assert following(jump, [jump, temp], on_accel) is jump  # no named term reads it
-    split = [aside("rate_random_walk", "accel"), aside("gauss_markov", "input")]
-    assert following(jump, [jump, g_sens, temp], split) is jump  # not every process's column
-    assert following(jump, [jump, g_sens, temp], []) is jump
-    walk = trial("rate_random_walk", 0.5)
-    assert following(walk, [walk, g_sens], on_accel) is walk  # a process that holds is kept
