@@ -84,20 +84,24 @@ def quantized_moments(x: np.ndarray, step: float, noise_sd: float,
     of probability p, against 3). ``wander_sd``: sd of a slow offset the model does not predict
     (its random processes) that moves x along the lattice; the moments at x are averaged over it
     (the phase profile's k-th harmonic damped by e^{−2π²k²w²/step²}). Exact level sums over the
-    thresholds within 9σ; the Gaussian-free flat level (``Quantization.residual_var``, kurtosis
-    of the phase average) once σ or the wander reaches a step (a first harmonic below 3e-9)."""
+    thresholds within 9σ; flat once σ or the wander reaches a step (a first harmonic below
+    3e-9): ``Quantization.residual_var`` and the phase average of the fourth moment (for σ ≥ a
+    step that of Gaussian noise plus an independent uniform rounding error)."""
     x = np.asarray(x, dtype=float)
     sd, w = float(noise_sd), float(wander_sd)
     if not (sd >= 0 and w >= 0 and math.isfinite(sd) and math.isfinite(w)):
         raise ValueError(f"noise_sd = {noise_sd!r}, wander_sd = {wander_sd!r}; allowed: finite values >= 0")
     if step <= 0:
         return np.full(x.shape, sd * sd), np.full(x.shape, 3 * sd ** 4)
-    if w == 0 and sd < step:
+    if sd >= step:  # the rounding error is uniform and independent of the noise (to e^{−2π²})
+        return (np.full(x.shape, _phase_averaged_var(step, sd)),
+                np.full(x.shape, 3 * sd ** 4 + sd * sd * step * step / 2 + step ** 4 / 80))
+    if w == 0:
         v, m4 = _level_moments(x / step, sd / step)
         return step * step * v, step ** 4 * m4
     grid = (np.arange(QUANT_PHASES) + 0.5) / QUANT_PHASES
     gv, gm4 = _level_moments(grid, sd / step)
-    if sd >= step or w >= step:
+    if w >= step:
         return np.full(x.shape, _phase_averaged_var(step, sd)), np.full(x.shape, step ** 4 * float(np.mean(gm4)))
     k = np.arange(QUANT_PHASES // 2 + 1)
     damp = np.exp(-2 * math.pi ** 2 * k * k * (w / step) ** 2)
