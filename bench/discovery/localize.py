@@ -121,7 +121,7 @@ def time_segments(r: np.ndarray, t_s: np.ndarray, noise_sd: float, n_segments: i
         mean_var = rel_v / m + off
         heavy = np.add.reduceat(m4, edges[:-1]) > HEAVY_KURTOSIS * np.add.reduceat(v * v, edges[:-1])
     floor = noise_sd * np.sqrt(rel)  # each segment's own floor sd
-    z = mean / (noise_sd * np.sqrt(mean_var * np.ones(n_segments)))
+    z = mean / (noise_sd * np.sqrt(mean_var))
     ratio = ms / floor ** 2
     p_mean, p_ms = _z_sf2(z, floor_dof), _ratio_sf(ratio, dof, floor_dof)
     if np.any(heavy):
@@ -226,16 +226,18 @@ def jumps(r: np.ndarray, t_s: np.ndarray, noise_sd: float, alpha: float = 0.01, 
     # leaves low-frequency power in innovations, and extremes come from the whole spectrum
     mad_sd = 1.4826 * float(np.median(np.abs(r - np.median(r))))
     scale = max(noise_sd, mad_sd)
-    z = r / scale
-    p = _z_sf2(z, floor_dof)
-    if sample_moments is not None:
+    if sample_moments is None:
+        z = r / scale
+        p = _z_sf2(z, floor_dof)
+    else:
         v, m4 = (np.asarray(x, float) for x in sample_moments[:2])
         v = np.maximum(v + float(sample_moments[2]), 1e-9)
         z = r / (scale * np.sqrt(v))
+        p = _z_sf2(z, floor_dof)
         kurt = m4 / v ** 2
         with np.errstate(divide="ignore"):
             markov = np.minimum(1.0, kurt / z ** 4)
-        p = np.where(kurt > HEAVY_KURTOSIS, np.maximum(_z_sf2(z, floor_dof), markov), _z_sf2(z, floor_dof))
+        p = np.where(kurt > HEAVY_KURTOSIS, np.maximum(p, markov), p)
     idx = np.flatnonzero(p * r.size < alpha)
     idx = idx[np.argsort(-np.abs(z[idx]))][:max_report]
     return tuple(Jump(float(t_s[i]), float(r[i]), float(z[i])) for i in sorted(idx))

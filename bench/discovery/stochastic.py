@@ -179,7 +179,8 @@ def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, 
         return 0.5 * float(np.sum(np.log(v) + e * e / v))
     res = optimize.minimize(nll_at, x0, method="Nelder-Mead",
                             options={"xatol": 1e-4, "fatol": 1e-3, "maxiter": 200 * (1 + len(names))})
-    return float(-2.0 * min(res.fun, nll_at(x0)) - math.log(r.size / 2) * effect.n_coords)
+    # the start is a vertex of the simplex: res.fun is never above nll_at(x0)
+    return float(-2.0 * res.fun - math.log(r.size / 2) * effect.n_coords)
 
 
 def one_step_prediction(r: np.ndarray, fit: StochasticFit) -> np.ndarray:
