@@ -276,7 +276,9 @@ class GaussMarkov(StochasticEffect):
         neg_log_phi = max(float(np.log1p(np.exp(-th[1]))), 1e-300)
         tau = float(dt_s / neg_log_phi)
         d_sigma = 0.5 * sigma
-        d_tau = dt_s / neg_log_phi ** 2 * (1 - phi)  # dτ/dth1 = dt/(ln φ)² · (1/φ)·φ(1−φ)
+        # dτ/dth1 = dt/(ln φ)² · (1/φ)·φ(1−φ) = τ·(1−φ)/(−ln φ); the ratio → 1 as φ → 1, where
+        # (−ln φ)² underflows (a null replicate's fit at a correlation time of 10³⁰⁰ s divided by 0)
+        d_tau = tau * (1.0 if th[1] > 30 else (1 - phi) / neg_log_phi)
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
         return ComponentEstimate({"sigma": sigma, "tau_s": tau},
                                  {"sigma": float(d_sigma * sd[0]), "tau_s": float(abs(d_tau) * sd[1])})

@@ -177,3 +177,20 @@ def test_a_folds_fit_of_a_two_node_transient_keeps_its_fast_node_where_the_rows_
     assert t_first > 0 and q.low == pytest.approx(t_first / NODE_SEEN)
     assert two.free_params(p, "gyro", rec) == two.params_for("gyro")
     assert two.free_params(p, "gyro", rec, folds == 0) == two.params_for("gyro")  # rows from power-on
+
+
+@settings(max_examples=40, deadline=None)
+@given(th1=st.floats(-10.0, 2000.0), dt=st.floats(1e-3, 10.0))
+def test_gauss_markov_tau_std_holds_where_phi_rounds_to_one(th1, dt):
+    """τ's delta-method std: finite at every correlation coordinate (a null replicate's fit ran to
+    φ = 1, where (ln φ)² underflowed and the std divided by zero), and the derivative dτ/dth1 of
+    the τ it reports (central difference) elsewhere."""
+    gm = CATALOGUE["gauss_markov"]
+    est = gm.estimate(np.zeros(10), np.array([0.0, th1]), np.diag([1.0, 1.0]), dt, alone=True, bootstrap=False)
+    assert math.isfinite(est.params_std["tau_s"]) and est.params_std["tau_s"] >= 0
+    if th1 < 25:
+        h = 1e-5 * max(1.0, abs(th1))
+
+        def tau(x):
+            return gm.estimate(np.zeros(10), np.array([0.0, x]), np.eye(2), dt, alone=True, bootstrap=False).params["tau_s"]
+        assert est.params_std["tau_s"] == pytest.approx(abs(tau(th1 + h) - tau(th1 - h)) / (2 * h), rel=1e-4)
