@@ -60,7 +60,7 @@ from discovery_generator import realise
 from discovery_shapes import SHAPES, found_where, hide
 
 from bench.discovery.effects import CATALOGUE
-from bench.discovery.effects_base import DEFAULT_NOISE_SD, MIN_SNR
+from bench.discovery.effects_base import DEFAULT_NOISE_SD, DRAW_SNR_FACTOR, MIN_SNR
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.workflow import discover
@@ -77,13 +77,41 @@ def _truth_base(kind: str, rng: np.random.Generator) -> Model:
                            scale_factor=1.0 + rng.normal(0, 2e-3), noise_sd=sd))
 
 
+#: redraws of a mixture whose rest hides one of its effects before the case counts as not drawable
+MIX_REDRAWS = 12
+
+
 def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None = None,
                 generator: str = "catalogue"):
-    """(record, truth model, snr of each effect) or None when an effect cannot be drawn on
-    this record (not detectable; with ``at_snr``: that snr outside its physical range).
+    """(record, truth model, snr of each effect, redraws) or None when an effect cannot be drawn
+    on this record (not detectable; with ``at_snr``: that snr outside its physical range).
     ``generator``: "catalogue" (``Model.simulate``) or "independent" (:mod:`discovery_generator`);
-    the same seed draws the same record and parameters for both."""
-    salt = [] if at_snr is None else [int(round(1000 * at_snr))]
+    the same seed draws the same record and parameters for both.
+
+    A mixture (two or three effects) is held to the draw rule of a single inside its mixture: each
+    deterministic effect's ``Model.effect_snr`` — what tells it from the rest of the mixture (the
+    other effects' directions out) against the mixture's whole noise (white + its random process)
+    — at least DRAW_SNR_FACTOR·MIN_SNR (15), as a single's snr is against white noise. A draw that
+    breaks it (a 19-sigma temperature bias drawn beside a random walk holding 1.8 sigma of it) is
+    drawn again with the next sub-seed, up to MIX_REDRAWS times; ``redraws`` counts them."""
+    floor = DRAW_SNR_FACTOR * MIN_SNR
+    for attempt in range(MIX_REDRAWS + 1 if len(effects) > 1 else 1):
+        drawn = _draw_case(kind, effects, seed, n, at_snr, attempt)
+        if drawn is None:
+            if attempt == 0:
+                return None
+            continue  # this redraw's record cannot hold an effect: the next one
+        rec, truth, snrs, rng = drawn
+        if len(effects) == 1 or all(not truth.effect_snr(rec, i) < floor for i in range(len(effects))):
+            y = truth.simulate(rec, rng) if generator == "catalogue" else realise(kind, rec, truth, rng)
+            return rec.replace(y=y), truth, snrs, attempt
+    return None
+
+
+def _draw_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None, attempt: int):
+    """(record without readings, truth model, snr of each effect, the rng to simulate with) —
+    each effect drawn by ``Effect.draw`` — or None when one cannot be drawn on the record."""
+    salt = ([] if at_snr is None else [int(round(1000 * at_snr))]) + ([10_000 + attempt] if attempt else [])
     rng = np.random.default_rng([seed, len(effects), *[list(CATALOGUE).index(e) for e in effects], *salt])
     rec = make_experiment(kind, rng, n=n)
     sd = DEFAULT_NOISE_SD[kind]
@@ -100,8 +128,7 @@ def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: 
             return None
         snrs.append(float(eff.snr(p, where, sd)))
         truth = truth.with_effect(eid, p)
-    y = truth.simulate(rec, rng) if generator == "catalogue" else realise(kind, rec, truth, rng)
-    return rec.replace(y=y), truth, snrs
+    return rec, truth, snrs, rng
 
 
 def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None = None,
@@ -109,7 +136,7 @@ def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: flo
     case = hidden_case(kind, effects, seed, n, at_snr, generator)
     if case is None:
         return None
-    rec, truth, snrs = case
+    rec, truth, snrs, redraws = case
     t0 = time.perf_counter()
     d = discover(rec, Model(base_model(kind)), max_effects=max(2, len(effects) + 1), seed=seed)
     named = [s.effect_id for s in d.steps]
@@ -118,7 +145,9 @@ def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: flo
            "first": named[0] if named else None, "gap_final": d.gap_final.rms_ratio,
            "unexplained": list(d.unexplained), "withdrawn": list(d.withdrawn),
            "seconds": time.perf_counter() - t0, "recovered": None, "snr_ratio": [x / MIN_SNR for x in snrs],
-           "ratio": None if at_snr is None else at_snr / MIN_SNR}
+           "ratio": None if at_snr is None else at_snr / MIN_SNR, "redraws": redraws,
+           "mix_snr_ratio": [truth.effect_snr(rec, i) / MIN_SNR for i in range(len(effects))] if len(effects) > 1
+           else None}
     if effects and named and named[0] == effects[0]:
         main = CATALOGUE[effects[0]].main_param
         true_v = truth.effects[0][1][main]

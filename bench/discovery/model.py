@@ -34,7 +34,9 @@ import numpy as np
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import DEFAULT_NOISE_SD, KINDS, Effect, reference_input
+from bench.discovery.effects_linalg import base_regressors, orthonormal, project_q
 from bench.discovery.effects_noise import StochasticEffect
+from bench.discovery.whiten import innovations
 from bench.discovery.mapping import MapFn
 
 #: Allowed base-parameter ranges per kind (sensor unit): a raw QA-2000 bias < 4 mg (allow 50 mg),
@@ -183,6 +185,54 @@ class Model:
                 y = e.expected_transform(p, rec, y, sd)
                 sd = math.sqrt(float(np.mean(var)))
         return var, m4
+
+    def effect_snr(self, rec: Record, index: int) -> float:
+        """Signal-to-noise ratio on rec of effect ``index`` *inside this model*: what tells its
+        term apart from everything else the model holds — its contribution to ``predict`` with
+        the base regressors and every other deterministic effect's parameter directions (the
+        model's Jacobian there: what a joint fit of them could absorb) projected out — against
+        the model's whole noise, white ``noise_sd`` plus its random processes (both sides
+        Kalman-whitened: generalised least squares). Alone in a model without processes this is
+        the plain snr of ``Effect.snr`` (no look-alike taken out); beside a strong random walk
+        or a thermal term that can bend into it, it can be a small fraction of that — a mixture
+        of a 15-sigma temperature bias and a walk can hold too little of the bias for any
+        method to name it. A random process: its own snr (``Effect.snr``, excess Allan variance)
+        against the white floor of the readings without it (``residual_sd``: a coarse quantizer's
+        rounding counts, as in the naming's size gate — a Gauss–Markov 39σ above white noise is
+        7σ behind a quantizer of 8σ steps). NaN for an output-stage transform (its size is judged
+        on the readings' own statistics, not on a waveform)."""
+        if not 0 <= index < len(self.effects):
+            raise ValueError(f"effect index {index!r}; allowed: 0..{len(self.effects) - 1}")
+        entries = self.entries()
+        eff, own = entries[index]
+        without = Model(self.base, self.effects[:index] + self.effects[index + 1:])
+        if eff.stage == "output":
+            return math.nan
+        if eff.stochastic:
+            return float(eff.snr(own, rec, without.residual_sd()))
+        here = self.predict(rec)
+        cols = [base_regressors(rec)]
+        for j, (other, p) in enumerate(entries):
+            if j == index or other.stochastic or other.stage == "output":
+                continue
+            for name, v in p.items():
+                h = 1e-4 * abs(v) if v != 0 else 1e-9
+                try:
+                    d = (self.with_params(j, {**p, name: v + h}).predict(rec) - here) / h
+                except ValueError:  # at the top of its range: the step the other way
+                    d = (here - self.with_params(j, {**p, name: v - h}).predict(rec)) / h
+                nrm = float(np.linalg.norm(d))
+                if nrm > 0 and math.isfinite(nrm):
+                    cols.append((d / nrm)[:, None])
+        a = np.column_stack(cols)
+        procs = self.stochastic_effects()
+        sd = self.base.noise_sd
+
+        def whiten(v: np.ndarray) -> np.ndarray:
+            return innovations(v, rec.rate_hz, sd, procs) if procs else v / sd
+        delta = whiten(here - without.predict(rec))
+        w = np.column_stack([whiten(c) for c in a.T])
+        return float(np.linalg.norm(project_q(delta, orthonormal(w))))
 
     def with_noise_floor(self, floor_sd: float) -> Model:
         """This model with ``noise_sd`` set so that its residual ``y − predict`` has white sd
