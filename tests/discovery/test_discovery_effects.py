@@ -247,6 +247,35 @@ def test_sinusoid_shows_a_spectral_line_at_its_frequency():
     assert start["amplitude"] == pytest.approx(1e-3, rel=0.1)
 
 
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_sines_fold_starts_skip_the_fold_patterns_lines_beside_a_random_walk(seed):
+    """On a fold's training blocks (the held-out ones zeroed) a random walk's level, modulated by
+    the fold pattern, makes false lines at the pattern's odd harmonics; a sine fitted there is
+    sign-flipped on the held-out blocks. The true line is the first start and no later start
+    sits on a pattern line; the fold fit from them finds the true line."""
+    from bench.discovery import significance as sig
+    from bench.discovery.fitting import CandidateFitter
+    from bench.discovery.model import BaseModel, Model
+    n, rate = 3000, 10.0
+    rec = _rec(n, rate)
+    sine = {"amplitude": 1.7e-3, "freq_hz": 0.157, "phase_rad": 0.1}
+    truth = (Model(BaseModel("gyro", noise_sd=3e-3)).with_effect("sinusoidal_interference", sine)
+             .with_effect("rate_random_walk", {"k_per_rs": 3.8e-4}))
+    y = truth.simulate(rec, seed)
+    rec = rec.replace(y=y)
+    eff = CATALOGUE["sinusoidal_interference"]
+    base = Model(BaseModel("gyro", noise_sd=3e-3))
+    pattern_bins = {23, 24, 25, 71, 72, 73, 119, 120, 121, 168, 216}  # 48 blocks: 24, 72 … cycles a record
+    for k in (0, 1):
+        train = sig.block_folds(n) != k
+        starts = eff.fit_starts(rec, y, kind="gyro", rows=train)
+        assert starts[0]["freq_hz"] == pytest.approx(0.157, abs=1.5 / (n / rate))
+        assert not {round(s["freq_hz"] * n / rate) for s in starts[1:]} & pattern_bins
+        f = CandidateFitter(base, rec, eff, template=starts[0], rows=train)
+        fit = f.fit([f.pack(p, 0.0, 1.0) for p in starts[:2]], rows=train, max_nfev=40, with_std=False)
+        assert fit.params["freq_hz"] == pytest.approx(0.157, rel=0.01)
+
 def test_gauss_markov_autocorrelation_at_tau_is_one_over_e():
     n, tau_samples = 200_000, 25
     rec = _rec(n, 1.0)
