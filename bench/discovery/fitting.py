@@ -162,13 +162,18 @@ class CandidateFitter:
     linear least-squares solve — both give the full model's numbers."""
 
     def __init__(self, model: Model, rec: Record, effect: Effect, *, noise_is_floor: bool = True,
-                 template: Mapping[str, float] | None = None, rows: np.ndarray | None = None):
+                 template: Mapping[str, float] | None = None, rows: np.ndarray | None = None,
+                 at: int | None = None):
         """``noise_is_floor``: ``model.base.noise_sd`` is the residual floor measured without the
         effect (the naming step), so an output transform's own noise share is taken out of it
         (``Effect.pre_transform_sd``: the rounding error for quantization) before its dithered
         prediction; False when it is already the noise sd before the transform. ``rows``: the
         samples its fits will see, when not all (``Effect.free_params`` may narrow a range they
-        cannot resolve)."""
+        cannot resolve). ``at``: the effect's place among the model's effects (default: appended)
+        — an input transform named after another may act before it (``workflow.input_order``)."""
+        if at is not None and not 0 <= at <= len(model.effects):
+            raise ValueError(f"at = {at!r}; allowed: 0..{len(model.effects)} (a place among the model's effects)")
+        self.at = at
         self.model, self.rec, self.effect = model, rec, effect
         self.noise_is_floor = noise_is_floor
         self.kind = model.base.kind
@@ -181,7 +186,7 @@ class CandidateFitter:
         sf = float(model.base.scale_factor)
         self.base_scale = [sd, max(abs(sf) * 1e-4, 1e-12)][: self.n_base]
         # the model's own contribution, once: input after its input-stage effects, additive terms
-        self._stages = None if model.has_output_stage() else model.stages(rec)
+        self._stages = None if model.has_output_stage() or at is not None else model.stages(rec)
         self._linear = (self._stages is not None and effect.stage == "additive" and bool(self.qs)
                         and all(q.linear for q in self.qs))
         # an additive effect that states its term's derivatives: the fit's Jacobian is analytic
@@ -234,6 +239,9 @@ class CandidateFitter:
     def model_at(self, x: np.ndarray) -> Model:
         p, bias, sf = self.unpack(x)
         base = replace(self.model.base, bias=bias, scale_factor=sf, noise_sd=self._noise_sd(p))
+        if self.at is not None:
+            eff = self.model.effects
+            return Model(base, eff[:self.at] + ((self.effect.id, dict(p)),) + eff[self.at:])
         return replace(self.model, base=base).with_effect(self.effect.id, p)
 
     def predict(self, x: np.ndarray) -> np.ndarray:

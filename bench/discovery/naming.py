@@ -409,6 +409,12 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
     det_pick = parsimonious(next((t for t in named if not t.effect.stochastic), None), named, blocks, n_blocks,
                             kind, reading_sd, refitted_sse)
     det_pick = refitted_choice(det_pick, named, model, rec, kind, reading_sd, joint_residual)
+    if (det_pick is not None and det_pick.resid_full is not None and det_pick.effect.waveform
+            and any(e.waveform and not e.stochastic for e, _ in model.entries())):
+        # weighed against a process on what naming it leaves: the model refitted with it (a drift
+        # fitted beside a two-node that had bent toward the ramp leaves the bend, which a walk
+        # then explains better than the drift did)
+        det_pick = replace(det_pick, resid_full=joint_residual(det_pick))
     named = ([det_pick] if det_pick is not None else []) + [t for t in named if t is not det_pick]
 
     # the deterministic term's significance against the process: Bonferroni over the catalogue

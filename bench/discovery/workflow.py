@@ -39,16 +39,19 @@ Pure: record and model in, a :class:`Discovery` out (no files; the CLI writes th
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import chi2 as chi2_dist
 
 from bench.discovery import stochastic as sto
 from bench.discovery.calibration import calibrate
 from bench.discovery.candidates import Naming
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
+from bench.discovery.effects_base import MIN_SNR
 from bench.discovery.evidence import Evidence, beyond_leftover, evidence
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
@@ -57,6 +60,7 @@ from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.naming import name_effect
 from bench.discovery.significance import Gap, gap_metrics
+from bench.discovery.whiten import state_space
 
 
 @dataclass(frozen=True)
@@ -153,6 +157,28 @@ def gap_of(model: Model, rec: Record, seed: int) -> tuple[Gap, float, float, np.
     return g, float(np.sqrt(np.mean(r ** 2))), floor, r
 
 
+def input_order(model: Model, rec: Record) -> Model:
+    """The model with its last effect, when it acts on the input beside other input-stage effects,
+    moved to the place in their chain that fits ``rec`` best (each place calibrated; the least
+    residual sum of squares, the appended place on a tie). Input transforms do not commute: a
+    dead zone before a low-pass swallows the small input, after it the small *filtered* input —
+    named in the other order, every zero crossing of a tumble left an 8-sigma spike in the
+    residual, and the random process beside them was set aside for those "jumps"."""
+    entries = model.effects
+    if not entries or CATALOGUE[entries[-1][0]].stage != "input":
+        return model
+    places = [i for i, (eid, _) in enumerate(entries[:-1]) if CATALOGUE[eid].stage == "input"]
+    if not places:
+        return model
+    best, best_sse = model, float(np.sum((rec.y - model.predict(rec)) ** 2))
+    for i in places:
+        moved = calibrate(Model(model.base, entries[:i] + entries[-1:] + entries[i:-1]), rec)
+        sse = float(np.sum((rec.y - moved.predict(rec)) ** 2))
+        if sse < best_sse:
+            best, best_sse = moved, sse
+    return best
+
+
 def refit_processes(model: Model, rec: Record, alpha: float = 0.05) -> tuple[Model, dict[str, float]]:
     """The model with each random process re-estimated (Whittle, the effect's own estimate) on
     the residual the model leaves now, the other processes beside it, and each one's p-value
@@ -187,19 +213,59 @@ def faded_processes(model: Model, p_values: dict[str, float], named: set[str], a
             if e.stochastic and e.id in named and p_values.get(e.id, 0.0) >= alpha]
 
 
+def faded_terms(model: Model, rec: Record, named: set[str], r: np.ndarray, alpha: float = 0.05) -> list[Evidence]:
+    """The audit's evidence against named waveform terms that the effects named after them made
+    redundant: removed from the final model (the others refitted, ``calibrate``, and its random
+    processes re-estimated on what is left, :func:`refit_processes`) the exact Gaussian
+    likelihood (Kalman innovations: white ``noise_sd`` plus the processes) drops by less than
+    the size gate, ``−2·ΔlnL < MIN_SNR²`` — beside the others the term is under 5σ. A two-node
+    warm-up named first for the slope of a jump staircase (and a Gauss–Markov's wander) stayed
+    named beside the jumps, an extra name; three jumps named along a walk's wander, before the
+    walk, are that wander once the process may take it back. A term the others cannot stand in
+    for keeps its whole size. Not judged through an output stage (the Gaussian likelihood does
+    not hold behind a coarse quantizer or a clip). ``r``: the model's residual."""
+    if model.has_output_stage():
+        return []
+
+    def m2ll(m: Model, res: np.ndarray) -> float:  # −2 ln L of the residual under m's noise
+        res = res - res.mean()
+        procs = m.stochastic_effects()
+        sd = float(m.base.noise_sd)
+        if not procs:
+            return float(res @ res) / sd ** 2 + res.size * math.log(sd ** 2)
+        e, v = state_space(rec.rate_hz, rec.n, procs).filter(res, sd ** 2)
+        return float(np.sum(np.log(v) + e * e / v))
+    here = m2ll(model, r)
+    out = []
+    for i, (e, p) in enumerate(model.entries()):
+        if e.id not in named or not e.waveform or e.stochastic:
+            continue
+        without = calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec, noise=False)
+        without, _ = refit_processes(without, rec, alpha)
+        gain = m2ll(without, rec.y - without.predict(rec)) - here
+        if gain < MIN_SNR ** 2:
+            k = len(e.params_for(model.base.kind))
+            out.append(Evidence(e.id, False, float(chi2_dist.sf(max(gain, 0.0), k)),
+                                (f"{e.id} is no longer needed beside the effects named after it: without it "
+                                 f"(the others refitted, the processes re-estimated) −2 ln L grows by {gain:.3g} "
+                                 f"(under the size gate {MIN_SNR ** 2:.0f}, {MIN_SNR:.0f}σ)",)))
+    return out
+
+
 def _structure(model: Model, rec: Record, r: np.ndarray) -> Localization:
     return localize(rec, r - r.mean(), model.residual_sd())
 
 
-def _step_std(model: Model, rec: Record, naming_std: dict) -> dict:
-    """Std of the last effect's parameters at the re-calibrated model (the naming fit's std
-    belonged to other values of the other parameters); the naming's for an effect that is not
-    a waveform (a random process, a histogram-judged effect)."""
-    eff, p = model.entries()[-1]
+def _step_std(model: Model, rec: Record, naming_std: dict, at: int) -> dict:
+    """Std of the parameters of effect ``at`` (the one just named) at the re-calibrated model
+    (the naming fit's std belonged to other values of the other parameters); the naming's for an
+    effect that is not a waveform (a random process, a histogram-judged effect)."""
+    eff, p = model.entries()[at]
     if not eff.waveform:
         return dict(naming_std)
     # the model's noise_sd is already the noise before any quantizer (with_noise_floor)
-    f = CandidateFitter(Model(model.base, model.effects[:-1]), rec, eff, noise_is_floor=False, template=p)
+    rest = Model(model.base, model.effects[:at] + model.effects[at + 1:])
+    f = CandidateFitter(rest, rec, eff, noise_is_floor=False, template=p, at=at)
     x = f.pack(p, model.base.bias, model.base.scale_factor)
     return dict(f.fit([x], max_nfev=1).params_std)
 
@@ -273,11 +339,12 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                 notes.append(f"stopped after max_effects = {max_effects}; {naming.best.id} was still significant")
                 break
             best = naming.best
-            new = calibrate(model.with_effect(best.id, best.params), rec)
+            new = input_order(calibrate(model.with_effect(best.id, best.params), rec), rec)
             if not best.stochastic:  # the residual the model's processes were estimated on changed
                 new, process_p = refit_processes(new, rec, alpha)
             g1, rms1, floor, r1 = gap_of(new, rec, seed)
-            steps.append(Step(best.id, dict(new.effects[-1][1]), _step_std(new, rec, best.params_std),
+            at = new.effect_ids.index(best.id)
+            steps.append(Step(best.id, dict(new.effects[at][1]), _step_std(new, rec, best.params_std, at),
                               best.p_value, gap_cur, g1, rms_cur, rms1, naming, loc, r_cur, r1))
             say(f"step {it + 1}: named {best.id}, rms {_fmt(rms_cur)} → {_fmt(rms1)}")
             model, gap_cur, rms_cur, r_cur = new, g1, rms1, r1
@@ -303,6 +370,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                         for i, (e, _) in enumerate(model.entries())
                         if e.id in named_ids and e.waveform and not e.stochastic]
             evs += faded_processes(model, process_p, named_ids, alpha)
+            evs += faded_terms(model, rec, named_ids, r_cur, alpha)
             failing = [ev for ev in evs if not ev.holds]
             if not failing:
                 break
