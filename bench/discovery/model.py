@@ -36,8 +36,8 @@ from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import DEFAULT_NOISE_SD, KINDS, Effect, reference_input
 from bench.discovery.effects_linalg import base_regressors, orthonormal, project_q
 from bench.discovery.effects_noise import StochasticEffect
-from bench.discovery.whiten import innovations
 from bench.discovery.mapping import MapFn
+from bench.discovery.whiten import innovations
 
 #: Allowed base-parameter ranges per kind (sensor unit): a raw QA-2000 bias < 4 mg (allow 50 mg),
 #: a FOG's ±1 deg/s (3600 deg/h), an MHD offset; scale factor normalised near 1; noise sd ≥ 0.

@@ -237,7 +237,7 @@ def faded_terms(model: Model, rec: Record, named: set[str], r: np.ndarray, alpha
         return float(np.sum(np.log(v) + e * e / v))
     here = m2ll(model, r)
     out = []
-    for i, (e, p) in enumerate(model.entries()):
+    for i, (e, _p) in enumerate(model.entries()):
         if e.id not in named or not e.waveform or e.stochastic:
             continue
         without = calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec, noise=False)

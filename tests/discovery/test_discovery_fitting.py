@@ -192,5 +192,6 @@ def test_gauss_markov_tau_std_holds_where_phi_rounds_to_one(th1, dt):
         h = 1e-5 * max(1.0, abs(th1))
 
         def tau(x):
-            return gm.estimate(np.zeros(10), np.array([0.0, x]), np.eye(2), dt, alone=True, bootstrap=False).params["tau_s"]
+            est = gm.estimate(np.zeros(10), np.array([0.0, x]), np.eye(2), dt, alone=True, bootstrap=False)
+            return est.params["tau_s"]
         assert est.params_std["tau_s"] == pytest.approx(abs(tau(th1 + h) - tau(th1 - h)) / (2 * h), rel=1e-4)
