@@ -11,7 +11,8 @@ samples; the workflow starts from the bare base model):
   written apart from the catalogue (the simulator's FOG and accelerometer physics where it has
   the effect): the rates should be within 5 points of the catalogue draws' (issue 15);
 * **pairs** / **triples** — two / three effects at once (triples mix deterministic and
-  stochastic): all named and nothing else (target ≥ 80 %);
+  stochastic): all named and nothing else (target ≥ 80 %); each effect at snr ≥ 15 inside its
+  mixture (:func:`hidden_case`; ``--white-draws``: against white noise only, stop 27's rule);
 * **clean** — nothing hidden: nothing named (target ≥ 95 %), for both generators;
 * **out-of-catalogue** — shapes no effect has (:mod:`discovery_shapes`: triangle and square
   waves, a chirp, bursts, noise bursts, a dependence on the supply column, a tanh compression):
@@ -82,27 +83,32 @@ MIX_REDRAWS = 12
 
 
 def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None = None,
-                generator: str = "catalogue"):
+                generator: str = "catalogue", mix_rule: bool = True):
     """(record, truth model, snr of each effect, redraws) or None when an effect cannot be drawn
     on this record (not detectable; with ``at_snr``: that snr outside its physical range).
     ``generator``: "catalogue" (``Model.simulate``) or "independent" (:mod:`discovery_generator`);
     the same seed draws the same record and parameters for both.
 
     A mixture (two or three effects) is held to the draw rule of a single inside its mixture: each
-    deterministic effect's ``Model.effect_snr`` — what tells it from the rest of the mixture (the
-    other effects' directions out) against the mixture's whole noise (white + its random process)
-    — at least DRAW_SNR_FACTOR·MIN_SNR (15), as a single's snr is against white noise. A draw that
+    effect's ``Model.effect_snr`` at least DRAW_SNR_FACTOR·MIN_SNR (15), as a single's snr is
+    against white noise — for a term what tells it from the rest of the mixture (the other
+    effects' directions out) against the mixture's whole noise (white + its random process), for
+    a random process its excess Allan variance over the readings' floor (a quantizer's rounding
+    included, as in the naming's size gate); an output transform as drawn. A draw that
     breaks it (a 19-sigma temperature bias drawn beside a random walk holding 1.8 sigma of it) is
-    drawn again with the next sub-seed, up to MIX_REDRAWS times; ``redraws`` counts them."""
+    drawn again with the next sub-seed, up to MIX_REDRAWS times; ``redraws`` counts them.
+    ``mix_rule=False``: each effect drawn against white noise only, as a single (stop 27's rule,
+    ``--white-draws``; the first draw of every mixture — the same record)."""
     floor = DRAW_SNR_FACTOR * MIN_SNR
-    for attempt in range(MIX_REDRAWS + 1 if len(effects) > 1 else 1):
+    for attempt in range(MIX_REDRAWS + 1 if len(effects) > 1 and mix_rule else 1):
         drawn = _draw_case(kind, effects, seed, n, at_snr, attempt)
         if drawn is None:
             if attempt == 0:
                 return None
             continue  # this redraw's record cannot hold an effect: the next one
         rec, truth, snrs, rng = drawn
-        if len(effects) == 1 or all(not truth.effect_snr(rec, i) < floor for i in range(len(effects))):
+        if len(effects) == 1 or not mix_rule or all(not truth.effect_snr(rec, i) < floor
+                                                    for i in range(len(effects))):
             y = truth.simulate(rec, rng) if generator == "catalogue" else realise(kind, rec, truth, rng)
             return rec.replace(y=y), truth, snrs, attempt
     return None
@@ -132,8 +138,8 @@ def _draw_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: f
 
 
 def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None = None,
-             generator: str = "catalogue") -> dict | None:
-    case = hidden_case(kind, effects, seed, n, at_snr, generator)
+             generator: str = "catalogue", mix_rule: bool = True) -> dict | None:
+    case = hidden_case(kind, effects, seed, n, at_snr, generator, mix_rule)
     if case is None:
         return None
     rec, truth, snrs, redraws = case
@@ -259,10 +265,11 @@ def scorecard_jobs(args) -> list[tuple]:
         det = [e for e in ids if not CATALOGUE[e].stochastic]
         for k in range(args.pairs if len(det) >= 2 else 0):
             pair = tuple(str(e) for e in rng.choice(det, 2, replace=False))
-            add(k // 2, "pair", kind, k, ("single", (kind, pair, 1000 + k, args.n, None, "catalogue")))
+            add(k // 2, "pair", kind, k, ("single", (kind, pair, 1000 + k, args.n, None, "catalogue",
+                                                     not args.white_draws)))
         for k in range(args.triples):
             add(k // 3, "triple", kind, k, ("single", (kind, draw_triple(kind, ids, rng), 3000 + k, args.n, None,
-                                                       "catalogue")))
+                                                       "catalogue", not args.white_draws)))
         for j, gen in enumerate(("catalogue", "independent")):
             for k in range(args.clean):
                 add(k // 3, "clean", kind, 2 * k + j, ("single", (kind, (), 2000 + k, args.n, None, gen)))
@@ -298,6 +305,9 @@ def main(argv=None) -> int:
     ap.add_argument("--clean", type=int, default=20, help="clean cases per kind and generator")
     ap.add_argument("--open", type=int, default=5, help="out-of-catalogue records per shape and kind")
     ap.add_argument("--n", type=int, default=3000, help="samples per record")
+    ap.add_argument("--white-draws", action="store_true",
+                    help="mixtures drawn with each effect at snr >= 15 against white noise only (stop 27's rule), "
+                         "not inside its mixture")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes")
     ap.add_argument("--effects", default=None, help="comma-separated subset of effect ids")
     ap.add_argument("--first", type=int, default=None, metavar="N",

@@ -90,6 +90,14 @@ class WarmupExponential(Effect):
             return rec.dt_s, 0.5 * rec.duration_s
         return q.low, q.high
 
+    def identifiable(self, p, rec):
+        """A time constant beyond the record's t_on span is not resolvable on it (as a two-node's
+        slow node): the decay is a straight line there — a drift's, or another term's misfit (a
+        warm-up at the top of its amplitude range with τ = 87 s on a 6-s record took a
+        high-pass's misfit)."""
+        t = rec.column("t_on")
+        return p.get("tau_s", 0.0) <= float(t.max() - t.min())
+
 
 class LinearDrift(Effect):
     id = "linear_drift"

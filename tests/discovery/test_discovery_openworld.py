@@ -287,6 +287,21 @@ def test_a_two_node_whose_slow_node_outlasts_the_record_is_not_identifiable():
     assert two.identifiable(p | {"tau_slow_s": 400.0}, rec)
 
 
+
+def test_a_warm_up_whose_time_constant_outlasts_the_record_is_not_identifiable():
+    """Beyond the record's length a warm-up's decay is a straight line: a warm-up fitted at the top
+    of its amplitude range with τ = 87 s on a 6-s MHD record took a high-pass's misfit and was
+    named beside it (white-noise draw of the scorecard's MHD triple quantization + high-pass +
+    Gauss–Markov, seed 3015)."""
+    rec = make_experiment("mhd", np.random.default_rng(0), n=3000)
+    warm = CATALOGUE["warmup_exponential"]
+    assert rec.duration_s == pytest.approx(6.0, rel=1e-3)
+    assert not warm.identifiable({"amplitude": 1.0, "tau_s": 87.0}, rec)
+    assert warm.identifiable({"amplitude": 1.0, "tau_s": 0.7}, rec)
+    span = float(np.ptp(rec.column("t_on")))
+    assert warm.identifiable({"amplitude": 1.0, "tau_s": span}, rec)
+    assert not warm.identifiable({"amplitude": 1.0, "tau_s": 1.01 * span}, rec)
+
 @pytest.mark.parametrize("seed", [1, 9])
 def test_jumps_along_a_walk_do_not_take_a_temperature_term_on_an_in_sample_refit(seed):
     """The joint refit (``naming.refitted_choice``) weighs an in-sample criterion; beside a random
