@@ -123,10 +123,10 @@ def band_shape(x: np.ndarray, in_band: np.ndarray) -> tuple[float, str]:
 def fitted_directions(model: Model, rec: Record) -> np.ndarray:
     """Columns of the named waveforms the model's calibration fitted by least squares: each
     waveform effect's contribution (its prediction with it less without it); (n, 0) without
-    one. Not the base's bias and input: under a walk a constant's whitened column is the
-    record's first samples and the input's is the input — refitting them would take out what
-    a missing warm-up or a logged column leaves in the innovations, the evidence against the
-    process."""
+    one. Not the base's bias: under a walk a constant's whitened column is the record's first
+    samples — refitting it would take out what a missing warm-up leaves in the innovations, the
+    evidence against the process. (The base's input column is refitted, by
+    :func:`process_evidence`: an effect linear in the input is the scale factor itself.)"""
     cols = [np.zeros((rec.n, 0))]
     full = model.predict(rec)
     for i, (e, _) in enumerate(model.entries()):
@@ -156,6 +156,12 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
     # white, under a strong process their values are off by colour that follows their own
     # columns (a K2's input²) — the joint model's error, not a departure from the process
     directions = fitted_directions(model, rec)
+    if rec.varies("input"):
+        # the scale factor too: calibrated by least squares beside a strong process its error
+        # follows the input (a walk set aside for "correlation with input: +5σ" beside a coarse
+        # quantizer); an effect linear in the input is a scale factor, the catalogue's others
+        # are not (input², |input|, input·temp), so nothing is lost
+        directions = np.column_stack([directions, rec.column("input")])
     if directions.shape[1]:
         x = project_out(x, np.column_stack([innovations(c - c.mean(), rate, white, procs) for c in directions.T]))
     a = alpha / 3.0

@@ -43,6 +43,7 @@ from scipy import signal, special, stats
 from bench.analysis.allan import averaging_factors
 from bench.analysis.allan_stats import edf_greenhall
 from bench.discovery.data import Record
+from bench.discovery.effects_linalg import project_out
 from bench.discovery.effects_noise import StochasticEffect
 from bench.discovery.findings import INPUT_COLUMNS, Band, InputCorrelation, Jump, Localization, Segment, TauRange
 from bench.discovery.model import Model
@@ -400,6 +401,10 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
 
         def whiten(v: np.ndarray) -> np.ndarray:
             return innovations(v - v.mean(), rate, white, sto)
+        if rec.varies("input"):
+            # the scale factor refitted under the process (generalised least squares): fitted by
+            # least squares beside a strong process its error follows the input — not structure
+            x = project_out(x, whiten(rec.column("input"))[:, None])
         transform = whiten
         prefix = "in the Kalman innovations under the model's noise: "
     moments = innovations_profile(model, rec, white or float(model.base.noise_sd) or 1.0, sto)
