@@ -238,13 +238,13 @@ def faded_terms(model: Model, rec: Record, named: set[str], r: np.ndarray, alpha
         return float(np.sum(np.log(v) + e * e / v))
     here = m2ll(model, r)
     out = []
-    for i, (e, _p) in enumerate(model.entries()):
+    for i, (e, own) in enumerate(model.entries()):
         if e.id not in named or not e.waveform or e.stochastic:
             continue
         without = calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec, noise=False)
         without, _ = refit_processes(without, rec, alpha)
         gain = m2ll(without, rec.y - without.predict(rec)) - here
-        k = len(e.params_for(model.base.kind))
+        k = max(1, len(e.free_params(own, model.base.kind, rec)))  # a jump: its used slots only
         p_value = float(chi2_dist.sf(max(gain, 0.0), k))
         if p_value >= alpha:
             out.append(Evidence(e.id, False, p_value,
