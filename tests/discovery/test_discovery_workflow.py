@@ -601,3 +601,23 @@ def test_a_term_the_later_names_made_redundant_is_withdrawn(monkeypatch):
     assert "no longer significant" in faded[0].describe()
     d = discover(rec, Model(base_model("accelerometer")), max_effects=4, seed=3017)
     assert sorted(s.effect_id for s in d.steps) == sorted(hidden)
+
+
+def test_the_scorecard_draws_each_effect_of_a_mixture_at_snr_15_inside_it(monkeypatch):
+    """The scorecard's gyro triple temperature bias + K3 + random walk (seed 3014): first drawn,
+    the bias is 19σ against white noise but 1.8σ against the walk beside it — no method could
+    name it. The mixture's draw rule (``hidden_case``) draws it again until every effect is at
+    snr ≥ 15 inside its mixture (``Model.effect_snr``); ``mix_rule=False`` (``--white-draws``)
+    keeps the first draw, stop 27's rule."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    scorecard = importlib.import_module("discovery_scorecard")
+    hidden = ("temperature_bias", "k3_nonlinearity", "rate_random_walk")
+    rec0, truth0, snrs0, redraws0 = scorecard.hidden_case("gyro", hidden, 3014, 3000, mix_rule=False)
+    assert redraws0 == 0 and snrs0[0] >= 15
+    assert truth0.effect_snr(rec0, 0) < 3
+    rec, truth, _, redraws = scorecard.hidden_case("gyro", hidden, 3014, 3000)
+    assert redraws > 0
+    assert all(truth.effect_snr(rec, i) >= 15 for i in range(3))
+    assert not np.array_equal(rec.y, rec0.y)
+    # a single is never redrawn: its rule is Effect.draw's alone
+    assert scorecard.hidden_case("gyro", ("temperature_bias",), 0, 3000)[3] == 0
