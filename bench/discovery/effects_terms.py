@@ -426,14 +426,15 @@ class SinusoidalInterference(Effect):
         # the fold pattern's lines: a start only as the strongest line
         order = np.r_[order[:1], [i for i in order[1:] if not alias[i]]].astype(int)
         starts, used = [], []
-        w = np.ones(rec.n) if not part else np.asarray(rows, float)
         for i in order:
             if any(abs(i - j) < 3 for j in used):
                 continue
             used.append(i)
             qf = self.param("freq_hz", kind)
             fr = float(np.clip(f[i], qf.low, qf.high))
-            m = np.column_stack([np.sin(2 * np.pi * fr * tt), np.cos(2 * np.pi * fr * tt)]) * w[:, None]
+            m = np.column_stack([np.sin(2 * np.pi * fr * tt), np.cos(2 * np.pi * fr * tt)])
+            if part:  # least squares on the rows' samples: r is zero off them
+                m = m * np.asarray(rows, float)[:, None]
             (a, b), *_ = np.linalg.lstsq(m, r, rcond=None)
             starts.append({"amplitude": float(math.hypot(a, b)), "freq_hz": fr, "phase_rad": float(math.atan2(b, a))})
             if len(starts) == 3:

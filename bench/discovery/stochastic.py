@@ -173,10 +173,7 @@ def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, 
         p = {k: float(np.exp(v)) for k, v in zip(names, x[1:])}
         if not all(np.isfinite(list(p.values()))) or not np.isfinite(x[0]):
             return math.inf
-        e, v = whiten.state_space(rate, r.size, [(effect, p), *others]).filter(r, float(np.exp(2 * x[0])))
-        if not np.all(v > 0):
-            return math.inf
-        return 0.5 * float(np.sum(np.log(v) + e * e / v))
+        return whiten.exact_nll(r, rate, float(np.exp(2 * x[0])), [(effect, p), *others])
     res = optimize.minimize(nll_at, x0, method="Nelder-Mead",
                             options={"xatol": 1e-4, "fatol": 1e-3, "maxiter": 200 * (1 + len(names))})
     # the start is a vertex of the simplex: res.fun is never above nll_at(x0)

@@ -232,6 +232,19 @@ def noise_psd(f_hz: np.ndarray, rate_hz: float, stochastic_effects: Processes = 
     return out * 2.0 / rate_hz
 
 
+def exact_nll(r: np.ndarray, rate_hz: float, white_var: float, stochastic_effects: Processes = ()) -> float:
+    """The exact Gaussian −ln L of ``r`` (its constant dropped) under white noise of variance
+    ``white_var`` plus ``stochastic_effects``: ½·Σ(ln sₖ + eₖ²/sₖ) over the Kalman innovations eₖ
+    and their variances sₖ; ``inf`` where a variance is not positive (a parameter search's edge)."""
+    r = np.asarray(r, dtype=float)
+    if not stochastic_effects:
+        return 0.5 * (float(r @ r) / white_var + r.size * math.log(white_var))
+    e, v = state_space(float(rate_hz), r.size, list(stochastic_effects)).filter(r, float(white_var))
+    if not np.all(v > 0):
+        return math.inf
+    return 0.5 * float(np.sum(np.log(v) + e * e / v))
+
+
 def innovations(residual: np.ndarray, rate_hz: float, white_sd: float,
                 stochastic_effects: Processes = ()) -> np.ndarray:
     """Standardized one-step innovations of ``residual`` (sensor unit, uniform samples at

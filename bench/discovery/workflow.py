@@ -39,7 +39,6 @@ Pure: record and model in, a :class:`Discovery` out (no files; the CLI writes th
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -59,7 +58,7 @@ from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.naming import name_effect
 from bench.discovery.significance import Gap, gap_metrics
-from bench.discovery.whiten import state_space
+from bench.discovery.whiten import exact_nll
 
 
 @dataclass(frozen=True)
@@ -229,13 +228,7 @@ def faded_terms(model: Model, rec: Record, named: set[str], r: np.ndarray, alpha
         return []
 
     def m2ll(m: Model, res: np.ndarray) -> float:  # −2 ln L of the residual under m's noise
-        res = res - res.mean()
-        procs = m.stochastic_effects()
-        sd = float(m.base.noise_sd)
-        if not procs:
-            return float(res @ res) / sd ** 2 + res.size * math.log(sd ** 2)
-        e, v = state_space(rec.rate_hz, rec.n, procs).filter(res, sd ** 2)
-        return float(np.sum(np.log(v) + e * e / v))
+        return 2 * exact_nll(res - res.mean(), rec.rate_hz, float(m.base.noise_sd) ** 2, m.stochastic_effects())
     here = m2ll(model, r)
     out = []
     for i, (e, own) in enumerate(model.entries()):
