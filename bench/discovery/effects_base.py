@@ -650,6 +650,14 @@ class Effect:
         r = np.asarray(residual, float) if rows is None else np.where(rows, residual, 0.0)
         return grid_starts(self, rec, r, kind or guess_kind(rec))
 
+    def searched_starts(self, p: Mapping[str, float], rec: Record, residual: np.ndarray, *, kind: str,
+                        rows: np.ndarray | None = None) -> list[Params]:
+        """Starts for this effect at ``p`` from a fresh search of ``residual`` (what the model
+        leaves without it) that a least-squares refit from ``p`` cannot make — a jump's time is
+        refined within its sample, never moved to another change point — with no more
+        parameters in use than ``p`` has; [] when its fit is no such search (default)."""
+        return []
+
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:
         q = self.param(self.main_param, kind)
         return self.drawable_range(q, rec, kind)

@@ -175,13 +175,23 @@ class BiasJump(Effect):
                    rows: np.ndarray | None = None) -> list[Params]:
         """Change points of the residual on ``rows`` (module docstring), sizes by least squares
         with the base regressors; one start (the count is the search's)."""
-        kind = kind or "accelerometer"
+        return self._starts(rec, residual, kind or "accelerometer", rows, MAX_JUMPS)
+
+    def searched_starts(self, p: Mapping[str, float], rec: Record, residual: np.ndarray, *, kind: str,
+                        rows: np.ndarray | None = None) -> list[Params]:
+        """The change points of ``residual`` again, at most as many as ``p`` has jumps: a jump
+        placed beside a wrong warm-up (at 840 s for a step at 876 s) stays where its time was
+        found once the right transient replaces the warm-up — its time moves within a sample."""
+        return self._starts(rec, residual, kind, rows, max(1, self.count(p)))
+
+    def _starts(self, rec: Record, residual: np.ndarray, kind: str, rows: np.ndarray | None,
+                max_count: int) -> list[Params]:
         rows = np.ones(rec.n, bool) if rows is None else np.asarray(rows, bool)
         a = base_regressors(rec)[rows]
         r = project_out(np.asarray(residual, float)[rows], a)
         d = np.diff(r)
         sd = float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0)) or float(np.std(r)) or 1.0
-        cuts = change_points(r, sd, MAX_JUMPS, MIN_SNR ** 2)
+        cuts = change_points(r, sd, max_count, MIN_SNR ** 2)
         t = rec.t_s[rows]
         times = [0.5 * (t[c - 1] + t[c]) for c in cuts]
         p: Params = {q.name: 0.0 for q in self.params_for(kind)}

@@ -26,7 +26,7 @@ from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.naming import name_effect
 from bench.discovery.separating import separating_experiment
 from bench.discovery.stochastic import fit_stochastic
-from bench.discovery.workflow import discover, faded_terms, input_order
+from bench.discovery.workflow import discover, faded_terms, input_order, reseated
 
 GM, RW = CATALOGUE["gauss_markov"], CATALOGUE["rate_random_walk"]
 
@@ -621,3 +621,38 @@ def test_the_scorecard_draws_each_effect_of_a_mixture_at_snr_15_inside_it(monkey
     assert not np.array_equal(rec.y, rec0.y)
     # a single is never redrawn: its rule is Effect.draw's alone
     assert scorecard.hidden_case("gyro", ("temperature_bias",), 0, 3000)[3] == 0
+
+
+def test_a_jump_found_beside_a_wrong_shape_is_searched_again_once_the_model_changes():
+    """``calibrate`` moves a jump's time within its sample only: a jump found at 840 s (beside a
+    warm-up named for a two-node transient, the scorecard's accelerometer triple 3001 of
+    ``--pairs 0 --triples 30``) stays there once the transient is right, 36 s from the step.
+    ``reseated`` searches its change points again on what the others leave (no more jumps than
+    it has) and keeps the move when the sum of squares falls; a jump in place and an effect
+    whose fit is no search are left as they are."""
+    rec = make_experiment("accelerometer", np.random.default_rng(5), n=3000)
+    warm = {"amplitude": -3e-4, "tau_s": 60.0}
+    jumps = {"size_1": 4e-5, "time_1_s": 875.6, "size_2": -3.5e-5, "time_2_s": 1800.4, "size_3": 0.0, "time_3_s": 0.0}
+    truth = Model(BaseModel("accelerometer", bias=1e-4, scale_factor=1.0, noise_sd=5e-6)) \
+        .with_effect("warmup_exponential", warm).with_effect("bias_jump", jumps)
+    rec = rec.replace(y=truth.simulate(rec, 8))
+    wrong = calibrate(Model(base_model("accelerometer")).with_effect("warmup_exponential", warm)
+                      .with_effect("bias_jump", jumps | {"time_1_s": 840.2}), rec)
+    assert abs(wrong.effects[1][1]["time_1_s"] - 840.2) < 1.0  # least squares cannot move it
+    moved = reseated(wrong, rec)
+    p = moved.effects[1][1]
+    assert abs(p["time_1_s"] - 875.6) < 1.0 and abs(p["time_2_s"] - 1800.4) < 1.0
+    assert CATALOGUE["bias_jump"].count(p) == 2
+    rms = float(np.sqrt(np.mean((rec.y - moved.predict(rec)) ** 2)))
+    assert rms < 1.05 * 5e-6
+    right = calibrate(Model(base_model("accelerometer")).with_effect("warmup_exponential", warm)
+                      .with_effect("bias_jump", jumps), rec)
+    again = reseated(right, rec)
+    assert abs(again.effects[1][1]["time_1_s"] - right.effects[1][1]["time_1_s"]) < 0.5
+    warm_only = calibrate(Model(base_model("accelerometer")).with_effect("warmup_exponential", warm), rec)
+    assert reseated(warm_only, rec) is warm_only  # the warm-up's fit is no search
+    # the search again holds at most as many jumps as the effect has
+    starts = CATALOGUE["bias_jump"].searched_starts(jumps | {"size_2": 0.0}, rec, rec.y - truth.predict(rec)
+                                                    + CATALOGUE["bias_jump"].term(jumps, rec), kind="accelerometer")
+    assert CATALOGUE["bias_jump"].count(starts[0]) == 1
+
