@@ -68,7 +68,10 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     significant against a null that includes the process, and it does not explain the record
     better than the process on their common likelihood (its BIC gain defined below above the
     process's by ``MIN_SNR²``: a walk fitted alone grows to follow a warm-up, and against that
-    walk the warm-up looks typical); when it is the process's, a named non-localized
+    walk the warm-up looks typical) — nor, explaining more than the process at all, leaves
+    nothing of the process's evidence beside it (the process refitted to its residual is not
+    significant, p ≥ ``alpha``; a walk of 6e-8 g/√s made two 3e-6-g jumps look typical and
+    vanished beside them, p = 1); when it is the process's, a named non-localized
     deterministic candidate whose held-out score ties with it (``tie(localized, other)``: within
     one paired standard error) is judged in its place (three jumps along a Gauss–Markov's wander
     scored 0.001 above a temperature term) — not one it clearly out-scored (a temperature term
@@ -150,6 +153,15 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
         # first excursion "improved" the walk's own likelihood by 57 on a record of a walk alone
         if bic_d > s.bic_gain + MIN_SNR ** 2:
             return d, None
+        # both explain the structure, the term more than the process on their common likelihood,
+        # and the process refitted beside the term is not significant there at all (p ≥ alpha):
+        # its colour was the term's (the stricter test of a non-localized term — p < SURVIVE_P and
+        # a tenth of its statistic kept — named three jumps for a walk's wander on a gyro, and the
+        # walk was named beside them at the next step)
+        if bic_d > s.bic_gain:
+            after = sto.fit_stochastic(r_d, rec.dt_s, s.effect, known=known, bootstrap=False)
+            if after.p_value >= alpha:
+                return d, None
         failed = failed or d
         # the process explains this one (jumps along a walk's wander): a deterministic
         # candidate that ties with it has its turn (a temperature term scored a hair below them)

@@ -656,3 +656,20 @@ def test_a_jump_found_beside_a_wrong_shape_is_searched_again_once_the_model_chan
                                                     + CATALOGUE["bias_jump"].term(jumps, rec), kind="accelerometer")
     assert CATALOGUE["bias_jump"].count(starts[0]) == 1
 
+
+def test_a_walk_that_keeps_nothing_beside_the_jumps_does_not_take_their_name(monkeypatch):
+    """The scorecard's accelerometer triple asymmetry + temperature scale factor + two jumps of
+    3e-6 g (seed 3005 of ``--pairs 0 --triples 30``): at the third step a walk of 6e-8 g/√s
+    made the jumps look typical (a walk steps too) and their likelihood gain was not 25 above
+    the walk's, so the walk was named. Refitted beside the jumps the walk keeps nothing of its
+    evidence: the jumps are named."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    scorecard = importlib.import_module("discovery_scorecard")
+    hidden = ("scale_factor_asymmetry", "temperature_scale_factor", "bias_jump")
+    rec, truth, _, _ = scorecard.hidden_case("accelerometer", hidden, 3005, 3000)
+    model = calibrate(Model(truth.base, truth.effects[:2]), rec)
+    naming = name_effect(model, rec, seed=3007)
+    walk = next(c for c in naming.candidates if c.id == "rate_random_walk")
+    assert walk.named  # significant and big enough on its own: the two were in contest
+    assert naming.best is not None and naming.best.id == "bias_jump"
+
