@@ -407,7 +407,7 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
 
     named = shape_ranked(named, model, rec, r)
     det_pick = parsimonious(next((t for t in named if not t.effect.stochastic), None), named, blocks, n_blocks,
-                            kind, reading_sd, refitted_sse)
+                            kind, reading_sd, refitted_sse, rec)
     det_pick = refitted_choice(det_pick, named, model, rec, kind, reading_sd, joint_residual)
     if (det_pick is not None and det_pick.resid_full is not None and det_pick.effect.waveform
             and any(e.waveform and not e.stochastic for e, _ in model.entries())):
