@@ -657,22 +657,28 @@ def test_a_jump_found_beside_a_wrong_shape_is_searched_again_once_the_model_chan
     assert CATALOGUE["bias_jump"].count(starts[0]) == 1
 
 
+def _named_at_step(monkeypatch, kind: str, hidden: tuple[str, ...], seed: int, known: int):
+    """The naming step of the scorecard's triple ``hidden`` (``hidden_case(kind, hidden, seed)``)
+    on the model that holds its first ``known`` effects at the truth, calibrated — the step
+    ``discover`` reaches after naming them (its seed: the record's + ``known``)."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    scorecard = importlib.import_module("discovery_scorecard")
+    rec, truth, _, _ = scorecard.hidden_case(kind, hidden, seed, 3000)
+    model = calibrate(Model(truth.base, truth.effects[:known]), rec)
+    return name_effect(model, rec, seed=seed + known)
+
+
 def test_a_walk_that_keeps_nothing_beside_the_jumps_does_not_take_their_name(monkeypatch):
     """The scorecard's accelerometer triple asymmetry + temperature scale factor + two jumps of
     3e-6 g (seed 3005 of ``--pairs 0 --triples 30``): at the third step a walk of 6e-8 g/√s
     made the jumps look typical (a walk steps too) and their likelihood gain was not 25 above
     the walk's, so the walk was named. Refitted beside the jumps the walk keeps nothing of its
     evidence: the jumps are named."""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
-    hidden = ("scale_factor_asymmetry", "temperature_scale_factor", "bias_jump")
-    rec, truth, _, _ = scorecard.hidden_case("accelerometer", hidden, 3005, 3000)
-    model = calibrate(Model(truth.base, truth.effects[:2]), rec)
-    naming = name_effect(model, rec, seed=3007)
+    naming = _named_at_step(monkeypatch, "accelerometer",
+                            ("scale_factor_asymmetry", "temperature_scale_factor", "bias_jump"), 3005, 2)
     walk = next(c for c in naming.candidates if c.id == "rate_random_walk")
     assert walk.named  # significant and big enough on its own: the two were in contest
     assert naming.best is not None and naming.best.id == "bias_jump"
-
 
 
 def test_a_jump_and_a_warm_up_of_as_many_parameters_tied_held_out_are_told_apart_in_sample(monkeypatch):
@@ -681,12 +687,7 @@ def test_a_jump_and_a_warm_up_of_as_many_parameters_tied_held_out_are_told_apart
     (standard error 0.024) — a held-out block that holds the jump hides its time — and the
     warm-up was named. Both have two free parameters; refitted with the model, the jump leaves
     43 white variances less: it is named (``parsimonious`` with ``rec``)."""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
-    hidden = ("k3_nonlinearity", "temperature_scale_factor", "bias_jump")
-    rec, truth, _, _ = scorecard.hidden_case("mhd", hidden, 3002, 3000)
-    model = calibrate(Model(truth.base, truth.effects[:2]), rec)
-    naming = name_effect(model, rec, seed=3004)
+    naming = _named_at_step(monkeypatch, "mhd", ("k3_nonlinearity", "temperature_scale_factor", "bias_jump"), 3002, 2)
     warm = next(c for c in naming.candidates if c.id == "warmup_exponential")
     jump = next(c for c in naming.candidates if c.id == "bias_jump")
     assert warm.named and jump.named and warm.score > jump.score
