@@ -254,8 +254,8 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
         diff, se = score_difference(best.err_c, c.err_c, best.err_b, blocks, n_blocks)
         if not (np.isfinite(se) and diff <= se):
             continue
-        if noise_sd > 0 and sse(c) - sse(best) > MIN_SNR ** 2 * noise_sd ** 2 and (
-                refitted_sse is None or refitted_sse(c) - refitted_sse(best) > MIN_SNR ** 2 * noise_sd ** 2):
+        if noise_sd > 0 and sse(c) - sse(best) > gate and (
+                refitted_sse is None or refitted_sse(c) - refitted_sse(best) > gate):
             continue
         pick = c
     # as many free parameters, a tie held-out: the one that explains more than the size gate

@@ -173,7 +173,9 @@ class Effect:
     evidence of its own signature), ``relaxed_basis`` (columns of a freer version of its shape:
     if they still explain the residual once it is in the model, its shape does not hold and it
     is not named). The fit asks ``free_params`` (which parameters a fit moves; a jump's unused
-    slots stay put) and ``coordinate_scale`` (the optimiser's scale of a parameter on rec)."""
+    slots stay put) and ``coordinate_scale`` (the optimiser's scale of a parameter on rec); the
+    workflow ``searched_starts`` (a fresh search of the residual for an effect already named — a
+    jump's change points — that a refit from its values cannot make)."""
 
     id: str = ""
     description: str = ""
