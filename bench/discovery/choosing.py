@@ -221,7 +221,8 @@ def joint_alternative(r_d: np.ndarray, processes: Sequence[Trial], rec: Record, 
 def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray, n_blocks: int,
                  kind: str, noise_sd: float = 0.0,
                  refitted_sse: Callable[[Trial], float] | None = None,
-                 rec: Record | None = None) -> Trial | None:
+                 rec: Record | None = None,
+                 whiten: Callable[[np.ndarray], np.ndarray] | None = None) -> Trial | None:
     """Among deterministic named candidates whose held-out score is within one (paired, block
     jackknife) standard error of the best's, the one with the fewest parameters (Occam: a long
     warm-up time constant is a drift on a short record) — unless the best explains, in-sample,
@@ -236,7 +237,16 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
     parameters as the held-out best (``Effect.free_params``: a jump's used slots), within one
     standard error of it held-out, that explains more than the same gate beyond it in-sample —
     both refitted — replaces it (the first such by held-out score): held-out blocks hide a
-    jump's time when they hold it, and a warm-up of the same size scored a hair above it."""
+    jump's time when they hold it, and a warm-up of the same size scored a hair above it.
+
+    ``whiten``: the standardized innovations of a residual under a named random process the
+    model does not hold yet (:func:`.naming.colour_beside`). A shape and the one it nests (a
+    two-node and a one-node warm-up) are then weighed in them as well: what the richer adds must
+    pass the gate, ``MIN_SNR²`` innovation variances, there too — beside a walk a two-node's
+    second node gained more than 25 white variances on a warm-up by following the wander.
+    Shapes that do not nest each other keep the white-noise gate alone (early in the loop the
+    "process" is often the colour of terms still missing: a hysteresis lost to a temperature
+    rate when every comparison was whitened)."""
     if best is None or best.effect.stochastic or best.err_c is None or best.err_b is None:
         return best
 
@@ -247,6 +257,14 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
         return float(np.sum((c.resid_full - c.resid_full.mean()) ** 2)) if c.resid_full is not None else math.inf
 
     gate = MIN_SNR ** 2 * noise_sd ** 2
+
+    def whitened_gain(simple: Trial, rich: Trial) -> float:
+        """What ``rich`` adds to ``simple`` in-sample in the innovations of the named process
+        (``whiten``; inf without one: the white-noise gate alone decides)."""
+        if whiten is None or simple.resid_full is None or rich.resid_full is None:
+            return math.inf
+        return float(np.sum(whiten(simple.resid_full - simple.resid_full.mean()) ** 2)
+                     - np.sum(whiten(rich.resid_full - rich.resid_full.mean()) ** 2))
     pick = best
     for c in named:
         if c.effect.stochastic or c.err_c is None or c.id == best.id or n_par(c) >= n_par(pick):
@@ -255,7 +273,8 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
         if not (np.isfinite(se) and diff <= se):
             continue
         if noise_sd > 0 and sse(c) - sse(best) > gate and (
-                refitted_sse is None or refitted_sse(c) - refitted_sse(best) > gate):
+                refitted_sse is None or refitted_sse(c) - refitted_sse(best) > gate) and not (
+                c.id in best.effect.nests and whitened_gain(c, best) <= MIN_SNR ** 2):
             continue
         pick = c
     # as many free parameters, a tie held-out: the one that explains more than the size gate
@@ -274,9 +293,13 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
                 pick = c
                 break
     # a named shape that holds the pick as a special case (Effect.nests) and adds more than the
-    # size gate to it in-sample is the better name, whatever the held-out blocks say
+    # size gate to it in-sample is the better name, whatever the held-out blocks say — judged in
+    # the innovations of a named process beside the pick when there is one (``whiten``: what
+    # the richer shape adds must not be the process's wander)
     for c in named:
         if pick.id in c.effect.nests and noise_sd > 0 and sse(pick) - sse(c) > gate:
             if refitted_sse is None or refitted_sse(pick) - refitted_sse(c) > gate:
+                if whitened_gain(pick, c) <= MIN_SNR ** 2:
+                    continue
                 pick = c
     return pick

@@ -72,6 +72,7 @@ from bench.discovery.fitting import CandidateFitter
 from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.separating import separating_experiment
+from bench.discovery.whiten import innovations
 
 
 def applicable(model: Model, rec: Record) -> list[Effect]:
@@ -192,6 +193,28 @@ def shape_ranked(named: list[Trial], model: Model, rec: Record, r: np.ndarray) -
     known = model.stochastic_effects()
     shape = {t.id: sto.exact_shape_bic(x, rec.dt_s, t.effect, t.params, white, known) for t in close}
     return [replace(t, shape_bic=shape[t.id]) if t.id in shape else t for t in named]
+
+
+def colour_beside(det: Trial | None, named: list[Trial], model: Model, rec: Record, alpha: float = 0.05
+                  ) -> Callable[[np.ndarray], np.ndarray] | None:
+    """The standardized Kalman innovations of a residual under the model's noise and the best
+    named random process (by BIC gain) refitted to what the deterministic candidate ``det``
+    leaves (the model's processes known) — the noise :func:`.choosing.parsimonious` judges a
+    nesting shape's in-sample gain in; None without a named process or ``det``'s residual, or
+    when the process is not significant beside ``det`` (p ≥ ``alpha``: the colour was ``det``'s)."""
+    procs = [t for t in named if t.effect.stochastic and np.isfinite(t.bic_gain)]
+    if det is None or det.resid_full is None or not procs:
+        return None
+    eff = max(procs, key=lambda t: t.bic_gain).effect
+    if not isinstance(eff, StochasticEffect):
+        return None
+    known = model.stochastic_effects()
+    fit = sto.fit_stochastic(det.resid_full - det.resid_full.mean(), rec.dt_s, eff, known=known, bootstrap=False)
+    if not (fit.p_value < alpha and np.isfinite(fit.white_sd) and fit.white_sd > 0):
+        return None
+    params = {q.name: float(np.clip(fit.params[q.name], q.low, q.high)) for q in eff.params_for(model.base.kind)}
+    return partial(innovations, rate_hz=rec.rate_hz, white_sd=float(fit.white_sd),
+                   stochastic_effects=(*known, (eff, params)))
 
 
 def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarray, folds: np.ndarray) -> Trial:
@@ -406,8 +429,9 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         return float(np.sum(joint_residual(t) ** 2))
 
     named = shape_ranked(named, model, rec, r)
-    det_pick = parsimonious(next((t for t in named if not t.effect.stochastic), None), named, blocks, n_blocks,
-                            kind, reading_sd, refitted_sse, rec)
+    first_det = next((t for t in named if not t.effect.stochastic), None)
+    det_pick = parsimonious(first_det, named, blocks, n_blocks, kind, reading_sd, refitted_sse, rec,
+                            colour_beside(first_det, named, model, rec, alpha))
     det_pick = refitted_choice(det_pick, named, model, rec, kind, reading_sd, joint_residual)
     if (det_pick is not None and det_pick.resid_full is not None and det_pick.effect.waveform
             and any(e.waveform and not e.stochastic for e, _ in model.entries())):
