@@ -213,8 +213,7 @@ def joint_alternative(r_d: np.ndarray, processes: Sequence[Trial], rec: Record, 
         fit = sto.fit_stochastic(r_d, rec.dt_s, c.effect, known=known, bootstrap=False)
         gain = bic_d + fit.lr - (c.lr - c.bic_gain)  # its own penalty: ln(n/2) per coordinate
         if gain > best_gain and fit.p_value < SURVIVE_P and c.effect.identifiable(fit.params, rec):
-            params = {q.name: float(np.clip(fit.params[q.name], q.low, q.high)) for q in c.effect.params_for(kind)}
-            best, best_gain = replace(c, params=params), gain
+            best, best_gain = replace(c, params=fit.params_for(kind)), gain
     return best
 
 
@@ -222,7 +221,7 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
                  kind: str, noise_sd: float = 0.0,
                  refitted_sse: Callable[[Trial], float] | None = None,
                  rec: Record | None = None,
-                 whiten: Callable[[np.ndarray], np.ndarray] | None = None) -> Trial | None:
+                 colour: Callable[[], Callable[[np.ndarray], np.ndarray] | None] | None = None) -> Trial | None:
     """Among deterministic named candidates whose held-out score is within one (paired, block
     jackknife) standard error of the best's, the one with the fewest parameters (Occam: a long
     warm-up time constant is a drift on a short record) — unless the best explains, in-sample,
@@ -239,8 +238,9 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
     both refitted — replaces it (the first such by held-out score): held-out blocks hide a
     jump's time when they hold it, and a warm-up of the same size scored a hair above it.
 
-    ``whiten``: the standardized innovations of a residual under a named random process the
-    model does not hold yet (:func:`.naming.colour_beside`). A shape and the one it nests (a
+    ``colour``: gives (asked only when two nested shapes are weighed) the map of a residual to
+    its standardized innovations under a named random process the model does not hold yet, or
+    None (:func:`.naming.colour_beside`). A shape and the one it nests (a
     two-node and a one-node warm-up) are then weighed in them as well: what the richer adds must
     pass the gate, ``MIN_SNR²`` innovation variances, there too — beside a walk a two-node's
     second node gained more than 25 white variances on a warm-up by following the wander.
@@ -260,7 +260,8 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
 
     def whitened_gain(simple: Trial, rich: Trial) -> float:
         """What ``rich`` adds to ``simple`` in-sample in the innovations of the named process
-        (``whiten``; inf without one: the white-noise gate alone decides)."""
+        (``colour``; inf without one: the white-noise gate alone decides)."""
+        whiten = colour() if colour is not None else None
         if whiten is None or simple.resid_full is None or rich.resid_full is None:
             return math.inf
         return float(np.sum(whiten(simple.resid_full - simple.resid_full.mean()) ** 2)
@@ -294,7 +295,7 @@ def parsimonious(best: Trial | None, named: Sequence[Trial], blocks: np.ndarray,
                 break
     # a named shape that holds the pick as a special case (Effect.nests) and adds more than the
     # size gate to it in-sample is the better name, whatever the held-out blocks say — judged in
-    # the innovations of a named process beside the pick when there is one (``whiten``: what
+    # the innovations of a named process beside the pick when there is one (``colour``: what
     # the richer shape adds must not be the process's wander)
     for c in named:
         if pick.id in c.effect.nests and noise_sd > 0 and sse(pick) - sse(c) > gate:

@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import replace
-from functools import partial
+from functools import cache, partial
 
 import numpy as np
 
@@ -200,7 +200,7 @@ def colour_beside(det: Trial | None, named: list[Trial], model: Model, rec: Reco
     """The standardized Kalman innovations of a residual under the model's noise and the best
     named random process (by BIC gain) refitted to what the deterministic candidate ``det``
     leaves (the model's processes known) — the noise :func:`.choosing.parsimonious` judges a
-    nesting shape's in-sample gain in; None without a named process or ``det``'s residual, or
+    nesting shape's in-sample gain in (it asks for it only then); None without a named process or ``det``'s residual, or
     when the process is not significant beside ``det`` (p ≥ ``alpha``: the colour was ``det``'s)."""
     procs = [t for t in named if t.effect.stochastic and np.isfinite(t.bic_gain)]
     if det is None or det.resid_full is None or not procs:
@@ -212,9 +212,8 @@ def colour_beside(det: Trial | None, named: list[Trial], model: Model, rec: Reco
     fit = sto.fit_stochastic(det.resid_full - det.resid_full.mean(), rec.dt_s, eff, known=known, bootstrap=False)
     if not (fit.p_value < alpha and np.isfinite(fit.white_sd) and fit.white_sd > 0):
         return None
-    params = {q.name: float(np.clip(fit.params[q.name], q.low, q.high)) for q in eff.params_for(model.base.kind)}
     return partial(innovations, rate_hz=rec.rate_hz, white_sd=float(fit.white_sd),
-                   stochastic_effects=(*known, (eff, params)))
+                   stochastic_effects=(*known, (eff, fit.params_for(model.base.kind))))
 
 
 def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarray, folds: np.ndarray) -> Trial:
@@ -225,10 +224,8 @@ def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarr
     known = model.stochastic_effects()
     full = sto.fit_stochastic(r - r.mean(), rec.dt_s, effect, known=known)
     score, err_c, err_b = sto.heldout_score(r, rec.dt_s, effect, folds, np.array(full.theta))
-    params, std = {}, {}
-    for q in effect.params_for(model.base.kind):
-        params[q.name] = float(np.clip(full.params[q.name], q.low, q.high))
-        std[q.name] = float(full.params_std[q.name])
+    params = full.params_for(model.base.kind)
+    std = {name: float(full.params_std[name]) for name in params}
     return Trial(effect, params, std, score, max(full.p_value, sig.P_FLOOR), err_c=err_c, err_b=err_b,
                  lr=full.lr, bic_gain=full.lr - math.log(rec.n / 2) * effect.n_coords)
 
@@ -430,8 +427,9 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
 
     named = shape_ranked(named, model, rec, r)
     first_det = next((t for t in named if not t.effect.stochastic), None)
-    det_pick = parsimonious(first_det, named, blocks, n_blocks, kind, reading_sd, refitted_sse, rec,
-                            colour_beside(first_det, named, model, rec, alpha))
+    # the process fitted beside the pick only if parsimonious weighs two nested shapes, and once
+    colour = cache(partial(colour_beside, first_det, named, model, rec, alpha))
+    det_pick = parsimonious(first_det, named, blocks, n_blocks, kind, reading_sd, refitted_sse, rec, colour)
     det_pick = refitted_choice(det_pick, named, model, rec, kind, reading_sd, joint_residual)
     if (det_pick is not None and det_pick.resid_full is not None and det_pick.effect.waveform
             and any(e.waveform and not e.stochastic for e, _ in model.entries())):

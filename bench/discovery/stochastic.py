@@ -55,6 +55,10 @@ class StochasticFit:
     p_value: float
     theta: tuple[float, ...] = ()
 
+    def params_for(self, kind: str) -> dict[str, float]:
+        """The fitted parameters clipped to ``kind``'s physical ranges: what a model may hold."""
+        return {q.name: float(np.clip(self.params[q.name], q.low, q.high)) for q in self.effect.params_for(kind)}
+
 
 def _known_coords(known: Processes, dt_s: float) -> tuple[tuple[StochasticEffect, ...], np.ndarray]:
     """The model's stochastic effects as spectral components and their log coordinates.

@@ -230,7 +230,7 @@ def refit_processes(model: Model, rec: Record, alpha: float = 0.05) -> tuple[Mod
     for k, (i, eff) in enumerate(procs):  # k-th process of the model, its i-th effect
         others = tuple(ep for j, ep in enumerate(model.stochastic_effects()) if j != k)
         fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=others)
-        params = {q.name: float(np.clip(fit.params[q.name], q.low, q.high)) for q in eff.params_for(kind)}
+        params = fit.params_for(kind)
         p_values[eff.id] = float(fit.p_value)
         if fit.p_value < alpha and all(np.isfinite(v) for v in params.values()):
             model = model.with_params(i, params)
