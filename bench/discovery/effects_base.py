@@ -175,7 +175,8 @@ class Effect:
     is not named). The fit asks ``free_params`` (which parameters a fit moves; a jump's unused
     slots stay put) and ``coordinate_scale`` (the optimiser's scale of a parameter on rec); the
     workflow ``searched_starts`` (a fresh search of the residual for an effect already named — a
-    jump's change points — that a refit from its values cannot make)."""
+    jump's change points — that a refit from its values cannot make) and ``holding`` (this effect
+    alone standing for itself and a shape it nests named beside it)."""
 
     id: str = ""
     description: str = ""
@@ -200,6 +201,9 @@ class Effect:
     #: ids of effects this one holds as a special case (a two-node transient holds a one-node one):
     #: named over them when what it adds passes the size gate in-sample
     nests: tuple[str, ...] = ()
+    #: ids of effects that may stand for a part of this shape once it also holds a nested one
+    #: named beside it (a two-node's slow node beyond the record is a drift): ``holding``
+    stands_beside: tuple[str, ...] = ()
 
     def __init__(self, look_alikes: Sequence[Effect] = ()) -> None:
         """``look_alikes``: the competitor effects themselves (the catalogue passes them); an
@@ -658,6 +662,12 @@ class Effect:
         leaves without it) that a least-squares refit from ``p`` cannot make — a jump's time is
         refined within its sample, never moved to another change point — with no more
         parameters in use than ``p`` has; [] when its fit is no such search (default)."""
+        return []
+
+    def holding(self, p: Mapping[str, float], nested: str, q: Mapping[str, float], kind: str) -> list[Params]:
+        """Starts for this effect alone standing for itself at ``p`` and the effect ``nested``
+        (one of :attr:`nests`) at ``q`` named beside it — the workflow tries the model with the
+        pair merged (and with :attr:`stands_beside` for a part the pair took); [] by default."""
         return []
 
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:

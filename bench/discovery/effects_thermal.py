@@ -53,6 +53,9 @@ class ThermalTwoNode(Effect):
     # not a declared look-alike: a two-node transient holds every warm-up (fraction 0), so a
     # warm-up's snr distinct from it would be nil; its own snr counts what one node cannot absorb
     nests = ("warmup_exponential",)
+    # a slow node beyond the record (a straight line on it) is a drift: a two-node named for a
+    # drift and a transient's slow node, and a warm-up beside it for the fast one
+    stands_beside = ("linear_drift",)
     separating = {"warmup_exponential": "record until the slow node settles (several tau_slow_s), or log the "
                                         "case temperature: one exponential leaves a hump in log t_on"}
     ranges = {  # as warmup_exponential's amplitudes; time constants from seconds (die) to hours (mount)
@@ -92,6 +95,21 @@ class ThermalTwoNode(Effect):
         if seen <= 0:
             return qs
         return tuple(replace(q, low=min(max(q.low, seen), q.high / 4)) if q.name == "tau_fast_s" else q for q in qs)
+
+    def holding(self, p: Mapping[str, float], nested: str, q: Mapping[str, float], kind: str) -> list[Params]:
+        """The two nodes from the three time constants of this transient and a warm-up beside it,
+        two by two (the faster of each pair the fast node), the amplitudes summed (clipped to the
+        range), half the step on each node: a drift named as a slow node beyond the record, and the
+        transient's fast node as a warm-up, start from the warm-up's and the fast node's constants."""
+        if nested != "warmup_exponential":
+            return []
+        amp = self.param("amplitude", kind)
+        a = float(np.clip(p["amplitude"] + q["amplitude"], amp.low, amp.high))
+        taus = sorted((float(q["tau_s"]), float(p["tau_fast_s"]), float(p["tau_slow_s"])))
+        tau = self.param("tau_fast_s", kind)
+        return [{"amplitude": a, "fraction_slow": 0.5, "tau_fast_s": float(np.clip(f, tau.low, tau.high)),
+                 "tau_slow_s": float(np.clip(s, tau.low, tau.high))}
+                for f, s in ((taus[0], taus[1]), (taus[0], taus[2]), (taus[1], taus[2])) if s > f]
 
     def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
         """Both nodes settle inside the record (the slow time constant at most the record's

@@ -14,7 +14,10 @@ d. add the named effect with its fitted parameters, re-calibrate (after a wavefo
    rms, Allan distance, spectral distance, Ljung–Box whiteness p) against a simulation of the
    model's own noise;
 e. repeat until nothing is named (or ``max_effects``); then an effect whose fit is a search of
-   the residual (a jump's change points) is searched again beside all the names (:func:`reseated`);
+   the residual (a jump's change points) is searched again beside all the names (:func:`reseated`),
+   and a shape named beside one it nests is merged into it when the nesting shape alone (with a
+   drift for a node beyond the record) holds both with fewer parameters (:func:`renested`: the
+   nested one is withdrawn, what the merge brings is named on its own evidence);
 f. audit: every named effect's own signature on the final model (:mod:`bench.discovery.evidence`:
    a waveform's relaxed shape, a random process's innovations — and its significance at its
    last re-estimate, :func:`faded_processes`); one that does not hold is withdrawn (the worst
@@ -40,6 +43,7 @@ Pure: record and model in, a :class:`Discovery` out (no files; the CLI writes th
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -211,6 +215,95 @@ def reseated(model: Model, rec: Record) -> Model:
         if sse_moved < sse:
             model, sse = moved, sse_moved
     return model
+
+
+@dataclass(frozen=True)
+class Merged:
+    """A nested pair merged by :func:`renested`: the model with the nesting shape standing for
+    both (and the effects it brings beside it, ``added``), the nested shape ``dropped``, and why."""
+
+    model: Model
+    into: str
+    dropped: str
+    added: tuple[str, ...]
+    why: str
+
+
+def _m2ll(model: Model, rec: Record) -> float:
+    """−2 ln L of ``model``'s residual under its noise (Kalman innovations: white ``noise_sd``
+    plus its random processes at their values), the constant left out."""
+    r = rec.y - model.predict(rec)
+    return 2 * exact_nll(r - r.mean(), rec.rate_hz, float(model.base.noise_sd) ** 2, model.stochastic_effects())
+
+
+def _waveform_params(model: Model, rec: Record) -> int:
+    kind = model.base.kind
+    return sum(len(e.free_params(p, kind, rec)) for e, p in model.entries() if e.waveform and not e.stochastic)
+
+
+def renested(model: Model, rec: Record, alpha: float = 0.05) -> Merged | None:
+    """A shape named beside one it nests (a two-node transient and a warm-up) merged into the
+    nesting shape alone (``Effect.holding``: its starts), with or without the effects it declares
+    may stand beside it (``Effect.stands_beside``: a two-node's slow node beyond the record is a
+    drift), the model calibrated and its processes re-estimated: the alternative with fewer
+    waveform parameters whose −2 ln L (:func:`_m2ll`) is higher by no more than ln(n/2) a
+    parameter dropped (the BIC's weight), the best such by the BIC; None when there is none. A
+    sequential search names the pair when the nesting shape came first for a drift and a
+    transient's slow node (gyro drift + two-node + Gauss–Markov: the two-node's slow node at
+    2500 s on 300 s, a warm-up for the fast node; merged with a drift: −2 ln L within 0.1, one
+    parameter fewer, the transient's constants 2.15/18.9 s for 2.09/18.2 s). Not judged through an
+    output stage (the Gaussian likelihood does not hold behind a coarse quantizer or a clip)."""
+    if model.has_output_stage():
+        return None
+    kind = model.base.kind
+    ids = model.effect_ids
+    here, k_here = _m2ll(model, rec), _waveform_params(model, rec)
+    weight = math.log(rec.n / 2)
+    best: tuple[float, Merged] | None = None
+    for i, (e, p) in enumerate(model.entries()):
+        for nested in (x for x in e.nests if x in ids):
+            j = ids.index(nested)
+            rest = [x for k, x in enumerate(model.effects) if k not in (i, j)]
+            extras = [x for x in e.stands_beside if x not in ids and kind in CATALOGUE[x].kinds]
+            for start in e.holding(p, nested, model.effects[j][1], kind):
+                for added in ((), *((x,) for x in extras)):
+                    effects = (*rest, (e.id, start), *((x, CATALOGUE[x].reference_params(rec, kind)) for x in added))
+                    try:
+                        alt = calibrate(Model(model.base, tuple(effects)), rec, noise=False)
+                    except ValueError:
+                        continue
+                    alt, _ = refit_processes(alt, rec, alpha)
+                    k_alt = _waveform_params(alt, rec)
+                    if k_alt >= k_here or not all(CATALOGUE[x].identifiable(q, rec) for x, q in alt.effects):
+                        continue
+                    grows = _m2ll(alt, rec) - here
+                    bic = grows - weight * (k_here - k_alt)
+                    if bic <= 0 and (best is None or bic < best[0]):
+                        why = (f"{e.id} alone holds it{' with ' + ', '.join(added) if added else ''}: "
+                               f"−2 ln L grows by {grows:.3g} with {k_here - k_alt} parameter(s) fewer "
+                               f"(at most ln(n/2) = {weight:.3g} each)")
+                        best = (bic, Merged(alt, e.id, nested, added, why))
+    return None if best is None else best[1]
+
+
+def _named_as_merged(merged: Merged, rec: Record, alpha: float, seed: int, n_rep: int,
+                     fill_map: MapFn) -> list[Step] | None:
+    """The steps of the effects a merge brings in (:func:`renested`), each named on its own
+    evidence beside the rest of the merged model (:func:`.naming.name_effect` with that effect
+    only: significant, its signature holding for a catch-all); None when one is not."""
+    out = []
+    for eid in merged.added:
+        at = merged.model.effect_ids.index(eid)
+        without = Model(merged.model.base, merged.model.effects[:at] + merged.model.effects[at + 1:])
+        naming = name_effect(without, rec, alpha=alpha, seed=seed, n_rep=n_rep, only=(eid,), fill_map=fill_map)
+        if naming.best is None or naming.best.id != eid:
+            return None
+        g0, rms0, _, r0 = gap_of(without, rec, seed)
+        g1, rms1, _, r1 = gap_of(merged.model, rec, seed)
+        std = _step_std(merged.model, rec, naming.best.params_std, at)
+        out.append(Step(eid, dict(merged.model.effects[at][1]), std, naming.best.p_value, g0, g1, rms0, rms1,
+                        naming, _structure(without, rec, r0), r0, r1))
+    return out
 
 
 def refit_processes(model: Model, rec: Record, alpha: float = 0.05) -> tuple[Model, dict[str, float]]:
@@ -395,6 +488,15 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
             moved = reseated(model, rec)
             if moved is not model:
                 model, process_p = refit_processes(moved, rec, alpha)
+                gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
+            merged = renested(model, rec, alpha)
+            added_steps = [] if merged is None else _named_as_merged(merged, rec, alpha, seed + it, n_rep, fill_map)
+            if merged is not None and added_steps is not None:
+                say(f"merged: {merged.dropped} into {merged.into}")
+                withdrawn.append(f"{merged.dropped}: {merged.why}")
+                withdrawn_ids.add(merged.dropped)
+                steps = [st for st in steps if st.effect_id != merged.dropped] + added_steps
+                model, process_p = refit_processes(merged.model, rec, alpha)
                 gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
         while steps:
             named_ids = {st.effect_id for st in steps}

@@ -26,7 +26,7 @@ from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.naming import name_effect
 from bench.discovery.separating import separating_experiment
 from bench.discovery.stochastic import fit_stochastic
-from bench.discovery.workflow import discover, faded_terms, input_order, reseated
+from bench.discovery.workflow import discover, faded_terms, input_order, renested, reseated
 
 GM, RW = CATALOGUE["gauss_markov"], CATALOGUE["rate_random_walk"]
 
@@ -708,3 +708,47 @@ def test_a_one_node_warm_up_beside_a_walk_is_not_taken_for_two_nodes(monkeypatch
     two = next(c for c in naming.candidates if c.id == "thermal_two_node")
     assert two.named  # in contest
     assert naming.best is not None and naming.best.id == "warmup_exponential"
+
+
+def _drift_and_two_nodes(extra: tuple = ()) -> tuple[Record, Model]:
+    """A gyro start-up record: a drift and a two-node transient (the scorecard's gyro triple
+    3017's values), white noise only, plus ``extra`` effects."""
+    rec = make_experiment("gyro", np.random.default_rng(17), n=3000)
+    truth = Model(BaseModel("gyro", bias=0.0176, scale_factor=1.0, noise_sd=0.003)) \
+        .with_effect("linear_drift", {"slope_per_s": 8.09e-5}) \
+        .with_effect("thermal_two_node", {"amplitude": -0.1388, "fraction_slow": 0.687,
+                                          "tau_fast_s": 2.09, "tau_slow_s": 18.17})
+    for eid, p in extra:
+        truth = truth.with_effect(eid, p)
+    return rec.replace(y=truth.simulate(rec, 3)), truth
+
+
+def test_a_two_node_named_for_a_drift_and_a_warm_up_for_its_fast_node_are_merged():
+    """The scorecard's gyro triple drift + two-node + Gauss–Markov (seed 3017 of the usual
+    sample): the two-node came first for the drift and the transient's slow node (calibrated,
+    its slow node at 2 500 s on 300 s), a warm-up was named beside it for the fast node — one
+    parameter more than the truth and two wrong names. ``renested`` tries the two-node alone at
+    the pair's time constants, with a drift for a node beyond the record: the likelihood the same,
+    a parameter fewer, the merge is kept (the transient's constants recovered); a right model has
+    no nested pair, and a warm-up of its own beside the transient is not merged away."""
+    rec, _ = _drift_and_two_nodes()
+    named = Model(base_model("gyro")) \
+        .with_effect("thermal_two_node", {"amplitude": -0.15, "fraction_slow": 0.268, "tau_fast_s": 13.8,
+                                          "tau_slow_s": 227.5}) \
+        .with_effect("warmup_exponential", {"amplitude": -0.041, "tau_s": 2.12})
+    named = calibrate(named, rec)
+    merged = renested(named, rec)
+    assert merged is not None
+    assert (merged.into, merged.dropped, merged.added) == ("thermal_two_node", "warmup_exponential", ("linear_drift",))
+    assert sorted(merged.model.effect_ids) == ["linear_drift", "thermal_two_node"]
+    p = dict(merged.model.effects[merged.model.effect_ids.index("thermal_two_node")][1])
+    assert p["tau_fast_s"] == pytest.approx(2.09, rel=0.2) and p["tau_slow_s"] == pytest.approx(18.17, rel=0.2)
+    assert "fewer" in merged.why
+    right = calibrate(Model(base_model("gyro")).with_effect("linear_drift", {"slope_per_s": 8e-5})
+                      .with_effect("thermal_two_node", p), rec)
+    assert renested(right, rec) is None  # nothing nested beside the two-node
+    # a warm-up of its own (τ 60 s) beside the transient and the drift: three exponentials
+    rec3, truth3 = _drift_and_two_nodes((("warmup_exponential", {"amplitude": 0.05, "tau_s": 60.0}),))
+    three = calibrate(Model(truth3.base, truth3.effects), rec3)
+    assert renested(three, rec3) is None
+
