@@ -163,7 +163,8 @@ class Effect:
 
     Hooks the naming step asks: ``applies_to`` (does the record carry what it needs: its logged
     columns, varying), ``big_enough`` (the size gate; ``size_noise_sd`` the sd it is judged
-    against), ``identifiable`` (can the record resolve these parameters at all),
+    against), ``identifiable`` (can the record resolve these parameters at all), ``shape_inside``
+    (do they make a shape the effect makes),
     ``colours_residual`` (once in the model, does it leave residual colour no random-process
     χ² null describes: a process is then judged against the model's noise simulated through
     it) with ``null_holds`` (is that simulation valid on the record), ``localized`` (a
@@ -567,6 +568,12 @@ class Effect:
     def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
         """False when rec cannot resolve these parameters (e.g. a correlation time beyond a fifth
         of the record), however significant the fit: it is then not named."""
+        return True
+
+    def shape_inside(self, p: Mapping[str, float]) -> bool:
+        """False when the fitted parameters make a shape the effect does not (a parameter the
+        range stopped where the shape turns into another): not named alone — beside a shape it
+        nests, the pair is judged merged (``workflow.renested``)."""
         return True
 
     def colours_residual(self, p: Mapping[str, float], noise_sd: float) -> bool:

@@ -40,6 +40,13 @@ def node_seen(rec: Record, rows: np.ndarray | None) -> float:
     return float(t.min()) / NODE_SEEN if t.size else 0.0
 
 
+#: The slow node's share of a two-node transient the fit may take (an overshoot either way);
+#: a fit at either end of it (within FRACTION_PINNED of the span) is a hump the range stopped
+#: — two steps down on a 6-s rate table record took f = 3.0, τ 0.92/2.74 s — not two nodes.
+FRACTION_RANGE = (-2.0, 3.0)
+FRACTION_PINNED = 1e-3
+
+
 class ThermalTwoNode(Effect):
     id = "thermal_two_node"
     description = ("start-up transient through two thermal time constants: the sensing element settles fast, "
@@ -60,13 +67,13 @@ class ThermalTwoNode(Effect):
                                         "case temperature: one exponential leaves a hump in log t_on"}
     ranges = {  # as warmup_exponential's amplitudes; time constants from seconds (die) to hours (mount)
         "accelerometer": (Param("amplitude", "g", -1e-2, 1e-2, linear=True, floor=1e-7),
-                          Param("fraction_slow", "1", -2.0, 3.0),
+                          Param("fraction_slow", "1", *FRACTION_RANGE),
                           Param("tau_fast_s", "s", 1.0, 1e5, log=True), Param("tau_slow_s", "s", 1.0, 1e5, log=True)),
         "gyro": (Param("amplitude", "deg/s", -0.3, 0.3, linear=True, floor=1e-6),
-                 Param("fraction_slow", "1", -2.0, 3.0),
+                 Param("fraction_slow", "1", *FRACTION_RANGE),
                  Param("tau_fast_s", "s", 1.0, 1e5, log=True), Param("tau_slow_s", "s", 1.0, 1e5, log=True)),
         "mhd": (Param("amplitude", "deg/s", -1.0, 1.0, linear=True, floor=1e-4),
-                Param("fraction_slow", "1", -2.0, 3.0),
+                Param("fraction_slow", "1", *FRACTION_RANGE),
                 Param("tau_fast_s", "s", 0.1, 1e5, log=True), Param("tau_slow_s", "s", 0.1, 1e5, log=True)),
     }
 
@@ -117,6 +124,12 @@ class ThermalTwoNode(Effect):
         beside a wandering process was named two-node, its slow node 20 000 s on 3 000 s)."""
         t = rec.column("t_on")
         return p.get("tau_slow_s", 0.0) <= float(t.max() - t.min()) and p.get("tau_fast_s", 0.0) <= float(t.max())
+
+    def shape_inside(self, p: Mapping[str, float]) -> bool:
+        """The slow node's share inside its range (:data:`FRACTION_PINNED`): a share the range
+        stopped is a hump no two nodes make."""
+        lo, hi = FRACTION_RANGE
+        return lo + FRACTION_PINNED * (hi - lo) < p.get("fraction_slow", 0.5) < hi - FRACTION_PINNED * (hi - lo)
 
     def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
         if q.name == "fraction_slow":

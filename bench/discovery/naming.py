@@ -299,6 +299,8 @@ def judge(trial: Trial, significant: bool, q_value: float, model: Model, rec: Re
                 if significant and trial.score > 0 else (False, float("nan")))
     if not eff.identifiable(trial.params, rec):
         big = False
+    if not eff.shape_inside(trial.params) and not set(eff.nests) & set(model.effect_ids):
+        big = False  # beside a shape it nests, the merge judges the pair once the names are in
     se = float("nan")
     if trial.err_c is not None and trial.err_b is not None:
         se = sig.jackknife_ratio(np.bincount(blocks, trial.err_c, n_blocks), np.bincount(blocks, trial.err_b, n_blocks))
