@@ -150,19 +150,14 @@ def fit_stochastic(r: np.ndarray, dt_s: float, effect: Effect, start: np.ndarray
     return StochasticFit(effect, white_sd, est.params, est.params_std, states, lr, p, tuple(th[:1 + n_c]))
 
 
-def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_sd: float,
-                    known: Processes = ()) -> float:
-    """Exact Gaussian log-likelihood of ``r`` under white noise plus ``effect``'s own states
+def exact_fit(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_sd: float,
+              known: Processes = ()) -> tuple[Params, float, float]:
+    """Exact Gaussian maximum likelihood of ``r`` under white noise plus ``effect``'s own states
     (``state_space``: what :meth:`StochasticEffect.noise` draws — for flicker the sum of
     Gauss–Markov states, not the idealised 1/f band the Whittle fit uses) and the model's
-    ``known`` processes at their values, maximised over the white level and the effect's
-    parameters (Nelder–Mead in log coordinates from ``params``/``white_sd``), as
-    2·LL − ln(n/2)·n_coords: comparable between shapes fitted to the same residual only.
-    The Whittle likelihood leans toward flicker when a Gauss–Markov's plateau spans a few
-    Fourier bins. Deciding the close calls by this one (``naming.shape_ranked``), on two sets
-    of 140 synthetic single-process records of 3000 s (seven settings): GM (τ 61–75 s) named
-    40 and 37 of 40 against 30 and 31 by Whittle alone, flicker 47 and 49 of 60 against 52 and
-    53, a walk 19 and 20 of 20 against 20 — a trade, 126 against 123 of 140 both times."""
+    ``known`` processes at their values, over the white level and the effect's parameters
+    (Nelder–Mead in log coordinates from ``params``/``white_sd``): (parameters, white sd, the
+    negative log-likelihood there)."""
     if not isinstance(effect, StochasticEffect):
         raise ValueError(f"effect {effect.id!r} is not a stochastic effect; allowed: a StochasticEffect")
     r = np.asarray(r, dtype=float)
@@ -181,7 +176,21 @@ def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, 
     res = optimize.minimize(nll_at, x0, method="Nelder-Mead",
                             options={"xatol": 1e-4, "fatol": 1e-3, "maxiter": 200 * (1 + len(names))})
     # the start is a vertex of the simplex: res.fun is never above nll_at(x0)
-    return float(-2.0 * res.fun - math.log(r.size / 2) * effect.n_coords)
+    return {k: float(np.exp(v)) for k, v in zip(names, res.x[1:])}, float(np.exp(res.x[0])), float(res.fun)
+
+
+def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_sd: float,
+                    known: Processes = ()) -> float:
+    """The exact log-likelihood of :func:`exact_fit` as 2·LL − ln(n/2)·n_coords: comparable
+    between shapes fitted to the same residual only.
+    The Whittle likelihood leans toward flicker when a Gauss–Markov's plateau spans a few
+    Fourier bins. Deciding the close calls by this one (``naming.shape_ranked``), on two sets
+    of 140 synthetic single-process records of 3000 s (seven settings): GM (τ 61–75 s) named
+    40 and 37 of 40 against 30 and 31 by Whittle alone, flicker 47 and 49 of 60 against 52 and
+    53, a walk 19 and 20 of 20 against 20 — a trade, 126 against 123 of 140 both times."""
+    r = np.asarray(r, dtype=float)
+    nll_ = exact_fit(r, dt_s, effect, params, white_sd, known)[2]
+    return float(-2.0 * nll_ - math.log(r.size / 2) * effect.n_coords)
 
 
 def one_step_prediction(r: np.ndarray, fit: StochasticFit) -> np.ndarray:

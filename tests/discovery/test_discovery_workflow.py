@@ -772,3 +772,15 @@ def test_a_two_node_whose_slow_share_the_range_stopped_is_not_named_alone(monkey
     assert not two.shape_inside(cand.params) and not cand.named
     assert naming.best is not None and naming.best.id == "bias_jump"
 
+
+def test_a_walk_is_judged_at_its_exact_likelihood_level_not_the_whittle_one(monkeypatch):
+    """The scorecard's gyro triple asymmetry + low-pass + random walk (seed 3022 of ``--pairs 0
+    --triples 30``): at the third step the walk had the best BIC gain, but its Whittle level
+    (3.9e-4 °/s/√s for 2.2e-4: a finite walk's levels periodogram leaks at the record's ends)
+    left innovations at 0.27× their level over the lowest bins — its signature "failed" and a
+    Gauss–Markov was named. Judged at its exact-likelihood level on the same residual
+    (``evidence.process_evidence``), the walk's signature holds and it is named."""
+    naming = _named_at_step(monkeypatch, "gyro",
+                            ("scale_factor_asymmetry", "lowpass_bandwidth", "rate_random_walk"), 3022, 2)
+    assert naming.best is not None and naming.best.id == "rate_random_walk"
+    assert naming.set_aside == ()
