@@ -130,6 +130,7 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     known = model.stochastic_effects()
     white0 = sto.white_nll(rec.y - model.predict(rec), rec.dt_s, known)
     failed: Trial | None = None  # the first localized candidate the process made look typical
+    coloured = any(e.colours_residual(p, model.base.noise_sd) for e, p in model.entries())
     for d in det:
         if d.resid_full is None:
             continue
@@ -144,6 +145,11 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
             return _versus_process(d, s, sto_, rec, kind, known, bic_d, r_d, det_p_under, alpha)
         if det_p_under is None or det_p_under(s, d) < alpha:
             return d, None
+        if coloured:
+            # behind a coarse quantizer a process crossing its steps reads as steps and the
+            # Gaussian likelihoods below do not hold: the null drawn through it has decided
+            failed = failed or d
+            continue
         # the process fitted alone took the term's structure (a walk's level grown to follow a
         # warm-up) and makes it look typical; on the common likelihood the term alone explains
         # the record clearly better than that process (by the size gate, MIN_SNR²: a jump's times

@@ -784,3 +784,16 @@ def test_a_walk_is_judged_at_its_exact_likelihood_level_not_the_whittle_one(monk
                             ("scale_factor_asymmetry", "lowpass_bandwidth", "rate_random_walk"), 3022, 2)
     assert naming.best is not None and naming.best.id == "rate_random_walk"
     assert naming.set_aside == ()
+
+
+def test_behind_a_coarse_quantizer_the_null_through_it_decides_a_localized_term(monkeypatch):
+    """The scorecard's MHD triple quantizer + K3 + flicker (seed 3003 of ``--pairs 9 --triples
+    30``): at the third step three jumps were typical under the flicker drawn through the
+    quantizer (p = 0.06), but their Gaussian likelihood gain was 200 above the flicker's — a
+    process crossing coarse steps reads as steps — and they were named, a Gauss–Markov beside
+    them. Behind an effect that colours the residual (``Effect.colours_residual``) the null drawn
+    through it decides: the flicker is named."""
+    naming = _named_at_step(monkeypatch, "mhd", ("quantization", "k3_nonlinearity", "flicker_noise"), 3003, 2)
+    jump = next(c for c in naming.candidates if c.id == "bias_jump")
+    assert jump.named  # significant against white noise: in contest
+    assert naming.best is not None and naming.best.id == "flicker_noise"
