@@ -189,8 +189,9 @@ def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, 
     40 and 37 of 40 against 30 and 31 by Whittle alone, flicker 47 and 49 of 60 against 52 and
     53, a walk 19 and 20 of 20 against 20 — a trade, 126 against 123 of 140 both times."""
     r = np.asarray(r, dtype=float)
-    nll_ = exact_fit(r, dt_s, effect, params, white_sd, known)[2]
-    return float(-2.0 * nll_ - math.log(r.size / 2) * effect.n_coords)
+    nll_ = exact_fit(r, dt_s, effect, params, white_sd, known)[2]  # a ValueError for no random process
+    n_coords = effect.n_coords if isinstance(effect, StochasticEffect) else 0
+    return float(-2.0 * nll_ - math.log(r.size / 2) * n_coords)
 
 
 def one_step_prediction(r: np.ndarray, fit: StochasticFit) -> np.ndarray:

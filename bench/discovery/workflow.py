@@ -229,10 +229,11 @@ class Merged:
     why: str
 
 
-def _m2ll(model: Model, rec: Record) -> float:
-    """−2 ln L of ``model``'s residual under its noise (Kalman innovations: white ``noise_sd``
-    plus its random processes at their values), the constant left out."""
-    r = rec.y - model.predict(rec)
+def _m2ll(model: Model, rec: Record, r: np.ndarray | None = None) -> float:
+    """−2 ln L of ``model``'s residual ``r`` (by default rec.y − its prediction) under its noise
+    (Kalman innovations: white ``noise_sd`` plus its random processes at their values), the
+    constant left out."""
+    r = rec.y - model.predict(rec) if r is None else r
     return 2 * exact_nll(r - r.mean(), rec.rate_hz, float(model.base.noise_sd) ** 2, model.stochastic_effects())
 
 
@@ -355,17 +356,14 @@ def faded_terms(model: Model, rec: Record, named: set[str], r: np.ndarray, alpha
     coarse quantizer or a clip). ``r``: the model's residual."""
     if model.has_output_stage():
         return []
-
-    def m2ll(m: Model, res: np.ndarray) -> float:  # −2 ln L of the residual under m's noise
-        return 2 * exact_nll(res - res.mean(), rec.rate_hz, float(m.base.noise_sd) ** 2, m.stochastic_effects())
-    here = m2ll(model, r)
+    here = _m2ll(model, rec, r)
     out = []
     for i, (e, own) in enumerate(model.entries()):
         if e.id not in named or not e.waveform or e.stochastic:
             continue
         without = calibrate(Model(model.base, model.effects[:i] + model.effects[i + 1:]), rec, noise=False)
         without, _ = refit_processes(without, rec, alpha)
-        gain = m2ll(without, rec.y - without.predict(rec)) - here
+        gain = _m2ll(without, rec) - here
         k = max(1, len(e.free_params(own, model.base.kind, rec)))  # a jump: its used slots only
         p_value = float(chi2_dist.sf(max(gain, 0.0), k))
         if p_value >= alpha:
