@@ -156,7 +156,7 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
         # of a finite walk's levels leans high (end-point leakage: 3.9e-4 °/s/√s for 2.2e-4 on a
         # 300-s gyro record), and the innovations then fall short of their level at the lowest
         # frequencies — a misfit of the estimate, not of the shape
-        others = [(e, q) for j, (e, q) in enumerate(procs) if e is not eff]
+        others = [(e, q) for e, q in procs if e is not eff]
         ml, white, _ = sto.exact_fit(r, rec.dt_s, eff, p, white, others)
         p = {k: float(np.clip(v, q.low, q.high)) for (k, v), q in zip(ml.items(), eff.params)}
         procs = [(eff, p), *others]
