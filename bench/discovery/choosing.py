@@ -130,7 +130,7 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     known = model.stochastic_effects()
     white0 = sto.white_nll(rec.y - model.predict(rec), rec.dt_s, known)
     failed: Trial | None = None  # the first localized candidate the process made look typical
-    coloured = any(e.colours_residual(p, model.base.noise_sd) for e, p in model.entries())
+    coloured = model.colours_residual()
     for d in det:
         if d.resid_full is None:
             continue

@@ -236,7 +236,7 @@ def process_p_value(trial: Trial, model: Model, rec: Record, rng: np.random.Gene
     statistic on realisations of the model's own noise through it
     (:func:`.significance.sequential_p_value`, chunks of :data:`MC_CHUNK`, at most
     :data:`MC_MAX_REP`)."""
-    if not any(e.colours_residual(p, model.base.noise_sd) for e, p in model.entries()):
+    if not model.colours_residual():
         return trial.p_value
     effect, known, dt = trial.effect, model.stochastic_effects(), rec.dt_s
 
