@@ -347,6 +347,13 @@ class Effect:
         ``Model.predict`` returns; readings are transformed noisy signals). Default: ``transform(y)``."""
         return self.transform(p, rec, y)
 
+    def observes_noise(self, p: Params, y: np.ndarray) -> np.ndarray:
+        """Output stage: where a reading of the signal ``y`` (the mean before this transform)
+        still carries the noise added before it — False where the transform censors it (a
+        saturation's clipped stretches read the limit, whatever the noise). Default: all True
+        (a quantizer's flips between levels carry it)."""
+        return np.ones(np.shape(y), bool)
+
     def pre_transform_sd(self, p: Params, floor_sd: float) -> float:
         """Output stage: white sd before this transform given the floor of a model without it."""
         return floor_sd

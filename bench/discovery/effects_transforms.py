@@ -326,6 +326,10 @@ class Saturation(Effect):
     def transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])
 
+    def observes_noise(self, p, y):
+        """Inside the limit: a clipped reading is the limit, whatever the noise."""
+        return np.abs(np.asarray(y, float)) < p["limit"]
+
     def residual_moments_at(self, p, rec, y, noise_sd, wander_sd=0.0):
         """Per sample at the signal y: :func:`clipped_variance` with the wander counted as noise
         (near 0 where the signal is clipped), Gaussian fourth moment."""

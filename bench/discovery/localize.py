@@ -329,7 +329,7 @@ def localize(rec: Record, residual, noise_sd: float, *, alpha: float = 0.01,
     return Localization(segs, cusum_p, bands, taus, corr, f, p, floor, tau, adev, white, alpha, jmp)
 
 
-def innovations_profile(model: Model, rec: Record, white: float, procs,
+def innovations_profile(model: Model, rec: Record, white: float, procs, seen: np.ndarray | None = None,
                         ) -> tuple[np.ndarray, np.ndarray, float] | None:
     """Each standardized innovation's expected variance and fourth central moment (relative:
     variance mean 1) when the model's residual is heteroscedastic (``Model.residual_profile``: a
@@ -340,21 +340,25 @@ def innovations_profile(model: Model, rec: Record, white: float, procs,
     + 3cᵢ²; and the relative variance of the offset the calibration's k parameters leave
     (k/n: the bias, scale factor and each deterministic effect's parameters). Without it a
     tumble's orientations that sit between two levels read as segments 1.3× the floor under
-    any process. None without an output stage or for a flat profile."""
+    any process. None without an output stage or for a flat profile. ``seen``: the samples the
+    innovations were taken on (``whiten.innovations``; the others missing to the filter) — the
+    profile of those alone."""
     if not model.has_output_stage():
         return None
     var, m4 = model.residual_profile(rec, wander_sd(rec.rate_hz, rec.n, procs))
+    s = innovation_var(rec.rate_hz, rec.n, white, procs, seen=seen)
+    if seen is not None:
+        var, m4, s = var[seen], m4[seen], s[seen]
     mean = float(np.mean(var))
     if not mean > 0 or float(np.ptp(var)) <= 1e-3 * mean:
         return None
-    s = innovation_var(rec.rate_hz, rec.n, white, procs)
     c = np.maximum(s - white ** 2, 0.0)
     rho, kappa = var / mean, m4 / mean ** 2
     v = (white ** 2 * rho + c) / s
     w4 = (white ** 4 * kappa + 6 * white ** 2 * rho * c + 3 * c * c) / s ** 2
     norm = float(np.mean(v))
     k = 2 + sum(len(p) for e, p in model.entries() if not isinstance(e, StochasticEffect))
-    return v / norm, w4 / norm ** 2, k / rec.n
+    return v / norm, w4 / norm ** 2, k / v.size
 
 
 #: test families of :func:`unexplained_structure` (segments, CUSUM, spectrum, Allan, inputs,
@@ -391,26 +395,37 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
     prefix = ""
     x = r
     white = float(np.std(r))
+    seen = model.noise_seen(rec)
+    # under a random process, samples where the output stage clips are missing to the filter
+    # (they hold no noise: its states are carried across, whiten.innovations) and the tests read
+    # the others
+    part = seen if sto and seen.any() and not seen.all() else None
+    tested = rec if part is None else rec.slice(part)
     if sto:
         # the white level is re-estimated beside the model's stochastic spectrum: a level that
         # counted a short-τ GM's high-frequency power as white would colour the innovations
-        white = white_floor(r, rate, sto)[0]
+        white = white_floor(r if part is None else r[part], rate, sto)[0]
         if not white > 0:
             white = float(model.base.noise_sd)
-        x = innovations(r, rate, white, sto)
 
         def whiten(v: np.ndarray) -> np.ndarray:
-            return innovations(v - v.mean(), rate, white, sto)
+            """Innovations of a column of the tested samples."""
+            if part is None:
+                return innovations(v - v.mean(), rate, white, sto)
+            full = np.zeros(rec.n)
+            full[part] = v - v.mean()
+            return innovations(full, rate, white, sto, seen=part)[part]
+        x = whiten(r if part is None else r[part])
         if rec.varies("input"):
             # the scale factor refitted under the process (generalised least squares): fitted by
             # least squares beside a strong process its error follows the input — not structure
-            x = project_out(x, whiten(rec.column("input"))[:, None])
+            x = project_out(x, whiten(tested.column("input"))[:, None])
         transform = whiten
         prefix = "in the Kalman innovations under the model's noise: "
-    moments = innovations_profile(model, rec, white or float(model.base.noise_sd) or 1.0, sto)
+    moments = innovations_profile(model, rec, white or float(model.base.noise_sd) or 1.0, sto, seen=part)
     sd, dof = white_floor(x, rate, sample_var=None if moments is None else moments[0])
     if not (np.isfinite(sd) and sd > 0):
         return ()
-    loc = localize(rec, x, sd, alpha=alpha / N_FAMILIES, floor_dof=dof, transform=transform,
+    loc = localize(tested, x, sd, alpha=alpha / N_FAMILIES, floor_dof=dof, transform=transform,
                    find_jumps=True, sample_moments=moments)
     return tuple(prefix + d for d in loc.descriptions())

@@ -284,6 +284,22 @@ class Model:
         moved = Model(replace(self.base, bias=self.base.bias + step), self.effects)
         return np.asarray((moved.predict(rec) - self.predict(rec)) / step > 0.5)
 
+    def noise_seen(self, rec: Record) -> np.ndarray:
+        """Samples whose readings carry the model's noise: False where an output stage censors it
+        (``Effect.observes_noise``: a saturation's clipped stretches), judged on the mean signal
+        before it; all True without such a stage. A random process is carried across the others
+        by its dynamics (``whiten.innovations(seen=…)``), not read from their flat residual."""
+        seen = np.ones(rec.n, bool)
+        if not self.has_output_stage():
+            return seen
+        u, add = self.stages(rec)
+        y = self.base.bias + self.base.scale_factor * u + add
+        for e, p in self.entries():
+            if e.stage == "output":
+                seen &= e.observes_noise(p, y)
+                y = e.expected_transform(p, rec, y, self.base.noise_sd)
+        return seen
+
     def stages(self, rec: Record) -> tuple[np.ndarray, np.ndarray]:
         """(input after the model's input-stage effects, sum of its deterministic additive terms)
         on rec: ``predict`` is ``bias + scale_factor·u + terms`` when the model has no output

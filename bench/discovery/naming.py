@@ -180,16 +180,25 @@ def shape_ranked(named: list[Trial], model: Model, rec: Record, r: np.ndarray) -
     (:func:`.stochastic.exact_shape_bic`), by which :func:`.choosing.preferred` orders them. A
     Gauss–Markov whose plateau spans a few Fourier bins and a flicker band are a few Whittle
     units apart either way; the Whittle spectrum of flicker is the idealised 1/f band, its
-    draw the sum of Gauss–Markov states the exact likelihood holds."""
+    draw the sum of Gauss–Markov states the exact likelihood holds.
+    Where the model's output stage clips (``Model.noise_seen`` False) the residual holds no
+    noise: those samples are missing to the exact likelihood, and every named process is ranked
+    by it — the Whittle likelihood reads the clipped stretches' flat residual as part of the
+    process (accelerometer K3 + clip + GM, 18 % clipped: flicker 5.4 Whittle units above the GM,
+    the GM 21 exact units above flicker with the clipped samples missing, τ 22.5 s for 21.2 s)."""
     procs = [t for t in named if t.effect.stochastic and np.isfinite(t.bic_gain)]
     if len(procs) < 2:
         return named
+    seen = model.noise_seen(rec)
+    clipped = bool(seen.any() and not seen.all())
     top = max(t.bic_gain for t in procs)
-    close = [t for t in procs if t.bic_gain >= top - SHAPE_TIE]
+    close = [t for t in procs if t.bic_gain >= top - SHAPE_TIE or clipped]
     if len(close) < 2:
         return named
-    x = r - r.mean()
-    white = float(model.residual_sd()) or float(np.std(x)) or 1.0
+    x = r - r[seen].mean() if clipped else r - r.mean()
+    if clipped:
+        x = np.where(seen, x, np.nan)
+    white = float(model.residual_sd()) or float(np.nanstd(x)) or 1.0
     known = model.stochastic_effects()
     shape = {t.id: sto.exact_shape_bic(x, rec.dt_s, t.effect, t.params, white, known) for t in close}
     return [replace(t, shape_bic=shape[t.id]) if t.id in shape else t for t in named]
@@ -220,11 +229,15 @@ def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarr
     """Whittle fit, held-out score and p-value of a stochastic candidate: the LR against the
     model's own noise (white + its stochastic effects, their spectrum fixed) referred to χ²
     (a Monte-Carlo null replaces it where there is no χ² reference: :func:`process_p_value`);
-    parameters clipped to the kind's ranges."""
+    parameters clipped to the kind's ranges — beside an output stage that clips, by the exact
+    likelihood with the clipped samples missing (:func:`.stochastic.censored_params`)."""
     known = model.stochastic_effects()
     full = sto.fit_stochastic(r - r.mean(), rec.dt_s, effect, known=known)
     score, err_c, err_b = sto.heldout_score(r, rec.dt_s, effect, folds, np.array(full.theta))
     params = full.params_for(model.base.kind)
+    seen = model.noise_seen(rec)
+    if seen.any() and not seen.all():  # a clip's stretches hold no noise: its values by the exact likelihood
+        params = sto.censored_params(r, seen, rec.dt_s, effect, params, full.white_sd, model.base.kind, known)
     std = {name: float(full.params_std[name]) for name in params}
     return Trial(effect, params, std, score, max(full.p_value, sig.P_FLOOR), err_c=err_c, err_b=err_b,
                  lr=full.lr, bic_gain=full.lr - math.log(rec.n / 2) * effect.n_coords)

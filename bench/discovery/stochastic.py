@@ -170,13 +170,31 @@ def exact_fit(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_
 
     def nll_at(x: np.ndarray) -> float:
         p = {k: float(np.exp(v)) for k, v in zip(names, x[1:])}
-        if not all(np.isfinite(list(p.values()))) or not np.isfinite(x[0]):
+        if not all(np.isfinite(v) and v > 0 for v in p.values()) or not np.isfinite(x[0]):
             return math.inf
-        return whiten.exact_nll(r, rate, float(np.exp(2 * x[0])), [(effect, p), *others])
+        try:  # a search far out of the ranges: a flicker band of no width, or of infinite states
+            return whiten.exact_nll(r, rate, float(np.exp(2 * x[0])), [(effect, p), *others])
+        except (ValueError, OverflowError):
+            return math.inf
     res = optimize.minimize(nll_at, x0, method="Nelder-Mead",
                             options={"xatol": 1e-4, "fatol": 1e-3, "maxiter": 200 * (1 + len(names))})
     # the start is a vertex of the simplex: res.fun is never above nll_at(x0)
     return {k: float(np.exp(v)) for k, v in zip(names, res.x[1:])}, float(np.exp(res.x[0])), float(res.fun)
+
+
+def censored_params(r: np.ndarray, seen: np.ndarray, dt_s: float, effect: Effect, params: Params,
+                    white_sd: float, kind: str, known: Processes = ()) -> Params:
+    """``effect``'s parameters by the exact likelihood of ``r`` with the samples not ``seen``
+    missing (:func:`exact_fit` from ``params``; the mean removed over the seen samples), clipped to
+    ``kind``'s ranges: where an output stage clips, the residual there holds no noise, and the
+    Whittle fit — which needs every sample — reads the clipped stretches' flat residual as part
+    of the process (a Gauss–Markov of 3.7e-6 / 58 s on a record 43 % clipped: Whittle 3.2e-6 /
+    17 s, exact 4.3e-6 / 68 s)."""
+    seen = np.asarray(seen, bool)
+    r = np.asarray(r, float)
+    x = np.where(seen, r - float(np.mean(r[seen])), np.nan)
+    ml = exact_fit(x, dt_s, effect, params, white_sd, known)[0]
+    return {q.name: float(np.clip(ml[q.name], q.low, q.high)) for q in effect.params_for(kind)}
 
 
 def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_sd: float,

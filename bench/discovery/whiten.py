@@ -56,7 +56,9 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - 
     variance into ``out_e`` and ``out_s``. Cost O(n·m²·b), b the largest block — until the
     covariance reaches its steady state: F, Q and the white variance do not change, so once a
     whole update leaves P bit for bit as it was, every later one would too, and from there on
-    only the state is propagated with the same gain (O(n·m·b); the same numbers)."""
+    only the state is propagated with the same gain (O(n·m·b); the same numbers). A NaN in ``y``
+    is a sample not observed: the state and P are only predicted through it (its innovation is
+    NaN, its variance the prediction's), and the steady state is sought again after it."""
     m = h.size
     n = y.size
     x = np.zeros(m)
@@ -69,12 +71,18 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - 
     steady = False
     for k in range(n):
         e = _innovation(y[k], h, x)
+        missing = math.isnan(e)  # not observed: predict only
+        if missing:
+            steady = False
         if not steady:  # else hp and s are those of the fixed point
             s = _gain(p, h, r_var, hp)
         out_e[k] = e
         out_s[k] = s
+        if missing:
+            for i in range(m):
+                hp[i] = 0.0  # no gain: neither the state nor P is updated
         for i in range(m):  # update with gain K = P hᵀ / S
-            x[i] += hp[i] * e / s
+            x[i] += hp[i] * e / s if not missing else 0.0
         # predict: x ← F x, P ← F P Fᵀ + Q, F block-diagonal (row i reads columns lo[i]..hi[i])
         for i in range(m):
             acc = 0.0
@@ -106,7 +114,7 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - 
                     same = False
                 p[i, j] = v
                 p[j, i] = v  # symmetric by construction: keep it so against rounding
-        steady = same
+        steady = same and not missing
 
 
 @numba.njit(cache=True)
@@ -127,12 +135,18 @@ def _filter_diagonal(y, f, q, h, p0, r_var, out_e, out_s):  # pragma: no cover -
     steady = False
     for k in range(n):
         e = _innovation(y[k], h, x)
+        missing = math.isnan(e)
+        if missing:
+            steady = False
         if not steady:
             s = _gain(p, h, r_var, hp)
         out_e[k] = e
         out_s[k] = s
+        if missing:
+            for i in range(m):
+                hp[i] = 0.0
         for i in range(m):
-            x[i] += hp[i] * e / s
+            x[i] += hp[i] * e / s if not missing else 0.0
         for i in range(m):
             x[i] = 0.0 + d[i] * x[i]
         if steady:
@@ -145,7 +159,7 @@ def _filter_diagonal(y, f, q, h, p0, r_var, out_e, out_s):  # pragma: no cover -
                     same = False
                 p[i, j] = v
                 p[j, i] = v
-        steady = same
+        steady = same and not missing
 
 
 @dataclass(frozen=True, eq=False)
@@ -235,27 +249,40 @@ def noise_psd(f_hz: np.ndarray, rate_hz: float, stochastic_effects: Processes = 
 def exact_nll(r: np.ndarray, rate_hz: float, white_var: float, stochastic_effects: Processes = ()) -> float:
     """The exact Gaussian −ln L of ``r`` (its constant dropped) under white noise of variance
     ``white_var`` plus ``stochastic_effects``: ½·Σ(ln sₖ + eₖ²/sₖ) over the Kalman innovations eₖ
-    and their variances sₖ; ``inf`` where a variance is not positive (a parameter search's edge)."""
+    and their variances sₖ; ``inf`` where a variance is not positive (a parameter search's edge).
+    A NaN in ``r`` is a sample not observed (``StateSpace.filter``): it adds no term."""
     r = np.asarray(r, dtype=float)
     if not stochastic_effects:
+        r = r[~np.isnan(r)]
         return 0.5 * (float(r @ r) / white_var + r.size * math.log(white_var))
     e, v = state_space(float(rate_hz), r.size, list(stochastic_effects)).filter(r, float(white_var))
     if not np.all(v > 0):
         return math.inf
-    return 0.5 * float(np.sum(np.log(v) + e * e / v))
+    seen = ~np.isnan(e)
+    return 0.5 * float(np.sum(np.log(v[seen]) + e[seen] ** 2 / v[seen]))
 
 
 def innovations(residual: np.ndarray, rate_hz: float, white_sd: float,
-                stochastic_effects: Processes = ()) -> np.ndarray:
+                stochastic_effects: Processes = (), seen: np.ndarray | None = None) -> np.ndarray:
     """Standardized one-step innovations of ``residual`` (sensor unit, uniform samples at
     ``rate_hz``) under white noise of sd ``white_sd`` plus ``stochastic_effects`` — (effect,
     params) pairs (``Model.stochastic_effects()``). Without stochastic effects this is
-    ``residual / white_sd``."""
+    ``residual / white_sd``. ``seen``: a boolean mask of the samples that observe the noise
+    (``Model.noise_seen``: a clipped stretch holds none of it); the others are missing to the
+    filter — their innovations NaN — so the states are carried across a clip by their dynamics,
+    not pulled to the clip's flat residual (a Gauss–Markov read a 6-σ jump at each clip's edge)."""
     r = np.asarray(residual, dtype=float)
     if r.ndim != 1 or r.size == 0:
         raise ValueError(f"residual has shape {r.shape}; allowed: a non-empty 1-D array")
     if not np.all(np.isfinite(r)):
         raise ValueError("residual has non-finite values; allowed: finite numbers")
+    if seen is not None:
+        seen = np.asarray(seen, bool)
+        if seen.shape != r.shape:
+            raise ValueError(f"seen has shape {seen.shape}; allowed: the residual's {r.shape}")
+        if not seen.any():
+            raise ValueError("seen holds no sample; allowed: a mask with at least one True")
+        r = np.where(seen, r, np.nan)
     if not (isinstance(rate_hz, (int, float, np.floating)) and math.isfinite(rate_hz) and rate_hz > 0):
         raise ValueError(f"rate_hz = {rate_hz!r}; allowed: a finite number > 0")
     if not (math.isfinite(white_sd) and white_sd > 0):
@@ -267,14 +294,17 @@ def innovations(residual: np.ndarray, rate_hz: float, white_sd: float,
     return e / np.sqrt(s)
 
 
-def innovation_var(rate_hz: float, n: int, white_sd: float, stochastic_effects: Processes = ()) -> np.ndarray:
+def innovation_var(rate_hz: float, n: int, white_sd: float, stochastic_effects: Processes = (),
+                   seen: np.ndarray | None = None) -> np.ndarray:
     """Per-sample one-step innovation variance (sensor unit²) of ``innovations`` under white noise
     of sd ``white_sd`` plus ``stochastic_effects``: ``white_sd²`` plus the states' prediction
-    variance (large at the start, settling to the filter's steady state)."""
+    variance (large at the start and after samples not ``seen``, settling to the filter's
+    steady state)."""
     ss = state_space(float(rate_hz), int(n), list(stochastic_effects))
     if ss.m == 0:
         return np.full(int(n), float(white_sd) ** 2)
-    return np.asarray(ss.filter(np.zeros(int(n)), float(white_sd) ** 2)[1], float)
+    y = np.zeros(int(n)) if seen is None else np.where(np.asarray(seen, bool), 0.0, np.nan)
+    return np.asarray(ss.filter(y, float(white_sd) ** 2)[1], float)
 
 
 def wander_sd(rate_hz: float, n: int, stochastic_effects: Processes = ()) -> float:

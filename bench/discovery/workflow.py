@@ -316,15 +316,20 @@ def refit_processes(model: Model, rec: Record, alpha: float = 0.05) -> tuple[Mod
     short of its spectrum: its signature failed and it was withdrawn). Values clipped to the
     kind's ranges; a process no longer significant there (p ≥ ``alpha``) keeps the values it was
     named with — the audit withdraws it (a walk named for a look-alike's misfit, 3·10⁻⁷ g/√s,
-    refitted to 6·10⁻⁹ at p = 1 once the right effect was named)."""
+    refitted to 6·10⁻⁹ at p = 1 once the right effect was named). Beside an output stage that
+    clips, the values are the exact likelihood's with the clipped samples missing
+    (:func:`.stochastic.censored_params`)."""
     procs = [(i, e) for i, (e, _) in enumerate(model.entries()) if e.stochastic]
     kind = model.base.kind
     p_values: dict[str, float] = {}
     r = rec.y - model.predict(rec)  # the processes are not in the prediction: one residual for all
+    seen = model.noise_seen(rec) if procs else np.ones(rec.n, bool)
     for k, (i, eff) in enumerate(procs):  # k-th process of the model, its i-th effect
         others = tuple(ep for j, ep in enumerate(model.stochastic_effects()) if j != k)
         fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=others)
         params = fit.params_for(kind)
+        if fit.p_value < alpha and seen.any() and not seen.all():  # beside a clip: the exact likelihood's values
+            params = sto.censored_params(r, seen, rec.dt_s, eff, params, fit.white_sd, kind, others)
         p_values[eff.id] = float(fit.p_value)
         if fit.p_value < alpha and all(np.isfinite(v) for v in params.values()):
             model = model.with_params(i, params)

@@ -15,7 +15,7 @@ from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.model import Model, base_model
 from bench.discovery.significance import welch_nperseg, white_floor
-from bench.discovery.whiten import innovations
+from bench.discovery.whiten import exact_nll, innovations
 
 SD = 5e-6
 RATE_HZ = 10.0
@@ -204,6 +204,74 @@ def test_innovations_reject_bad_arguments():
         innovations(np.zeros(10), -1.0, 1.0, ())
     with pytest.raises(ValueError, match="non-finite"):
         innovations(np.array([0.0, np.nan]), 1.0, 1.0, ())
+
+
+def _dense_nll(r, seen, effects, white_var):
+    """−ln L (constant dropped) of the seen samples of ``r`` under white + ``effects``, from the
+    dense covariance of the states (x₀ ~ P0, x_k = F x_{k−1} + e, cov e = Q, seen as h·x)."""
+    n = r.size
+    cov = np.zeros((n, n))
+    for eff, p in effects:
+        b = eff.state_space(p, 1.0 / RATE_HZ, n)
+        ps = [b.p0]
+        for _ in range(n - 1):
+            ps.append(b.f @ ps[-1] @ b.f.T + b.q)
+        for i in range(n):
+            fk = np.eye(b.m)
+            for j in range(i, n):
+                cov[i, j] = cov[j, i] = cov[i, j] + b.h @ fk @ ps[i] @ b.h
+                fk = b.f @ fk
+    cov += white_var * np.eye(n)
+    c = cov[np.ix_(seen, seen)]
+    x = r[seen]
+    return 0.5 * (np.linalg.slogdet(c)[1] + x @ np.linalg.solve(c, x))
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 20), which=st.sampled_from(["gm", "rw", "gm+rw"]),
+       tau=st.floats(0.2, 20.0), k=st.floats(1e-7, 1e-5))
+def test_exact_nll_with_missing_samples_is_the_likelihood_of_the_seen_ones(seed, which, tau, k):
+    """A sample not seen (NaN: a clipped stretch) is missing to the Kalman filter: the exact
+    likelihood is the Gaussian one of the others, from their dense covariance."""
+    rng = np.random.default_rng(seed)
+    n = 40
+    effects = {"gm": [(GM[0], {"sigma": 1e-5, "tau_s": tau})], "rw": [(RW[0], {"k_per_rs": k})],
+               "gm+rw": [(GM[0], {"sigma": 1e-5, "tau_s": tau}), (RW[0], {"k_per_rs": k})]}[which]
+    seen = rng.random(n) < 0.6
+    seen[rng.integers(n)] = True
+    r = rng.standard_normal(n) * 1e-5
+    got = exact_nll(np.where(seen, r, np.nan), RATE_HZ, SD ** 2, effects)
+    assert got == pytest.approx(_dense_nll(r, seen, effects, SD ** 2), rel=1e-7)
+    e = innovations(r, RATE_HZ, SD, effects, seen=seen)
+    assert np.all(np.isnan(e[~seen])) and np.all(np.isfinite(e[seen]))
+    assert np.array_equal(innovations(r, RATE_HZ, SD, effects, seen=np.ones(n, bool)),
+                          innovations(r, RATE_HZ, SD, effects))
+
+
+def test_innovations_carry_the_states_across_samples_not_seen():
+    """A Gauss–Markov clipped for stretches of 5–20 s: filtered with those samples missing, the
+    seen innovations are white with unit variance; read from the clipped stretches' flat
+    residual (zeros) they jump at each stretch's end."""
+    m = _model((CATALOGUE["gauss_markov"], {"sigma": 3e-5, "tau_s": 30.0}))
+    rec = _record(20000)
+    r = _noise(m, rec, 5)
+    rng = np.random.default_rng(2)
+    seen = np.ones(rec.n, bool)
+    for start in rng.choice(rec.n - 200, 40, replace=False):
+        seen[start:start + rng.integers(50, 200)] = False
+    flat = np.where(seen, r, 0.0)
+    e = innovations(flat, RATE_HZ, SD, m.stochastic_effects(), seen=seen)[seen]
+    assert abs(np.var(e[200:]) - 1) < 0.05
+    assert np.max(np.abs(e[200:])) < 5.0
+    plain = innovations(flat, RATE_HZ, SD, m.stochastic_effects())[seen]
+    assert np.max(np.abs(plain[200:])) > 8.0
+
+
+def test_innovations_reject_a_bad_seen_mask():
+    with pytest.raises(ValueError, match="seen has shape"):
+        innovations(np.zeros(10), 1.0, 1.0, [GM], seen=np.ones(9, bool))
+    with pytest.raises(ValueError, match="seen holds no sample"):
+        innovations(np.zeros(10), 1.0, 1.0, [GM], seen=np.zeros(10, bool))
 
 
 def _tumble(n, seed):

@@ -394,3 +394,20 @@ _GOOD_BASE = '[base]\nkind = "gyro"\nbias = 0.0\nscale_factor = 1.0\nnoise_sd = 
 def test_bad_model_files_name_the_key_value_and_range(text, message):
     with pytest.raises(ValueError, match=message):
         model_from_toml(text)
+
+
+@settings(max_examples=20, deadline=None)
+@given(limit=st.floats(0.3, 1.2), step=st.floats(1e-6, 1e-3), seed=st.integers(0, 2 ** 16))
+def test_noise_seen_is_false_exactly_where_a_saturation_clips_the_mean_signal(limit, step, seed):
+    """``Model.noise_seen``: a reading carries the noise where the mean signal before the output
+    stage lies inside the clip; a quantizer behind it (whose flips carry the noise) removes
+    nothing, nor does one alone."""
+    rng = np.random.default_rng(seed)
+    rec = _rec(400, input=np.repeat(rng.uniform(-1.0, 1.0, 20), 20))
+    base = Model(base_model("accelerometer"))
+    clipped = base.with_effect("saturation", {"limit": limit})
+    signal = base.predict(rec)
+    assert np.array_equal(clipped.noise_seen(rec), np.abs(signal) < limit)
+    assert np.array_equal(clipped.with_effect("quantization", {"step": step}).noise_seen(rec), np.abs(signal) < limit)
+    assert base.with_effect("quantization", {"step": step}).noise_seen(rec).all()
+    assert base.noise_seen(rec).all()

@@ -797,3 +797,18 @@ def test_behind_a_coarse_quantizer_the_null_through_it_decides_a_localized_term(
     jump = next(c for c in naming.candidates if c.id == "bias_jump")
     assert jump.named  # significant against white noise: in contest
     assert naming.best is not None and naming.best.id == "flicker_noise"
+
+
+def test_a_process_behind_a_clip_is_carried_across_the_clipped_stretches(monkeypatch):
+    """The scorecard's accelerometer triple K3 + saturation + Gauss–Markov (seed 3015 of
+    ``--pairs 1 --triples 30``; 18 % of the tumble clipped): a clipped reading is the limit
+    whatever the noise, so the residual there is flat. Read as samples of the process, the flat
+    stretches set the GM aside (its innovations jumped 6 σ at a stretch's end), a warm-up took
+    its place, and the audit withdrew every name. With the clipped samples missing to the filter
+    and the likelihood (``Model.noise_seen``) the GM is named at its exact-likelihood values."""
+    naming = _named_at_step(monkeypatch, "accelerometer", ("k3_nonlinearity", "saturation", "gauss_markov"), 3015, 2)
+    assert naming.best is not None and naming.best.id == "gauss_markov", naming.set_aside
+    assert naming.set_aside == ()
+    # truth σ 9.3e-6, τ 21.2 s (Whittle on the flat stretches: 8.6e-6, 15.2 s)
+    assert naming.best.params["sigma"] == pytest.approx(9.3e-6, rel=0.15)
+    assert naming.best.params["tau_s"] == pytest.approx(21.2, rel=0.3)
