@@ -812,3 +812,26 @@ def test_a_process_behind_a_clip_is_carried_across_the_clipped_stretches(monkeyp
     # truth σ 9.3e-6, τ 21.2 s (Whittle on the flat stretches: 8.6e-6, 15.2 s)
     assert naming.best.params["sigma"] == pytest.approx(9.3e-6, rel=0.15)
     assert naming.best.params["tau_s"] == pytest.approx(21.2, rel=0.3)
+
+
+def _scorecard_record(monkeypatch, kind: str, hidden: tuple[str, ...], seed: int):
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    scorecard = importlib.import_module("discovery_scorecard")
+    rec, truth, _, _ = scorecard.hidden_case(kind, hidden, seed, 3000)
+    return rec, truth
+
+
+def test_a_clip_that_shrinks_the_calibrated_scale_factor_is_still_fitted_held_out(monkeypatch):
+    """The scorecard's accelerometer triple clip + dead zone + vibration rectification (seed 3010
+    of ``--pairs 1 --triples 30``): clipped at 0.61 g, the tumble's calibrated scale factor
+    shrank to 0.73, so every limit the grid offered the held-out fits (0.86, 0.74) clipped
+    nothing and could not move: held-out score 0, nothing named at all. The clip's fits start
+    from the readings' own extreme on the rows they see (``Saturation.fit_starts``)."""
+    rec, truth = _scorecard_record(monkeypatch, "accelerometer",
+                                   ("saturation", "dead_zone", "vibration_rectification"), 3010)
+    model = calibrate(Model(truth.base), rec)
+    assert model.base.scale_factor < 0.8
+    naming = name_effect(model, rec, seed=3010, n_rep=199, only=("saturation",))
+    assert naming.best is not None and naming.best.id == "saturation"
+    assert naming.best.score > 0.9
+    assert naming.best.params["limit"] == pytest.approx(dict(truth.effects)["saturation"]["limit"], rel=1e-3)
