@@ -17,6 +17,7 @@ import numpy as np
 from bench.discovery import stochastic as sto
 from bench.discovery.candidates import Trial
 from bench.discovery.data import Record
+from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import MIN_SNR
 from bench.discovery.effects_noise import Processes
 from bench.discovery.evidence import Evidence
@@ -32,6 +33,7 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
            det_p_under: Callable[[Trial, Trial], float] | None = None, alpha: float = 0.05,
            holds: Callable[[Trial, Trial | None], Evidence] | None = None,
            tie: Callable[[Trial, Trial], bool] | None = None,
+           pair: Callable[[Trial, Trial], np.ndarray | None] | None = None,
            ) -> tuple[Trial | None, tuple[Evidence, ...]]:
     """The best of the named candidates and the catch-alls set aside on the way.
 
@@ -41,11 +43,11 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     None) — a catch-all that would be chosen
     but whose signature does not hold is set aside (its evidence returned) and the choice made
     again among the others; when none is left, nothing is named (its structure is reported as
-    unexplained). Among the rest, :func:`preferred` (``tie`` passed on)."""
+    unexplained). Among the rest, :func:`preferred` (``tie`` and ``pair`` passed on)."""
     remaining = list(named)
     rejected: list[Evidence] = []
     while remaining:
-        pick, beside = preferred(remaining, model, rec, kind, det_p_under, alpha, tie)
+        pick, beside = preferred(remaining, model, rec, kind, det_p_under, alpha, tie, pair)
         if pick is None:
             break
         if holds is not None and pick.effect.catch_all:
@@ -61,6 +63,7 @@ def choose(named: Sequence[Trial], model: Model, rec: Record, kind: str,
 def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
               det_p_under: Callable[[Trial, Trial], float] | None = None,
               alpha: float = 0.05, tie: Callable[[Trial, Trial], bool] | None = None,
+              pair: Callable[[Trial, Trial], np.ndarray | None] | None = None,
               ) -> tuple[Trial | None, Trial | None]:
     """Deterministic first: the highest held-out score among the named deterministic candidates
     (then :func:`parsimonious`). A localized one (``Effect.localized``: a jump, a warm-up once
@@ -110,6 +113,11 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     the choice's signature with that process in the noise, as the joint explanation claims (the
     wander beside a drift is then that process, not the drift's misfit).
 
+    Before a process is chosen over the named deterministic candidates, two of them together
+    (:func:`pair_over_process`, ``pair``: the residual with both fitted beside the model) may
+    explain what neither does alone (a temperature bias and a drift, each weaker than the walk
+    that follows their sum).
+
     Without a named deterministic candidate, the best stochastic one. (Between stochastic
     shapes the spectrum decides: BIC on the Whittle likelihood, so a Gauss–Markov needs a
     clearly better fit than a random walk for its extra parameter; one whose parameters the
@@ -142,7 +150,10 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
         bic_d = lr_d - math.log(rec.n / 2) * len(d.effect.params_for(kind))
         r_d = d.resid_full - d.resid_full.mean()
         if not d.effect.localized(rec):
-            return _versus_process(d, s, sto_, rec, kind, known, bic_d, r_d, det_p_under, alpha)
+            pick, beside = _versus_process(d, s, sto_, rec, kind, known, bic_d, r_d, det_p_under, alpha)
+            if pick is s:
+                return pair_over_process(det, s, rec, kind, known, white0, pair, alpha) or s, None
+            return pick, beside
         if det_p_under is None or det_p_under(s, d) < alpha:
             return d, None
         if coloured:
@@ -171,7 +182,50 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
         failed = failed or d
         # the process explains this one (jumps along a walk's wander): a deterministic
         # candidate that ties with it has its turn (a temperature term scored a hair below them)
-    return s, None
+    return pair_over_process(det, s, rec, kind, known, white0, pair, alpha) or s, None
+
+
+#: Deterministic candidates (non-localized, by held-out score) whose pairs
+#: :func:`pair_over_process` weighs.
+PAIR_TOP = 3
+
+
+def pair_over_process(det: Sequence[Trial], s: Trial, rec: Record, kind: str, known: Processes, white0: float,
+                      pair: Callable[[Trial, Trial], np.ndarray | None] | None, alpha: float) -> Trial | None:
+    """Of the first :data:`PAIR_TOP` named non-localized waveform candidates (``det``, held-out
+    order), the pair that, fitted together beside the model (``pair(a, b)``: the residual, or
+    None when the joint fit fails), explains the record better than process ``s`` by the size
+    gate on their common likelihood (BIC gain on the white + known-stochastic Whittle likelihood,
+    ``white0`` the model's, above ``s``'s by ``MIN_SNR²``) and leaves nothing of the process's
+    evidence (refitted to that residual it is not significant, p ≥ ``alpha``): its member with
+    the better held-out score — or the one that is not a catch-all, whose signature its partner
+    would break (named now; the other is then judged beside it). None when there
+    is no such pair. A walk follows the sum of two slow terms better than either alone (a
+    temperature bias and a drift beside a two-node warm-up: each 0.12–0.14 held-out against the
+    walk's 0.25), so each term alone lost to it."""
+    if pair is None:
+        return None
+    top = [d for d in det if d.resid_full is not None and d.effect.waveform and not d.effect.localized(rec)]
+    top = top[:PAIR_TOP]
+    weight = math.log(rec.n / 2)
+    best: tuple[float, Trial] | None = None
+    for i, a in enumerate(top):
+        for b in top[i + 1:]:
+            if b.id in CATALOGUE.look_alikes(a.id):
+                continue
+            r_ab = pair(a, b)
+            if r_ab is None:
+                continue
+            lr = 2.0 * (white0 - sto.white_nll(r_ab, rec.dt_s, known))
+            bic = lr - weight * (len(a.effect.params_for(kind)) + len(b.effect.params_for(kind)))
+            if not bic > s.bic_gain + MIN_SNR ** 2 or (best is not None and bic <= best[0]):
+                continue
+            after = sto.fit_stochastic(r_ab - r_ab.mean(), rec.dt_s, s.effect, known=known, bootstrap=False)
+            if after.p_value >= alpha:
+                # a catch-all (a drift) is judged on its own signature, which its partner breaks
+                # until it is named: the other member first
+                best = (bic, b if a.effect.catch_all and not b.effect.catch_all else a)
+    return None if best is None else best[1]
 
 
 def _versus_process(d: Trial, s: Trial, sto_: Sequence[Trial], rec: Record, kind: str, known: Processes,

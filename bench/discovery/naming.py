@@ -490,7 +490,15 @@ def name_effect(model: Model, rec: Record, *, alpha: float = 0.05, seed: int = 0
         diff, se = sig.score_difference(a.err_c, b.err_c, a.err_b, blocks, n_blocks)
         return bool(np.isfinite(se) and abs(diff) <= se)
 
-    best, rejected = choose(named, model, rec, kind, det_p_under, det_alpha, signature_of, tie)
+    def pair_residual(a: Trial, b: Trial) -> np.ndarray | None:
+        """The residual (mean removed) with ``a`` and ``b`` added and every parameter refitted."""
+        try:
+            res = rec.y - calibrate(model.with_effect(a.id, a.params).with_effect(b.id, b.params), rec).predict(rec)
+        except ValueError:
+            return None
+        return res - res.mean()
+
+    best, rejected = choose(named, model, rec, kind, det_p_under, det_alpha, signature_of, tie, pair_residual)
     set_aside = tuple(ev.describe() for ev in rejected)
     followed = tuple(sorted({c for ev in rejected for c in ev.columns}))
     if best is None or best.err_c is None or best.err_b is None:

@@ -872,3 +872,22 @@ def test_a_term_idle_beside_a_clip_is_judged_on_the_samples_the_clip_leaves(monk
     r = rec.y - model.predict(rec)
     faded = {ev.effect_id for ev in faded_terms(model, rec, {"lowpass_bandwidth", "k2_nonlinearity"}, r)}
     assert faded == {"k2_nonlinearity"}
+
+
+def test_two_slow_terms_together_are_weighed_before_the_walk_that_follows_their_sum(monkeypatch):
+    """The scorecard's accelerometer triple temperature bias + drift + two-node warm-up (seed 3003
+    of ``--pairs 1 --triples 30``): once the two-node is named, a walk (held-out 0.25) follows the
+    sum of the other two better than either alone (drift 0.14, temperature 0.12), and was named.
+    Fitted together beside the model the pair explains the record better than the walk by the
+    size gate and leaves nothing of it (``choosing.pair_over_process``): the temperature bias —
+    not the drift, a catch-all whose signature its partner breaks — is named, then the drift."""
+    rec, truth = _scorecard_record(monkeypatch, "accelerometer",
+                                   ("temperature_bias", "linear_drift", "thermal_two_node"), 3003)
+    model = calibrate(Model(truth.base, truth.effects[2:]), rec)
+    naming = name_effect(model, rec, seed=3004)
+    walk = next(c for c in naming.candidates if c.id == "rate_random_walk")
+    assert walk.named and walk.score > max(c.score for c in naming.candidates
+                                           if c.id in ("temperature_bias", "linear_drift"))
+    assert naming.best is not None and naming.best.id == "temperature_bias"
+    then = name_effect(calibrate(model.with_effect("temperature_bias", naming.best.params), rec), rec, seed=3005)
+    assert then.best is not None and then.best.id == "linear_drift"
