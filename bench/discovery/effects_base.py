@@ -678,6 +678,13 @@ class Effect:
         parameters in use than ``p`` has; [] when its fit is no such search (default)."""
         return []
 
+    def reduced(self, p: Mapping[str, float], nested: str, kind: str) -> list[Params]:
+        """Starts for the effect ``nested`` (one of :attr:`nests`) standing alone for this effect at
+        ``p`` — the workflow tries the model with it in this one's place when a random process
+        named after this one may hold what the richer shape's extra parameters took; [] by
+        default."""
+        return []
+
     def holding(self, p: Mapping[str, float], nested: str, q: Mapping[str, float], kind: str) -> list[Params]:
         """Starts for this effect alone standing for itself at ``p`` and the effect ``nested``
         (one of :attr:`nests`) at ``q`` named beside it — the workflow tries the model with the

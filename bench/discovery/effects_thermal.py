@@ -118,6 +118,20 @@ class ThermalTwoNode(Effect):
                  "tau_slow_s": float(np.clip(s, tau.low, tau.high))}
                 for f, s in ((taus[0], taus[1]), (taus[0], taus[2]), (taus[1], taus[2])) if s > f]
 
+    def reduced(self, p: Mapping[str, float], nested: str, kind: str) -> list[Params]:
+        """A warm-up at either node (its share of the step, or the whole step) — the other node
+        may be a process's wander the two-node followed."""
+        if nested != "warmup_exponential":
+            return []
+        a, f = float(p["amplitude"]), float(p["fraction_slow"])
+        amp = self.param("amplitude", kind)
+        tau = self.param("tau_fast_s", kind)
+        out = []
+        for share, t in ((1.0 - f, p["tau_fast_s"]), (1.0, p["tau_fast_s"]), (f, p["tau_slow_s"])):
+            out.append({"amplitude": float(np.clip(a * share, amp.low, amp.high)),
+                        "tau_s": float(np.clip(t, tau.low, tau.high))})
+        return out
+
     def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
         """Both nodes settle inside the record (the slow time constant at most the record's
         t_on span): a slower node is a straight line on it — a drift, not a node (a warm-up
