@@ -49,6 +49,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from scipy import optimize
@@ -59,7 +60,7 @@ from bench.discovery.calibration import calibrate
 from bench.discovery.candidates import Naming
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
-from bench.discovery.effects_base import MIN_SNR, Params
+from bench.discovery.effects_base import MIN_SNR, Effect, Params
 from bench.discovery.evidence import Evidence, beyond_leftover, evidence
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
@@ -187,6 +188,24 @@ def input_order(model: Model, rec: Record) -> Model:
     return best
 
 
+def _fitted_in_place(model: Model, i: int, effect: Effect, rec: Record,
+                     starts_of: Callable[..., list[Params]]) -> Model | None:
+    """``model`` with ``effect`` fitted in the place of its ``i``-th effect — from
+    ``starts_of(residual, rows=…)`` on what the others leave (the rows where the output follows
+    its input) — and calibrated; None without a start or when the calibration fails."""
+    without = Model(model.base, model.effects[:i] + model.effects[i + 1:])
+    seen = without.follows_input(rec)
+    starts = starts_of(rec.y - without.predict(rec), rows=None if seen.all() else seen)
+    if not starts:
+        return None
+    f = CandidateFitter(without, rec, effect, template=starts[0], at=i)
+    fit = f.fit([f.pack(s, without.base.bias, without.base.scale_factor) for s in starts], with_std=False)
+    try:
+        return calibrate(f.model_at(fit.x), rec)
+    except ValueError:
+        return None
+
+
 def reseated(model: Model, rec: Record) -> Model:
     """The model with each effect whose fit is a search of the residual
     (``Effect.searched_starts``: a jump's change points) searched again on what the others leave
@@ -204,17 +223,8 @@ def reseated(model: Model, rec: Record) -> Model:
     for i, (e, p) in enumerate(model.entries()):
         if not e.waveform or e.stochastic:
             continue
-        without = Model(model.base, model.effects[:i] + model.effects[i + 1:])
-        seen = without.follows_input(rec)
-        starts = e.searched_starts(p, rec, rec.y - without.predict(rec), kind=kind,
-                                   rows=None if seen.all() else seen)
-        if not starts:
-            continue
-        f = CandidateFitter(without, rec, e, template=starts[0], at=i)
-        fit = f.fit([f.pack(s, without.base.bias, without.base.scale_factor) for s in starts], with_std=False)
-        try:
-            moved = calibrate(f.model_at(fit.x), rec)
-        except ValueError:
+        moved = _fitted_in_place(model, i, e, rec, partial(e.searched_starts, p, rec, kind=kind))
+        if moved is None:
             continue
         sse_moved = float(np.sum((rec.y - moved.predict(rec)) ** 2))
         if sse_moved < sse:
@@ -257,18 +267,8 @@ def relooked(model: Model, rec: Record, exclude: frozenset[str] = frozenset()) -
             if (lid in ids or lid in exclude or look.stochastic or not look.waveform or kind not in look.kinds
                     or (look.needs_uniform and not rec.is_uniform()) or not look.applies_to(rec)):
                 continue
-            without = Model(model.base, model.effects[:i] + model.effects[i + 1:])
-            seen = without.follows_input(rec)
-            starts = look.fit_starts(rec, rec.y - without.predict(rec), kind=kind, rows=None if seen.all() else seen)
-            if not starts:
-                continue
-            f = CandidateFitter(without, rec, look, template=starts[0], at=i)
-            fit = f.fit([f.pack(s, without.base.bias, without.base.scale_factor) for s in starts], with_std=False)
-            try:
-                alt = calibrate(f.model_at(fit.x), rec)
-            except ValueError:
-                continue
-            if not look.identifiable(alt.effects[i][1], rec):
+            alt = _fitted_in_place(model, i, look, rec, partial(look.fit_starts, rec, kind=kind))
+            if alt is None or not look.identifiable(alt.effects[i][1], rec):
                 continue
             sse_alt = float(np.sum((rec.y - alt.predict(rec)) ** 2))
             dk = len(look.free_params(alt.effects[i][1], kind, rec)) - len(e.free_params(p, kind, rec))
