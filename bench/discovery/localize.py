@@ -346,12 +346,14 @@ def innovations_profile(model: Model, rec: Record, white: float, procs, seen: np
     if not model.has_output_stage():
         return None
     var, m4 = model.residual_profile(rec, wander_sd(rec.rate_hz, rec.n, procs))
-    s = innovation_var(rec.rate_hz, rec.n, white, procs, seen=seen)
     if seen is not None:
-        var, m4, s = var[seen], m4[seen], s[seen]
+        var, m4 = var[seen], m4[seen]
     mean = float(np.mean(var))
     if not mean > 0 or float(np.ptp(var)) <= 1e-3 * mean:
         return None
+    s = innovation_var(rec.rate_hz, rec.n, white, procs, seen=seen)
+    if seen is not None:
+        s = s[seen]
     c = np.maximum(s - white ** 2, 0.0)
     rho, kappa = var / mean, m4 / mean ** 2
     v = (white ** 2 * rho + c) / s
