@@ -147,8 +147,7 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
     eff, p = model.entries()[index]
     if not isinstance(eff, StochasticEffect):
         raise ValueError(f"effect {eff.id!r} is not a random process; allowed: a StochasticEffect of the model")
-    seen = model.noise_seen(rec)
-    part = None if seen.all() or not seen.any() else seen
+    part = model.partly_seen(rec)
     sub = rec if part is None else rec.slice(part)
     r = np.asarray(residual, float)
     r = r - float(np.mean(r if part is None else r[part]))

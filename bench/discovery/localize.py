@@ -397,11 +397,10 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
     prefix = ""
     x = r
     white = float(np.std(r))
-    seen = model.noise_seen(rec)
     # under a random process, samples where the output stage clips are missing to the filter
     # (they hold no noise: its states are carried across, whiten.innovations) and the tests read
     # the others
-    part = seen if sto and seen.any() and not seen.all() else None
+    part = model.partly_seen(rec) if sto else None
     tested = rec if part is None else rec.slice(part)
     if sto:
         # the white level is re-estimated beside the model's stochastic spectrum: a level that

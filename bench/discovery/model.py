@@ -300,6 +300,12 @@ class Model:
                 y = e.expected_transform(p, rec, y, self.base.noise_sd)
         return seen
 
+    def partly_seen(self, rec: Record) -> np.ndarray | None:
+        """:meth:`noise_seen` when an output stage censors some of the samples but not all of
+        them — the mask a likelihood or an innovation test leaves them out by — else None."""
+        seen = self.noise_seen(rec)
+        return seen if seen.any() and not seen.all() else None
+
     def stages(self, rec: Record) -> tuple[np.ndarray, np.ndarray]:
         """(input after the model's input-stage effects, sum of its deterministic additive terms)
         on rec: ``predict`` is ``bias + scale_factor·u + terms`` when the model has no output

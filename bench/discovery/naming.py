@@ -72,7 +72,7 @@ from bench.discovery.fitting import CandidateFitter
 from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.separating import separating_experiment
-from bench.discovery.whiten import innovations
+from bench.discovery.whiten import innovations, seen_only
 
 
 def applicable(model: Model, rec: Record) -> list[Effect]:
@@ -189,15 +189,13 @@ def shape_ranked(named: list[Trial], model: Model, rec: Record, r: np.ndarray) -
     procs = [t for t in named if t.effect.stochastic and np.isfinite(t.bic_gain)]
     if len(procs) < 2:
         return named
-    seen = model.noise_seen(rec)
-    clipped = bool(seen.any() and not seen.all())
+    seen = model.partly_seen(rec)
+    clipped = seen is not None
     top = max(t.bic_gain for t in procs)
     close = [t for t in procs if t.bic_gain >= top - SHAPE_TIE or clipped]
     if len(close) < 2:
         return named
-    x = r - r[seen].mean() if clipped else r - r.mean()
-    if clipped:
-        x = np.where(seen, x, np.nan)
+    x = seen_only(r, seen)
     white = float(model.residual_sd()) or float(np.nanstd(x)) or 1.0
     known = model.stochastic_effects()
     shape = {t.id: sto.exact_shape_bic(x, rec.dt_s, t.effect, t.params, white, known) for t in close}
@@ -235,8 +233,8 @@ def fit_process(model: Model, rec: Record, effect: StochasticEffect, r: np.ndarr
     full = sto.fit_stochastic(r - r.mean(), rec.dt_s, effect, known=known)
     score, err_c, err_b = sto.heldout_score(r, rec.dt_s, effect, folds, np.array(full.theta))
     params = full.params_for(model.base.kind)
-    seen = model.noise_seen(rec)
-    if seen.any() and not seen.all():  # a clip's stretches hold no noise: its values by the exact likelihood
+    seen = model.partly_seen(rec)
+    if seen is not None:  # a clip's stretches hold no noise: its values by the exact likelihood
         params = sto.censored_params(r, seen, rec.dt_s, effect, params, full.white_sd, model.base.kind, known)
     std = {name: float(full.params_std[name]) for name in params}
     return Trial(effect, params, std, score, max(full.p_value, sig.P_FLOOR), err_c=err_c, err_b=err_b,

@@ -294,6 +294,16 @@ def innovations(residual: np.ndarray, rate_hz: float, white_sd: float,
     return e / np.sqrt(s)
 
 
+def seen_only(r: np.ndarray, seen: np.ndarray | None) -> np.ndarray:
+    """``r`` less its mean over the ``seen`` samples, NaN at the others — missing to
+    :meth:`StateSpace.filter` and :func:`exact_nll`; ``seen`` None: every sample, the mean removed."""
+    r = np.asarray(r, float)
+    if seen is None:
+        return r - r.mean()
+    seen = np.asarray(seen, bool)
+    return np.where(seen, r - float(np.mean(r[seen])), np.nan)
+
+
 def innovation_var(rate_hz: float, n: int, white_sd: float, stochastic_effects: Processes = (),
                    seen: np.ndarray | None = None) -> np.ndarray:
     """Per-sample one-step innovation variance (sensor unit²) of ``innovations`` under white noise

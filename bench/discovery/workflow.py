@@ -69,7 +69,7 @@ from bench.discovery.mapping import MapFn
 from bench.discovery.model import Model
 from bench.discovery.naming import name_effect
 from bench.discovery.significance import Gap, gap_metrics
-from bench.discovery.whiten import exact_nll
+from bench.discovery.whiten import exact_nll, seen_only
 
 
 @dataclass(frozen=True)
@@ -233,17 +233,21 @@ def reseated(model: Model, rec: Record) -> Model:
 
 
 @dataclass(frozen=True)
-class Swapped:
-    """A named effect replaced by its look-alike (:func:`relooked`): the model with ``into`` in
-    the place of ``dropped``, and why."""
+class Merged:
+    """A named effect replaced once a round's names are in — a nested pair merged into the
+    nesting shape (:func:`renested`), a nesting shape by the one it nests (:func:`unnested`), an
+    effect by its look-alike (:func:`relooked`): the model with ``into`` standing for what
+    ``dropped`` held (and the effects it brings, ``added``, each to be named on its own
+    evidence), and why."""
 
     model: Model
     into: str
     dropped: str
+    added: tuple[str, ...]
     why: str
 
 
-def relooked(model: Model, rec: Record, exclude: frozenset[str] = frozenset()) -> Swapped | None:
+def relooked(model: Model, rec: Record, exclude: frozenset[str] = frozenset()) -> Merged | None:
     """A named waveform effect whose look-alike (``Catalogue.look_alikes``: a time delay and a
     low-pass, K2 and a scale-factor asymmetry) fits far better in its place once the names of a
     round are in: the look-alike fitted to what the others leave, in the effect's place, the
@@ -258,7 +262,7 @@ def relooked(model: Model, rec: Record, exclude: frozenset[str] = frozenset()) -
     n = rec.n
     sse = float(np.sum((rec.y - model.predict(rec)) ** 2))
     ids = set(model.effect_ids)
-    best: tuple[float, Swapped] | None = None
+    best: tuple[float, Merged] | None = None
     for i, (e, p) in enumerate(model.entries()):
         if not e.waveform or e.stochastic:
             continue
@@ -276,20 +280,8 @@ def relooked(model: Model, rec: Record, exclude: frozenset[str] = frozenset()) -
             if gain > MIN_SNR ** 2 and (best is None or gain > best[0]):
                 why = (f"its look-alike {lid} fits far better in its place once the others are named "
                        f"(n·ln(SSE ratio) {gain:.3g} beyond its parameters, gate {MIN_SNR ** 2:.3g})")
-                best = (gain, Swapped(alt, lid, e.id, why))
+                best = (gain, Merged(alt, lid, e.id, (lid,), why))
     return None if best is None else best[1]
-
-
-@dataclass(frozen=True)
-class Merged:
-    """A nested pair merged by :func:`renested`: the model with the nesting shape standing for
-    both (and the effects it brings beside it, ``added``), the nested shape ``dropped``, and why."""
-
-    model: Model
-    into: str
-    dropped: str
-    added: tuple[str, ...]
-    why: str
 
 
 def _m2ll(model: Model, rec: Record, r: np.ndarray | None = None, seen: np.ndarray | None = None) -> float:
@@ -298,10 +290,7 @@ def _m2ll(model: Model, rec: Record, r: np.ndarray | None = None, seen: np.ndarr
     constant left out; ``seen``: the samples that count (the others missing: a clip's,
     ``Model.noise_seen``)."""
     r = rec.y - model.predict(rec) if r is None else r
-    if seen is not None and not seen.all():
-        r = np.where(seen, r - r[seen].mean(), np.nan)
-    else:
-        r = r - r.mean()
+    r = seen_only(r, seen if seen is not None and not seen.all() else None)
     return 2 * exact_nll(r, rec.rate_hz, float(model.base.noise_sd) ** 2, model.stochastic_effects())
 
 
@@ -456,12 +445,12 @@ def refit_processes(model: Model, rec: Record, alpha: float = 0.05) -> tuple[Mod
     kind = model.base.kind
     p_values: dict[str, float] = {}
     r = rec.y - model.predict(rec)  # the processes are not in the prediction: one residual for all
-    seen = model.noise_seen(rec) if procs else np.ones(rec.n, bool)
+    seen = model.partly_seen(rec) if procs else None
     for k, (i, eff) in enumerate(procs):  # k-th process of the model, its i-th effect
         others = tuple(ep for j, ep in enumerate(model.stochastic_effects()) if j != k)
         fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=others)
         params = fit.params_for(kind)
-        if fit.p_value < alpha and seen.any() and not seen.all():  # beside a clip: the exact likelihood's values
+        if fit.p_value < alpha and seen is not None:  # beside a clip: the exact likelihood's values
             params = sto.censored_params(r, seen, rec.dt_s, eff, params, fit.white_sd, kind, others)
         p_values[eff.id] = float(fit.p_value)
         if fit.p_value < alpha and all(np.isfinite(v) for v in params.values()):
