@@ -522,6 +522,19 @@ def _step_std(model: Model, rec: Record, naming_std: dict, at: int) -> dict:
     return dict(f.fit([x], max_nfev=1).params_std)
 
 
+def _step_in_place(model: Model, without: Model, naming: Naming, rec: Record, seed: int,
+                   after: tuple[Gap, float, np.ndarray]) -> Step:
+    """The :class:`Step` of ``naming.best`` named on ``without`` and standing in ``model`` (an
+    effect that took another's place once the names of a round were in): the gap before it is
+    ``without``'s, after it ``after`` (``model``'s gap, rms and residual)."""
+    assert naming.best is not None  # the caller checked it named the effect
+    g0, rms0, _, r0 = gap_of(without, rec, seed)
+    g1, rms1, r1 = after
+    at = model.effect_ids.index(naming.best.id)
+    return Step(naming.best.id, dict(model.effects[at][1]), _step_std(model, rec, naming.best.params_std, at),
+                naming.best.p_value, g0, g1, rms0, rms1, naming, _structure(without, rec, r0), r0, r1)
+
+
 def _fmt(v: float) -> str:
     return f"{v:.3g}"
 
@@ -628,14 +641,9 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                     withdrawn.append(f"{swapped.dropped}: {swapped.why}")
                     withdrawn_ids.add(swapped.dropped)
                     model, process_p = refit_processes(swapped.model, rec, alpha)
-                    g0, rms0, _, r0 = gap_of(without, rec, seed)
                     gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
-                    at = model.effect_ids.index(swapped.into)
-                    steps = [st if st.effect_id != swapped.dropped else
-                             Step(swapped.into, dict(model.effects[at][1]),
-                                  _step_std(model, rec, naming_l.best.params_std, at), naming_l.best.p_value,
-                                  g0, gap_cur, rms0, rms_cur, naming_l, _structure(without, rec, r0), r0, r_cur)
-                             for st in steps]
+                    step = _step_in_place(model, without, naming_l, rec, seed, (gap_cur, rms_cur, r_cur))
+                    steps = [st if st.effect_id != swapped.dropped else step for st in steps]
             merged = renested(model, rec, alpha) or unnested(model, rec, alpha)
             added_steps = [] if merged is None else _named_as_merged(merged, rec, alpha, seed + it, n_rep, fill_map)
             if merged is not None and added_steps is not None:

@@ -26,7 +26,7 @@ from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.naming import name_effect
 from bench.discovery.separating import separating_experiment
 from bench.discovery.stochastic import fit_stochastic
-from bench.discovery.workflow import discover, faded_terms, input_order, relooked, renested, reseated, unnested
+from bench.discovery.workflow import discover, faded_terms, gap_of, input_order, relooked, renested, reseated, unnested
 
 GM, RW = CATALOGUE["gauss_markov"], CATALOGUE["rate_random_walk"]
 
@@ -854,6 +854,22 @@ def test_a_look_alike_named_first_is_swapped_once_the_others_are_named(monkeypat
     assert dict(swapped.model.effects)["lowpass_bandwidth"]["bandwidth_hz"] == pytest.approx(0.839, rel=0.02)
     right = calibrate(Model(truth.base, (("lowpass_bandwidth", {"bandwidth_hz": 0.84}), ("saturation", sat))), rec)
     assert relooked(right, rec) is None
+
+
+def test_a_swap_keeps_the_story_of_the_initial_model(monkeypatch):
+    """On the same record ``discover`` names the delay, then swaps it for the low-pass. The swap
+    once wrote the gap, rms and residual of the model without the look-alike over the discovery's
+    initial ones (``rms_initial`` 1.84e-2 for the initial model's 2.15e-2): the report's "before"
+    was not the starting model. The look-alike's own step starts from that model instead."""
+    rec, _ = _scorecard_record(monkeypatch, "accelerometer",
+                               ("saturation", "lowpass_bandwidth", "thermal_hysteresis"), 3006)
+    d = discover(rec, Model(base_model("accelerometer")), max_effects=4, seed=3006)
+    assert any(w.startswith("time_delay: its look-alike lowpass_bandwidth") for w in d.withdrawn), d.withdrawn
+    g0, rms0, _, r0 = gap_of(d.initial_model, rec, 3006)
+    assert d.rms_initial == rms0 and d.gap_initial.rms_ratio == g0.rms_ratio
+    np.testing.assert_array_equal(d.residual_initial, r0)
+    low = next(st for st in d.steps if st.effect_id == "lowpass_bandwidth")
+    assert low.rms_before > low.rms_after and low.rms_before != rms0
 
 
 def test_a_term_idle_beside_a_clip_is_judged_on_the_samples_the_clip_leaves(monkeypatch):
