@@ -205,6 +205,9 @@ class Effect:
     #: ids of effects that may stand for a part of this shape once it also holds a nested one
     #: named beside it (a two-node's slow node beyond the record is a drift): ``holding``
     stands_beside: tuple[str, ...] = ()
+    #: its shape is a few level changes at searched times — what a random process's wander also
+    #: makes: once the names are in, the workflow weighs it against a process alone
+    level_steps: bool = False
 
     def __init__(self, look_alikes: Sequence[Effect] = ()) -> None:
         """``look_alikes``: the competitor effects themselves (the catalogue passes them); an

@@ -93,6 +93,7 @@ class BiasJump(Effect):
         "gyro": _slots("deg/s", 1.0, 1e-6),
         "mhd": _slots("deg/s", 10.0, 1e-4),
     }
+    level_steps = True
 
     def term(self, p: Mapping[str, float], rec: Record) -> np.ndarray:
         out = np.zeros(rec.n)
