@@ -200,7 +200,7 @@ def process_evidence(model: Model, rec: Record, index: int, residual: np.ndarray
     if p_band < a:
         where.append(what)
     # time: segments, CUSUM, single innovations (Bonferroni over the three inside)
-    moments = innovations_profile(model, rec, white, procs, seen=part)
+    moments = innovations_profile(model, rec, white, procs, seen=part, residual=r)
     sd, dof = sig.white_floor(x, rate, sample_var=None if moments is None else moments[0])
     segs, cusum_p = time_segments(x, sub.t_s, sd, 16, a / 3, floor_dof=dof, sample_moments=moments)
     jmp = jumps(x, sub.t_s, sd, a / 3, floor_dof=dof, sample_moments=moments)

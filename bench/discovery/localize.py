@@ -34,6 +34,7 @@ alarms (benchmarks/bench_unexplained.py, 400 records each, n = 300 / 3000 / 3000
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -48,7 +49,7 @@ from bench.discovery.effects_noise import StochasticEffect
 from bench.discovery.findings import INPUT_COLUMNS, Band, InputCorrelation, Jump, Localization, Segment, TauRange
 from bench.discovery.model import Model
 from bench.discovery.significance import spread_factor, welch_dof, welch_nperseg, white_floor
-from bench.discovery.whiten import innovation_var, innovations, wander_sd
+from bench.discovery.whiten import innovation_var, innovations, seen_only, state_space, wander_sd
 
 
 def _check(residual, rec: Record, noise_sd: float) -> np.ndarray:
@@ -330,7 +331,7 @@ def localize(rec: Record, residual, noise_sd: float, *, alpha: float = 0.01,
 
 
 def innovations_profile(model: Model, rec: Record, white: float, procs, seen: np.ndarray | None = None,
-                        ) -> tuple[np.ndarray, np.ndarray, float] | None:
+                        residual: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float] | None:
     """Each standardized innovation's expected variance and fourth central moment (relative:
     variance mean 1) when the model's residual is heteroscedastic (``Model.residual_profile``: a
     coarse quantizer's flips between levels, a clipping's quiet stretches), for
@@ -342,10 +343,24 @@ def innovations_profile(model: Model, rec: Record, white: float, procs, seen: np
     tumble's orientations that sit between two levels read as segments 1.3× the floor under
     any process. None without an output stage or for a flat profile. ``seen``: the samples the
     innovations were taken on (``whiten.innovations``; the others missing to the filter) — the
-    profile of those alone."""
+    profile of those alone. ``residual``: the residual the innovations came from — the profile is
+    then taken where the processes moved the signal (their one-step prediction from its past,
+    the filter's own), averaged over that prediction's error only, not over the processes'
+    whole spread: a walk that dwells near a coarse quantizer's threshold makes the readings flip
+    there (gyro, steps of 6 noise sd, a walk of about a step in 300 s: 1.26× the floor over 19 s
+    under every process, averaged)."""
     if not model.has_output_stage():
         return None
-    var, m4 = model.residual_profile(rec, wander_sd(rec.rate_hz, rec.n, procs))
+    if residual is not None and procs:
+        # where the processes moved the signal: their one-step prediction from the residual's
+        # past (the innovations' own filter), its error the wander left
+        r = seen_only(residual, seen)
+        e, s_pred = state_space(rec.rate_hz, rec.n, list(procs)).filter(r, white ** 2)
+        path = np.where(np.isfinite(e), r - e, 0.0)
+        c_pred = np.maximum(s_pred - white ** 2, 0.0)
+        var, m4 = model.residual_profile(rec, math.sqrt(float(np.median(c_pred[np.isfinite(c_pred)]))), path)
+    else:
+        var, m4 = model.residual_profile(rec, wander_sd(rec.rate_hz, rec.n, procs))
     if seen is not None:
         var, m4 = var[seen], m4[seen]
     mean = float(np.mean(var))
@@ -423,7 +438,8 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
             x = project_out(x, whiten(tested.column("input"))[:, None])
         transform = whiten
         prefix = "in the Kalman innovations under the model's noise: "
-    moments = innovations_profile(model, rec, white or float(model.base.noise_sd) or 1.0, sto, seen=part)
+    moments = innovations_profile(model, rec, white or float(model.base.noise_sd) or 1.0, sto, seen=part,
+                                  residual=r)
     sd, dof = white_floor(x, rate, sample_var=None if moments is None else moments[0])
     if not (np.isfinite(sd) and sd > 0):
         return ()

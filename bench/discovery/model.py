@@ -164,20 +164,22 @@ class Model:
                 v = e.residual_var(p, math.sqrt(v))
         return math.sqrt(v)
 
-    def residual_profile(self, rec: Record, wander_sd: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def residual_profile(self, rec: Record, wander_sd: float = 0.0,
+                         offset: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(variance, fourth central moment) of ``y − predict`` per sample on rec: ``noise_sd²``
         and Gaussian everywhere without an output stage; through a coarse quantizer or a clipping
         they follow where the signal sits (``Effect.residual_moments_at``) — a reading on a
         lattice level barely moves and then by a whole step, one between two levels flips.
         ``wander_sd``: sd of the slow offset the model's random processes add before the output
-        stage (it moves the signal along the lattice)."""
+        stage (it moves the signal along the lattice); ``offset``: where they moved it, estimated
+        on the record (sensor unit, per sample) — the wander is then that estimate's own error."""
         b = self.base
         var = np.full(rec.n, b.noise_sd ** 2)
         m4 = 3 * var * var
         if not self.has_output_stage():
             return var, m4
         u, add = self.stages(rec)
-        y = b.bias + b.scale_factor * u + add
+        y = b.bias + b.scale_factor * u + add + (0.0 if offset is None else np.asarray(offset, float))
         sd = b.noise_sd
         for e, p in self.entries():
             if e.stage == "output":

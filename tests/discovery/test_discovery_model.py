@@ -198,6 +198,25 @@ def test_residual_profile_follows_the_quantizer_lattice_and_is_flat_without_one(
     assert prof2[:500] == pytest.approx(1e-8) and np.all(prof2[500:] < 1e-12)
 
 
+@settings(max_examples=20, deadline=None)
+@given(shift=st.floats(-5e-3, 5e-3), seed=st.integers(0, 2 ** 16))
+def test_a_profile_moved_by_an_offset_is_the_profile_of_the_moved_signal(shift, seed):
+    """``residual_profile(offset=…)``: the signal before the output stage moved sample by sample
+    (where a random process took it) — a constant offset is a bias, and a varying one moves each
+    sample on the lattice: the profile of an offset path is the moved model's sample by sample."""
+    rng = np.random.default_rng(seed)
+    rec = _rec(400, input=np.linspace(-1e-2, 1e-2, 400))
+    m = Model(BaseModel("gyro", noise_sd=1e-4)).with_effect("quantization", {"step": 1e-3})
+    moved = m.with_base(bias=m.base.bias + shift)
+    for got, want in zip(m.residual_profile(rec, offset=np.full(400, shift)), moved.residual_profile(rec)):
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-30)
+    path = rng.normal(0.0, 2e-3, 400)
+    v, _ = m.residual_profile(rec, offset=path)
+    for i in rng.integers(0, 400, 5):
+        at = m.with_base(bias=m.base.bias + path[i]).residual_profile(rec)[0][i]
+        assert v[i] == pytest.approx(at, rel=1e-9, abs=1e-30)
+
+
 @settings(max_examples=5, deadline=None)
 @given(step_sd=st.floats(1.0, 17.0), slope=st.floats(5e-9, 5e-8), seed=st.integers(0, 2 ** 16))
 def test_predict_of_a_quantized_record_is_its_mean_reading(step_sd, slope, seed):

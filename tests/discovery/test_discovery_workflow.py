@@ -965,3 +965,16 @@ def test_jumps_and_a_gauss_markov_give_way_to_the_walk_that_explains_them_alone(
     rec2, truth2 = _scorecard_record(monkeypatch, "accelerometer",
                                      ("scale_factor_asymmetry", "bias_jump", "gauss_markov"), 3009)
     assert unjumped(calibrate(truth2, rec2), rec2) is None
+
+
+def test_a_walk_behind_a_coarse_quantizer_is_judged_where_it_moved_the_signal(monkeypatch):
+    """The scorecard's gyro triple quantizer (steps of 6 noise sd) + g-sensitivity + walk (seed
+    3004 of ``--pairs 4 --triples 30``): the walk moves the signal about a step along the lattice
+    in 300 s, and the readings flip only while it sits near a threshold. The innovation profile
+    averaged that over the walk's whole spread, so a stretch the walk spent near a threshold read
+    1.26× the floor under every process — all three were set aside and three jumps and a
+    Gauss–Markov were named. Judged where the processes' one-step prediction places the signal
+    (``innovations_profile(residual=…)``), a process's signature holds and a process is named."""
+    naming = _named_at_step(monkeypatch, "gyro", ("quantization", "g_sensitivity", "rate_random_walk"), 3004, 2)
+    assert naming.set_aside == ()
+    assert naming.best is not None and naming.best.stochastic
