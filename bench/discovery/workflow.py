@@ -305,7 +305,7 @@ def _exact_m2ll(model: Model, rec: Record, seen: np.ndarray | None) -> float:
     return 2 * nll
 
 
-def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset()
+def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), named: frozenset[str] | None = None
              ) -> tuple[Model, str, tuple[str, ...], str] | None:
     """Level steps named beside or instead of a random process (``Effect.level_steps``: a jump's
     few level changes, which a process's wander also makes) that a single catch-all process
@@ -321,8 +321,10 @@ def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset()
     the rest of the wander (accelerometer misalignment + clip + walk: three jumps and a GM beat
     the walk alone by 45.9 for 7 parameters more, the gate 76; three real jumps beside a real GM
     beat every process alone by 77–1350 on seven samples' records). Behind a coarse quantizer
-    too: the Gaussian likelihood does not hold there, but both explanations are judged on it."""
-    entries = model.entries()
+    too: the Gaussian likelihood does not hold there, but both explanations are judged on it.
+    ``named``: the effects the discovery named (default: all) — only those are replaced; a
+    process of the starting model stays, known, beside the one fitted."""
+    entries = [(e, p) for e, p in model.entries() if named is None or e.id in named]
     if not any(e.level_steps for e, _ in entries):
         return None
     kind = model.base.kind
@@ -330,8 +332,8 @@ def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset()
     seen = model.partly_seen(rec)
     here = _exact_m2ll(model, rec, seen)
     gone = tuple(e.id for e, _ in entries if e.level_steps or e.stochastic)
-    k_here = sum(len(e.free_params(p, kind, rec)) for e, p in entries if e.level_steps and not e.stochastic)
-    k_here += sum(e.n_coords for e, _ in model.stochastic_effects())
+    k_here = sum(e.n_coords if isinstance(e, StochasticEffect) else len(e.free_params(p, kind, rec))
+                 for e, p in entries if e.id in gone)
     try:
         rest = calibrate(Model(model.base, tuple(ep for ep in model.effects if ep[0] not in gone)), rec)
     except ValueError:
@@ -342,7 +344,9 @@ def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset()
     for eid, eff in CATALOGUE.items():
         if not (isinstance(eff, StochasticEffect) and eff.catch_all and kind in eff.kinds) or eid in exclude:
             continue
-        fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, bootstrap=False)
+        if eid in rest.effect_ids:
+            continue
+        fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=rest.stochastic_effects(), bootstrap=False)
         if not np.isfinite(fit.white_sd):
             continue
         alt = rest.with_effect(eid, fit.params_for(kind))
@@ -720,7 +724,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                     gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
                     step = _step_in_place(model, without, naming_l, rec, seed, (gap_cur, rms_cur, r_cur))
                     steps = [st if st.effect_id != swapped.dropped else step for st in steps]
-            unj = unjumped(model, rec, frozenset(withdrawn_ids))
+            unj = unjumped(model, rec, frozenset(withdrawn_ids), frozenset(st.effect_id for st in steps))
             if unj is not None:
                 new_model, into, gone, why = unj
                 without = Model(new_model.base, tuple(ep for ep in new_model.effects if ep[0] != into))

@@ -962,6 +962,9 @@ def test_jumps_and_a_gauss_markov_give_way_to_the_walk_that_explains_them_alone(
     assert into == "rate_random_walk" and set(gone) == {"bias_jump", "gauss_markov"}, why
     assert alt.effect_ids == ("saturation", "misalignment", "rate_random_walk")
     assert unjumped(model, rec, exclude=frozenset({"rate_random_walk", "gauss_markov", "flicker_noise"})) is None
+    # a process of the starting model (not named by the discovery) stays, known, beside the one fitted
+    kept = unjumped(model, rec, named=frozenset({"saturation", "bias_jump", "misalignment"}))
+    assert kept is not None and kept[2] == ("bias_jump",) and "gauss_markov" in kept[0].effect_ids
     rec2, truth2 = _scorecard_record(monkeypatch, "accelerometer",
                                      ("scale_factor_asymmetry", "bias_jump", "gauss_markov"), 3009)
     assert unjumped(calibrate(truth2, rec2), rec2) is None
