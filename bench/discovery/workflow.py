@@ -291,12 +291,11 @@ def _exact_m2ll(model: Model, rec: Record, seen: np.ndarray | None) -> float:
     """−2 ln L of ``model``'s residual (the samples ``seen``; None: all) with the white level and
     each random process's parameters at their exact maximum likelihood (in turn, the others at
     their values; without a process the white level's), the constant left out."""
-    x = seen_only(rec.y - model.predict(rec), seen)
-    x = x - float(np.nanmean(x))
+    x = seen_only(rec.y - model.predict(rec), seen)  # the mean over the seen samples removed
     procs = list(model.stochastic_effects())
-    white = float(model.residual_sd()) or float(np.nanstd(x)) or 1.0
     if not procs:
         return 2 * exact_nll(x, rec.rate_hz, float(np.nanvar(x)) or 1.0, [])
+    white = float(model.residual_sd()) or float(np.nanstd(x)) or 1.0
     nll = math.inf
     for k, (eff, p) in enumerate(procs):
         others = procs[:k] + procs[k + 1:]
@@ -342,9 +341,8 @@ def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), n
     seen_r = rest.partly_seen(rec)
     best: tuple[float, Model, str, str] | None = None
     for eid, eff in CATALOGUE.items():
-        if not (isinstance(eff, StochasticEffect) and eff.catch_all and kind in eff.kinds) or eid in exclude:
-            continue
-        if eid in rest.effect_ids:
+        if (not (isinstance(eff, StochasticEffect) and eff.catch_all and kind in eff.kinds) or eid in exclude
+                or eid in rest.effect_ids):
             continue
         fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=rest.stochastic_effects(), bootstrap=False)
         if not np.isfinite(fit.white_sd):
