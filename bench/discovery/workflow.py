@@ -600,17 +600,26 @@ def _step_std(model: Model, rec: Record, naming_std: dict, at: int) -> dict:
     return dict(f.fit([x], max_nfev=1).params_std)
 
 
-def _step_in_place(model: Model, without: Model, naming: Naming, rec: Record, seed: int,
-                   after: tuple[Gap, float, np.ndarray]) -> Step:
-    """The :class:`Step` of ``naming.best`` named on ``without`` and standing in ``model`` (an
-    effect that took another's place once the names of a round were in): the gap before it is
-    ``without``'s, after it ``after`` (``model``'s gap, rms and residual)."""
-    assert naming.best is not None  # the caller checked it named the effect
+def _placed(alt: Model, into: str, rec: Record, alpha: float, seed: int, it: int, n_rep: int, fill_map: MapFn
+            ) -> tuple[Model, dict[str, float], tuple[Gap, float, float, np.ndarray], Step] | None:
+    """An effect ``into`` that took others' place in ``alt`` once the names of a round were in
+    (:func:`relooked`, :func:`unjumped`), named on its own evidence: ``name_effect(only=…)`` on
+    ``alt`` without it (round ``it``'s seed) must name it, else None. Then (``alt`` with its
+    processes refitted, their p-values, its gap, the :class:`Step` of ``into`` — the gap before
+    it the model's without it)."""
+    at = alt.effect_ids.index(into)
+    without = Model(alt.base, alt.effects[:at] + alt.effects[at + 1:])
+    naming = name_effect(without, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=(into,), fill_map=fill_map)
+    if naming.best is None or naming.best.id != into:
+        return None
+    model, process_p = refit_processes(alt, rec, alpha)
+    after = gap_of(model, rec, seed)
     g0, rms0, _, r0 = gap_of(without, rec, seed)
-    g1, rms1, r1 = after
-    at = model.effect_ids.index(naming.best.id)
-    return Step(naming.best.id, dict(model.effects[at][1]), _step_std(model, rec, naming.best.params_std, at),
+    g1, rms1, _, r1 = after
+    at = model.effect_ids.index(into)
+    step = Step(into, dict(model.effects[at][1]), _step_std(model, rec, naming.best.params_std, at),
                 naming.best.p_value, g0, g1, rms0, rms1, naming, _structure(without, rec, r0), r0, r1)
+    return model, process_p, after, step
 
 
 def _fmt(v: float) -> str:
@@ -709,35 +718,25 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                 model, process_p = refit_processes(moved, rec, alpha)
                 gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
             swapped = relooked(model, rec, frozenset(withdrawn_ids))
-            if swapped is not None:
-                at = swapped.model.effect_ids.index(swapped.into)
-                without = Model(swapped.model.base, swapped.model.effects[:at] + swapped.model.effects[at + 1:])
-                naming_l = name_effect(without, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=(swapped.into,),
-                                       fill_map=fill_map)
-                if naming_l.best is not None and naming_l.best.id == swapped.into:
-                    say(f"swapped: {swapped.dropped} for its look-alike {swapped.into}")
-                    withdrawn.append(f"{swapped.dropped}: {swapped.why}")
-                    withdrawn_ids.add(swapped.dropped)
-                    model, process_p = refit_processes(swapped.model, rec, alpha)
-                    gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
-                    step = _step_in_place(model, without, naming_l, rec, seed, (gap_cur, rms_cur, r_cur))
-                    steps = [st if st.effect_id != swapped.dropped else step for st in steps]
+            placed = None if swapped is None else _placed(swapped.model, swapped.into, rec, alpha, seed, it, n_rep,
+                                                          fill_map)
+            if swapped is not None and placed is not None:
+                say(f"swapped: {swapped.dropped} for its look-alike {swapped.into}")
+                withdrawn.append(f"{swapped.dropped}: {swapped.why}")
+                withdrawn_ids.add(swapped.dropped)
+                model, process_p, (gap_cur, rms_cur, floor, r_cur), step = placed
+                steps = [st if st.effect_id != swapped.dropped else step for st in steps]
             unj = unjumped(model, rec, frozenset(withdrawn_ids), frozenset(st.effect_id for st in steps))
-            if unj is not None:
-                new_model, into, gone, why = unj
-                without = Model(new_model.base, tuple(ep for ep in new_model.effects if ep[0] != into))
-                naming_j = name_effect(without, rec, alpha=alpha, seed=seed + it, n_rep=n_rep, only=(into,),
-                                       fill_map=fill_map)
-                if naming_j.best is not None and naming_j.best.id == into:
-                    say(f"unjumped: {', '.join(gone)} for {into} alone")
-                    for g in gone:
-                        if g != into:
-                            withdrawn.append(f"{g}: {why}")
-                            withdrawn_ids.add(g)
-                    model, process_p = refit_processes(new_model, rec, alpha)
-                    gap_cur, rms_cur, floor, r_cur = gap_of(model, rec, seed)
-                    step = _step_in_place(model, without, naming_j, rec, seed, (gap_cur, rms_cur, r_cur))
-                    steps = [st for st in steps if st.effect_id not in gone] + [step]
+            placed = None if unj is None else _placed(unj[0], unj[1], rec, alpha, seed, it, n_rep, fill_map)
+            if unj is not None and placed is not None:
+                _, into, gone, why = unj
+                say(f"unjumped: {', '.join(gone)} for {into} alone")
+                for g in gone:
+                    if g != into:
+                        withdrawn.append(f"{g}: {why}")
+                        withdrawn_ids.add(g)
+                model, process_p, (gap_cur, rms_cur, floor, r_cur), step = placed
+                steps = [st for st in steps if st.effect_id not in gone] + [step]
             merged = renested(model, rec, alpha) or unnested(model, rec, alpha)
             added_steps = [] if merged is None else _named_as_merged(merged, rec, alpha, seed + it, n_rep, fill_map)
             if merged is not None and added_steps is not None:
