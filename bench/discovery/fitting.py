@@ -332,8 +332,10 @@ class CandidateFitter:
             if c0 < best_cost:
                 best_x, best_cost = x0, c0
             try:
+                # no xtol: scipy compares a step with the norm of the whole coordinate vector, which
+                # a jump's times (≈1e3 s) dominate — a bias step of 1e-5 g read as converged
                 res = optimize.least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=self.x_scale(),
-                                             max_nfev=max_nfev, method="trf")
+                                             max_nfev=max_nfev, method="trf", xtol=None)
             except (ValueError, np.linalg.LinAlgError):
                 continue
             c = float(np.sum(res.fun ** 2))
