@@ -74,7 +74,11 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     walk the warm-up looks typical) — nor, explaining more than the process at all, leaves
     nothing of the process's evidence beside it (the process refitted to its residual is not
     significant, p ≥ ``alpha``; a walk of 6e-8 g/√s made two 3e-6-g jumps look typical and
-    vanished beside them, p = 1); when it is the process's, a named non-localized
+    vanished beside them, p = 1; level steps explaining more are taken at once: a process that
+    holds beside them is named next, and ``workflow.unjumped`` weighs both against one process
+    alone once the names are in). A localized candidate has this turn even when a non-localized
+    one scored above it and lost to the process (a temperature bias scored 0.01 above two jumps
+    a walk had taken). When it is the process's, a named non-localized
     deterministic candidate whose held-out score ties with it (``tie(localized, other)``: within
     one paired standard error) is judged in its place (three jumps along a Gauss–Markov's wander
     scored 0.001 above a temperature term) — not one it clearly out-scored (a temperature term
@@ -139,6 +143,7 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
     white0 = sto.white_nll(rec.y - model.predict(rec), rec.dt_s, known)
     failed: Trial | None = None  # the first localized candidate the process made look typical
     coloured = model.colours_residual()
+    lost = False  # a non-localized candidate lost to the process: the localized ones still have their turn
     for d in det:
         if d.resid_full is None:
             continue
@@ -146,13 +151,18 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
             continue  # another localized shape for the structure the process made look typical
         if failed is not None and (tie is None or not tie(failed, d)):
             break
+        if lost and not d.effect.localized(rec):
+            continue
         lr_d = 2.0 * (white0 - sto.white_nll(d.resid_full, rec.dt_s, known))
         bic_d = lr_d - math.log(rec.n / 2) * len(d.effect.params_for(kind))
         r_d = d.resid_full - d.resid_full.mean()
         if not d.effect.localized(rec):
             pick, beside = _versus_process(d, s, sto_, rec, kind, known, bic_d, r_d, det_p_under, alpha)
             if pick is s:
-                return pair_over_process(det, s, rec, kind, known, white0, pair, alpha) or s, None
+                # a localized explanation scored below it is still tested first (a temperature
+                # bias lost to a walk that had taken two jumps, scored 0.01 above them)
+                lost = True
+                continue
             return pick, beside
         if det_p_under is None or det_p_under(s, d) < alpha:
             return d, None
@@ -170,11 +180,16 @@ def preferred(named: Sequence[Trial], model: Model, rec: Record, kind: str,
         # first excursion "improved" the walk's own likelihood by 57 on a record of a walk alone
         if bic_d > s.bic_gain + MIN_SNR ** 2:
             return d, None
-        # both explain the structure, the term more than the process on their common likelihood,
-        # and the process refitted beside the term is not significant there at all (p ≥ alpha):
-        # its colour was the term's (the stricter test of a non-localized term — p < SURVIVE_P and
-        # a tenth of its statistic kept — named three jumps for a walk's wander on a gyro, and the
-        # walk was named beside them at the next step)
+        # level steps (jumps) that explain more than the process on their common likelihood: a
+        # process that holds beside them is named next, and once the names are in
+        # workflow.unjumped weighs the steps and processes against one process alone (three jumps
+        # beside a real Gauss–Markov lost here to a walk that stayed significant beside them)
+        if bic_d > s.bic_gain and d.effect.level_steps:
+            return d, None
+        # another term (a warm-up) explains more than the process, and the process refitted beside
+        # it is not significant there at all (p ≥ alpha): its colour was the term's (the stricter
+        # test of a non-localized term — p < SURVIVE_P and a tenth of its statistic kept — named a
+        # term for a walk's wander, and the walk was named beside it at the next step)
         if bic_d > s.bic_gain:
             after = sto.fit_stochastic(r_d, rec.dt_s, s.effect, known=known, bootstrap=False)
             if after.p_value >= alpha:
