@@ -681,6 +681,13 @@ class Effect:
         parameters in use than ``p`` has; [] when its fit is no such search (default)."""
         return []
 
+    def searched(self, p: Mapping[str, float]) -> int:
+        """How many of the free parameters at ``p`` a search over the whole record placed (a
+        jump's times): a likelihood maximised over a location gains more than a parameter's
+        ln(n/2), and a BIC that weighs such a term against a random process charges each twice (as
+        the modified BIC of change points does); 0 by default."""
+        return 0
+
     def reduced(self, p: Mapping[str, float], nested: str, kind: str) -> list[Params]:
         """Starts for the effect ``nested`` (one of :attr:`nests`) standing alone for this effect at
         ``p`` — the workflow tries the model with it in this one's place when a random process

@@ -107,6 +107,10 @@ class BiasJump(Effect):
         """Number of jumps (non-zero sizes)."""
         return sum(p[f"size_{k}"] != 0.0 for k in range(1, MAX_JUMPS + 1))
 
+    def searched(self, p: Mapping[str, float]) -> int:
+        """Each jump's time was found by a change-point search."""
+        return self.count(p)
+
     def identity_params(self, p: Params) -> Params:
         return dict(p) | {f"size_{k}": 0.0 for k in range(1, MAX_JUMPS + 1)}
 
