@@ -436,8 +436,8 @@ def grown(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), name
     MIN_SNR²``, what :func:`unjumped` asks of a term against a process). Jumps at 48 and 170 s
     kept a two-node's fit off at the first step, a warm-up was named (the simpler shape within a
     standard error) and a walk took the slow node after the jumps (gyro jumps + misalignment +
-    two-node: the two-node alone beats the warm-up and the walk by 227, gate 32). Real warm-ups
-    beside real processes lost 28-2360 to the two-node alone on 29 records of ten samples. Not
+    two-node: the two-node alone beats the warm-up and the walk by 227, gate 32). Every other warm-up
+    named beside a process on ten samples (29 records, most of them real) lost 28-2360 to it. Not
     behind a coarse quantizer. Returns (the model with the nesting shape, its id, the ids it
     replaces, why) or None."""
     if model.colours_residual():
