@@ -306,7 +306,10 @@ def _exact_m2ll(model: Model, rec: Record, seen: np.ndarray | None) -> float:
 
 def _slow(e: Effect) -> bool:
     """Level steps or a deterministic catch-all (a drift): slow structure a random process's
-    wander also makes, weighed against one process alone by :func:`unjumped`."""
+    wander also makes, weighed against one process alone by :func:`unjumped`. For a drift the
+    gate is not sharp: it took a walk named as drift + Gauss–Markov back to the walk on three
+    records of six samples, and read a real drift beside a real Gauss–Markov as a walk on two
+    (gyro drift + delay + GM, stop 29's usual 3002 and second 3005)."""
     return e.level_steps or (e.catch_all and not e.stochastic)
 
 
