@@ -304,6 +304,13 @@ def _exact_m2ll(model: Model, rec: Record, seen: np.ndarray | None) -> float:
     return 2 * nll
 
 
+def _size_gate(n: int, dk: int) -> float:
+    """What a term must gain in −2 ln L over a random process for ``dk`` parameters more — their
+    BIC and the size gate, ``ln(n/2)·dk + MIN_SNR²`` — the one gate of :func:`unjumped`,
+    :func:`jumped` and :func:`grown`, read from either side."""
+    return math.log(n / 2) * dk + MIN_SNR ** 2
+
+
 def _slow(e: Effect) -> bool:
     """Level steps or a deterministic catch-all (a drift): slow structure a random process's
     wander also makes, weighed against one process alone by :func:`unjumped`. For a drift the
@@ -362,7 +369,7 @@ def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), n
         alt = rest.with_effect(eid, fit.params_for(kind))
         there = _exact_m2ll(alt, rec, seen_r)
         dk = k_here - eff.n_coords
-        gate = math.log(n / 2) * dk + MIN_SNR ** 2
+        gate = _size_gate(n, dk)
         if there - here <= gate and (best is None or there + math.log(n / 2) * eff.n_coords < best[0]):
             why = (f"{eid} alone explains the record as well once the others are named "
                    f"(−2 ln L {there - here:+.3g} with {dk} parameter(s) fewer; at most ln(n/2)·Δk + "
@@ -411,7 +418,7 @@ def jumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), nam
         there = _exact_m2ll(alt, rec, alt.partly_seen(rec))
         p = dict(alt.effects[alt.effect_ids.index(eff.id)][1])
         dk = len(eff.free_params(p, kind, rec)) + eff.searched(p) - proc.n_coords
-        gate = math.log(n / 2) * dk + MIN_SNR ** 2
+        gate = _size_gate(n, dk)
         if here - there <= gate or (best is not None and there >= best[0]):
             continue
         r = rec.y - alt.predict(rec)
@@ -420,8 +427,7 @@ def jumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), nam
             continue  # the process holds beside them: a walk's wander, one step of which the jumps took
         why = (f"{eff.id} in its place explain the record better once the others are named "
                f"(−2 ln L {there - here:+.3g} with {dk} parameter(s) more, each searched time twice; "
-               f"beyond ln(n/2)·Δk + "
-               f"{MIN_SNR ** 2:.3g} = {gate:.3g}), and {proc.id} keeps nothing beside them")
+               f"beyond ln(n/2)·Δk + {MIN_SNR ** 2:.3g} = {gate:.3g}), and {proc.id} keeps nothing beside them")
         best = (there, alt, eff.id, why)
     if best is None:
         return None
@@ -466,7 +472,7 @@ def grown(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), name
             there = _exact_m2ll(alt, rec, alt.partly_seen(rec))
             dk = len(big.free_params(alt.effects[i][1], kind, rec)) - len(e.free_params(p, kind, rec)) \
                 - sum(x.n_coords for x in procs)
-            gate = math.log(n / 2) * dk + MIN_SNR ** 2
+            gate = _size_gate(n, dk)
             if here - there > gate and (best is None or there < best[0]):
                 gone = (e.id, *(x.id for x in procs))
                 why = (f"{big.id} alone explains the record better once the others are named (−2 ln L "
@@ -735,8 +741,9 @@ def _step_std(model: Model, rec: Record, naming_std: dict, at: int) -> dict:
 def _placed(alt: Model, into: str, rec: Record, alpha: float, seed: int, it: int, n_rep: int, fill_map: MapFn
             ) -> tuple[Model, dict[str, float], tuple[Gap, float, float, np.ndarray], Step] | None:
     """An effect ``into`` that took others' place in ``alt`` once the names of a round were in
-    (:func:`relooked`, :func:`unjumped`), named on its own evidence: ``name_effect(only=…)`` on
-    ``alt`` without it (round ``it``'s seed) must name it, else None. Then (``alt`` with its
+    (:func:`relooked`, :func:`unjumped`, :func:`jumped`, :func:`grown`), named on its own
+    evidence: ``name_effect(only=…)`` on ``alt`` without it (round ``it``'s seed) must name it,
+    else None. Then (``alt`` with its
     processes refitted, their p-values, its gap, the :class:`Step` of ``into`` — the gap before
     it the model's without it)."""
     at = alt.effect_ids.index(into)
