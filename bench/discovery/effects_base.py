@@ -666,15 +666,18 @@ class Effect:
 
     # ---- fit starts -------------------------------------------------------------------
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
-                   rows: np.ndarray | None = None) -> list[Params]:
+                   rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
         """Initial guesses for a nonlinear fit of this effect to ``residual`` (best first) on the
         samples ``rows`` (default all; the others are not looked at): the :data:`N_STARTS` best
-        points of a grid over its nonlinear parameters (:func:`grid_starts`)."""
+        points of a grid over its nonlinear parameters (:func:`grid_starts`). ``held_out``: the
+        samples a fold holds out, when ``rows`` is a fold's training blocks (None: no fold) —
+        ``rows`` may miss more (samples a clip hides), and a start that reads the fold's own
+        pattern (:class:`SinusoidalInterference`'s alias lines) reads it here."""
         r = np.asarray(residual, float) if rows is None else np.where(rows, residual, 0.0)
         return grid_starts(self, rec, r, kind or guess_kind(rec))
 
     def searched_starts(self, p: Mapping[str, float], rec: Record, residual: np.ndarray, *, kind: str,
-                        rows: np.ndarray | None = None) -> list[Params]:
+                        rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
         """Starts for this effect at ``p`` from a fresh search of ``residual`` (what the model
         leaves without it) that a least-squares refit from ``p`` cannot make — a jump's time is
         refined within its sample, never moved to another change point — with no more

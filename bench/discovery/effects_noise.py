@@ -234,7 +234,7 @@ class GaussMarkov(StochasticEffect):
         return p.get("tau_s", 0.0) < rec.duration_s / 5
 
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
-                   rows: np.ndarray | None = None) -> list[Params]:
+                   rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
         """sigma from the residual's sd after the white part (lag-1 covariance), tau_s where the
         autocorrelation falls to e^{−1} of its lag-1 value, and that tau ×/÷ 3."""
         r = project_out(np.asarray(residual, float), base_regressors(rec))
@@ -318,7 +318,7 @@ class RateRandomWalk(StochasticEffect):
         return _allan_z(lambda t: k * k * t / 3.0, rec, noise_sd)
 
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
-                   rows: np.ndarray | None = None) -> list[Params]:
+                   rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
         """K from the growth of var(r[k+m] − r[k]) between lags n/10 and n/5 (the white part
         cancels in the difference), and ×/÷ 3."""
         r = np.asarray(residual, float)
@@ -442,7 +442,7 @@ class FlickerNoise(StochasticEffect):
         return p.get("tau_min_s", 0.0) < rec.duration_s / 20
 
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
-                   rows: np.ndarray | None = None) -> list[Params]:
+                   rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
         """B from the residual's Allan variance at the longest τ with 9 clusters (its flat floor)."""
         r = np.asarray(residual, float) - float(np.mean(residual))
         m = max(1, rec.n // 9)
@@ -523,7 +523,7 @@ class AngleQuantization(StochasticEffect):
         return 0.0, top
 
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
-                   rows: np.ndarray | None = None) -> list[Params]:
+                   rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
         """Q from the residual's negative lag-1 covariance: cov(1) = −Q²/dt²."""
         r = np.asarray(residual, float) - float(np.mean(residual))
         c1 = float(np.mean(r[1:] * r[:-1]))

@@ -188,7 +188,7 @@ class ThermalTwoNode(Effect):
         return math.sqrt(vdot(delta, delta)) / noise_sd
 
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,
-                   rows: np.ndarray | None = None) -> list[Params]:
+                   rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
         """A grid of (tau_fast, tau_slow ≥ 2·tau_fast) over five samples … half the record, the two
         amplitudes by least squares with the base regressors projected out; the three best.
 

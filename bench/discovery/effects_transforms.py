@@ -330,13 +330,13 @@ class Saturation(Effect):
         """Inside the limit: a clipped reading is the limit, whatever the noise."""
         return np.abs(np.asarray(y, float)) < p["limit"]
 
-    def fit_starts(self, rec, residual, *, kind=None, rows=None):
+    def fit_starts(self, rec, residual, *, kind=None, rows=None, held_out=None):
         """The grid's starts after the readings' own extreme on ``rows`` (the clipped readings
         sit at the limit): the grid scores limits on the residual of a model whose scale factor
         the clip has shrunk (0.73 on a tumble clipped at 0.61 g), and a limit above that model's
         whole signal clips nothing, where a fit cannot move it (the held-out fits of such a
         clip scored 0: nothing named)."""
-        starts = super().fit_starts(rec, residual, kind=kind, rows=rows)
+        starts = super().fit_starts(rec, residual, kind=kind, rows=rows, held_out=held_out)
         y = np.asarray(rec.y, float) if rows is None else np.asarray(rec.y, float)[np.asarray(rows, bool)]
         q = self.param("limit", kind or guess_kind(rec))
         top = float(np.max(np.abs(y))) if y.size else math.nan

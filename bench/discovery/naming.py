@@ -125,7 +125,7 @@ def fit_waveform(model: Model, rec: Record, effect: Effect, r: np.ndarray, folds
         te = folds == k
         # starts from the training blocks alone: a shape (a frequency, a time constant) chosen
         # with the held-out samples in view would leak them into the held-out score
-        starts_k = effect.fit_starts(rec, r, kind=kind, rows=~te & seen)[:2]
+        starts_k = effect.fit_starts(rec, r, kind=kind, rows=~te & seen, held_out=te)[:2]
         fk_fitter = CandidateFitter(model, rec, effect, template=starts_k[0] if starts_k else None, rows=~te)
         fk = fk_fitter.fit([fk_fitter.pack(p, b0, s0) for p in starts_k], rows=~te, max_nfev=40, with_std=False)
         pred = fk_fitter.predict(fk.x)

@@ -269,7 +269,7 @@ def test_a_sines_fold_starts_skip_the_fold_patterns_lines_beside_a_random_walk(s
     pattern_bins = {23, 24, 25, 71, 72, 73, 119, 120, 121, 168, 216}  # 48 blocks: 24, 72 … cycles a record
     for k in (0, 1):
         train = sig.block_folds(n) != k
-        starts = eff.fit_starts(rec, y, kind="gyro", rows=train)
+        starts = eff.fit_starts(rec, y, kind="gyro", rows=train, held_out=~train)
         assert starts[0]["freq_hz"] == pytest.approx(0.157, abs=1.5 / (n / rate))
         assert not {round(s["freq_hz"] * n / rate) for s in starts[1:]} & pattern_bins
         f = CandidateFitter(base, rec, eff, template=starts[0], rows=train)
