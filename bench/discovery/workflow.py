@@ -52,6 +52,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
+from typing import NamedTuple
 
 import numpy as np
 from scipy import optimize
@@ -311,6 +312,16 @@ def _size_gate(n: int, dk: int) -> float:
     return math.log(n / 2) * dk + MIN_SNR ** 2
 
 
+class Swap(NamedTuple):
+    """What :func:`unjumped`, :func:`jumped` and :func:`grown` return: the model with ``into``
+    named in place of the effects ``gone`` (``into`` may be among them), and why."""
+
+    model: Model
+    into: str
+    gone: tuple[str, ...]
+    why: str
+
+
 def _slow(e: Effect) -> bool:
     """Level steps or a deterministic catch-all (a drift): slow structure a random process's
     wander also makes, weighed against one process alone by :func:`unjumped`. For a drift the
@@ -321,7 +332,7 @@ def _slow(e: Effect) -> bool:
 
 
 def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), named: frozenset[str] | None = None
-             ) -> tuple[Model, str, tuple[str, ...], str] | None:
+             ) -> Swap | None:
     """Level steps or a drift named beside or instead of a random process (``Effect.level_steps``:
     a jump's few level changes; a deterministic catch-all: a straight line — both of which a
     process's wander also makes, :func:`_slow`) that a single catch-all process alone explains
@@ -330,7 +341,7 @@ def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), n
     what it leaves by the exact likelihood — kept when the steps and processes do not beat it by
     more than the BIC of their extra parameters and the size gate
     (``Δ(−2 ln L) ≤ ln(n/2)·Δk + MIN_SNR²``: a jump's times are searched, as
-    :func:`.choosing.preferred` asks of a localized term against a process). Returns (the model
+    :func:`.choosing.preferred` asks of a localized term against a process). Returns a :class:`Swap` (the model
     with the process in their place, its id, the ids it replaces, why) or None. Jumps are named
     before any process whose signature fails while another term is still missing (a walk's
     innovations followed a misalignment's cross input), and a Gauss–Markov beside them takes
@@ -378,11 +389,11 @@ def unjumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), n
     if best is None:
         return None
     _, alt, eid, why = best
-    return alt, eid, gone, why
+    return Swap(alt, eid, gone, why)
 
 
 def jumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), named: frozenset[str] | None = None,
-           alpha: float = 0.05) -> tuple[Model, str, tuple[str, ...], str] | None:
+           alpha: float = 0.05) -> Swap | None:
     """The converse of :func:`unjumped`: a catch-all random process named alone for level steps
     (no level-steps effect named) that jumps in its place explain better once the names of a
     round are in — the jumps searched on what the model leaves without the process, fitted there
@@ -397,7 +408,7 @@ def jumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), nam
     :func:`.choosing.preferred` asks). One jump took a weak walk's largest step on an
     accelerometer K3 + hysteresis + walk and beat the walk by 34.2 (gate 32.3 with the time
     counted once, 39.6 twice); nothing of the walk was left beside it.
-    Returns (the model with the jumps in the process's place, their id, the process's id, why)
+    Returns a :class:`Swap` (the model with the jumps in the process's place, their id, the process's id, why)
     or None."""
     kind = model.base.kind
     if any(e.level_steps for e, _ in model.entries()) or model.colours_residual():
@@ -432,11 +443,11 @@ def jumped(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), nam
     if best is None:
         return None
     _, alt, eid, why = best
-    return alt, eid, (proc.id,), why
+    return Swap(alt, eid, (proc.id,), why)
 
 
 def grown(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), named: frozenset[str] | None = None
-          ) -> tuple[Model, str, tuple[str, ...], str] | None:
+          ) -> Swap | None:
     """A named shape and the catch-all processes named beside it replaced by the shape that nests
     it alone (a warm-up and a walk by a two-node transient, ``Effect.nests``) once the names of a
     round are in: the nesting shape fitted in the named one's place on what the model leaves
@@ -447,7 +458,7 @@ def grown(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), name
     standard error) and a walk took the slow node after the jumps (gyro jumps + misalignment +
     two-node: the two-node alone beats the warm-up and the walk by 227, gate 32). Every other warm-up
     named beside a process on ten samples (29 records, most of them real) lost 28-2360 to it. Not
-    behind a coarse quantizer. Returns (the model with the nesting shape, its id, the ids it
+    behind a coarse quantizer. Returns a :class:`Swap` (the model with the nesting shape, its id, the ids it
     replaces, why) or None."""
     if model.colours_residual():
         return None
@@ -482,7 +493,7 @@ def grown(model: Model, rec: Record, exclude: frozenset[str] = frozenset(), name
     if best is None:
         return None
     _, alt, into, gone, why = best
-    return alt, into, gone, why
+    return Swap(alt, into, gone, why)
 
 
 def _m2ll(model: Model, rec: Record, r: np.ndarray | None = None, seen: np.ndarray | None = None) -> float:
@@ -870,14 +881,14 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
             # gates are one, from either side)
             for name, swap in (("unjumped", unjumped), ("jumped", partial(jumped, alpha=alpha)), ("grown", grown)):
                 out = swap(model, rec, frozenset(withdrawn_ids), frozenset(st.effect_id for st in steps))
-                placed = None if out is None else _placed(out[0], out[1], rec, alpha, seed, it, n_rep, fill_map)
+                placed = None if out is None else _placed(out.model, out.into, rec, alpha, seed, it, n_rep, fill_map)
                 if out is None or placed is None:
                     continue
-                _, into, gone, why = out
-                say(f"{name}: {', '.join(gone)} for {into}")
+                gone = out.gone
+                say(f"{name}: {', '.join(gone)} for {out.into}")
                 for g in gone:
-                    if g != into:
-                        withdrawn.append(f"{g}: {why}")
+                    if g != out.into:
+                        withdrawn.append(f"{g}: {out.why}")
                         withdrawn_ids.add(g)
                 model, process_p, (gap_cur, rms_cur, floor, r_cur), step = placed
                 steps = [st for st in steps if st.effect_id not in gone] + [step]
