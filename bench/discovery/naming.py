@@ -192,7 +192,7 @@ def shape_ranked(named: list[Trial], model: Model, rec: Record, r: np.ndarray) -
     with a random process (``--pairs 0``…``12``, the effects at their truth) and 72 singles,
     ranking those two by the exact likelihood had the shape wrong 17 times the Whittle order had it
     right (flicker read as a Gauss–Markov 10, a walk as flicker 5, as a GM 2), and right 5 times it
-    was wrong (Gauss–Markov): 443 right for 431."""
+    was wrong (Gauss–Markov): 443 right for 431 (``benchmarks/discovery_shape_calls.py``)."""
     procs = [t for t in named if t.effect.stochastic and np.isfinite(t.bic_gain)]
     if len(procs) < 2:
         return named

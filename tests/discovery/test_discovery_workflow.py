@@ -1166,3 +1166,21 @@ def test_a_sine_slower_than_the_fold_blocks_without_a_clip_keeps_the_periodogram
     rec, truth = _scorecard_record(monkeypatch, "accelerometer", hidden, 3015)
     naming = name_effect(calibrate(Model(truth.base), rec), rec, seed=3015)
     assert naming.best is not None and naming.best.id == "sinusoidal_interference"
+
+
+def test_the_shape_call_script_reads_the_rules_it_compares(monkeypatch):
+    """``benchmarks/discovery_shape_calls.py``: the exact likelihood decides a close call under
+    ``exact-any`` whenever two shapes are in it, under ``exact-all`` (``naming.shape_ranked``) only
+    when every named shape is; the report counts a record only when the truth was named."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    calls = importlib.import_module("discovery_shape_calls")
+    two_close = [{"id": "flicker_noise", "bic": 732.5, "shape": 69737.3},
+                 {"id": "gauss_markov", "bic": 730.7, "shape": 69740.4},
+                 {"id": "rate_random_walk", "bic": 703.4, "shape": math.nan}]
+    assert calls.RULES["exact-any"](two_close) == "gauss_markov"
+    assert calls.RULES["exact-all"](two_close) == calls.RULES["whittle"](two_close) == "flicker_noise"
+    all_close = [dict(t, shape=69730.0) if t["id"] == "rate_random_walk" else t for t in two_close]
+    all_close[2]["bic"] = 730.0
+    assert calls.RULES["exact-all"](all_close) == calls.RULES["exact-any"](all_close) == "gauss_markov"
+    jobs = calls.jobs_for([0], 0)
+    assert jobs and all(len(j[1]) == 3 and set(j[1]) & set(calls.SHAPES) for j in jobs)
