@@ -457,10 +457,12 @@ class SinusoidalInterference(Effect):
         order = idx[np.argsort(ratio[idx], kind="stable")[::-1]]
         # the fold pattern's lines: a start only as the strongest line
         order = np.r_[order[:1], [i for i in order[1:] if not alias[i]]].astype(int)
-        used: list[int] = []
+        used: list[int] = []  # the strongest lines, three bins apart: as many as may be ranked
         for i in order:
             if not any(abs(i - j) < 3 for j in used):
                 used.append(int(i))
+                if len(used) == FOLD_LINES_RANKED:
+                    break
         qf = self.param("freq_hz", kind)
 
         def columns(i: int) -> np.ndarray:
