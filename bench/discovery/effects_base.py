@@ -677,7 +677,7 @@ class Effect:
         return grid_starts(self, rec, r, kind or guess_kind(rec))
 
     def searched_starts(self, p: Mapping[str, float], rec: Record, residual: np.ndarray, *, kind: str,
-                        rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
+                        rows: np.ndarray | None = None) -> list[Params]:
         """Starts for this effect at ``p`` from a fresh search of ``residual`` (what the model
         leaves without it) that a least-squares refit from ``p`` cannot make — a jump's time is
         refined within its sample, never moved to another change point — with no more

@@ -183,7 +183,7 @@ class BiasJump(Effect):
         return self._starts(rec, residual, kind or "accelerometer", rows, MAX_JUMPS)
 
     def searched_starts(self, p: Mapping[str, float], rec: Record, residual: np.ndarray, *, kind: str,
-                        rows: np.ndarray | None = None, held_out: np.ndarray | None = None) -> list[Params]:
+                        rows: np.ndarray | None = None) -> list[Params]:
         """The change points of ``residual`` again, at most as many as ``p`` has jumps: a jump
         placed beside a wrong warm-up (at 840 s for a step at 876 s) stays where its time was
         found once the right transient replaces the warm-up — its time moves within a sample."""
