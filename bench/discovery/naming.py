@@ -168,14 +168,14 @@ MC_CHUNK = 25
 MC_MAX_REP = 599
 
 
-#: Named random processes whose Whittle BIC gains lie within this of the best one are a close
+#: Named random processes whose Whittle BIC gains all lie within this of the best one are a close
 #: call of shape: their order is the exact likelihood's (:func:`shape_ranked`).
 SHAPE_TIE = 4.0
 
 
 def shape_ranked(named: list[Trial], model: Model, rec: Record, r: np.ndarray) -> list[Trial]:
-    """``named`` with ``shape_bic`` set on the random processes whose Whittle BIC gain is within
-    :data:`SHAPE_TIE` of the best named one's, when there are two or more: their exact (Kalman)
+    """``named`` with ``shape_bic`` set on its random processes when there are two or more and the
+    Whittle BIC gain of each is within :data:`SHAPE_TIE` of the best one's: their exact (Kalman)
     likelihood at the shape's own states, the model's processes beside them
     (:func:`.stochastic.exact_shape_bic`), by which :func:`.choosing.preferred` orders them. A
     Gauss–Markov whose plateau spans a few Fourier bins and a flicker band are a few Whittle
@@ -199,13 +199,12 @@ def shape_ranked(named: list[Trial], model: Model, rec: Record, r: np.ndarray) -
     seen = model.partly_seen(rec)
     clipped = seen is not None
     top = max(t.bic_gain for t in procs)
-    close = [t for t in procs if t.bic_gain >= top - SHAPE_TIE or clipped]
-    if len(close) < 2 or len(close) < len(procs):
+    if not clipped and any(t.bic_gain < top - SHAPE_TIE for t in procs):
         return named  # a shape clearly worse on the spectrum: its band resolves the shapes
     x = seen_only(r, seen)
     white = float(model.residual_sd()) or float(np.nanstd(x)) or 1.0
     known = model.stochastic_effects()
-    shape = {t.id: sto.exact_shape_bic(x, rec.dt_s, t.effect, t.params, white, known) for t in close}
+    shape = {t.id: sto.exact_shape_bic(x, rec.dt_s, t.effect, t.params, white, known) for t in procs}
     return [replace(t, shape_bic=shape[t.id]) if t.id in shape else t for t in named]
 
 

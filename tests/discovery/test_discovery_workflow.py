@@ -1117,8 +1117,8 @@ def test_a_sine_beside_a_clip_starts_its_fold_fits_at_its_line_not_a_sideband(mo
     samples; seed 3022 of ``--pairs 2``): on a fold's training blocks (6.25 s, shorter than the
     sine's period) the periodogram ranked the line's sidebands by the fold pattern (0.0367 and
     0.1967 Hz) above it, both folds started there and the sine scored −0.6 held out (its full
-    fit nailed it). Ranked by what each line explains of the blocks, the line starts both folds:
-    the sine is named at the third step."""
+    fit nailed it). Ranked by what each line explains of the rows beside the clip, the line
+    starts both folds: the sine is named at the third step."""
     hidden = ("temperature_bias", "sinusoidal_interference", "saturation")
     rec, truth = _scorecard_record(monkeypatch, "gyro", hidden, 3022)
     effects = dict(truth.effects)
