@@ -1,4 +1,4 @@
-"""EMD on a vibration-like record: bench.analysis.emd beside PyEMD's ``EMD().emd`` in the same run.
+"""EMD on a vibration-like record: bench.analysis.emd._emd beside PyEMD's ``EMD().emd`` in the same run.
 
     .venv/bin/python benchmarks/bench_emd.py [--samples 350000] [--pyemd-samples N] [--seed 7]
         [--repeats 1] [--stop sd]
@@ -91,7 +91,7 @@ def main() -> None:
     print(f"ours   first call on 64 samples (JIT compile or cache load): {time.perf_counter() - t0:.2f} s")
     ours_s, res = time_ours(x[: args.samples], args.repeats, args.stop)
     ours_sifts = sum(res.sifts)
-    print(f"ours   (bench.analysis.emd, stop={args.stop}): {args.samples} samples, {res.n_imfs} IMFs, "
+    print(f"ours   (bench.analysis.emd._emd, stop={args.stop}): {args.samples} samples, {res.n_imfs} IMFs, "
           f"{ours_sifts} siftings, {ours_s:.2f} s ({1e3 * ours_s / max(ours_sifts, 1):.2f} ms per sifting)")
     print(f"       siftings per IMF: {list(res.sifts)}")
     ref_s, ref_imfs, ref_res, ref_sifts = time_pyemd(x[:n_ref])

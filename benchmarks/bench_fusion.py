@@ -43,11 +43,10 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from bench.analysis import fusion as fu
-from bench.analysis import fusion_complementary as fc
-from bench.analysis import fusion_kernel
-from bench.analysis.fusion_analysis import analyze_fusion
-from bench.analysis.fusion_models import SensorModel
+from bench.analysis.fusion import SensorModel, analyze_fusion
+from bench.analysis.fusion import _complementary as fc
+from bench.analysis.fusion import _kernel as fusion_kernel
+from bench.analysis.fusion import _sequential as fu
 
 GOAL_S = 1.0
 FS_HZ = 10_000.0
@@ -59,9 +58,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 COLD_COMPILE = """
 import time, numpy as np
-from bench.analysis import fusion as fu
-from bench.analysis import fusion_complementary as fc
-from bench.analysis.fusion_models import FusionModel, SensorModel
+from bench.analysis.fusion import _sequential as fu
+from bench.analysis.fusion import _complementary as fc
+from bench.analysis.fusion import FusionModel, SensorModel
 model = FusionModel(SensorModel("highpass", 1, 2.5), SensorModel("lowpass", 2, 40.0), 100.0)
 params = fu.FusionParams(fu.AdaptiveNoise.from_noise(4e-4), fu.AdaptiveNoise.from_noise(1e-4))
 hf = np.random.default_rng(0).normal(size=(2, 100))

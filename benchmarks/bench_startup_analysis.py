@@ -1,4 +1,4 @@
-"""Start-up analysis on 10^6 samples: bench.analysis.analyze_startup beside the same steps in statsmodels.
+"""Start-up analysis on 10^6 samples: bench.analysis.startup.analyze_startup beside the same steps in statsmodels.
 
     .venv/bin/python benchmarks/bench_startup_analysis.py [--samples 1000000] [--noise ar|arma]
         [--seed 7] [--repeats 3] [--sm-grid-samples 20000] [--sm-final-samples N]
@@ -35,9 +35,8 @@ import warnings
 import numpy as np
 from scipy.signal import lfilter
 
-from bench.analysis import analyze_startup
-from bench.analysis import trend as trend_mod
-from bench.analysis.denoise import wavelet_denoise
+from bench.analysis.startup import _trend as trend_mod
+from bench.analysis.startup import analyze_startup, wavelet_denoise
 
 GOAL_S = 2.0
 FS_HZ = 100.0

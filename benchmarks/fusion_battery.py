@@ -8,7 +8,7 @@ Each pair (``tests/analysis/fusion_pairs.py``: corner ratio 3–300, sample rate
 up to a fifth of the sample rate, noise 1e-4…1e-1 of the signal, spikes, dropouts, clock skew
 and delay; sensors simulated as bilinear-transform digital filters at 16× the sample rate, then
 decimated — not the rig's closed-form physics) goes through
-:func:`bench.analysis.fusion_analysis.analyze_fusion` exactly as a CSV would (one time column,
+:func:`bench.analysis.fusion._analysis.analyze_fusion` exactly as a CSV would (one time column,
 ``hf``, ``lf``, ``ref``, the tones given).  On the judged part every method's output is then
 graded by the generator's own judge against the exact rate at the output's instants.
 
@@ -44,7 +44,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the generator lives with the tests, apart from the code it grades
 
-from bench.analysis.fusion_analysis import BASELINES, METHODS, analyze_fusion
+from bench.analysis.fusion import BASELINES, METHODS, analyze_fusion
 from tests.analysis.fusion_pairs import draw_spec, judge, make_pair
 
 #: the amplitude tests of :class:`~tests.analysis.fusion_pairs.Grade`, each once: the recommended

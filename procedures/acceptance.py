@@ -13,9 +13,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from bench.analysis.trend import Estimate
 from bench.core.spec import UnitSpec, convert
 from bench.core.step import Catalogue, Context, Limit, Step
+from bench.values import Estimate
 from procedures.catalogue import CATALOGUE
 from procedures.running import StationProcedure
 

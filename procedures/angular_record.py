@@ -14,7 +14,7 @@ Time stamps (bench-clock seconds, the instant of the start commands = ``t0``):
   carries the angle increment over its interval) on the sensor's nominal clock.
 
 Clock errors and latencies are not corrected here: that needs the reference and is the
-analysis' job (``bench.analysis.frf_timebase``, ``procedures.frf``).  On the simulated
+analysis' job (``bench.analysis.frf._timebase``, ``procedures.frf``).  On the simulated
 station the start commands reach every instrument at the same simulated instant; on
 hardware the commands' latencies would add start offsets of milliseconds that differ from
 record to record: there the DMM and the LF unit must be started by the table controller's

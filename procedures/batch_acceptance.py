@@ -12,10 +12,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from bench.analysis.trend import Estimate
 from bench.core.batch import BatchProcedure, BatchStep
 from bench.core.spec import UnitSpec
 from bench.core.step import Catalogue, Context
+from bench.values import Estimate
 from procedures.acceptance import AcceptanceTest
 from procedures.batch_steps import BATCHED
 from procedures.catalogue import CATALOGUE

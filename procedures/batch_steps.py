@@ -32,7 +32,8 @@ import numpy as np
 from bench.analysis.turn_on import turn_on_metrics
 from bench.core.batch import BatchStep, SocketResult
 from bench.core.step import Context, Limit, Step
-from procedures.common import Estimate, level_table, move_table, power_accelerometer
+from bench.values import Estimate
+from procedures.common import level_table, move_table, power_accelerometer
 from procedures.fixture import drain, scan_means, scan_timing, socket_channel
 from procedures.noise import AccelerometerNoise
 from procedures.tumble import TumbleCalibration

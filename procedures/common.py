@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.trend import Estimate  # the steps' value ± standard uncertainty
 from bench.core.procedure import each_safely
 from bench.core.step import Context
 from instruments.fog_types import GyroFrames
@@ -157,6 +156,6 @@ def make_safe(ctx: Context) -> None:
     each_safely([(f"{name} {inst.safe_action}", inst.make_safe) for name, inst in ordered])
 
 
-__all__ = ["Estimate", "check_ranges", "choose_nplc", "accelerometer_rails", "power_accelerometer",
+__all__ = ["check_ranges", "choose_nplc", "accelerometer_rails", "power_accelerometer",
            "power_gyro", "move_table", "level_table", "averaged_voltage", "read_gyro_frames",
            "make_safe", "FRAME_TIMEOUT_MARGIN_S", "MOVE_TIMEOUT_S", "NPLC_CHOICES"]

@@ -18,7 +18,7 @@ Then, for each frequency of the grid (``points_per_decade`` per decade from ``f_
    (``procedures.angular_record``);
 3. least-squares sine fits at f (with its 2nd and 3rd harmonics) of each signal over the
    same whole periods → complex ratio sensor/reference with its standard uncertainty
-   (``bench.analysis.frf``); the known averaging of each sample (the DMM aperture, the
+   (``bench.analysis.frf._stepped_sine``); the known averaging of each sample (the DMM aperture, the
    frame interval: sinc(f·T)) is divided out; LF points only below 80 % of the frames'
    Nyquist frequency.
 
@@ -36,12 +36,12 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.frf import component_std, frf_point
-from bench.analysis.frf_timebase import apply_time_base, estimate_time_base
-from bench.analysis.fusion_models import fit_transfer_function
+from bench.analysis.frf import apply_time_base, component_std, estimate_time_base, frf_point
+from bench.analysis.fusion import fit_transfer_function
 from bench.core.step import Context, FollowUp, Progress, Step, parameter
+from bench.values import Estimate
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
-from procedures.common import Estimate, check_ranges
+from procedures.common import check_ranges
 from procedures.typed_instruments import angular_table
 
 LIMIT_USE = 0.5          # a dwell uses at most half of any table limit
@@ -144,7 +144,7 @@ def clock_frequency_hz(p: FrfParameters) -> float:
 
 def measure_clocks(rec, f_hz: float) -> dict:
     """Rate error of the MHD DMM's and the LF unit's sample clocks against the table's, from
-    the tone's phase drift in blocks of ``CLOCK_BLOCK_PERIODS`` periods (``bench.analysis.frf_timebase``)."""
+    the tone's phase drift in blocks of ``CLOCK_BLOCK_PERIODS`` periods (``bench.analysis.frf._timebase``)."""
     block = CLOCK_BLOCK_PERIODS / f_hz
     return {"hf": estimate_time_base(rec.t_ref_s, rec.ref_dps, rec.t_hf_s, rec.hf_v, f_hz, block),
             "lf": estimate_time_base(rec.t_ref_s, rec.ref_dps, rec.t_lf_s, rec.lf_dps, f_hz, block)}

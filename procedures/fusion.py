@@ -1,5 +1,5 @@
 """Document B on the angular rig: record both sensors and the reference over a profile and
-fuse them — every method of ``bench.analysis.fusion_analysis`` (each sensor alone, the
+fuse them — every method of ``bench.analysis.fusion._analysis`` (each sensor alone, the
 complementary filter, Document B's sequential adaptive-R Kalman filter, a fixed-R Kalman
 filter, the complementary Kalman filter and its smoother) against the table's reference,
 and the recommended one.
@@ -13,10 +13,10 @@ and the recommended one.
    add up), ramped up, ``settle_s``, then ``duration_s`` recorded at ``rate_hz``.
 4. Alignment: each sensor clock's rate error (the LF frames', the MHD DMM's) is estimated
    against the reference from the phase drift of the highest tone that sensor passes
-   (``bench.analysis.frf_timebase``) and removed; each sensor's time axis is moved back by
+   (``bench.analysis.frf._timebase``) and removed; each sensor's time axis is moved back by
    its fitted delay; the DMM aperture's droop is compensated (as the FRF divides it out);
    the LF frames and the reference are resampled onto the MHD readings' instants.
-5. ``bench.analysis.fusion_analysis.analyze_fusion`` with the fitted models: every method
+5. ``bench.analysis.fusion._analysis.analyze_fusion`` with the fitted models: every method
    tuned on the first ``tune_fraction`` of the aligned record and judged on the rest (amplitude
    and phase error per tone, RMS error, NIS); the recommended method picked by that judgement.
 
@@ -31,12 +31,13 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.analysis.frf_timebase import aperture_compensate, apply_time_base, estimate_time_base, resample
-from bench.analysis.fusion_analysis import METHODS as ANALYSIS_METHODS
-from bench.analysis.fusion_analysis import analyze_fusion
+from bench.analysis.frf import aperture_compensate, apply_time_base, estimate_time_base, resample
+from bench.analysis.fusion import METHODS as ANALYSIS_METHODS
+from bench.analysis.fusion import analyze_fusion
 from bench.core.step import Context, FollowUp, Step, parameter
+from bench.values import Estimate
 from procedures.angular_record import MAX_RATE_HZ, add_streams, record
-from procedures.common import Estimate, check_ranges
+from procedures.common import check_ranges
 from procedures.frf import LIMIT_USE, RUN_TIMEOUT_MARGIN_S, FrfParameters, measure_frf
 from procedures.typed_instruments import angular_table
 

@@ -17,11 +17,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from bench.analysis.allan import overlapping_adev
-from bench.analysis.allan_stats import adev_interval, edf_greenhall
+from bench.analysis.allan import adev_interval, edf_greenhall, overlapping_adev
 from bench.core.step import Context, Step, parameter
+from bench.values import Estimate
 from instruments.fog_types import GyroFrames
-from procedures.common import Estimate, check_ranges, level_table, power_accelerometer, power_gyro, read_gyro_frames
+from procedures.common import check_ranges, level_table, power_accelerometer, power_gyro, read_gyro_frames
 from procedures.typed_instruments import frame_gyro, multimeter
 
 ACCEL_NOISE_PRODUCES = {

@@ -7,7 +7,7 @@
    revolutions (so the horizontal Earth rate and table wobble average out); stream every
    frame and the per-rate mean with its standard error.
 3. Fit scale factor, bias, nonlinearity and asymmetry with uncertainties
-   (:func:`bench.analysis.ratetable.fit_rate_table`); the input rate includes the Earth
+   (:func:`bench.analysis.ratetable._fit.fit_rate_table`); the input rate includes the Earth
    rate's vertical component at the station's site latitude (``[site]`` of the station file).
 
 Indicated rates are the gyro's pulses through its nominal scale factor, in °/s.
@@ -23,8 +23,9 @@ import numpy as np
 from bench.analysis.ratetable import fit_rate_table, rate_plan, whole_revolution_duration_s
 from bench.core.site import earth_rate_vertical_dph
 from bench.core.step import Context, Step, parameter
+from bench.values import Estimate
 from instruments.fog_types import GyroFrames
-from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
+from procedures.common import check_ranges, level_table, power_gyro, read_gyro_frames
 from procedures.typed_instruments import frame_gyro, turntable
 
 RATETABLE_PRODUCES = {

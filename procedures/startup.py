@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.core.step import Context, FollowUp, Limit, Step, parameter
-from procedures.common import Estimate, choose_nplc, power_accelerometer
+from bench.values import Estimate
+from procedures.common import choose_nplc, power_accelerometer
 from procedures.typed_instruments import multimeter, power_supply
 
 

@@ -6,7 +6,7 @@ A **soak** sets the chamber's set point (ramped at the chamber's rate) and polls
 ``poll_s`` of the bench clock, the controller (``check``: a tripped limit or an active alarm
 raises ``ChamberFaultError``) and the unit's own temperature sensor; every poll is streamed
 to ``thermal_soak`` as it is read.  The unit is soaked when
-:func:`bench.analysis.thermal_soak.soak_status` says its sensor is stable (the analysis's
+:func:`bench.analysis.thermal._soak.soak_status` says its sensor is stable (the analysis's
 criterion: trailing-window rate and spread, and within a tolerance of the set point so a unit
 still at the previous temperature never passes); the soak time — from the set point's command
 to the first stable window — is recorded with the point.
@@ -23,7 +23,7 @@ from typing import Protocol
 
 import numpy as np
 
-from bench.analysis.thermal_soak import SoakCriterion, SoakStatus, soak_status
+from bench.analysis.thermal import SoakCriterion, SoakStatus, soak_status
 from bench.core.step import Context
 from instruments.fog_types import GyroFrames
 from procedures.common import averaged_voltage, move_table, read_gyro_frames

@@ -7,12 +7,12 @@ temperature-rate sensitivity.
    down (so its output reads in g), then IA horizontal.
 2. Two ramp cycles, up to ``high_c`` and back down, at ``rate_1_c_per_min`` then at
    ``rate_2_c_per_min``, with ``dwell_s`` at each end: two ramp rates are what separates the
-   hysteresis from the rate sensitivity (``bench.analysis.thermal_ramp``: with one rate only
+   hysteresis from the rate sensitivity (``bench.analysis.thermal._ramp``: with one rate only
    their combination, the branch offset, is determined).
 3. The output and the unit's sensor recorded all along, in chunks of ``chunk_s`` streamed as
    they arrive (``thermal_ramp``), the chamber checked between chunks (a tripped limit or an
    alarm ends the run with the record kept).
-4. :func:`bench.analysis.thermal_ramp.analyze_thermal_ramp` on the record; kept under
+4. :func:`bench.analysis.thermal._ramp.analyze_thermal_ramp` on the record; kept under
    ``<step>.analysis``.
 """
 
@@ -24,11 +24,11 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from bench.analysis.thermal_ramp import analyze_thermal_ramp
+from bench.analysis.thermal import analyze_thermal_ramp
 from bench.core.step import Context, Step, parameter
+from bench.values import Estimate
 from instruments.fog_types import GyroFrames
 from procedures.common import (
-    Estimate,
     check_ranges,
     choose_nplc,
     level_table,

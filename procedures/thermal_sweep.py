@@ -8,14 +8,14 @@ each temperature) and ``gyro_thermal_sweep`` (gyro, a rate-table sequence at eac
    recorded), then the measurement at temperature, streamed as it is taken — the unit's
    sensor read with every position or rate, the point's temperature their mean.
 3. The per-temperature estimates fitted as polynomials of the unit's sensor temperature
-   (order by BIC, :func:`bench.analysis.thermal_calibration.calibrate_over_temperature`),
+   (order by BIC, :func:`bench.analysis.thermal._calibration.calibrate_over_temperature`),
    the temperature coefficients at ``reference_c`` read off, and the **compensation file**
-   written (:mod:`bench.analysis.thermal_compensation_file`) and attached to the run as
+   written (:mod:`bench.analysis.thermal._compensation_file`) and attached to the run as
    ``thermal_compensation.toml`` at once — before the verification, so an abort keeps it.
 4. **Verification** on a different profile: ``verify_points`` temperatures between the
    calibration's (mid-way between neighbours), in *falling* order, measured the same way;
    the compensated and uncompensated errors over temperature
-   (:func:`bench.analysis.thermal_verification.verify_compensation`).
+   (:func:`bench.analysis.thermal._verification.verify_compensation`).
 
 Results under ``<step>.points``, ``<step>.calibration``, ``<step>.compensation`` and
 ``<step>.verification``; streams ``thermal_soak``, ``thermal_points`` and the measurement's
@@ -34,17 +34,20 @@ from typing import Any, ClassVar, Generic, TypeVar
 import numpy as np
 
 from bench.analysis.ratetable import fit_rate_table, rate_plan, whole_revolution_duration_s
-from bench.analysis.thermal_calibration import ThermalCalibration, calibrate_over_temperature
-from bench.analysis.thermal_compensation import compensation_model
-from bench.analysis.thermal_compensation_file import compensation_to_toml
-from bench.analysis.thermal_inputs import QuantityPoints
-from bench.analysis.thermal_verification import verify_compensation
+from bench.analysis.thermal import (
+    QuantityPoints,
+    ThermalCalibration,
+    calibrate_over_temperature,
+    compensation_model,
+    compensation_to_toml,
+    verify_compensation,
+)
 from bench.analysis.tumble import fit_tumble, specific_force_iapo_g, tumble_positions
 from bench.core.site import STANDARD_GRAVITY_MPS2, earth_rate_vertical_dph, site_gravity_mps2
 from bench.core.step import Context, Step, parameter
+from bench.values import Estimate
 from instruments.fog_types import GyroFrames
 from procedures.common import (
-    Estimate,
     averaged_voltage,
     check_ranges,
     level_table,

@@ -24,7 +24,8 @@ import numpy as np
 from bench.analysis.tumble import fit_tumble, specific_force_iapo_g, tumble_positions
 from bench.core.site import STANDARD_GRAVITY_MPS2, site_gravity_mps2
 from bench.core.step import Context, Step, parameter
-from procedures.common import Estimate, averaged_voltage, check_ranges, move_table, power_accelerometer
+from bench.values import Estimate
+from procedures.common import averaged_voltage, check_ranges, move_table, power_accelerometer
 
 #: produced measurement → (unit, description); names follow IEEE 1293 symbols
 TUMBLE_PRODUCES = {

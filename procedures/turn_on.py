@@ -3,7 +3,7 @@
 
 The accelerometer's record is the start-up acquisition's (``procedures.startup``: level
 check, cool-down, armed traces, power-on at t = 0, streaming); it is read back from the run
-and reduced by :func:`bench.analysis.turn_on.turn_on_metrics`.  The reductions are kept under
+and reduced by :func:`bench.analysis.turn_on._metrics.turn_on_metrics`.  The reductions are kept under
 the start-up records' names (``startup.turn_on``, ``gyro_startup.turn_on``): what they reduce.
 
 (Until the one step catalogue these steps were named ``startup`` and ``gyro_startup`` in
@@ -19,8 +19,9 @@ import numpy as np
 
 from bench.analysis.turn_on import turn_on_metrics
 from bench.core.step import Context, Step, parameter
+from bench.values import Estimate
 from instruments.fog_types import GyroFrames
-from procedures.common import Estimate, check_ranges, level_table, power_gyro, read_gyro_frames
+from procedures.common import check_ranges, level_table, power_gyro, read_gyro_frames
 from procedures.startup import StartupAcquisition, StartupParameters
 from procedures.typed_instruments import frame_gyro
 

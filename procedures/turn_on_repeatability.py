@@ -8,7 +8,7 @@ and IEEE 952 (``gyro_turn_on_repeatability``, gyro), in the chamber at one tempe
    uncertainty — the accelerometer's from IA up and IA down (free of its scale factor), the
    gyro's from a static record at rest, IA up. Each cycle is streamed (``turn_on_cycles``) as
    it ends.
-3. :func:`bench.analysis.turn_on_repeatability.turn_on_repeatability`: the repeatability with
+3. :func:`bench.analysis.turn_on._repeatability.turn_on_repeatability`: the repeatability with
    the within-run noise removed (and, over several days, day-to-day apart from within-day),
    kept under ``<step>.analysis``.
 """
@@ -21,11 +21,12 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from bench.analysis.turn_on_repeatability import turn_on_repeatability
+from bench.analysis.turn_on import turn_on_repeatability
 from bench.core.site import earth_rate_vertical_dph
 from bench.core.step import Context, Step, parameter
+from bench.values import Estimate
 from instruments.fog_types import GyroFrames
-from procedures.common import Estimate, check_ranges, level_table, power_accelerometer, power_gyro, read_gyro_frames
+from procedures.common import check_ranges, level_table, power_accelerometer, power_gyro, read_gyro_frames
 from procedures.thermal_common import (
     AccelerometerThermometer,
     GyroThermometer,

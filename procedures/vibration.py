@@ -28,7 +28,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from bench.core.step import Context, FollowUp, Step, parameter
-from procedures.common import Estimate, check_ranges, power_gyro
+from bench.values import Estimate
+from procedures.common import check_ranges, power_gyro
 from procedures.typed_instruments import frame_gyro, shaker
 
 VIBRATION_PRODUCES = {

@@ -27,8 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.decision_risk import DecisionRisk, decision_risk, inside, overall_risk
-from bench.analysis.proportion import Proportion, wilson_interval
+from bench.analysis.quality import DecisionRisk, Proportion, decision_risk, inside, overall_risk, wilson_interval
 from bench.core.spec import UnitSpec, convert, load_spec
 
 #: spec kind → measurement → (key of the station's truth dict, unit of that value)

@@ -27,13 +27,13 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
-from bench.analysis.trend import Estimate
 from bench.core.operator import Operator, Unattended
 from bench.core.procedure import OpenStation, RunOutcome, interrupt_reason, scaled_progress
 from bench.core.site import DEFAULT_SITE
 from bench.core.step import Context, Progress, Step, no_progress
 from bench.core.store import RunStore, RunWriter
 from bench.core.version import code_version
+from bench.values import Estimate
 
 #: what a batch step produced for one socket: its values, or why the socket could not go on
 SocketResult = Mapping[str, Estimate] | Exception

@@ -21,13 +21,13 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from bench.analysis.trend import Estimate
 from bench.core.clock import Clock
 from bench.core.operator import Operator, OperatorAbort, Unattended
 from bench.core.site import DEFAULT_SITE
 from bench.core.step import Context, Limit, Measurement, Progress, Step, no_progress
 from bench.core.store import RunStore
 from bench.core.version import code_version
+from bench.values import Estimate
 
 
 def scaled_progress(progress: Progress, offset: float, weight: float, whole: float,

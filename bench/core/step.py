@@ -35,11 +35,11 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Generic, Protocol, TypeVar
 
-from bench.analysis.trend import Estimate
 from bench.core.clock import Clock
 from bench.core.operator import Operator, OperatorAbort, Unattended
 from bench.core.site import DEFAULT_SITE
 from bench.core.store import RunWriter
+from bench.values import Estimate
 
 T = TypeVar("T")
 

@@ -41,8 +41,7 @@ import numpy as np
 from scipy import fft as sp_fft
 from scipy import signal, special, stats
 
-from bench.analysis.allan import averaging_factors
-from bench.analysis.allan_stats import edf_greenhall
+from bench.analysis.allan import averaging_factors, edf_greenhall
 from bench.discovery.data import Record
 from bench.discovery.effects_linalg import project_out
 from bench.discovery.effects_noise import StochasticEffect
@@ -188,7 +187,7 @@ def allan_taus(r: np.ndarray, rate_hz: float, noise_sd: float, alpha: float = 0.
         return (), np.zeros(0), np.zeros(0), np.zeros(0)
     n_tau = max(1, int(np.log2(r.size // 2)) + 1)  # octave τ list length: Bonferroni over it
     ms = averaging_factors(r.size, rate_hz, "octave")
-    # overlapping AVAR from the phase (cumulative sum), as bench.analysis.allan computes it
+    # overlapping AVAR from the phase (cumulative sum), as bench.analysis.allan._adev computes it
     x = np.concatenate([[0.0], np.cumsum(r - r.mean())])
     avar = np.array([np.mean((x[2 * m:] - 2 * x[m:-m] + x[:-2 * m]) ** 2) for m in ms]) / (2.0 * ms ** 2)
     tau, adev = ms / rate_hz, np.sqrt(avar)

@@ -36,7 +36,7 @@ import numpy as np
 from scipy import optimize, signal, stats
 
 from bench.analysis.allan import overlapping_adev
-from bench.analysis.timeseries_diag import default_lb_lags, ljung_box
+from bench.analysis.timeseries import default_lb_lags, ljung_box
 from bench.discovery.effects_noise import Processes
 from bench.discovery.whiten import noise_psd
 

@@ -5,7 +5,7 @@ state space from the input rate ``u`` (rad/s) to the output ``y`` (any unit)::
 
     ẋ = A x + B u,     y = C x + D u.
 
-Each section is realised exactly as ``bench.analysis.fusion_models.SensorModel.state_space``
+Each section is realised exactly as ``bench.analysis.fusion._models.SensorModel.state_space``
 does (the analysis side's fit form), from the low-pass states of its own dynamics:
 first-order ``ż = ωc(u − z)``; second-order ``ż = v, v̇ = ωc²(u − z) − 2ζωc v``; a low-pass
 reads ``z``, a high-pass ``u − z`` (order 1) or ``u − z − (2ζ/ωc)v`` (order 2).  All poles

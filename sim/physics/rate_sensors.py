@@ -13,7 +13,7 @@
 
 Both are :class:`sim.physics.rate_sensor_lti.LinearRateSensor` models: exact closed-form
 responses to the table's :class:`~sim.physics.angular_piece.MotionPiece` motion.  The
-continuous models are of the form ``bench.analysis.fusion_models.SensorModel`` fits (one
+continuous models are of the form ``bench.analysis.fusion._models.SensorModel`` fits (one
 high-pass for the MHD, one low-pass for the LF sensor) plus the extras named here (the
 MHD's upper pole, noise, bias/offset, latency).
 """

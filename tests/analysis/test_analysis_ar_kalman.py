@@ -14,9 +14,9 @@ from scipy.signal import lfilter
 from statsmodels.regression.linear_model import yule_walker as sm_yule_walker
 from statsmodels.tsa.stattools import adfuller, kpss
 
-from bench.analysis.ar_kalman import ar_predict, companion, kalman_ar_fit
-from bench.analysis.ar_models import adf_constant, kpss_level, model_imf, whiteness
 from bench.analysis.vibration import analyze_vibration
+from bench.analysis.vibration._ar_kalman import ar_predict, companion, kalman_ar_fit
+from bench.analysis.vibration._ar_models import adf_constant, kpss_level, model_imf, whiteness
 
 FS_HZ = 2000.0
 

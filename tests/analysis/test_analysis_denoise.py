@@ -8,7 +8,7 @@ import pywt
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis.denoise import choose_level, choose_wavelet, wavelet_denoise
+from bench.analysis.startup._denoise import choose_level, choose_wavelet, wavelet_denoise
 
 FAST = settings(max_examples=30, deadline=None, derandomize=True)
 

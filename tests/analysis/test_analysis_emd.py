@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 from scipy.interpolate import CubicSpline
 from scipy.signal import lfilter
 
-from bench.analysis.emd import count_zero_crossings, emd, find_extrema, nonrandom_terms
-from bench.analysis.emd_kernel import Spline, envelope_knots, not_a_knot_slopes, sift
+from bench.analysis.emd._emd import count_zero_crossings, emd, find_extrema, nonrandom_terms
+from bench.analysis.emd._kernel import Spline, envelope_knots, not_a_knot_slopes, sift
 
 PyEMD = pytest.importorskip("PyEMD")
 

@@ -1,4 +1,4 @@
-"""The compiled EMD (numba kernels in bench.analysis.emd_kernel / emd_spline) against the
+"""The compiled EMD (numba kernels in bench.analysis.emd._kernel / emd_spline) against the
 previous pure-numpy implementation kept in tests/analysis/emd_numpy_ref: same extrema, knots,
 splines and IMFs.
 
@@ -16,9 +16,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import CubicSpline
 
-from bench.analysis.emd import count_zero_crossings, emd, find_extrema
-from bench.analysis.emd_kernel import envelope_knots
-from bench.analysis.emd_spline import Spline, not_a_knot_slopes
+from bench.analysis.emd._emd import count_zero_crossings, emd, find_extrema
+from bench.analysis.emd._kernel import envelope_knots
+from bench.analysis.emd._spline import Spline, not_a_knot_slopes
 from tests.analysis.emd_numpy_ref import kernel as ref_kernel
 from tests.analysis.emd_numpy_ref import reference
 from tests.analysis.emd_numpy_ref.spline import Spline as RefSpline

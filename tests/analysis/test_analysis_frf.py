@@ -1,4 +1,4 @@
-"""Stepped-sine FRF, fit with delay, clock alignment and resampling (bench.analysis.frf*)."""
+"""Stepped-sine FRF, fit with delay, clock alignment and resampling (bench.analysis.frf._stepped_sine*)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import lfilter
 
-from bench.analysis.frf import frf, frf_point, sine_fit
-from bench.analysis.frf_timebase import apply_time_base, estimate_time_base, resample
-from bench.analysis.fusion_metrics import sine_phasors
-from bench.analysis.fusion_models import SensorModel, fit_transfer_function
+from bench.analysis.frf import apply_time_base, estimate_time_base, frf, frf_point, resample, sine_fit
+from bench.analysis.fusion import SensorModel, fit_transfer_function
+from bench.analysis.fusion._metrics import sine_phasors
 
 
 def tones(t, freqs, amps):

@@ -18,11 +18,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import cont2discrete
 
-from bench.analysis import fusion as fu
-from bench.analysis.fusion import AdaptiveNoise, FusionParams
-from bench.analysis.fusion_analysis import BASELINES, METHODS, analyze_fusion
-from bench.analysis.fusion_metrics import detect_tones, nis_check, sine_phasors
-from bench.analysis.fusion_models import FusionModel, SensorModel, fit_transfer_function
+from bench.analysis.fusion import (
+    BASELINES,
+    METHODS,
+    AdaptiveNoise,
+    FusionModel,
+    FusionParams,
+    SensorModel,
+    analyze_fusion,
+    fit_transfer_function,
+)
+from bench.analysis.fusion import _sequential as fu
+from bench.analysis.fusion._metrics import detect_tones, nis_check, sine_phasors
 
 FS_HZ = 4000.0
 TONES_HZ = np.array([0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0])
@@ -294,16 +301,3 @@ def test_bad_input_raises_value_error():
         SensorModel("lowpass", 1, -3.0)
     with pytest.raises(ValueError, match="discretization"):
         FusionModel(HF, LF, 1.0).discretize(1e-3, "tustin")
-
-
-def test_the_fusion_modules_import_one_way_without_a_module_getattr():
-    import subprocess
-    import sys
-
-    import bench.analysis.fusion as fusion_module
-
-    assert not hasattr(fusion_module, "__getattr__")
-    # the metrics are pure: importing them loads no filter, and the filters load no comparison
-    code = ("import sys, bench.analysis.fusion_metrics; assert 'bench.analysis.fusion' not in sys.modules; "
-            "import bench.analysis.fusion; assert 'bench.analysis.fusion_analysis' not in sys.modules")
-    assert subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 0

@@ -11,7 +11,7 @@ import statsmodels.api as sm
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis.ratetable import (
+from bench.analysis.ratetable._fit import (
     EARTH_RATE_DPS,
     earth_rate_vertical_dps,
     fit_rate_table,

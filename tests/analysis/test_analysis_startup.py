@@ -98,7 +98,7 @@ def test_model_simulates_traces_that_reanalyse_to_the_same_model():
 
 
 def _e(v):
-    from bench.analysis.trend import Estimate
+    from bench.values import Estimate
 
     return Estimate(v, 0.0)
 
@@ -127,7 +127,7 @@ def test_json_dict_has_issue_keys_equation_and_round_trips():
 
 
 def test_document_a_literal_route_models_a_smoothing_artefact_on_white_noise():
-    # pins the reason the default models raw − trend (see bench.analysis.startup)
+    # pins the reason the default models raw − trend (see bench.analysis.startup._pipeline)
     t, y = startup_trace(3600, 300.0, 2e-4, 1e-9, [], [], 1e-5, np.random.default_rng(1))
     literal = analyze_startup(t, y, noise_source="denoised", trend_source="denoised")
     default = analyze_startup(t, y)

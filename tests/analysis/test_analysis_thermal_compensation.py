@@ -10,22 +10,20 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis.thermal_calibration import calibrate_over_temperature
-from bench.analysis.thermal_compensation import (
+from bench.analysis.thermal import QuantityPoints, calibrate_over_temperature, verify_compensation
+from bench.analysis.thermal._compensation import (
     CompensationModel,
     QuantityCompensation,
     compensate,
     compensation_model,
     model_output,
 )
-from bench.analysis.thermal_compensation_file import (
+from bench.analysis.thermal._compensation_file import (
     compensation_from_toml,
     compensation_to_toml,
     read_compensation,
     write_compensation,
 )
-from bench.analysis.thermal_inputs import QuantityPoints
-from bench.analysis.thermal_verification import verify_compensation
 from tests.analysis.thermal_truth import poly, sweep_points
 
 SWEEP_C = (-40.0, -20.0, 0.0, 25.0, 45.0, 60.0, 70.0)

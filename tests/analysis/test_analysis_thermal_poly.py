@@ -11,9 +11,8 @@ import statsmodels.api as sm
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis.thermal_calibration import calibrate_over_temperature, calibrate_quantity
-from bench.analysis.thermal_inputs import QuantityPoints
-from bench.analysis.thermal_poly import fit_temperature_polynomial
+from bench.analysis.thermal import QuantityPoints, fit_temperature_polynomial
+from bench.analysis.thermal._calibration import calibrate_over_temperature, calibrate_quantity
 from tests.analysis.thermal_truth import poly, poly_slope, sweep_points
 
 SWEEP_C = (-40.0, -20.0, 0.0, 25.0, 45.0, 60.0, 70.0)

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis.thermal_soak import SoakCriterion, find_soak, soak_status
+from bench.analysis.thermal._soak import SoakCriterion, find_soak, soak_status
 from tests.analysis.thermal_truth import Program, ThermalUnit, simulate_ramp
 
 

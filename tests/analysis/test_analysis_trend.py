@@ -10,8 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import lfilter
 
-from bench.analysis.denoise import wavelet_denoise
-from bench.analysis.trend import fit_trend
+from bench.analysis.startup import fit_trend, wavelet_denoise
 
 DURATION_S = 6 * 1800.0  # six of the slowest time constants: the transient always settles
 

@@ -11,7 +11,7 @@ import statsmodels.api as sm
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis.tumble import (
+from bench.analysis.tumble._fit import (
     DEFAULT_MOUNT,
     PARAM_NAMES,
     fit_tumble,

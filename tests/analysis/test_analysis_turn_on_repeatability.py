@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from bench.analysis.turn_on_repeatability import turn_on_repeatability
+from bench.analysis.turn_on import turn_on_repeatability
 
 
 @settings(max_examples=40, deadline=None)

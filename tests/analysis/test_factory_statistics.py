@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from scipy.stats import norm
 from statsmodels.stats.proportion import proportion_confint
 
-from bench.analysis.control_chart import XBAR_R_CONSTANTS, individuals_chart, western_electric, xbar_r_charts
-from bench.analysis.decision_risk import decision_risk, model_rates, overall_risk
-from bench.analysis.proportion import wilson_interval
+from bench.analysis.quality import wilson_interval
+from bench.analysis.quality._control_chart import XBAR_R_CONSTANTS, individuals_chart, western_electric, xbar_r_charts
+from bench.analysis.quality._decision_risk import decision_risk, model_rates, overall_risk
 
 
 @given(st.integers(1, 5000).flatmap(lambda n: st.tuples(st.integers(0, n), st.just(n))),

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy.signal import freqs
 
-from bench.analysis.fusion_alignment import fit_and_align, inverse_sinc_taps, undo_interval_mean
-from bench.analysis.fusion_models import fit_transfer_function, min_frf_points
+from bench.analysis.fusion._alignment import fit_and_align, inverse_sinc_taps, undo_interval_mean
+from bench.analysis.fusion._models import fit_transfer_function, min_frf_points
 from tests.analysis.fusion_pairs import Sensor, analog_prototype, draw_spec, make_pair
 
 

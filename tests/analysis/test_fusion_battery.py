@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from bench.analysis.fusion_analysis import BASELINES, analyze_fusion
+from bench.analysis.fusion import BASELINES, analyze_fusion
 from tests.analysis.fusion_pairs import (
     alone_noise_free_pct,
     analog_prototype,

@@ -1,4 +1,4 @@
-"""The complementary Kalman filter (bench.analysis.fusion_complementary): the compiled filter and
+"""The complementary Kalman filter (bench.analysis.fusion._complementary): the compiled filter and
 smoother against the textbook recursions, no lag on exact data, the noise by maximum
 likelihood, Document B's adaptive R on top, and the discretisation's droop correction.
 
@@ -15,11 +15,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis import fusion_complementary as fc
-from bench.analysis import fusion_complementary_kernel as kernel
-from bench.analysis.fusion import AdaptiveNoise
-from bench.analysis.fusion_metrics import sine_phasors
-from bench.analysis.fusion_models import SensorModel
+from bench.analysis.fusion import AdaptiveNoise, SensorModel
+from bench.analysis.fusion import _complementary as fc
+from bench.analysis.fusion import _complementary_kernel as kernel
+from bench.analysis.fusion._metrics import sine_phasors
 
 
 def tones_record(hf_model, lf_model, tones_hz, fs_hz, n, hf_sd, lf_sd, seed=0, hf_offset=0.0):

@@ -1,4 +1,4 @@
-"""The compiled fusion kernels (bench.analysis.fusion_kernel) against the per-sample numpy
+"""The compiled fusion kernels (bench.analysis.fusion._kernel) against the per-sample numpy
 code they replaced, and the sequential filter against a textbook Kalman filter.
 
 The reference functions below are the former numpy bodies of ``sequential_kalman`` and
@@ -14,9 +14,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis import fusion as fu
-from bench.analysis.fusion import AdaptiveNoise
-from bench.analysis.fusion_models import FusionModel, SensorModel
+from bench.analysis.fusion import AdaptiveNoise, FusionModel, SensorModel
+from bench.analysis.fusion import _sequential as fu
 
 TONES_HZ = np.array([0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0])
 REL = 1e-12

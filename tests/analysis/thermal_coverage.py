@@ -16,13 +16,15 @@ import time
 
 import numpy as np
 
-from bench.analysis.thermal_calibration import calibrate_over_temperature
-from bench.analysis.thermal_compensation import compensation_model
-from bench.analysis.thermal_inputs import QuantityPoints
-from bench.analysis.thermal_poly import fit_temperature_polynomial
-from bench.analysis.thermal_ramp import analyze_thermal_ramp
-from bench.analysis.thermal_verification import verify_compensation
-from bench.analysis.turn_on_repeatability import turn_on_repeatability
+from bench.analysis.thermal import (
+    QuantityPoints,
+    analyze_thermal_ramp,
+    calibrate_over_temperature,
+    compensation_model,
+    fit_temperature_polynomial,
+    verify_compensation,
+)
+from bench.analysis.turn_on import turn_on_repeatability
 from tests.analysis.thermal_truth import Program, ThermalUnit, simulate_ramp, sweep_points
 
 SWEEP_C = (-40.0, -20.0, 0.0, 25.0, 45.0, 60.0, 70.0)

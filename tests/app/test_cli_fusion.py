@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from bench.analysis.fusion_analysis import METHODS
+from bench.analysis.fusion import METHODS
 from bench.app.cli import main
 
 FS_HZ = 2000.0

@@ -9,11 +9,11 @@ from typing import Any
 
 import pytest
 
-from bench.analysis.trend import Estimate
 from bench.core.batch import BatchProcedure, BatchStep, SocketResult, execute_batch
 from bench.core.operator import OperatorAbort
 from bench.core.step import Context, Limit
 from bench.core.store import RunStore
+from bench.values import Estimate
 from tests.core.test_procedure import Count, station
 
 

@@ -12,11 +12,11 @@ from typing import Any
 
 import pytest
 
-from bench.analysis.trend import Estimate
 from bench.core.operator import OperatorAbort
 from bench.core.procedure import Procedure, execute
 from bench.core.step import Catalogue, Context, Limit, Step, parameter
 from bench.core.store import RunStore
+from bench.values import Estimate
 
 
 @dataclasses.dataclass

@@ -61,7 +61,7 @@ def test_frf_recovers_the_drawn_sensors(frf_run):
 
 
 def test_frf_points_carry_uncertainties_that_cover_the_true_response(frf_run):
-    from bench.analysis.fusion_models import SensorModel
+    from bench.analysis.fusion import SensorModel
 
     outcome, truth, store = frf_run
     points = store.results(outcome.run_id)["frf.points"]

@@ -11,10 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.analysis import fusion as fu
-from bench.analysis.fusion_metrics import nis_check
-from bench.analysis.fusion_models import FusionModel, SensorModel
-from bench.analysis.fusion_tuning import tune_fusion
+from bench.analysis.fusion import FusionModel, SensorModel, tune_fusion
+from bench.analysis.fusion import _sequential as fu
+from bench.analysis.fusion._metrics import nis_check
 from instruments.angular_table import AngularLimits
 from procedures.fusion import tone_demand
 from sim.physics.angular_table import AngularMotion, Tone
@@ -105,8 +104,8 @@ def test_tuning_rejects_bad_input(kwargs, fragment):
 @settings(max_examples=30, deadline=None)
 @given(st.floats(1.0, 1500.0), st.floats(0.2, 1.0), st.floats(0, 2 * math.pi))
 def test_aperture_compensation_restores_the_amplitude_of_aperture_means(f_hz, duty, phase):
-    from bench.analysis.frf_timebase import aperture_compensate
-    from bench.analysis.fusion_metrics import sine_phasors
+    from bench.analysis.frf import aperture_compensate
+    from bench.analysis.fusion._metrics import sine_phasors
 
     ts, ap = 1e-4, duty * 1e-4
     t = np.arange(20000) * ts
@@ -120,7 +119,7 @@ def test_aperture_compensation_restores_the_amplitude_of_aperture_means(f_hz, du
 
 
 def test_tone_noise_std_matches_the_spread_of_phasor_estimates():
-    from bench.analysis.fusion_metrics import sine_phasors, tone_noise_std, tone_residual
+    from bench.analysis.fusion._metrics import sine_phasors, tone_noise_std, tone_residual
 
     rng = np.random.default_rng(4)
     t = np.arange(20000) / 1000.0
@@ -135,5 +134,5 @@ def test_tone_noise_std_matches_the_spread_of_phasor_estimates():
     spread = np.std(np.real(np.array(est)), axis=0)
     assert np.allclose(np.mean(pred, axis=0), spread, rtol=0.2)
     with pytest.raises(ValueError, match="aperture_s"):
-        from bench.analysis.frf_timebase import aperture_compensate
+        from bench.analysis.frf import aperture_compensate
         aperture_compensate(np.ones(5), 2e-4, 1e-4)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bench.analysis.thermal_compensation_file import compensation_from_toml
+from bench.analysis.thermal import compensation_from_toml
 from bench.app.reports.thermal_plots import thermal_sweep_section
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute

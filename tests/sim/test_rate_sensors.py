@@ -10,7 +10,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from bench.analysis.fusion_models import SensorModel
+from bench.analysis.fusion import SensorModel
 from sim.devices import fog_frames as ff
 from sim.devices.fog_serial import FogSerialDevice, GyroInputs
 from sim.physics.angular_piece import MotionPiece, at_rest

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.analysis import timeseries as ts
+from bench.analysis.timeseries import _fit as ts
 
 RUN_STREAM, RUN_TIME_COL, RUN_VALUE_COL = "output", "t_s", "voltage_v"
 ATTACHED = "analysis/startup/"  # where a stored run's start-up model and report are attached

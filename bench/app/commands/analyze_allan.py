@@ -20,8 +20,7 @@ SAMPLING_TOLERANCE = 0.01
 
 def register_analysis(kinds) -> None:
     """Add ``allan`` to the ``bench analyze`` subparsers."""
-    from bench.analysis.allan_noise import TERMS
-    from bench.analysis.allan_stats import ONE_SIGMA
+    from bench.analysis.allan import ONE_SIGMA, TERMS
 
     p = kinds.add_parser("allan", help="overlapping Allan deviation and IEEE 952 noise terms of a static record")
     p.add_argument("--input", required=True, metavar="FILE.csv", help="CSV with a header row; time in s")

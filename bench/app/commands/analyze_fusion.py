@@ -1,7 +1,7 @@
 """``bench analyze fusion --input FILE.csv --rate-hz FS``: every rate-fusion method side by side.
 
 Reads columns ``t`` (s), ``hf``, ``lf`` (same rate unit) and optionally ``ref`` from a CSV
-with a header row; runs :func:`bench.analysis.fusion_analysis.analyze_fusion` (with ``ref``:
+with a header row; runs :func:`bench.analysis.fusion._analysis.analyze_fusion` (with ``ref``:
 every method tuned on the first ``--tune-fraction`` and judged on the rest, the recommended
 one picked by that judgement); prints a summary (or ``--json``: ``FusionAnalysis.to_dict()``
 plus ``source``) and with ``--output`` writes ``t`` and the recommended method's rate in a
@@ -21,7 +21,7 @@ import numpy as np
 from bench.app.commands.analyze import read_csv_table
 
 SAMPLING_TOLERANCE = 0.01
-TUNE_FRACTION = 0.4  # bench.analysis.fusion_analysis.TUNE_FRACTION (not imported: `bench --help` stays light)
+TUNE_FRACTION = 0.4  # bench.analysis.fusion._analysis.TUNE_FRACTION (not imported: `bench --help` stays light)
 
 
 def register_analysis(kinds) -> None:
@@ -67,8 +67,7 @@ def _floats(text: str | None, what: str):
 
 def analyze_fusion_csv(args) -> int:
     """Handler of ``bench analyze fusion``."""
-    from bench.analysis.fusion_analysis import METHODS, analyze_fusion
-    from bench.analysis.fusion_models import SensorModel
+    from bench.analysis.fusion import METHODS, SensorModel, analyze_fusion
 
     data = read_csv_table(args.input, ("t", "hf", "lf"), ("ref",))
     _check_time(data["t"], args.rate_hz)

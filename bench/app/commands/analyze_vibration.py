@@ -41,7 +41,7 @@ def register_analysis(kinds) -> None:
 
 
 def summary(a, label: str) -> str:
-    """The text form of a :class:`~bench.analysis.vibration.VibrationAnalysis`."""
+    """The text form of a :class:`~bench.analysis.vibration._pipeline.VibrationAnalysis`."""
     dec = a.decomposition
     lines = [f"random-vibration error model of {label}: {a.y.size} samples at {a.rate_hz:.6g} Hz "
              f"({a.y.size / a.rate_hz:.6g} s)",

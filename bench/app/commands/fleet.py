@@ -71,7 +71,7 @@ def _emit(args, doc: dict[str, Any], lines: list[str], page) -> int:
 
 
 def fleet_yield(args) -> int:
-    from bench.analysis.proportion import wilson_interval
+    from bench.analysis.quality import wilson_interval
     from bench.app.reports.fleet_report import yield_page
     from bench.core.store.fleet import yield_counts
 
@@ -95,7 +95,7 @@ def fleet_yield(args) -> int:
 def fleet_spc(args) -> int:
     import numpy as np
 
-    from bench.analysis.control_chart import RULES, individuals_chart, xbar_r_charts
+    from bench.analysis.quality import RULES, individuals_chart, xbar_r_charts
     from bench.app.reports.fleet_report import spc_page
     from bench.core.store.fleet import measurement_names, measurement_series
 

@@ -1,4 +1,4 @@
-"""Allan plot and report, built only from an :class:`~bench.analysis.allan.AllanResult`.
+"""Allan plot and report, built only from an :class:`~bench.analysis.allan._adev.AllanResult`.
 
 * :func:`plot_allan` draws onto any matplotlib ``Axes`` (other reports — acceptance,
   vibration — place it in their own figures): log-log ADEV with confidence bars, the
@@ -21,8 +21,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from bench.analysis.allan import AllanResult
-from bench.analysis.allan_noise import B_FACTOR, term_adev
+from bench.analysis.allan import B_FACTOR, AllanResult, term_adev
 from bench.app.reports.common import html_table as _table
 
 _COLOURS = {"Q": "C4", "N": "C2", "B": "C1", "K": "C5", "R": "C6"}

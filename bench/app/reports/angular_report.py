@@ -31,8 +31,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench.analysis.fusion_analysis import METHODS, excess_over_best
-from bench.analysis.fusion_models import SensorModel
+from bench.analysis.fusion import METHODS, SensorModel, excess_over_best
 from bench.app.reports.common import html_table, save_figure
 
 #: plot style per method (colour, marker); every method of the registry has one

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench.analysis.control_chart import RULES, ControlChart
+from bench.analysis.quality import RULES, ControlChart
 from bench.app.reports.common import html_table
 
 STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1100px}table{border-collapse:collapse}"

@@ -1,5 +1,5 @@
 """HTML report of Document C's random-vibration error model, built only from a
-:class:`~bench.analysis.vibration.VibrationAnalysis`.
+:class:`~bench.analysis.vibration._pipeline.VibrationAnalysis`.
 
 :func:`write_vibration_report` writes into one directory:
 

@@ -1,6 +1,6 @@
 """The fleet's questions, asked of the central store in SQL: yield counts by group, one
 measurement's values in time order, every run of one unit.  Statistics on the answers are the
-library's (``bench.analysis.proportion``, ``bench.analysis.control_chart``)."""
+library's (``bench.analysis.quality._proportion``, ``bench.analysis.quality._control_chart``)."""
 
 from __future__ import annotations
 

@@ -1,1 +1,1 @@
-"""Reference copy of the pure-numpy EMD (bench.analysis.emd before numba): tests only."""
+"""Reference copy of the pure-numpy EMD (bench.analysis.emd._emd before numba): tests only."""

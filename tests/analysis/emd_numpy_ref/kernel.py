@@ -1,4 +1,4 @@
-"""The inner loop of :mod:`bench.analysis.emd`: extrema, mirrored envelope knots and one sifting.
+"""The inner loop of :mod:`bench.analysis.emd._emd`: extrema, mirrored envelope knots and one sifting.
 
 Speed notes (measured beside PyEMD in ``benchmarks/bench_emd.py``; the sifting count is
 fixed by the stop criterion, so only the cost of one sifting can be cut):

@@ -1,11 +1,11 @@
-"""The numpy EMD of bench.analysis.emd before its sifting moved to numba (commit 799e66a),
+"""The numpy EMD of bench.analysis.emd._emd before its sifting moved to numba (commit 799e66a),
 kept ONLY as a test reference: the compiled path must give the same IMFs."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from bench.analysis.emd import MIN_SAMPLES, STOP_RULES, EmdResult, check_parameter
+from bench.analysis.emd._emd import MIN_SAMPLES, STOP_RULES, EmdResult, check_parameter
 from tests.analysis.emd_numpy_ref.kernel import (
     Spline,
     Workspace,

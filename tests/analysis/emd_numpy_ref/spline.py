@@ -1,4 +1,4 @@
-"""Envelope splines of :mod:`bench.analysis.emd`: not-a-knot cubic splines through integer
+"""Envelope splines of :mod:`bench.analysis.emd._emd`: not-a-knot cubic splines through integer
 knots, their evaluation block by block, and the scratch arrays every sifting reuses.
 
 Speed notes (see :mod:`.emd_kernel` for the sifting pass that calls these):

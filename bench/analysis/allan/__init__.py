@@ -1,0 +1,31 @@
+"""Allan deviation of a static record and the IEEE Std 952 noise terms read from it.
+
+What a user calls::
+
+    overlapping_adev, AllanResult, NoiseCoefficient, averaging_factors
+    fit_noise_terms, NoiseFit, read_off, ReadOff, term_adev, TERMS, B_FACTOR
+    adev_interval, edf_greenhall, ONE_SIGMA
+
+The modules behind it are private: import from ``bench.analysis.allan``.
+"""
+
+from bench.analysis.allan._adev import AllanResult, NoiseCoefficient, averaging_factors, overlapping_adev
+from bench.analysis.allan._noise import B_FACTOR, TERMS, NoiseFit, ReadOff, fit_noise_terms, read_off, term_adev
+from bench.analysis.allan._stats import ONE_SIGMA, adev_interval, edf_greenhall
+
+__all__ = [
+    "AllanResult",
+    "B_FACTOR",
+    "NoiseCoefficient",
+    "NoiseFit",
+    "ONE_SIGMA",
+    "ReadOff",
+    "TERMS",
+    "adev_interval",
+    "averaging_factors",
+    "edf_greenhall",
+    "fit_noise_terms",
+    "overlapping_adev",
+    "read_off",
+    "term_adev",
+]

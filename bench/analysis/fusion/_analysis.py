@@ -1,0 +1,518 @@
+"""Every rate-fusion method side by side on one HF/LF record: tuned on its first part, judged
+on the rest, and the recommended output picked by that judgement.
+
+**Methods** (:data:`METHODS`, the one registry: CLI, report, procedure and benchmarks derive
+from it) — each sensor alone, the complementary filter, Document B's sequential adaptive-R
+Kalman filter as published, a conventional fixed-R Kalman filter, the complementary Kalman
+filter (:mod:`bench.analysis.fusion._complementary`: cannot lag, noise by maximum likelihood)
+with and without Document B's adaptive R on top, its fixed-interval smoother (offline)
+with and without it, and the complementary filter and smoother on a copy of the record with
+each sensor's outliers replaced (offline; see **Outliers** below).
+
+**With a reference** (:func:`analyze_fusion` with ``ref``), the first ``tune_fraction`` of the
+record *tunes* and the rest (after ``settle_s``) *judges*:
+
+1. tones (given or detected in ``ref``); sensor models given, or fitted with their delays
+   and each clock's rate error measured on the tuning part and the record aligned
+   (:func:`~bench.analysis.fusion._alignment.fit_and_align`);
+2. tuning on the first part only: Document B's process noise, thresholds and interval noise by
+   its grid and rule (:func:`~bench.analysis.fusion._tuning.tune_fusion`); the fixed-R filter
+   by the same rule among the grid's fixed-R settings; the adaptive R on top of the
+   complementary Kalman filter by the same rule over its grid; the complementary filter's
+   crossover by the lowest RMS error over its grid (it trades noise for noise, not for lag);
+   the complementary Kalman filter's noise by maximum likelihood (the reference unused, the
+   known tones fitted out first);
+3. every method runs over the whole record with its tuned settings and is judged on the rest:
+   RMS error, amplitude and phase error per tone with standard errors, and the *excess* — the
+   method's |amplitude error| less the better single sensor's at each tone, with the standard
+   error of that difference (from the method-minus-sensor series, which share their noise);
+4. **recommended**: among the methods whose RMS error is no worse than the best of each sensor
+   alone and the complementary filter (the baselines that need no model of the signal), the
+   lowest RMS error of those whose excess is within two standard errors *of the excess* at
+   every tone (the sharp test: it sees a lag of 10⁻⁴ pp — and also the 10⁻⁴ of a fitted gain)
+   and within two of *the better sensor's own* amplitude error (no worse than that sensor is
+   known to be; the sharp test alone is not the stricter where the method and the sensor do
+   not share their noise — an outlier in one of them); if none is, of those within two
+   standard errors of the sensor's own error; if none is, the lowest worst excess
+   (:func:`~bench.analysis.fusion._tuning.choose`).  The judged part is where the choice is
+   made, so the recommended method's figures there carry the (small) optimism of a choice
+   among eleven.
+
+**Outliers** (spikes, dropouts) stay in the record every method above sees: the sensors alone
+read them, and Document B's adaptive R is meant to handle them.  Two more methods run on a
+copy with each sensor's outliers replaced by its own tone fit (the reference unused;
+:func:`~bench.analysis.fusion._alignment.fit_and_align`): the complementary filter and the
+complementary smoother, *cleaned*.  They are judged like every other, so they are
+recommended only where they do better on the judged part; where nothing was replaced they
+are the methods they clean (and ties go to those).
+
+**Without a reference** nothing can be judged: every method runs with settings from the data
+alone (Document B's defaults, the crossover at ``√(f_h·f_l)``, the complementary noise by
+maximum likelihood over the whole record) and the recommendation is the complementary
+smoother, the estimate that is optimal for the fitted noise model and cannot lag.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.analysis.fusion import _complementary as fc
+from bench.analysis.fusion import _sequential as fu
+from bench.analysis.fusion._alignment import MIN_TONES, PairAlignment, fit_and_align
+from bench.analysis.fusion._metrics import (
+    detect_tones,
+    nis_check,
+    tone_fit,
+    tone_noise_std,
+    tone_residual_var,
+    without_outliers,
+)
+from bench.analysis.fusion._models import FusionModel, SensorModel
+from bench.analysis.fusion._tuning import (
+    ADAPTIVE_SETTINGS,
+    FusionTuning,
+    SettingsTuning,
+    ToneScorer,
+    choose,
+    crossover_grid,
+    tune_fusion,
+    tune_settings,
+)
+
+DEFAULT_HF = SensorModel("highpass", 1, 2.0, 1.0)  # MHD-class: first-order high-pass at 2 Hz
+DEFAULT_LF = SensorModel("lowpass", 1, 30.0, 1.0)  # FOG/MEMS-class: first-order low-pass at 30 Hz
+TUNE_FRACTION = 0.4  # the first 40 % of a record with a reference tunes, the rest judges
+MIN_JUDGED_PERIODS = 3  # the judged part must hold this many periods of the lowest tone
+
+
+@dataclass(frozen=True)
+class Method:
+    """One fusion method: its key (JSON, CSV column ``rate_<key>``), label, whether its
+    output at a sample uses only the readings up to it, and how it is tuned."""
+
+    key: str
+    label: str
+    causal: bool
+    tuning: str
+
+
+METHODS = {m.key: m for m in (
+    Method("hf", "HF sensor alone", True, "reading ÷ its fitted passband gain"),
+    Method("lf", "LF sensor alone", True, "reading ÷ its fitted passband gain"),
+    Method("complementary", "complementary filter", True,
+           "both models inverted; crossover chosen on the tuning part (√(f_h·f_l) without a reference)"),
+    Method("fused", "Document B: sequential adaptive-R KF", True,
+           "process noise, thresholds and interval noise by Document B's grid on the tuning part"),
+    Method("fixed_r_kf", "fixed-R Kalman filter", True, "process noise by the same grid, fixed R"),
+    Method("complementary_kf", "complementary Kalman filter", True, "sensor noise by maximum likelihood"),
+    Method("complementary_kf_adaptive", "complementary KF + Document B's adaptive R", True,
+           "noise by maximum likelihood; r_upper and disturbed R chosen on the tuning part"),
+    Method("complementary_smoother", "complementary smoother (offline)", False,
+           "the complementary Kalman filter's fixed-interval smoother"),
+    Method("complementary_smoother_adaptive", "complementary smoother + adaptive R (offline)", False,
+           "the smoother of the adaptive-R complementary filter (its R replayed)"),
+    # last: on a record with no outliers they equal the methods they clean, and ties go to the earlier
+    Method("complementary_clean", "complementary filter, outliers replaced (offline)", False,
+           "the complementary filter's crossover, on the record with each sensor's outliers replaced by its "
+           "tone fit"),
+    Method("complementary_smoother_clean", "complementary smoother, outliers replaced (offline)", False,
+           "the complementary smoother's noise, on the record with each sensor's outliers replaced by its "
+           "tone fit"),
+)}
+RECOMMENDED_WITHOUT_REF = "complementary_smoother"
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """Every method judged against the reference on one stretch (see the module docstring).
+    All dicts are keyed by method; per-tone arrays follow ``tones_hz``."""
+
+    tones_hz: np.ndarray
+    rms_error: dict
+    amplitude_error_pct: dict
+    amplitude_error_std_pct: dict
+    phase_error_deg: dict
+    excess_pct: dict
+    excess_std_pct: dict
+    excess_best: list
+    feasible: dict
+    #: per method: excess within two standard errors of the better sensor's own amplitude error
+    feasible_sensor: dict
+
+    def worst_excess_pct(self, method: str) -> float:
+        return float(np.max(self.excess_pct[method]))
+
+    def worst_excess_sigma(self, method: str) -> float:
+        """Largest excess in its own standard errors (0/0 counts as 0)."""
+        ex, sd = self.excess_pct[method], self.excess_std_pct[method]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.where(sd > 0, ex / sd, np.where(ex > 0, np.inf, 0.0))
+        return float(np.max(z))
+
+
+def judge(t_s, ref, estimates: dict, tones_hz, rate_hz: float) -> Judgement:
+    """Judge every estimate (dict of series on ``t_s``; it must hold ``"hf"`` and ``"lf"``, the
+    sensors alone) against ``ref`` at the tones: one joint least-squares tone fit gives every
+    series' phasors and residual; standard errors from the residuals' local spectrum
+    (:func:`~bench.analysis.fusion._metrics.tone_noise_std`)."""
+    t = np.asarray(t_s, dtype=float)
+    ref = np.asarray(ref, dtype=float)
+    tones = np.asarray(tones_hz, dtype=float)
+    names = list(estimates)
+    if "hf" not in estimates or "lf" not in estimates:
+        raise ValueError(f"estimates {names} must include the sensors alone, 'hf' and 'lf'")
+    e = {k: np.asarray(v, dtype=float) - ref for k, v in estimates.items()}
+    rms = {k: float(np.sqrt(np.mean(v * v))) for k, v in e.items()}
+    phasors, resid_all = tone_fit(t, np.column_stack([ref] + [np.asarray(estimates[k], dtype=float)
+                                                              for k in names]), tones)
+    resid = {k: resid_all[:, j] for j, k in enumerate(names, start=1)}
+    ref_amp = np.abs(phasors[:, 0])
+    amp, amp_sd, phase = {}, {}, {}
+    for col, k in enumerate(names, start=1):
+        ratio = phasors[:, col] / phasors[:, 0]
+        amp[k] = 100 * (np.abs(ratio) - 1)
+        amp_sd[k] = 100 * tone_noise_std(resid[k], rate_hz, tones) / ref_amp
+        phase[k] = np.degrees(np.angle(ratio))
+    singles = np.abs(np.vstack([amp["hf"], amp["lf"]]))
+    best = np.argmin(singles, axis=0)
+    idx = np.arange(tones.size)
+    own_sd = np.vstack([amp_sd["hf"], amp_sd["lf"]])[best, idx]  # the better sensor's own standard error
+    excess, excess_sd, feasible, feasible_sensor = {}, {}, {}, {}
+    for k in names:
+        # the method and the better sensor share their noise: the excess's standard error comes
+        # from the difference series (its residual is the difference of the residuals)
+        sd = np.vstack([tone_noise_std(resid[k] - resid[m], rate_hz, tones) for m in ("hf", "lf")])
+        excess[k] = np.abs(amp[k]) - singles[best, idx]
+        excess_sd[k] = 100 * sd[best, idx] / ref_amp
+        finite = bool(np.all(np.isfinite(excess[k])))
+        feasible[k] = finite and bool(np.all(excess[k] <= 2 * excess_sd[k]))
+        feasible_sensor[k] = finite and bool(np.all(excess[k] <= 2 * own_sd))
+    return Judgement(tones, rms, amp, amp_sd, phase, excess, excess_sd, [("hf", "lf")[b] for b in best], feasible,
+                     feasible_sensor)
+
+
+@dataclass(frozen=True)
+class _Choice:  # what fusion_tuning.choose reads of a judged method
+    rms_error: float
+    excess_pct: float
+    feasible: bool
+
+
+BASELINES = ("hf", "lf", "complementary")  # a recommendation is never worse in RMS than the best of these
+
+
+def recommend(judgement: Judgement) -> tuple[str, str]:
+    """The recommended method of a judgement and the rule (module docstring, step 4): among
+    the methods whose RMS error is no worse than the best of each sensor alone and the
+    complementary filter, the lowest RMS error of those whose excess is within two standard
+    errors of itself and of the better sensor's own amplitude error at every tone; if none is,
+    of those within two standard errors of the better sensor's own amplitude error; if none is,
+    the lowest worst excess."""
+    names = [k for k in METHODS if k in judgement.rms_error] + [k for k in judgement.rms_error if k not in METHODS]
+    rms = {k: judgement.rms_error[k] if math.isfinite(judgement.rms_error[k]) else math.inf for k in names}
+    bar = min((rms[k] for k in BASELINES if k in rms), default=math.inf)
+    names = [k for k in names if rms[k] <= bar]
+    prefix = "among the methods no worse in RMS than the best of each sensor and the complementary filter: "
+    # the sharp tier asks both: where the method and the sensor do not share their noise (an outlier
+    # in one of them) the excess's standard error can exceed the sensor's own
+    both = {k: judgement.feasible[k] and judgement.feasible_sensor[k] for k in judgement.feasible}
+    for feasible, within in ((both, "within 2 standard errors of the excess and of the better sensor's own "
+                                    "amplitude error"),
+                             (judgement.feasible_sensor, "within 2 standard errors of the better sensor's own "
+                                                         "amplitude error (none within 2 of both)")):
+        scores = [_Choice(rms[k], judgement.worst_excess_pct(k), feasible[k]) for k in names]
+        index, rule = choose(scores)
+        if scores[index].feasible:
+            return names[index], prefix + rule.replace("within tolerance", within)
+    return names[index], prefix + rule.replace("within tolerance", "within 2 standard errors, of the excess or "
+                                                                   "of the sensor,")
+
+
+@dataclass
+class FusionAnalysis:
+    """Everything :func:`analyze_fusion` found.  ``t_s`` and ``estimates`` (every method's rate,
+    whole record) stay out of :meth:`to_dict`; the judged metrics (``judgement``, on samples
+    ``judged_from`` onwards) go in."""
+
+    rate_hz: float
+    t_s: np.ndarray
+    model: FusionModel
+    params: fu.FusionParams
+    model_source: str
+    crossover_hz: float
+    estimates: dict
+    nis: dict
+    r_interval_fraction: dict
+    r_range: dict
+    recommended: str
+    recommendation_rule: str
+    complementary_noise: fc.ComplementaryNoise
+    settings: dict
+    tune_samples: int = 0
+    judged_from: int = 0
+    judgement: Judgement | None = None
+    tuning: FusionTuning | None = None
+    noise_fit: fc.NoiseFit | None = None
+    alignment: PairAlignment | None = None
+    notes: list = field(default_factory=list)
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t_s.size)
+
+    @property
+    def recommended_rate(self) -> np.ndarray:
+        return self.estimates[self.recommended]
+
+    @property
+    def rms_error(self) -> dict | None:
+        return None if self.judgement is None else self.judgement.rms_error
+
+    def to_dict(self) -> dict:
+        def floats(v):
+            return [float(x) for x in v]
+
+        j = self.judgement
+        doc = {
+            "rate_hz": float(self.rate_hz), "n_samples": self.n_samples, "model": self.model.to_dict(),
+            "model_source": self.model_source, "params": self.params.to_dict(),
+            "crossover_hz": float(self.crossover_hz), "complementary_noise": self.complementary_noise.to_dict(),
+            "recommended": self.recommended, "recommendation_rule": self.recommendation_rule,
+            "methods": {k: {"label": m.label, "causal": m.causal, "tuning": m.tuning, "settings": self.settings.get(k)}
+                        for k, m in METHODS.items() if k in self.estimates},
+            "tune_samples": int(self.tune_samples), "judged_from": int(self.judged_from),
+            "rms_error": None, "tones_hz": None, "amplitude_error_pct": None, "amplitude_error_std_pct": None,
+            "phase_error_deg": None, "excess_pct": None, "excess_std_pct": None, "excess_best": None,
+            "feasible": None, "feasible_sensor": None,
+            "nis": {k: v.to_dict() for k, v in self.nis.items()},
+            "r_interval_fraction": {k: floats(v) for k, v in self.r_interval_fraction.items()},
+            "r_range": {k: floats(v) for k, v in self.r_range.items()},
+            "tuning": None if self.tuning is None else self.tuning.to_dict(),
+            "noise_fit": None if self.noise_fit is None else self.noise_fit.to_dict(),
+            "alignment": None if self.alignment is None else self.alignment.to_dict(),
+            "notes": list(self.notes),
+        }
+        if j is not None:
+            doc.update({"rms_error": {k: float(v) for k, v in j.rms_error.items()}, "tones_hz": floats(j.tones_hz),
+                        "excess_best": list(j.excess_best), "feasible": dict(j.feasible),
+                        "feasible_sensor": dict(j.feasible_sensor)})
+            for name in ("amplitude_error_pct", "amplitude_error_std_pct", "phase_error_deg", "excess_pct",
+                         "excess_std_pct"):
+                doc[name] = {k: floats(v) for k, v in getattr(j, name).items()}
+        return doc
+
+
+def excess_over_best(analysis: dict, method: str = "fused") -> tuple[np.ndarray, np.ndarray]:
+    """Per tone: ``method``'s |amplitude error| less the better single sensor's (pp) and the
+    standard error of that difference, from an analysis dict (:meth:`FusionAnalysis.to_dict`;
+    also a stored analysis from before the methods were many, where ``excess_pct`` was
+    Document B's alone — or absent, then from each series' own standard error, an
+    overestimate: the two share their noise)."""
+    ex = analysis.get("excess_pct")
+    if isinstance(ex, dict):
+        return np.asarray(ex[method], dtype=float), np.asarray(analysis["excess_std_pct"][method], dtype=float)
+    if ex is not None and method == "fused":
+        return np.asarray(ex, dtype=float), np.asarray(analysis["excess_std_pct"], dtype=float)
+    amp = {k: np.abs(np.asarray(v, dtype=float)) for k, v in analysis["amplitude_error_pct"].items()}
+    sd = analysis.get("amplitude_error_std_pct") or {k: np.zeros_like(v) for k, v in amp.items()}
+    sd = {k: np.asarray(v, dtype=float) for k, v in sd.items()}
+    which = np.argmin(np.vstack([amp["hf"], amp["lf"]]), axis=0)
+    idx = np.arange(which.size)
+    best = np.vstack([amp["hf"], amp["lf"]])[which, idx]
+    best_sd = np.vstack([sd["hf"], sd["lf"]])[which, idx]
+    return amp[method] - best, np.hypot(sd[method], best_sd)
+
+
+def _check_inputs(t, hf, lf, ref, rate_hz, tune_fraction, settle_s):
+    t = np.asarray(t, dtype=float).ravel()
+    hf, lf = fu.check_series(hf, lf)
+    if t.size != hf.size:
+        raise ValueError(f"t has {t.size} samples and hf {hf.size}; they must match")
+    if rate_hz is None:
+        rate_hz = (t.size - 1) / float(t[-1] - t[0]) if t[-1] > t[0] else math.nan
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"rate_hz {rate_hz} must be a finite value > 0")
+    if ref is not None:
+        ref = np.asarray(ref, dtype=float).ravel()
+        if ref.size != hf.size or not np.all(np.isfinite(ref)):
+            raise ValueError(f"ref must have {hf.size} finite samples like hf (has {ref.size})")
+    if not (math.isfinite(tune_fraction) and 0 <= tune_fraction <= 0.7):
+        raise ValueError(f"tune_fraction {tune_fraction} must be in [0, 0.7]")
+    if not (math.isfinite(settle_s) and settle_s >= 0):
+        raise ValueError(f"settle_s {settle_s} must be a finite value ≥ 0")
+    return t, hf, lf, ref, float(rate_hz)
+
+
+def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_model: SensorModel | None = None,
+                   lf_model: SensorModel | None = None, tones_hz=None, crossover_hz: float | None = None,
+                   params: fu.FusionParams | None = None, q: float | None = None, settle_s: float = 0.0,
+                   discretization: str = "euler", alpha: float = 0.05, tune_fraction: float = TUNE_FRACTION,
+                   align: bool = True) -> FusionAnalysis:
+    """Tune every method on the first part, judge on the rest and recommend one (module
+    docstring).  Models: the given ones; else, with ``ref`` and ≥ 4 tones, fitted (with delays,
+    the record aligned if ``align``); else :data:`DEFAULT_HF`/:data:`DEFAULT_LF`.
+    ``crossover_hz``, ``params`` and ``q`` fix what they name instead of tuning it.  With
+    ``tune_fraction`` 0 nothing is tuned against the reference and the whole record is judged."""
+    t, hf, lf, ref, rate_hz = _check_inputs(t, hf, lf, ref, rate_hz, tune_fraction, settle_s)
+    notes: list[str] = []
+    tones = None
+    if ref is not None:
+        tones = detect_tones(ref, rate_hz) if tones_hz is None else np.asarray(tones_hz, dtype=float)
+        if tones.size == 0 or np.any(tones <= 0) or np.any(tones >= rate_hz / 2):
+            raise ValueError(f"tones_hz must be non-empty and within (0, {rate_hz / 2:g}) Hz")
+    n_tune = int(round(tune_fraction * t.size)) if ref is not None else 0
+    alignment = None
+    hf_clean = lf_clean = None
+    if hf_model is not None and lf_model is not None:
+        source = "given"
+    elif ref is not None and tones is not None and tones.size >= MIN_TONES:
+        fit_part = slice(0, n_tune) if n_tune else slice(None)
+        aligned, alignment = fit_and_align(t, hf, lf, ref, tones, rate_hz, fit_part)
+        hf_model = hf_model or alignment.hf_fit.model
+        lf_model = lf_model or alignment.lf_fit.model
+        notes.extend(alignment.notes)
+        if align:
+            n_tune = max(0, n_tune - alignment.trimmed_start)
+            t, hf, lf, ref = aligned["t_s"], aligned["hf"], aligned["lf"], aligned["ref"]
+            hf_clean, lf_clean = aligned["hf_clean"], aligned["lf_clean"]
+            source = "fitted to the FRF against ref, clocks and delays aligned"
+        else:
+            source = "fitted to the FRF against ref (not aligned)"
+    else:
+        hf_model, lf_model = hf_model or DEFAULT_HF, lf_model or DEFAULT_LF
+        source = "default"
+        notes.append(f"sensor models are defaults (HF high-pass {DEFAULT_HF.corner_hz:g} Hz, LF low-pass "
+                     f"{DEFAULT_LF.corner_hz:g} Hz); pass models or a ref")
+    settle = int(round(settle_s * rate_hz))
+    judged_from = n_tune + settle
+    if ref is not None and tones is not None:
+        judged_s = (t.size - judged_from) / rate_hz
+        if judged_s * tones.min() < MIN_JUDGED_PERIODS:
+            raise ValueError(f"the judged part ({judged_s:.3g} s after tuning {n_tune} samples and settling "
+                             f"{settle_s:g} s) holds fewer than {MIN_JUDGED_PERIODS} periods of the lowest tone "
+                             f"{tones.min():.3g} Hz: record longer or lower tune_fraction")
+    ts = 1.0 / rate_hz
+    tune = slice(0, n_tune) if n_tune else slice(None)
+    settings: dict = {}
+
+    # noise of each sensor for Document B and the fixed-R filter (outliers left out of the estimate)
+    if ref is not None and tones is not None:
+        clean = without_outliers(t[tune], np.column_stack([hf[tune], lf[tune]]), tones)[0]
+        hf_var, lf_var = (float(v) for v in tone_residual_var(t[tune], clean, tones))
+    else:
+        hf_var, lf_var = fu.white_noise_var(hf), fu.white_noise_var(lf)
+    hf_var, lf_var = max(hf_var, 1e-30), max(lf_var, 1e-30)
+    if hf_clean is None and ref is not None and tones is not None:  # not aligned: cleaned on the given clock
+        hf_clean, lf_clean = without_outliers(t, np.column_stack([hf, lf]), tones)[0].T
+    if hf_clean is None or lf_clean is None:  # no tones, nothing to tell an outlier by
+        hf_clean, lf_clean = hf, lf
+    cleaned = not (np.array_equal(hf_clean, hf) and np.array_equal(lf_clean, lf))
+
+    scorer = None
+    if n_tune and tones is not None and ref is not None:
+        # the tuning part's first second (at most a quarter of it) is the filters' start-up
+        scorer = ToneScorer(t[tune], ref[tune], [hf[tune] / hf_model.gain, lf[tune] / lf_model.gain], tones, rate_hz,
+                            min(int(round(rate_hz)), n_tune // 4))
+
+    # Document B and the fixed-R filter
+    model, default_params = fu.tune_fusion_params(hf_model, lf_model, hf_var, lf_var, hf[tune], lf[tune], ts,
+                                                  discretization=discretization)
+    tuning = None
+    q_fixed = model.q
+    if params is None and q is None and scorer is not None and ref is not None:
+        tuning = tune_fusion(t[tune], hf[tune], lf[tune], ref[tune], rate_hz, model, hf_var, lf_var, tones,
+                             settle_s=scorer.keep.start / rate_hz, discretization=discretization)
+        params = tuning.params(hf_var, lf_var, discretization)
+        q_fixed = tuning.q_base * tuning.fixed_r().q_factor
+        model = FusionModel(hf_model, lf_model, tuning.q)
+    if q is not None:
+        model = FusionModel(hf_model, lf_model, q)
+        q_fixed = q
+    params = params or default_params
+    settings["fused"] = {"q": float(model.q), **params.to_dict()}
+    settings["fixed_r_kf"] = {"q": float(q_fixed), "hf_r": float(params.hf_noise.nominal),
+                              "lf_r": float(params.lf_noise.nominal)}
+
+    # complementary filter
+    cf_tuning: SettingsTuning | None = None
+    if crossover_hz is None and scorer is not None:
+        cf_model = FusionModel(hf_model, lf_model, 1.0)
+        cf_tuning = tune_settings(
+            scorer, crossover_grid(hf_model.corner_hz, lf_model.corner_hz, rate_hz),
+            lambda crossover_hz: fu.complementary_filter(hf[tune], lf[tune], rate_hz, cf_model, crossover_hz),
+            rms_only=True)
+        crossover_hz = float(cf_tuning.chosen["crossover_hz"])
+    elif crossover_hz is None:
+        crossover_hz = math.sqrt(hf_model.corner_hz * lf_model.corner_hz)
+    settings["complementary"] = {"crossover_hz": float(crossover_hz),
+                                 "tuning": None if cf_tuning is None else cf_tuning.to_dict()}
+
+    # complementary Kalman filter: noise by maximum likelihood, adaptive R on top chosen by the rule
+    if ref is not None and tones is not None:  # the likelihood sees the noise, outliers left out
+        noise_fit = fc.fit_complementary_noise(clean[:, 0], clean[:, 1], ts, hf_model, lf_model, tones_hz=tones,
+                                               t_s=t[tune])
+    else:
+        noise_fit = fc.fit_complementary_noise(hf[tune], lf[tune], ts, hf_model, lf_model)
+    cnoise = noise_fit.noise
+    settings["complementary_kf"] = settings["complementary_smoother"] = {"noise": cnoise.to_dict()}
+    ad_tuning: SettingsTuning | None = None
+    adaptive = {"upper_factor": fu.UPPER_FACTOR, "inflate": fu.INFLATE}
+    if scorer is not None:
+        ad_tuning = tune_settings(
+            scorer, list(ADAPTIVE_SETTINGS),
+            lambda upper_factor, inflate: fc.complementary_kalman(
+                hf[tune], lf[tune], ts, hf_model, lf_model, cnoise,
+                lf_noise=fu.AdaptiveNoise.from_noise(cnoise.lf_var, 0.0, upper_factor, inflate)).rate)
+        adaptive = dict(ad_tuning.chosen)
+    lf_adaptive = fu.AdaptiveNoise.from_noise(cnoise.lf_var, 0.0, adaptive["upper_factor"], adaptive["inflate"])
+    settings["complementary_kf_adaptive"] = settings["complementary_smoother_adaptive"] = {
+        "noise": cnoise.to_dict(), "lf_noise": lf_adaptive.to_dict(),
+        "tuning": None if ad_tuning is None else ad_tuning.to_dict()}
+
+    # every method over the whole record
+    seq = fu.sequential_fusion(hf, lf, ts, model, params)
+    fixed = fu.fixed_r_kalman(hf, lf, ts, FusionModel(hf_model, lf_model, q_fixed), params)
+    ckf = fc.complementary_kalman(hf, lf, ts, hf_model, lf_model, cnoise, smooth=True)
+    ckf_ad = fc.complementary_kalman(hf, lf, ts, hf_model, lf_model, cnoise, lf_noise=lf_adaptive, smooth=True)
+    estimates = {"hf": hf / hf_model.gain, "lf": lf / lf_model.gain,
+                 "complementary": fu.complementary_filter(hf, lf, rate_hz, model, crossover_hz),
+                 "fused": seq.rate, "fixed_r_kf": fixed.rate, "complementary_kf": ckf.rate,
+                 "complementary_kf_adaptive": ckf_ad.rate, "complementary_smoother": ckf.smoothed,
+                 "complementary_smoother_adaptive": ckf_ad.smoothed}
+    if cleaned:
+        estimates["complementary_clean"] = fu.complementary_filter(hf_clean, lf_clean, rate_hz, model, crossover_hz)
+        estimates["complementary_smoother_clean"] = fc.complementary_kalman(
+            hf_clean, lf_clean, ts, hf_model, lf_model, cnoise, smooth=True).smoothed
+    else:
+        estimates["complementary_clean"] = estimates["complementary"]
+        estimates["complementary_smoother_clean"] = estimates["complementary_smoother"]
+    settings["complementary_clean"] = {**settings["complementary"], "outliers_replaced": cleaned}
+    settings["complementary_smoother_clean"] = {**settings["complementary_smoother"], "outliers_replaced": cleaned}
+
+    keep = slice(judged_from, None)
+    nis = {"fused_hf": nis_check(seq.nis[keep, 0], 1, alpha, seq.rate),
+           "fused_lf": nis_check(seq.nis[keep, 1], 1, alpha, seq.rate),
+           "fused": nis_check(seq.nis[keep].sum(axis=1), 2, alpha, seq.rate),
+           "fixed_r_kf": nis_check(fixed.nis[keep, 0], 2, alpha, fixed.rate),
+           "complementary_kf": nis_check(ckf.nis[keep], 1, alpha, ckf.rate),
+           "complementary_kf_adaptive": nis_check(ckf_ad.nis[keep], 1, alpha, ckf_ad.rate)}
+    frac = {n: np.bincount(seq.interval[keep, j], minlength=3) / seq.interval[keep, j].size
+            for j, n in enumerate(("hf", "lf"))}
+    frac["complementary_lf"] = np.bincount(ckf_ad.interval[keep], minlength=3) / ckf_ad.interval[keep].size
+    r_range = {n: [float(seq.r[keep, j].min()), float(seq.r[keep, j].max())] for j, n in enumerate(("hf", "lf"))}
+    r_range["complementary_lf"] = [float(ckf_ad.r[keep].min()), float(ckf_ad.r[keep].max())]
+
+    judgement = None
+    if ref is not None and tones is not None:
+        judgement = judge(t[keep], ref[keep], {k: v[keep] for k, v in estimates.items()}, tones, rate_hz)
+        recommended, rule = recommend(judgement)
+        rule = ("judged on samples after the tuning part: " if n_tune else "judged on the whole record: ") + rule
+    else:
+        recommended = RECOMMENDED_WITHOUT_REF
+        rule = ("no reference: nothing can be judged; the complementary smoother is optimal for the noise "
+                "fitted by maximum likelihood and cannot lag")
+    return FusionAnalysis(rate_hz, t, model, params, source, crossover_hz, estimates, nis, frac, r_range, recommended,
+                          rule, cnoise, settings, n_tune, judged_from, judgement, tuning, noise_fit, alignment, notes)

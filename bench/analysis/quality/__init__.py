@@ -1,0 +1,34 @@
+"""Factory statistics: yield with its interval, control charts, and the decision risk of a limit.
+
+What a user calls::
+
+    individuals_chart, xbar_r_charts, western_electric, ControlChart, RULES
+    decision_risk, overall_risk, inside, DecisionRisk
+    wilson_interval, Proportion
+
+The modules behind it are private: import from ``bench.analysis.quality``.
+"""
+
+from bench.analysis.quality._control_chart import (
+    RULES,
+    ControlChart,
+    individuals_chart,
+    western_electric,
+    xbar_r_charts,
+)
+from bench.analysis.quality._decision_risk import DecisionRisk, decision_risk, inside, overall_risk
+from bench.analysis.quality._proportion import Proportion, wilson_interval
+
+__all__ = [
+    "ControlChart",
+    "DecisionRisk",
+    "Proportion",
+    "RULES",
+    "decision_risk",
+    "individuals_chart",
+    "inside",
+    "overall_risk",
+    "western_electric",
+    "wilson_interval",
+    "xbar_r_charts",
+]

@@ -1,0 +1,47 @@
+"""Calibration over temperature: soak detection, bias and scale-factor polynomials, ramps, compensation.
+
+What a user calls::
+
+    calibrate_over_temperature, ThermalCalibration, QuantityCalibration
+    compensation_model, CompensationModel, compensate
+    compensation_to_toml, compensation_from_toml
+    QuantityPoints, as_array, check_real
+    fit_temperature_polynomial, TemperaturePolynomial
+    analyze_thermal_ramp, ThermalRampResult
+    soak_status, SoakCriterion, SoakStatus
+    verify_compensation, CompensationVerification
+
+The modules behind it are private: import from ``bench.analysis.thermal``.
+"""
+
+from bench.analysis.thermal._calibration import QuantityCalibration, ThermalCalibration, calibrate_over_temperature
+from bench.analysis.thermal._compensation import CompensationModel, compensate, compensation_model
+from bench.analysis.thermal._compensation_file import compensation_from_toml, compensation_to_toml
+from bench.analysis.thermal._inputs import QuantityPoints, as_array, check_real
+from bench.analysis.thermal._poly import TemperaturePolynomial, fit_temperature_polynomial
+from bench.analysis.thermal._ramp import ThermalRampResult, analyze_thermal_ramp
+from bench.analysis.thermal._soak import SoakCriterion, SoakStatus, soak_status
+from bench.analysis.thermal._verification import CompensationVerification, verify_compensation
+
+__all__ = [
+    "CompensationModel",
+    "CompensationVerification",
+    "QuantityCalibration",
+    "QuantityPoints",
+    "SoakCriterion",
+    "SoakStatus",
+    "TemperaturePolynomial",
+    "ThermalCalibration",
+    "ThermalRampResult",
+    "analyze_thermal_ramp",
+    "as_array",
+    "calibrate_over_temperature",
+    "check_real",
+    "compensate",
+    "compensation_from_toml",
+    "compensation_model",
+    "compensation_to_toml",
+    "fit_temperature_polynomial",
+    "soak_status",
+    "verify_compensation",
+]

@@ -1,0 +1,138 @@
+"""The thermal compensation file: TOML text to and from a :class:`CompensationModel`.
+
+Layout (``format = "inertial-bench-thermal-compensation"``, ``version = 1``)::
+
+    format = "inertial-bench-thermal-compensation"
+    version = 1
+    unit_serial = "QA-SIM-0005"
+    unit_model = "QA-2000-SIM"
+    created = "run 20261122-062505-a933"      # the caller's text (optional)
+    temperature_source = "unit_sensor"        # unit_sensor | element
+    reference_c = 25.0
+    valid_range_c = [-40.0, 70.0]
+    input_unit = "g"
+    output_unit = "mA"
+    notes = ""                                # optional
+
+    [quantities.k0]                           # one table per quantity, in model order
+    role = "bias"                             # bias | scale_factor | k2 | cross_axis
+    unit = "g"
+    coefficients = [c0, c1, c2]               # q(T) = sum c_k (T - reference_c)^k
+    covariance = [[...], [...], [...]]        # of the coefficients
+    residual_rms = 1.2e-06                    # the fit's residuals, unit
+    residual_max_abs = 2.0e-06
+    prediction_std_max = 8.0e-07              # largest std of the curve over valid_range_c
+    n_points = 7
+    order_selection = "bic"                   # bic | loo | fixed
+    # cross_input = "a_p"; sign = -1.0        # role cross_axis only
+
+Numbers are written with Python's shortest round-trip repr, so a file reads back bit for
+bit. Reading checks every key (unknown and missing keys too) and raises ValueError naming
+the key, the value and what is allowed; the model's own checks
+(:class:`~bench.analysis.thermal._compensation.CompensationModel`) then apply.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+from bench.analysis.thermal._compensation import (
+    FORMAT,
+    SUPPORTED_VERSIONS,
+    CompensationModel,
+    QuantityCompensation,
+)
+from bench.analysis.thermal._inputs import is_real
+
+_HEADER_KEYS = ("format", "version", "unit_serial", "unit_model", "created", "temperature_source",
+                "reference_c", "valid_range_c", "input_unit", "output_unit", "notes", "quantities")
+_QUANTITY_KEYS = ("role", "unit", "coefficients", "covariance", "residual_rms", "residual_max_abs",
+                  "prediction_std_max", "n_points", "order_selection", "cross_input", "sign")
+_ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\t": "\\t", "\r": "\\r"}
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, str):  # a TOML basic string: backslash, quote and control characters escaped
+        return '"' + "".join(_ESCAPES.get(ch, f"\\u{ord(ch):04x}" if ord(ch) < 0x20 or ord(ch) == 0x7F else ch)
+                             for ch in v) + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, int) and not isinstance(v, bool):
+        return str(v)
+    return repr(float(v))  # shortest repr: reads back bit for bit
+
+
+def compensation_to_toml(model: CompensationModel) -> str:
+    """The compensation file's text (TOML)."""
+    d = model.to_dict()
+    lines = ["# inertial-bench thermal compensation model (docs/METHODS.md, \"Calibration over temperature\")",
+             "# output = SF(T) * (x + B(T) + K2(T)*x^2 + sum_j sign_j * M_j(T) * u_j)",
+             "# q(T) = sum_k coefficients[k] * (T - reference_c)^k, T in degC from temperature_source"]
+    lines += [f"{k} = {_toml_value(v)}" for k, v in d.items() if k != "quantities"]
+    for name, q in d["quantities"].items():
+        lines += ["", f"[quantities.{name}]"]
+        lines += [f"{k} = {_toml_value(v)}" for k, v in q.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _expect_keys(where: str, table, allowed: tuple[str, ...], required: tuple[str, ...]) -> None:
+    if not isinstance(table, dict):
+        raise ValueError(f"{where}: allowed a table, got {table!r}")
+    unknown = [k for k in table if k not in allowed]
+    if unknown:
+        raise ValueError(f"{where + '.' if where else ''}{unknown[0]}: unknown key; allowed "
+                         f"{', '.join(allowed)}")
+    missing = [k for k in required if k not in table]
+    if missing:
+        raise ValueError(f"{where + '.' if where else ''}{missing[0]}: missing (required)")
+
+
+def compensation_from_toml(text: str) -> CompensationModel:
+    """Parse and validate a compensation file's text (ValueError naming the key and what is allowed)."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"compensation file is not valid TOML: {exc}") from None
+    _expect_keys("", doc, _HEADER_KEYS, tuple(k for k in _HEADER_KEYS if k not in ("created", "notes")))
+    if doc["format"] != FORMAT:
+        raise ValueError(f"format = {doc['format']!r}: allowed {FORMAT!r}")
+    version = doc["version"]
+    if isinstance(version, bool) or version not in SUPPORTED_VERSIONS:
+        raise ValueError(f"version = {version!r}: this reader supports versions "
+                         f"{', '.join(map(str, SUPPORTED_VERSIONS))}")
+    tables = doc["quantities"]
+    if not isinstance(tables, dict) or not tables:
+        raise ValueError(f"quantities = {tables!r}: allowed one or more [quantities.<name>] tables")
+    quantities = []
+    required = tuple(k for k in _QUANTITY_KEYS if k not in ("cross_input", "sign"))
+    for name, t in tables.items():
+        _expect_keys(f"quantities.{name}", t, _QUANTITY_KEYS, required)
+        sign = t.get("sign", 1.0)
+        if not is_real(sign):
+            raise ValueError(f"quantities.{name}.sign = {sign!r}: allowed 1.0 or -1.0")
+        quantities.append(QuantityCompensation(
+            name=name, role=t["role"], unit=t["unit"], coefficients=t["coefficients"], covariance=t["covariance"],
+            residual_rms=t["residual_rms"], residual_max_abs=t["residual_max_abs"],
+            prediction_std_max=t["prediction_std_max"], n_points=t["n_points"],
+            order_selection=t["order_selection"], cross_input=t.get("cross_input"), sign=float(sign)))
+    return CompensationModel(
+        unit_serial=doc["unit_serial"], unit_model=doc["unit_model"],
+        temperature_source=doc["temperature_source"], reference_c=doc["reference_c"],
+        valid_range_c=doc["valid_range_c"], input_unit=doc["input_unit"], output_unit=doc["output_unit"],
+        quantities=tuple(quantities), created=doc.get("created", ""), notes=doc.get("notes", ""),
+        version=version)
+
+
+def write_compensation(model: CompensationModel, path) -> None:
+    """Write the compensation file (TOML) to ``path``."""
+    Path(path).write_text(compensation_to_toml(model), encoding="utf-8")
+
+
+def read_compensation(path) -> CompensationModel:
+    """Read and validate a compensation file (ValueError naming the bad key or the unreadable path)."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read compensation file {str(path)!r}: {exc}") from None
+    return compensation_from_toml(text)

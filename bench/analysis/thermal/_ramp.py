@@ -1,0 +1,354 @@
+"""Thermal ramp: bias over temperature, thermal hysteresis and temperature-rate sensitivity.
+
+One static record taken while the chamber ramps up and down: the unit's output y(t) (its
+bias plus the constant static input), and its own sensor's temperature T(t). Model, on
+block means of ``block_s``::
+
+    y = p(T_e) + h·s/2 + k·Ṫ + noise,      T_e = T lagged by τ:  τ·dT_e/dt = T − T_e
+
+* p — the **bias-vs-temperature curve** (order 0 … 3 about ``reference_c``, BIC), at zero
+  rate and mid-way between the branches, in the element's temperature T_e (the sensor's
+  when τ = 0);
+* s = +1 on an up branch, −1 on a down branch — the branch flips at each extremum of T
+  (found with a ``reversal_band_c`` dead band, so sensor noise cannot flip it); h, the
+  **thermal hysteresis**, is the up-minus-down offset at equal temperature and zero rate;
+* Ṫ — the sensor's rate in °C/min (local linear slope over ``rate_window_s``); k, the
+  **temperature-rate sensitivity** (a FOG's Shupe effect, an accelerometer's gradient
+  sensitivity), in output units per °C/min;
+* τ — the sensing element's lag behind the sensor: during a ramp it makes p(T) read
+  p(T − τṪ), a rate term of size τ·p'(T)·Ṫ. ``lag_s`` fixes τ (0: the sensor reads the
+  element), None fits it when the data can tell it from k — only through p's curvature,
+  since for a linear p the lag *is* a rate term; otherwise τ = 0 and the rate term carries it.
+
+**h and k are confounded** when the unit ramps up and down at one rate: on steady ramps
+Ṫ = ±r is then ±r·s, so h·s/2 + k·Ṫ = (h/2 + k·r)·s, and with one up rate and a different
+down rate Ṫ is an affine function of s whose constant the curve absorbs. They separate only
+when the steady rate takes more values than the branch explains — ramps at two rates
+(dwells help little: they sit at the extremes, where the curve's own shape absorbs them).
+The check is made on the **steady** blocks only (the rate ``steady_window_s`` before and
+after the block, and at the block, agree within ``steady_tolerance`` of the largest rate):
+a unit accelerating out of a reversal or a soak changes Ṫ too, but there the model is least
+sure (the branch's switch, the rate's smoothing), so those blocks must not be what separates
+the terms. The fraction of the steady rate column outside the span of the curve and branch
+columns there (1/√VIF) must reach ``min_separation``; otherwise ``hysteresis`` and
+``rate_sensitivity`` are None with the reason. The rate term stays in the fitted model
+either way (so its transients are not mistaken for drift), and their combination, which the
+record does determine, is always reported: ``branch_offset`` = h + k·(r_up − r_down), the
+up-minus-down difference at equal temperature at the record's ramp rates
+``ramp_rates_c_per_min`` (the median rate of each direction's blocks, dwells left out).
+The lag is checked the same way against the other columns.
+
+Model-free beside it, the **branch difference curve**: separate polynomials (the curve's
+order) of the sensor temperature for the up and the down branch, their difference over the
+temperatures both branches covered.
+
+The record (block means, rate, branches, steady blocks) is prepared by
+:mod:`bench.analysis.thermal._ramp_record`.
+
+Uncertainties: the residual of a long static record is coloured (bias instability, drift),
+so the fit is a feasible GLS under an AR noise model (:mod:`bench.analysis.ar_gls`); blocks
+within ``settle_s`` after a reversal (the branch in transition) and before the first branch
+is known are left out of every fit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, signal
+
+from bench.analysis.thermal import _drift_gls as drift_gls
+from bench.analysis.thermal._drift_gls import NoiseModel
+from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C, check_int, check_real
+from bench.analysis.thermal._poly import MAX_ORDER, PolynomialCurve, polynomial_rows
+from bench.analysis.thermal._ramp_record import (
+    RampSegment,
+    block_means,
+    branch_states,
+    local_slope,
+    ramp_rates,
+    ramp_segments,
+    steady_blocks,
+)
+from bench.values import Estimate
+
+MIN_BLOCKS = 40
+_GRID_POINTS = 41
+_LAG_GRID = 10
+
+
+@dataclass(frozen=True, eq=False)
+class ThermalRampResult:
+    """Thermal ramp analysis (module docstring). Output units: those of ``output``;
+    ``rate_sensitivity`` per °C/min; ``lag_s`` in s (std None when fixed by the caller).
+    ``not_separable`` names each term the record could not separate and why. Block-level
+    arrays: ``block_*``; ``block_used`` marks the blocks every fit used."""
+
+    curve: PolynomialCurve
+    hysteresis: Estimate | None
+    rate_sensitivity: Estimate | None
+    lag_s: Estimate
+    branch_offset: Estimate
+    ramp_rates_c_per_min: tuple[float, float]
+    not_separable: dict[str, str]
+    separation_rate: float
+    separation_lag: float | None
+    branch_difference_t_c: np.ndarray
+    branch_difference: np.ndarray
+    branch_difference_std: np.ndarray
+    branch_difference_mean: Estimate
+    segments: tuple[RampSegment, ...]
+    order: int
+    bic_by_order: dict[int, float]
+    noise: NoiseModel
+    noise_sigma: float
+    dof: int
+    block_s: float
+    block_t_s: np.ndarray
+    block_output: np.ndarray
+    block_temperature_c: np.ndarray
+    block_rate_c_per_min: np.ndarray
+    block_branch: np.ndarray
+    block_used: np.ndarray
+    block_residual: np.ndarray
+
+    def to_dict(self) -> dict:
+        def est(e):
+            return None if e is None else e.to_dict()
+        return {"curve": self.curve.to_dict(), "order": self.order, "hysteresis": est(self.hysteresis),
+                "rate_sensitivity": est(self.rate_sensitivity), "lag_s": est(self.lag_s),
+                "branch_offset": est(self.branch_offset), "ramp_rates_c_per_min": list(self.ramp_rates_c_per_min),
+                "not_separable": dict(self.not_separable),
+                "separation_rate": self.separation_rate, "separation_lag": self.separation_lag,
+                "branch_difference_t_c": self.branch_difference_t_c.tolist(),
+                "branch_difference": self.branch_difference.tolist(),
+                "branch_difference_std": self.branch_difference_std.tolist(),
+                "branch_difference_mean": est(self.branch_difference_mean),
+                "segments": [vars(s) for s in self.segments],
+                "bic_by_order": {str(k): v for k, v in self.bic_by_order.items()},
+                "noise": self.noise.to_dict(), "noise_sigma": self.noise_sigma, "dof": self.dof,
+                "block_s": self.block_s}
+
+
+def lag_filter(t: np.ndarray, temp: np.ndarray, lag_s: float) -> np.ndarray:
+    """``temp`` through a first-order lag of ``lag_s`` (exact for a piecewise-linear input;
+    starts soaked: T_e(t_0) = T(t_0))."""
+    if lag_s <= 0.0:
+        return temp.copy()
+    dt = np.diff(t)
+    e = np.exp(-dt / lag_s)
+    x = (1.0 - e) * temp[:-1] + np.diff(temp) * (1.0 - lag_s * (1.0 - e) / dt)
+    if np.allclose(dt, dt[0], rtol=1e-9):
+        out, _ = signal.lfilter([1.0], [1.0, -e[0]], x, zi=[e[0] * temp[0]])
+        return np.concatenate([[temp[0]], out])
+    out = np.empty_like(temp)
+    out[0] = temp[0]
+    for i in range(1, temp.size):
+        out[i] = e[i - 1] * out[i - 1] + x[i - 1]
+    return out
+
+
+# --------------------------------------------------------------------------- the fit
+
+
+@dataclass(frozen=True, eq=False)
+class _Design:
+    t: np.ndarray
+    temp: np.ndarray
+    rate: np.ndarray  # °C/min
+    half_state: np.ndarray  # s/2
+    used: np.ndarray
+    reference_c: float
+    with_rate: bool
+
+    def columns(self, order: int, lag_s: float) -> np.ndarray:
+        te = lag_filter(self.t, self.temp, lag_s)
+        cols = [polynomial_rows(te - self.reference_c, order), self.half_state[:, None]]
+        if self.with_rate:
+            cols.append(self.rate[:, None])
+        return np.hstack(cols)
+
+
+def _fit_lag(design: _Design, y: np.ndarray, order: int, noise: NoiseModel, lag_max_s: float) -> float:
+    """τ minimising the whitened residual: a grid (0 and log-spaced to lag_max_s), then a
+    bounded search around the best grid point."""
+    def rss(lag):
+        return drift_gls.gls(design.columns(order, lag), y, design.used, noise).rss
+    grid = np.concatenate([[0.0], np.geomspace(lag_max_s / 1000.0, lag_max_s, _LAG_GRID - 1)])
+    values = [rss(g) for g in grid]
+    i = int(np.argmin(values))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    best = optimize.minimize_scalar(rss, bounds=(lo, hi), method="bounded",
+                                    options={"xatol": 1e-4 * max(hi, 1.0)})
+    return float(best.x) if best.fun <= values[i] else float(grid[i])
+
+
+def _lag_jacobian(design: _Design, order: int, lag: float, coef: np.ndarray) -> np.ndarray:
+    """∂(model)/∂τ with the linear coefficients held (central difference; forward at 0)."""
+    h = max(1e-3 * lag, 1e-3 * (design.t[1] - design.t[0]))
+    lo = max(lag - h, 0.0)
+    hi = lag + h
+    p = slice(0, order + 1)
+    up = design.columns(order, hi)[:, p] @ coef[p]
+    dn = design.columns(order, lo)[:, p] @ coef[p]
+    return (up - dn) / (hi - lo)
+
+
+def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None, reference_c: float = 25.0,
+                         block_s: float = 60.0, rate_window_s: float = 180.0, reversal_band_c: float = 0.5,
+                         settle_s: float | None = None, lag_s: float | None = None, lag_max_s: float = 7200.0,
+                         min_separation: float = 0.1, steady_tolerance: float = 0.1,
+                         steady_window_s: float = 600.0) -> ThermalRampResult:
+    """Analyse a static record over an up-and-down temperature ramp (module docstring).
+
+    ``t_s`` (s, increasing), ``output`` (any unit), ``temperature_c`` (the unit's sensor, °C)
+    of one length. ``order`` fixes the curve's order (0 … 3; None: BIC). ``block_s`` (0, 3600]
+    the averaging block; ``rate_window_s`` [2·block_s, record/4] the rate's window;
+    ``reversal_band_c`` (0, 20] the dead band for reversals; ``settle_s`` [0, record/4] left
+    out after each reversal (default 600 s, or a quarter of the record); ``lag_s`` the element's lag behind
+    the sensor in s, [0, 1e5], or None to fit it within [0, ``lag_max_s``];
+    ``min_separation`` (0, 1), ``steady_tolerance`` (0, 1) and ``steady_window_s``
+    [rate_window_s, record/4] the identifiability check.
+    """
+    t = np.asarray(t_s, dtype=float)
+    y_raw = np.asarray(output, dtype=float)
+    temp_raw = np.asarray(temperature_c, dtype=float)
+    if t.ndim != 1 or t.shape != y_raw.shape or t.shape != temp_raw.shape:
+        raise ValueError(f"t_s, output and temperature_c must be 1-D of one length, got shapes "
+                         f"{t.shape}, {y_raw.shape}, {temp_raw.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y_raw)) and np.all(np.isfinite(temp_raw))):
+        raise ValueError("t_s, output and temperature_c must be finite")
+    if t.size < MIN_BLOCKS or np.any(np.diff(t) <= 0):
+        raise ValueError(f"t_s must be strictly increasing with ≥ {MIN_BLOCKS} samples, got {t.size}")
+    lo_t, hi_t = TEMPERATURE_LIMITS_C
+    if temp_raw.min() < lo_t or temp_raw.max() > hi_t:
+        raise ValueError(f"temperature_c spans {temp_raw.min():g} … {temp_raw.max():g} °C: "
+                         f"allowed [{lo_t:g}, {hi_t:g}]")
+    span = float(t[-1] - t[0])
+    block = check_real("block_s", block_s, 0.0, 3600.0, low_open=True)
+    window = check_real("rate_window_s", rate_window_s, 2 * block, max(span / 4, 2 * block))
+    band = check_real("reversal_band_c", reversal_band_c, 0.0, 20.0, low_open=True)
+    settle = min(600.0, span / 4) if settle_s is None else check_real("settle_s", settle_s, 0.0, span / 4)
+    ref = check_real("reference_c", reference_c, lo_t, hi_t)
+    if order is not None:
+        check_int("order", order, 0, MAX_ORDER)
+    fixed_lag = None if lag_s is None else check_real("lag_s", lag_s, 0.0, 1e5)
+    lag_max = check_real("lag_max_s", lag_max_s, 0.0, 1e5, low_open=True)
+    min_sep = check_real("min_separation", min_separation, 0.0, 1.0, low_open=True)
+    steady_tol = check_real("steady_tolerance", steady_tolerance, 0.0, 1.0, low_open=True)
+    steady_w = check_real("steady_window_s", steady_window_s, window, max(span / 4, window))
+
+    tb, yb, temp = block_means(t, y_raw, temp_raw, block)
+    if tb.size < MIN_BLOCKS:
+        raise ValueError(f"the record gives {tb.size} blocks of {block:g} s; at least {MIN_BLOCKS} are needed "
+                         "(a shorter block_s or a longer record)")
+    rate = 60.0 * local_slope(tb, temp, window / 2)
+    state, starts = branch_states(temp, band)
+    directions = {int(d) for d in state if d != 0}
+    if directions != {1, -1}:
+        raise ValueError(f"the temperature never reverses by more than reversal_band_c = {band:g} °C "
+                         f"(span {temp.min():.4g} … {temp.max():.4g} °C): an up-and-down ramp is needed")
+    settling = np.zeros(tb.size, dtype=bool)
+    for s in starts[1:]:
+        settling |= (tb >= tb[s]) & (tb < tb[s] + settle)
+    used = (state != 0) & ~settling
+    if not (np.any(used & (state > 0)) and np.any(used & (state < 0))):
+        raise ValueError(f"after leaving out settle_s = {settle:g} s after each reversal, no up or no down "
+                         "branch remains: a longer record or a shorter settle_s")
+    steady = used & steady_blocks(tb, rate, steady_w, steady_tol * np.abs(rate[used]).max())
+    segments = ramp_segments(tb, temp, rate, state, starts, steady)
+
+    half = state / 2.0
+    base = np.column_stack([polynomial_rows(temp - ref, MAX_ORDER), half])
+    sep_rate = drift_gls.separation(rate[steady], base[steady]) if np.any(steady) else 0.0
+    not_separable: dict[str, str] = {}
+    separable = sep_rate >= min_sep
+    if not separable:
+        rates = sorted({round(s.rate_c_per_min, 3) for s in segments if s.rate_c_per_min is not None})
+        not_separable["hysteresis"] = not_separable["rate_sensitivity"] = (
+            f"on the steady blocks the rate is {sep_rate:.3g} < {min_sep:g} away from a function of the branch "
+            f"(steady rates {rates} °C/min): up/down ramps at one rate each cannot tell an offset that follows "
+            "the branch from one that follows the rate; ramp at two rates")
+    # The rate term stays in the model even when it is not separable on the steady blocks, so
+    # that its transients are not taken for drift; only an exactly collinear record drops it.
+    with_rate = drift_gls.separation(rate[used], base[used]) > 1e-6
+    design = _Design(tb, temp, rate, half, used, ref, with_rate)
+
+    # Noise model (REML, jointly with the largest model), every order under it, then the lag.
+    start_lag = 0.0 if fixed_lag is None else fixed_lag
+    noise = drift_gls.fit_noise(design.columns(MAX_ORDER, start_lag), yb, used)
+    orders = range(MAX_ORDER + 1) if order is None else [order]
+    fits = {k: drift_gls.gls(design.columns(k, start_lag), yb, used, noise) for k in orders}
+    bic = {k: f.bic() for k, f in fits.items()}
+    chosen = min(bic, key=lambda k: bic[k])
+    lag_value, sep_lag = start_lag, None
+    if fixed_lag is None:
+        g = _lag_jacobian(design, chosen, 0.0, fits[chosen].coefficients)
+        sep_lag = drift_gls.separation(g[steady], design.columns(chosen, 0.0)[steady]) if np.any(g[steady]) else 0.0
+        if sep_lag >= min_sep:
+            lag_value = _fit_lag(design, yb, chosen, noise, lag_max)
+            noise = drift_gls.fit_noise(design.columns(chosen, lag_value), yb, used)
+        else:
+            not_separable["lag_s"] = (
+                f"the lag's column is {sep_lag:.3g} < {min_sep:g} away from the curve, branch and rate columns "
+                "(a lag of the element behind the sensor acts as a rate term unless the curve bends): "
+                "fixed at 0, the rate term carries it")
+    x = design.columns(chosen, lag_value)
+    nodes, weights = drift_gls.noise_quadrature(x, yb, used, noise)
+    fit = drift_gls.gls_integrated(x, yb, used, noise, nodes, weights)
+    cov, lag_std = fit.covariance, None
+    if fixed_lag is None and "lag_s" not in not_separable:
+        # τ's uncertainty from the whitened Jacobian with its column added (linearised at τ̂)
+        jac = np.column_stack([x, _lag_jacobian(design, chosen, lag_value, fit.coefficients)])
+        full = drift_gls.gls_integrated(jac, yb - x @ fit.coefficients, used, noise, nodes, weights)
+        lag_std = math.sqrt(full.covariance[-1, -1])
+        cov = full.covariance[:-1, :-1]
+    n_poly = chosen + 1
+    coef = fit.coefficients
+    curve = PolynomialCurve(ref, coef[:n_poly].copy(), cov[:n_poly, :n_poly].copy())
+    offset_row = np.zeros(coef.size)
+    offset_row[n_poly] = 1.0
+    hysteresis = rate_sens = None
+    rates_up_down = ramp_rates(rate, state, used)
+    if with_rate:
+        offset_row[n_poly + 1] = rates_up_down[0] - rates_up_down[1]
+    if separable:
+        hysteresis = Estimate(float(coef[n_poly]), math.sqrt(cov[n_poly, n_poly]))
+        rate_sens = Estimate(float(coef[n_poly + 1]), math.sqrt(cov[n_poly + 1, n_poly + 1]))
+    branch_offset = Estimate(float(offset_row @ coef), math.sqrt(max(float(offset_row @ cov @ offset_row), 0.0)))
+    grid, diff, diff_std, diff_mean = _branch_difference(tb, temp, yb, state, used, chosen, ref, noise)
+    resid = yb - x @ coef
+    return ThermalRampResult(
+        curve=curve, hysteresis=hysteresis, rate_sensitivity=rate_sens,
+        lag_s=Estimate(float(lag_value), lag_std), branch_offset=branch_offset, ramp_rates_c_per_min=rates_up_down,
+        not_separable=not_separable,
+        separation_rate=float(sep_rate), separation_lag=sep_lag, branch_difference_t_c=grid,
+        branch_difference=diff, branch_difference_std=diff_std, branch_difference_mean=diff_mean,
+        segments=segments, order=chosen, bic_by_order=bic, noise=fit.noise, noise_sigma=fit.sigma,
+        dof=fit.dof, block_s=block, block_t_s=tb, block_output=yb, block_temperature_c=temp,
+        block_rate_c_per_min=rate, block_branch=state, block_used=used, block_residual=resid)
+
+
+def _branch_difference(tb, temp, yb, state, used, order, ref, noise):
+    """Up and down branches as separate polynomials of the sensor temperature; their
+    difference on a grid over the range both cover, with its standard uncertainty, and its
+    mean over the grid."""
+    up, dn = used & (state > 0), used & (state < 0)
+    lo = max(temp[up].min(), temp[dn].min())
+    hi = min(temp[up].max(), temp[dn].max())
+    if not lo < hi:
+        raise ValueError(f"the up and down branches share no temperature range (up {temp[up].min():.4g} … "
+                         f"{temp[up].max():.4g} °C, down {temp[dn].min():.4g} … {temp[dn].max():.4g} °C)")
+    rows = polynomial_rows(temp - ref, order)
+    x = np.hstack([rows * (state > 0)[:, None], rows * (state < 0)[:, None]])
+    fit = drift_gls.gls(x, yb, used, noise)
+    grid = np.linspace(lo, hi, _GRID_POINTS)
+    g = polynomial_rows(grid - ref, order)
+    gd = np.hstack([g, -g])
+    diff = gd @ fit.coefficients
+    std = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", gd, fit.covariance, gd), 0.0, None))
+    m = gd.mean(axis=0)
+    mean = Estimate(float(m @ fit.coefficients), math.sqrt(max(float(m @ fit.covariance @ m), 0.0)))
+    return grid, diff, std, mean

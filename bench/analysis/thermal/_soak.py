@@ -1,0 +1,169 @@
+"""Thermal soak: when is a unit's own temperature stable enough to measure?
+
+A sweep soaks at each set point until the *unit's* temperature sensor says the unit has
+settled, not for a fixed time. The criterion, over the trailing ``window_s`` of the
+sensor's readings (all taken after ``start_s``, the time the new set point was commanded,
+so a unit still sitting stably at the previous temperature never passes):
+
+* **rate**: |slope| of the least-squares line through the window ≤ ``max_rate_c_per_min``;
+* **spread**: max − min of the readings in the window ≤ ``band_c`` (choose it above the
+  sensor's own peak-to-peak noise);
+* **target** (optional): |mean − ``target_c``| ≤ ``target_tolerance_c``, so a unit stable
+  at the wrong temperature (a chamber that never got there) does not pass;
+* at least ``min_samples`` readings in the window.
+
+The **soak time** is from ``start_s`` to the first time all hold (the end of that first
+good window, so it is never shorter than ``window_s``).
+
+Two entry points, both pure: :func:`soak_status` judges the series so far at its last
+reading and reads only the trailing window (a procedure polling the sensor calls it after
+each reading: O(window) per call); :func:`find_soak` scans a whole record for the first
+time the criterion held.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C, check_int, check_real
+
+
+@dataclass(frozen=True)
+class SoakCriterion:
+    """Stability criterion (module docstring). Ranges: ``window_s`` (0, 86400];
+    ``max_rate_c_per_min`` (0, 10]; ``band_c`` (0, 20]; ``min_samples`` 3 … 10⁶;
+    ``target_c`` None or −100 … 200; ``target_tolerance_c`` (0, 50]."""
+
+    window_s: float = 600.0
+    max_rate_c_per_min: float = 0.05
+    band_c: float = 0.2
+    min_samples: int = 10
+    target_c: float | None = None
+    target_tolerance_c: float = 2.0
+
+    def __post_init__(self) -> None:
+        check_real("window_s", self.window_s, 0.0, 86400.0, low_open=True)
+        check_real("max_rate_c_per_min", self.max_rate_c_per_min, 0.0, 10.0, low_open=True)
+        check_real("band_c", self.band_c, 0.0, 20.0, low_open=True)
+        check_int("min_samples", self.min_samples, 3, 1_000_000)
+        if self.target_c is not None:
+            check_real("target_c", self.target_c, *TEMPERATURE_LIMITS_C)
+        check_real("target_tolerance_c", self.target_tolerance_c, 0.0, 50.0, low_open=True)
+
+
+@dataclass(frozen=True)
+class SoakStatus:
+    """The criterion judged at ``t_s`` over the window ending there. ``reason`` says why it
+    is not stable (empty when it is); the figures are None until the window is covered."""
+
+    stable: bool
+    t_s: float
+    rate_c_per_min: float | None
+    spread_c: float | None
+    mean_c: float | None
+    samples: int
+    reason: str
+
+
+@dataclass(frozen=True)
+class SoakResult:
+    """First time the criterion held in a record: ``stable_at_s`` (None: never) and
+    ``soak_time_s`` = stable_at_s − start_s; ``final`` is the status at the last reading."""
+
+    stable: bool
+    start_s: float
+    stable_at_s: float | None
+    soak_time_s: float | None
+    criterion: SoakCriterion
+    final: SoakStatus
+
+
+def _series(t_s, temp_c) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(temp_c, dtype=float)
+    if t.ndim != 1 or t.shape != y.shape or t.size == 0:
+        raise ValueError(f"t_s and temp_c must be 1-D of one length ≥ 1, got shapes {t.shape} and {y.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y))):
+        raise ValueError("t_s and temp_c must be finite")
+    if t.size > 1 and np.any(np.diff(t) <= 0):
+        i = int(np.flatnonzero(np.diff(t) <= 0)[0])
+        raise ValueError(f"t_s must be strictly increasing: t_s[{i + 1}] = {float(t[i + 1])!r} "
+                         f"≤ t_s[{i}] = {float(t[i])!r}")
+    lo, hi = TEMPERATURE_LIMITS_C
+    if np.any((y < lo) | (y > hi)):
+        i = int(np.flatnonzero((y < lo) | (y > hi))[0])
+        raise ValueError(f"temp_c[{i}] = {float(y[i])!r} outside the allowed range [{lo:g}, {hi:g}] °C")
+    return t, y
+
+
+def _judge(t: np.ndarray, y: np.ndarray, end: int, start_s: float, c: SoakCriterion) -> SoakStatus:
+    """The criterion over the window ending at reading ``end`` (inclusive)."""
+    t_end = float(t[end])
+    if t_end - start_s < c.window_s:
+        return SoakStatus(False, t_end, None, None, None, 0,
+                          f"window not yet covered: {t_end - start_s:.6g} of {c.window_s:.6g} s since start")
+    first = int(np.searchsorted(t, t_end - c.window_s, side="left"))
+    tw, yw = t[first:end + 1], y[first:end + 1]
+    n = tw.size
+    if n < c.min_samples:
+        return SoakStatus(False, t_end, None, None, None, n,
+                          f"{n} readings in the window, {c.min_samples} needed")
+    u = tw - tw.mean()
+    rate = float(60.0 * (u @ (yw - yw.mean())) / (u @ u))
+    spread = float(yw.max() - yw.min())
+    mean = float(yw.mean())
+    reasons = []
+    if abs(rate) > c.max_rate_c_per_min:
+        reasons.append(f"rate {rate:.4g} °C/min beyond ±{c.max_rate_c_per_min:g}")
+    if spread > c.band_c:
+        reasons.append(f"spread {spread:.4g} °C > band {c.band_c:g}")
+    if c.target_c is not None and abs(mean - c.target_c) > c.target_tolerance_c:
+        reasons.append(f"mean {mean:.4g} °C not within {c.target_tolerance_c:g} of target {c.target_c:g}")
+    return SoakStatus(not reasons, t_end, rate, spread, mean, n, "; ".join(reasons))
+
+
+def _start(t: np.ndarray, start_s) -> float:
+    if start_s is None:
+        return float(t[0])
+    if not (isinstance(start_s, (int, float)) and math.isfinite(start_s) and start_s <= t[-1]):
+        raise ValueError(f"start_s = {start_s!r} must be finite and not after the last reading ({t[-1]:g} s)")
+    return float(start_s)
+
+
+def soak_status(t_s, temp_c, criterion: SoakCriterion, *, start_s: float | None = None) -> SoakStatus:
+    """Is the unit stable at its last reading? ``t_s`` (s, increasing) and ``temp_c`` (°C):
+    the unit's sensor so far; ``start_s``: when the set point was commanded (default the
+    first reading). Reads, and checks, only the trailing window and the first reading."""
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(temp_c, dtype=float)
+    if t.ndim != 1 or t.shape != y.shape or t.size == 0:
+        raise ValueError(f"t_s and temp_c must be 1-D of one length ≥ 1, got shapes {t.shape} and {y.shape}")
+    first = max(0, int(np.searchsorted(t, t[-1] - criterion.window_s, side="left")) - 1)
+    tw, yw = _series(t[first:], y[first:])
+    start = _start(np.r_[_series(t[:1], y[:1])[0], tw], start_s)
+    return _judge(tw, yw, tw.size - 1, start, criterion)
+
+
+def find_soak(t_s, temp_c, criterion: SoakCriterion, *, start_s: float | None = None) -> SoakResult:
+    """First reading at which the criterion held (arguments as :func:`soak_status`)."""
+    t, y = _series(t_s, temp_c)
+    start = _start(t, start_s)
+    # Rate of every trailing window at once (running sums), then the full check only where
+    # the rate passes, in time order: the first pass is the answer.
+    u = t - t[0]
+    cs = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones_like(u), u, y, u * u, u * y)]
+    ends = np.flatnonzero(t - start >= criterion.window_s)
+    firsts = np.searchsorted(t, t[ends] - criterion.window_s, side="left")
+    n, su, sy, suu, suy = (c[ends + 1] - c[firsts] for c in cs)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slope = (suy - su * sy / n) / (suu - su * su / n)
+    candidates = ends[(n >= criterion.min_samples) & ~(np.abs(60.0 * slope) > 1.01 * criterion.max_rate_c_per_min)]
+    final = _judge(t, y, t.size - 1, start, criterion)
+    for end in candidates:
+        status = _judge(t, y, int(end), start, criterion)
+        if status.stable:
+            return SoakResult(True, start, status.t_s, status.t_s - start, criterion, final)
+    return SoakResult(False, start, None, None, criterion, final)

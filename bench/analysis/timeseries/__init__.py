@@ -1,0 +1,38 @@
+"""Stationary time-series models: ACF/PACF identification, AR and ARMA fits, order selection, whiteness.
+
+What a user calls::
+
+    correlogram, Correlogram, identify, Identification, sample_acf, sample_pacf
+    ulrych_clayton, burg, yule_walker, AR_METHODS
+    ljung_box, LjungBox, default_lb_lags
+    fit_ar, fit_arma_ml, fit_arma_css, ArmaFit, select_order, OrderSelection
+
+The modules behind it are private: import from ``bench.analysis.timeseries``.
+"""
+
+from bench.analysis.timeseries._acf import Correlogram, Identification, correlogram, identify, sample_acf, sample_pacf
+from bench.analysis.timeseries._ar import AR_METHODS, burg, ulrych_clayton, yule_walker
+from bench.analysis.timeseries._diag import LjungBox, default_lb_lags, ljung_box
+from bench.analysis.timeseries._fit import ArmaFit, OrderSelection, fit_ar, fit_arma_css, fit_arma_ml, select_order
+
+__all__ = [
+    "AR_METHODS",
+    "ArmaFit",
+    "Correlogram",
+    "Identification",
+    "LjungBox",
+    "OrderSelection",
+    "burg",
+    "correlogram",
+    "default_lb_lags",
+    "fit_ar",
+    "fit_arma_css",
+    "fit_arma_ml",
+    "identify",
+    "ljung_box",
+    "sample_acf",
+    "sample_pacf",
+    "select_order",
+    "ulrych_clayton",
+    "yule_walker",
+]

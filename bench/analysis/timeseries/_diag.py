@@ -1,0 +1,50 @@
+"""Residual diagnostics for :mod:`bench.analysis.timeseries._fit`: the Ljung–Box test.
+
+This module holds the Ljung–Box portmanteau test of residual whiteness
+(:func:`ljung_box`, returning a :class:`LjungBox`) and the default number of lags it
+uses for a model with a given number of parameters (:func:`default_lb_lags`).  It is
+re-exported by :mod:`bench.analysis.timeseries._fit`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from bench.analysis.timeseries._acf import sample_acf
+
+
+@dataclass(frozen=True)
+class LjungBox:
+    """Ljung–Box portmanteau test of residual whiteness; ``dof = lags - model_df``."""
+
+    statistic: float
+    p_value: float
+    lags: int
+    dof: int
+
+
+def ljung_box(residuals: np.ndarray, lags: int, model_df: int = 0, _acf: np.ndarray | None = None) -> LjungBox:
+    """``Q = n(n+2) Σ_{k=1}^{lags} r_k² / (n-k)`` against χ² with ``lags - model_df`` dof.
+
+    ``_acf``: the residuals' sample ACF from lag 0 to at least ``lags``, if already computed.
+    """
+    n = np.asarray(residuals).size
+    if not model_df < lags < n:
+        raise ValueError(f"lags = {lags} must be in ({model_df}, {n}) (model_df = {model_df}, n = {n})")
+    if _acf is not None and np.size(_acf) > lags:
+        r = np.asarray(_acf, dtype=float)[1 : lags + 1]
+    else:
+        r = sample_acf(residuals, lags)[1:]
+    q = float(n * (n + 2) * np.sum(r**2 / (n - np.arange(1, lags + 1))))
+    return LjungBox(q, float(stats.chi2.sf(q, lags - model_df)), lags, lags - model_df)
+
+
+def default_lb_lags(n: int, model_df: int) -> int:
+    """Lags for the whiteness test: 20 or ``model_df + 10`` if larger, at most ``n // 5``."""
+    lags = min(max(20, model_df + 10), n // 5)
+    if lags <= model_df:
+        raise ValueError(f"{n} residuals are too few to test a model with {model_df} parameters")
+    return lags
