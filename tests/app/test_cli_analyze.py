@@ -1,4 +1,4 @@
-"""``bench analyze startup|run`` through a fresh argparse parser built with ``register``."""
+"""``bench analyze startup|run`` through a fresh argparse parser built with ``configure``."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from bench.app.commands.analyze import register
+from bench.app.commands.analyze import configure
 
 
 def run(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="bench")
-    register(parser.add_subparsers(dest="command", required=True))
+    configure(parser.add_subparsers(dest="command", required=True).add_parser("analyze"))
     args = parser.parse_args(argv)
     return args.func(args)
 

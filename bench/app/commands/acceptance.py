@@ -5,6 +5,7 @@ Exit 0 pass (marginal measurements included), 1 fail, 2 error or aborted run.
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -23,8 +24,7 @@ from bench.app.commands.common import (
 )
 
 
-def register(sub) -> None:
-    p = sub.add_parser("acceptance", help="factory acceptance test of one unit against its spec")
+def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--station", default="sim", help="'sim' or a station TOML file [sim]")
     p.add_argument("--unit", default=None, help="unit serial number (sim default: the spec's "
                    "serial pattern with * = 0001)")

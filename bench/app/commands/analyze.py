@@ -31,9 +31,8 @@ def _analysis_modules() -> list[str]:
                   if m.name.startswith("analyze_"))
 
 
-def register(sub) -> None:
+def configure(analyze: argparse.ArgumentParser) -> None:
     """Add ``analyze startup`` and ``analyze run`` to an argparse subparsers object."""
-    analyze = sub.add_parser("analyze", help="analyse a trace or a stored run")
     kinds = analyze.add_subparsers(dest="analysis", metavar="ANALYSIS")
     kinds.required = True
 

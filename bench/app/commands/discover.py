@@ -17,6 +17,7 @@ LookupError / OSError are turned into that by :mod:`bench.app.cli`).
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import csv
 import json
@@ -37,8 +38,7 @@ SENSORS = ("accelerometer", "gyro", "mhd")
 DEFAULT_OUT = "bench-data/discover"
 
 
-def register(sub) -> None:
-    p = sub.add_parser("discover", help="name the effect the model lacks (discrepancy workflow)")
+def configure(p: argparse.ArgumentParser) -> None:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--run", metavar="ID",
                      help="stored run id or 'latest' (start-up, noise, vibration and thermal-ramp runs)")

@@ -26,6 +26,7 @@ instruments configured).
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 import time
@@ -66,9 +67,7 @@ class Health:
     round_trip_ms: float | None = None
 
 
-def register(sub) -> None:
-    p = sub.add_parser("doctor", help="check every instrument of a station: identity, error "
-                       "queue, options, round trip")
+def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--station", default="sim", help="'sim' (built-in simulated station) or a "
                    "station TOML file [sim]")
     p.add_argument("--json", action="store_true", help="print the results as JSON")

@@ -10,6 +10,7 @@ Each reads the central store (``--central`` or ``$BENCH_CENTRAL``), prints a tab
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import sys
@@ -17,9 +18,7 @@ from pathlib import Path
 from typing import Any
 
 
-def register(sub) -> None:
-    fleet = sub.add_parser("fleet", help="yield, control charts and traceability across stations "
-                           "(central store)")
+def configure(fleet: argparse.ArgumentParser) -> None:
     cmds = fleet.add_subparsers(dest="fleet_command", metavar="VIEW")
     cmds.required = True
     y = cmds.add_parser("yield", help="acceptance yield by model, spec, lot, station or day")

@@ -11,14 +11,13 @@ false accept to ``--target`` (ANSI/NCSL Z540.3: 2 %), then the whole test's.
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 import time
 
 
-def register(sub) -> None:
-    p = sub.add_parser("risk", help="yield and false accept/reject of an acceptance spec "
-                       "(Monte Carlo on Dask)")
+def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--spec", required=True, help="unit spec TOML (e.g. bench/specs/qa2000-sim.toml)")
     p.add_argument("--units", type=int, required=True, help="units to draw and test")
     where = p.add_mutually_exclusive_group()

@@ -30,10 +30,9 @@ from bench.app.commands.common import (
 from bench.core.step import Step
 
 
-def register(sub) -> None:
+def configure(run: argparse.ArgumentParser) -> None:
     from procedures.catalogue import CATALOGUE
 
-    run = sub.add_parser("run", help="run one step on a station and store the run")
     steps = run.add_subparsers(dest="procedure", metavar="STEP")
     steps.required = True
     for name, step in CATALOGUE.steps.items():

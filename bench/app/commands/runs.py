@@ -3,6 +3,7 @@ the central store (``--store postgresql://…``: every station's runs, named by 
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from dataclasses import asdict
@@ -12,8 +13,7 @@ from bench.app.commands.common import open_reader, resolve_run_id
 from bench.core.store.reader import is_central_url
 
 
-def register(sub) -> None:
-    runs = sub.add_parser("runs", help="list, show and export stored runs")
+def configure(runs: argparse.ArgumentParser) -> None:
     cmds = runs.add_subparsers(dest="runs_command", metavar="SUBCOMMAND")
     cmds.required = True
     ls = cmds.add_parser("list", help="stored runs, newest first")

@@ -12,11 +12,9 @@ import json
 import signal
 import sys
 import threading
-from typing import Any
 
 
-def register(sub: Any) -> None:
-    sim = sub.add_parser("sim", help="the simulated station")
+def configure(sim: argparse.ArgumentParser) -> None:
     cmds = sim.add_subparsers(dest="sim_command", metavar="SUBCOMMAND")
     cmds.required = True
     serve = cmds.add_parser("serve", help="serve the simulated instruments on TCP and print "

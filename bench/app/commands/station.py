@@ -9,6 +9,7 @@ serve it over HTTPS, so the credentials do not cross the network in the clear.
 
 from __future__ import annotations
 
+import argparse
 import getpass
 import ipaddress
 import sys
@@ -16,8 +17,7 @@ import sys
 LOOPBACK_HOSTS = ("127.0.0.1", "::1", "localhost")
 
 
-def register(sub) -> None:
-    station = sub.add_parser("station", help="the operator station (web page)")
+def configure(station: argparse.ArgumentParser) -> None:
     cmds = station.add_subparsers(dest="station_command", required=True)
     p = cmds.add_parser("serve", help="serve the operator page: batch acceptance with live plots")
     p.add_argument("--station", default="sim", help="'sim' or a station TOML file [sim]")

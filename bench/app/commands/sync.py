@@ -12,6 +12,7 @@ store that cannot be reached then leaves the runs queued for the next run or ``b
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import sys
@@ -20,8 +21,7 @@ import time
 CENTRAL_ENV = "BENCH_CENTRAL"
 
 
-def register(sub) -> None:
-    p = sub.add_parser("sync", help="forward finished runs to the central store (PostgreSQL)")
+def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--central", default=os.environ.get(CENTRAL_ENV),
                    help=f"central store URL, postgresql://user@host:port/db [${CENTRAL_ENV}]")
     p.add_argument("--retry-for", type=float, default=0.0, metavar="S",
