@@ -16,10 +16,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.app.commands.common import attach_folder
+from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
 from bench.app.reports.parallel import ReportWriters, report_workers
+from bench.app.session import choose_spec
+from bench.app.station import Station
+from bench.core.batch import execute_batch
 from bench.core.operator import Operator
 from bench.core.step import Progress, no_progress
 from bench.core.store import RunStore
+from procedures.batch_acceptance import BatchAcceptance
 
 MAX_SOCKETS = 8
 _SERIAL = re.compile(r"[A-Za-z0-9][A-Za-z0-9._\-/]{0,63}")
@@ -63,8 +69,6 @@ def check_socket(socket: Any, serial: Any, taken: Mapping[int, str]) -> dict[int
 def spec_for_sockets(sockets: Mapping[int, str], spec_path: str | None = None):
     """The spec of the batch: ``spec_path``'s, else the one built-in spec whose serial pattern
     every socket's serial matches; ValueError naming a socket that matches none or another."""
-    from bench.app.commands.acceptance import choose_spec
-
     if spec_path is not None:
         return choose_spec(spec_path, None)
     specs = {n: choose_spec(None, serial) for n, serial in sorted(sockets.items())}
@@ -98,12 +102,6 @@ def run_batch(config, sockets: Mapping[int, str], spec, store: RunStore, *, seed
     """Open the station with ``sockets`` in its fixture, run the spec's batch acceptance, write
     each unit's report; ``on_station(station)`` is called once it is open (a live view's hook);
     ``operator`` answers the spec's prompts (default: nobody, every prompt continues)."""
-    from bench.app.commands.common import attach_folder
-    from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
-    from bench.app.station import Station
-    from bench.core.batch import execute_batch
-    from procedures.batch_acceptance import BatchAcceptance
-
     started = time.perf_counter()
     procedure = BatchAcceptance(spec)  # every step validated before the station opens
     workers = report_workers(len(sockets)) if report_root is not None else 0

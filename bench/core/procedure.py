@@ -127,6 +127,14 @@ class RunOutcome:
     measurements: list[Measurement]
     store_path: str
 
+    def measurement(self, name: str) -> Measurement:
+        """The measurement ``name`` (value, unit, standard uncertainty, limits, outcome)."""
+        for m in self.measurements:
+            if m.name == name:
+                return m
+        raise LookupError(f"run {self.run_id} has no measurement {name!r} "
+                          f"(it has: {', '.join(m.name for m in self.measurements) or 'none'})")
+
     def to_dict(self) -> dict[str, Any]:
         return {"run_id": self.run_id, "status": self.status, "reason": self.reason,
                 "store": self.store_path,

@@ -1,7 +1,7 @@
 """Unit specs shipped with the bench (TOML): one per simulated sensor model.
 
 ``builtin_specs()`` lists them; ``bench acceptance --unit SN`` uses the one whose
-``serial_pattern`` matches (``bench.app.commands.acceptance.choose_spec``).
+``serial_pattern`` matches (``bench.app.session.choose_spec``).
 """
 
 from __future__ import annotations

@@ -6,10 +6,13 @@ Exit 0 pass (marginal measurements included), 1 fail, 2 error or aborted run.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
 
+from bench.app import session
+from bench.app.batch import parse_sockets, run_batch, spec_for_sockets
 from bench.app.commands.common import (
     FollowUpResult,
     attach_folder,
@@ -22,6 +25,9 @@ from bench.app.commands.common import (
     progress_bar,
     seed_of,
 )
+from bench.app.commands.sync import forward_after_run
+from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
+from procedures.acceptance import AcceptanceTest
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -43,41 +49,14 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=run_acceptance)
 
 
-def choose_spec(spec_path: str | None, unit: str | None):
-    from bench.core.spec import load_spec
-    from bench.specs import builtin_specs
-    from procedures.catalogue import CATALOGUE
-
-    if spec_path is not None:
-        return load_spec(spec_path, CATALOGUE)
-    specs = [load_spec(p, CATALOGUE) for p in builtin_specs()]
-    if unit is None:
-        raise ValueError("give --spec FILE or --unit SN (built-in specs match serials: "
-                         + ", ".join(f"{s.serial_pattern} → {s.model}" for s in specs) + ")")
-    matching = [s for s in specs if s.applies_to(unit)]
-    if not matching:
-        raise ValueError(f"no built-in spec matches unit {unit!r} (patterns: "
-                         + ", ".join(str(s.serial_pattern) for s in specs) + "); give --spec FILE")
-    return matching[0]
-
-
 def run_acceptance(args) -> int:
-    from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
-    from bench.app.station import Station, resolve_station
-    from bench.core.procedure import execute
-    from procedures.acceptance import AcceptanceTest
-
     if args.sockets is not None:
         return run_batch_acceptance(args)
     started = time.perf_counter()
-    spec = choose_spec(args.spec, args.unit)
-    procedure = AcceptanceTest(spec)  # every step's parameters validated before the station opens
-    config = resolve_station(args.station)
-    unit = args.unit
-    if unit is None:
-        if not config.simulated or not spec.serial_pattern:
-            raise ValueError("--unit SN is required on a real station")
-        unit = spec.serial_pattern.replace("*", "0001")
+    spec = session.choose_spec(args.spec, args.unit)
+    AcceptanceTest(spec)  # every step's parameters validated before the station opens
+    config = session.station_config(args.station)
+    unit = session.acceptance_unit(spec, config, args.unit)
     if spec.serial_pattern and not spec.applies_to(unit):
         print(f"bench: warning: unit {unit!r} does not match the spec's serial pattern "
               f"{spec.serial_pattern!r}", file=sys.stderr)
@@ -86,12 +65,11 @@ def run_acceptance(args) -> int:
         report_root.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"--report {args.report!r} cannot be created: {exc.strerror}") from None
-    seed = seed_of(args, config)
     store = open_store(args)
-    with Station(config, seed=seed, unit_serial=unit, unit_kind=spec.kind) as station, \
-            progress_bar(not args.no_progress and not args.json) as progress:
-        outcome = execute(procedure, station, store, unit_serial=unit, seed=seed, progress=progress,
-                          labels=labels_of(args, config), operator=operator_of(args))
+    with progress_bar(not args.no_progress and not args.json) as progress:
+        outcome = session.run_acceptance(unit, spec=spec, station=config, seed=args.seed, store=store,
+                                         labels=labels_of(args, config), operator=operator_of(args),
+                                         progress=progress)
     folder = report_root / outcome.run_id
     report = None
     written = FollowUpResult("report")
@@ -110,12 +88,6 @@ def run_acceptance(args) -> int:
 def run_batch_acceptance(args) -> int:
     """``--sockets``: the batch on the fixture, each unit's verdict, exit 0 all passed, 1 one
     failed, 2 one aborted."""
-    import json
-
-    from bench.app.batch import parse_sockets, run_batch, spec_for_sockets
-    from bench.app.commands.sync import forward_after_run
-    from bench.app.station import resolve_station
-
     if args.unit is not None or args.socket is not None:
         raise ValueError("--sockets names every unit and its socket: give no --unit / --socket")
     sockets = parse_sockets(args.sockets)
@@ -124,7 +96,7 @@ def run_batch_acceptance(args) -> int:
         if spec.serial_pattern and not spec.applies_to(serial):
             print(f"bench: warning: socket {n}: unit {serial!r} does not match the spec's serial "
                   f"pattern {spec.serial_pattern!r}", file=sys.stderr)
-    config = resolve_station(args.station)
+    config = session.station_config(args.station)
     report_root = Path(args.report)
     try:
         report_root.mkdir(parents=True, exist_ok=True)

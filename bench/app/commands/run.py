@@ -18,21 +18,14 @@ import typing
 from pathlib import Path
 from typing import Any
 
-from bench.app.commands.common import (
-    conclude,
-    label_options,
-    labels_of,
-    open_store,
-    progress_bar,
-    seed_of,
-    unit_of,
-)
+from bench.app import session
+from bench.app.commands.common import conclude, label_options, labels_of, open_store, progress_bar
+from bench.app.commands.follow_ups import ANALYSES, follow_up
 from bench.core.step import Step
+from procedures.catalogue import CATALOGUE
 
 
 def configure(run: argparse.ArgumentParser) -> None:
-    from procedures.catalogue import CATALOGUE
-
     steps = run.add_subparsers(dest="procedure", metavar="STEP")
     steps.required = True
     for name, step in CATALOGUE.steps.items():
@@ -93,17 +86,13 @@ def parameter_options(p: argparse.ArgumentParser, params: type) -> None:
 
 def step_from_args(args: argparse.Namespace) -> Step[Any]:
     """The step built (and validated) from its ``--options``, before any station opens."""
-    from procedures.catalogue import CATALOGUE
-
     step = CATALOGUE.step(args.step_name)
-    values = {f.name: getattr(args, f"param_{f.name}") for f in dataclasses.fields(step.Parameters)}
-    return step(step.Parameters(**values))
+    return session.make_step(args.step_name, **{f.name: getattr(args, f"param_{f.name}")
+                                        for f in dataclasses.fields(step.Parameters)})
 
 
 def _report_root(args: argparse.Namespace, step: Step[Any]) -> Path | None:
     """``--report DIR``, refused before the station opens when it cannot be used."""
-    from bench.app.commands.follow_ups import ANALYSES
-
     report = getattr(args, "report", None)
     if report is None:
         return None
@@ -119,21 +108,13 @@ def _report_root(args: argparse.Namespace, step: Step[Any]) -> Path | None:
 
 def run_step(args: argparse.Namespace) -> int:
     """Handler of ``bench run <step>``."""
-    from bench.app.commands.follow_ups import follow_up
-    from bench.app.station import Station, resolve_station
-    from bench.core.procedure import execute
-    from procedures.running import alone
-
     step = step_from_args(args)  # validated before any instrument is touched
     report_root = _report_root(args, step)
-    config = resolve_station(args.station)
-    kind = step.kinds[0]
-    unit, seed = unit_of(args, config, kind), seed_of(args, config)
+    config = session.station_config(args.station)
     store = open_store(args)
-    with Station(config, seed=seed, unit_serial=unit, unit_kind=kind) as station, \
-            progress_bar(not args.no_progress and not args.json) as progress:
-        outcome = execute(alone(step), station, store, unit_serial=unit, seed=seed, progress=progress,
-                          labels=labels_of(args, config))
+    with progress_bar(not args.no_progress and not args.json) as progress:
+        outcome = session.run_step(step, station=config, unit=args.unit, seed=args.seed, store=store,
+                                   labels=labels_of(args, config), progress=progress)
     declared, follow_ups = step.follow_up, []
     if declared is not None and (not declared.on_request or args.analyze) and outcome.status == "passed":
         follow_ups.append(follow_up(declared, store.path, outcome.run_id, report_root))
