@@ -332,7 +332,7 @@ def test_declaration_and_metadata_validation(store):
 # -- schema and pragmas --------------------------------------------------------------------
 def test_schema_version_and_wal_full(store):
     assert store.schema_version() == SCHEMA_VERSION
-    conn = store._connection()
+    conn = store._db.connection()
     assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     assert conn.execute("PRAGMA synchronous").fetchone()[0] == 2  # FULL
 

@@ -13,7 +13,6 @@ import math
 import os
 import secrets
 import sqlite3
-import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -23,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from . import codec, liveness
+from .database import Database
 from .model import (
     INTERRUPTED,
     AttachmentInfo,
@@ -38,7 +38,6 @@ from .model import (
     to_json,
     utc_now,
 )
-from .schema import connect
 from .writer import RunWriter
 
 DEFAULT_PATH = Path("bench-data/bench.sqlite")
@@ -66,11 +65,10 @@ class RunStore:
         busy_timeout_s: float = 30.0,
     ) -> None:
         self.path = Path(path)
-        self._lock = threading.RLock()
-        self._conn: sqlite3.Connection | None = connect(self.path, synchronous, busy_timeout_s)
+        self._db = Database(self.path, synchronous, busy_timeout_s)
         # Strong references: a writer dropped unfinished is still aborted by close().
         self._open_writers: dict[str, RunWriter] = {}
-        (store_uuid,) = self._conn.execute(
+        (store_uuid,) = self._db.connection().execute(
             "SELECT value FROM meta WHERE key = 'store_uuid'").fetchone()
         #: this store's identity towards a central store (made when the file was created)
         self.uuid = uuid.UUID(store_uuid)
@@ -97,14 +95,13 @@ class RunStore:
 
     def close(self) -> None:
         """Finish this store's unfinished writers as aborted ("store closed") and close."""
-        with self._lock:
-            if self._conn is None:
+        with self._db.lock:
+            if self._db.closed:
                 return
             for writer in list(self._open_writers.values()):
                 with contextlib.suppress(RunClosedError):  # a run closed elsewhere stays as is
                     writer.finish("aborted", "store closed before the run was finished")
-            self._conn.close()
-            self._conn = None
+            self._db.close()
 
     # -- writing -------------------------------------------------------------------------
     def create_run(
@@ -140,7 +137,7 @@ class RunStore:
             run_id = time.strftime("%Y%m%d-%H%M%S", time.gmtime(now)) + "-" + secrets.token_hex(2)
             started = utc_now()
             try:
-                with self._write_transaction() as conn:
+                with self._db.write_transaction() as conn:
                     conn.execute(
                         "INSERT INTO runs (id, procedure, parameters_json, station_json, "
                         "unit_serial, seed, code_version, started_utc, last_write_utc, status, "
@@ -152,39 +149,10 @@ class RunStore:
                     )
             except sqlite3.IntegrityError:
                 continue
-            writer = RunWriter(self, run_id)
+            writer = RunWriter(self._db, self, run_id, on_finish=self._open_writers.pop)
             self._open_writers[run_id] = writer
             return writer
         raise RuntimeError(f"{self.path}: could not allocate a unique run id")  # pragma: no cover
-
-    @contextlib.contextmanager
-    def _write_transaction(self) -> Iterator[sqlite3.Connection]:
-        """One IMMEDIATE transaction: committed on success, rolled back on any exception."""
-        with self._lock:
-            conn = self._connection()
-            conn.execute("BEGIN IMMEDIATE")
-            try:
-                yield conn
-            except BaseException:
-                conn.execute("ROLLBACK")
-                raise
-            conn.execute("COMMIT")
-
-    @contextlib.contextmanager
-    def _read_snapshot(self) -> Iterator[sqlite3.Connection]:
-        """A read transaction: every query inside sees the same committed state."""
-        with self._lock:
-            conn = self._connection()
-            conn.execute("BEGIN")
-            try:
-                yield conn
-            finally:
-                conn.execute("COMMIT")
-
-    def _connection(self) -> sqlite3.Connection:
-        if self._conn is None:
-            raise RuntimeError(f"{self!r} is closed")
-        return self._conn
 
     # -- recovery ------------------------------------------------------------------------
     def recover_interrupted(self, *, include_other_hosts: bool = False) -> list[str]:
@@ -193,8 +161,8 @@ class RunStore:
         run's last commit.  A writer is judged by host, pid and process start time (see
         ``liveness``); runs written from another host or pid namespace are left alone unless
         ``include_other_hosts``.  Returns the recovered run ids, oldest first."""
-        with self._lock:
-            conn = self._connection()
+        with self._db.lock:
+            conn = self._db.connection()
             rows = conn.execute(
                 "SELECT id, writer_host, writer_pid, writer_start FROM runs "
                 "WHERE status = 'running' ORDER BY started_utc, rowid"
@@ -205,7 +173,7 @@ class RunStore:
                 if state is liveness.Liveness.DEAD or (
                     include_other_hosts and state is liveness.Liveness.UNKNOWN
                 ):
-                    with self._write_transaction() as tx:
+                    with self._db.write_transaction() as tx:
                         cursor = tx.execute(
                             "UPDATE runs SET status = 'aborted', reason = ?, "
                             "ended_utc = last_write_utc WHERE id = ? AND status = 'running'",
@@ -222,7 +190,7 @@ class RunStore:
             isinstance(limit, bool) or not isinstance(limit, int) or limit < 1
         ):
             raise ValueError(f"limit must be None or an int >= 1, got {limit!r}")
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             rows = conn.execute(
                 f"SELECT {_RUN_COLUMNS} FROM runs ORDER BY started_utc DESC, rowid DESC LIMIT ?",
                 (-1 if limit is None else limit,),
@@ -231,12 +199,12 @@ class RunStore:
 
     def get_run(self, run_id: str) -> RunInfo:
         """The run ``run_id``; UnknownRunError (a LookupError) if there is none."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             return self._run_info(conn, self._run_row(conn, run_id))
 
     def streams(self, run_id: str) -> dict[str, StreamInfo]:
         """The run's streams by name, in declaration order, with row and chunk counts."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             self._run_row(conn, run_id)
             rows = conn.execute(
                 "SELECT s.name, s.columns_json, s.description, "
@@ -262,7 +230,7 @@ class RunStore:
     def load(self, run_id: str, stream: str) -> dict[str, np.ndarray]:
         """Every committed sample of ``stream``: column name -> 1-D array of its stored
         dtype (float64 unless declared otherwise), in column order."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             self._run_row(conn, run_id)
             row = conn.execute(
                 "SELECT columns_json FROM streams WHERE run_id = ? AND name = ?", (run_id, stream)
@@ -285,7 +253,7 @@ class RunStore:
 
     def events(self, run_id: str) -> list[Event]:
         """The run's events in the order they were logged."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             self._run_row(conn, run_id)
             rows = conn.execute(
                 "SELECT t_s, kind, message, data_json FROM events WHERE run_id = ? ORDER BY seq",
@@ -296,7 +264,7 @@ class RunStore:
 
     def attachments(self, run_id: str) -> list[AttachmentInfo]:
         """Descriptions of the run's attachments, by name."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             self._run_row(conn, run_id)
             rows = conn.execute(
                 "SELECT name, mime, length(data), sha256, created_utc FROM attachments "
@@ -307,7 +275,7 @@ class RunStore:
 
     def attachment(self, run_id: str, name: str) -> bytes:
         """The bytes of attachment ``name``; UnknownAttachmentError if absent."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             self._run_row(conn, run_id)
             row = conn.execute(
                 "SELECT data FROM attachments WHERE run_id = ? AND name = ?", (run_id, name)
@@ -334,7 +302,7 @@ class RunStore:
         if not isinstance(mime, str) or "/" not in mime:
             raise ValueError(f"attachment {name!r}: mime must look like 'type/subtype', got {mime!r}")
         payload = bytes(data)
-        with self._write_transaction() as conn:
+        with self._db.write_transaction() as conn:
             self._run_row(conn, run_id)
             conn.execute("DELETE FROM attachments WHERE run_id = ? AND name = ?", (run_id, name))
             conn.execute(
@@ -344,7 +312,7 @@ class RunStore:
 
     def results(self, run_id: str) -> dict[str, Any]:
         """The run's results, key -> JSON value."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             self._run_row(conn, run_id)
             return self._results(conn, run_id)
 
@@ -352,7 +320,7 @@ class RunStore:
     def chunk_rows(self, run_id: str) -> Iterator[tuple[str, int, int, str, bytes]]:
         """The run's stored chunks as they are, ``(stream, seq, n_rows, dtypes, data)`` in
         stream-declaration and seq order: what a central store copies without decoding."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             self._run_row(conn, run_id)
             rows = conn.execute(
                 "SELECT c.stream, c.seq, c.n_rows, c.dtypes, c.data FROM chunks c "
@@ -364,14 +332,14 @@ class RunStore:
     def forwarded(self, target: str) -> dict[str, tuple[str, str]]:
         """Runs already sent to the central store ``target`` (its UUID): run id -> (digest,
         attachment manifest) as sent."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             rows = conn.execute("SELECT run_id, digest, manifest FROM forwarded WHERE target = ?",
                                 (target,)).fetchall()
         return {run_id: (digest, manifest) for run_id, digest, manifest in rows}
 
     def finished_run_ids(self) -> list[str]:
         """Ids of every finished run (any status but ``running``), oldest first."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             rows = conn.execute("SELECT id FROM runs WHERE status != 'running' "
                                 "ORDER BY started_utc, rowid").fetchall()
         return [r[0] for r in rows]
@@ -379,7 +347,7 @@ class RunStore:
     def attachment_index(self) -> dict[str, list[tuple[str, str]]]:
         """Every run's attachments as ``(name, sha256)`` by name, in one query (what the
         forwarding compares with what it sent)."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             rows = conn.execute("SELECT run_id, name, sha256 FROM attachments "
                                 "ORDER BY run_id, name").fetchall()
         index: dict[str, list[tuple[str, str]]] = {}
@@ -389,22 +357,22 @@ class RunStore:
 
     def unforwarded_run_ids(self) -> list[str]:
         """Finished runs no central store has acknowledged, oldest first."""
-        with self._read_snapshot() as conn:
+        with self._db.read_snapshot() as conn:
             rows = conn.execute("SELECT id FROM runs WHERE status != 'running' AND id NOT IN "
                                 "(SELECT run_id FROM forwarded) ORDER BY started_utc, rowid").fetchall()
         return [r[0] for r in rows]
 
     def mark_forwarded(self, run_id: str, target: str, digest: str, manifest: str) -> None:
         """Record that ``run_id`` is in the central store ``target`` as ``digest``/``manifest``."""
-        with self._write_transaction() as conn:
+        with self._db.write_transaction() as conn:
             self._run_row(conn, run_id)
             conn.execute("INSERT OR REPLACE INTO forwarded (run_id, target, digest, manifest, "
                          "forwarded_utc) VALUES (?, ?, ?, ?, ?)",
                          (run_id, target, digest, manifest, utc_now()))
 
     def schema_version(self) -> int:
-        with self._lock:
-            (value,) = self._connection().execute(
+        with self._db.lock:
+            (value,) = self._db.connection().execute(
                 "SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
         return int(value)
 

@@ -11,12 +11,14 @@ from __future__ import annotations
 import hashlib
 import math
 import sqlite3
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from . import codec
+from .database import Database
 from .model import (
     FINAL_STATUSES,
     RunClosedError,
@@ -29,9 +31,7 @@ from .model import (
     to_json,
     utc_now,
 )
-
-if TYPE_CHECKING:
-    from .runstore import RunStore
+from .reader import RunReader
 
 #: Name of the column whose last finite value updates ``last_sample_t_s``.
 TIME_COLUMN = "t_s"
@@ -44,8 +44,14 @@ class RunWriter:
     ``t_s`` sample appended to any stream, or None), ``finished_status`` (None while running).
     """
 
-    def __init__(self, store: RunStore, run_id: str) -> None:
+    def __init__(self, db: Database, store: RunReader, run_id: str, *,
+                 on_finish: Callable[[str], object] | None = None) -> None:
+        """``db``: the store's open file, written through; ``store``: the store to read the run
+        back from while it is written; ``on_finish(run_id)``: called once the run is finished
+        (the store forgets its open writer)."""
+        self._db = db
         self.store = store
+        self._on_finish = on_finish
         self.id = run_id
         self.last_sample_t_s: float | None = None
         self.finished_status: str | None = None
@@ -109,7 +115,7 @@ class RunWriter:
             dt = check_column_dtype(dtypes.get(column, np.float64), where)
             spec[column] = dt
             layout.append([column, unit, dt.str])
-        with self.store._lock:
+        with self._db.lock:
             if name in self._dtypes:  # declared meanwhile by another thread
                 raise ValueError(f"run {self.id}: stream {name!r} is already declared")
             with self._transaction() as conn:
@@ -142,7 +148,7 @@ class RunWriter:
             finite = times[np.isfinite(times)]
             chunk_last_t = float(finite[-1]) if finite.size else None
         # The store's lock keeps this writer's counters in step with its commits across threads.
-        with self.store._lock:
+        with self._db.lock:
             last_t = self.last_sample_t_s
             if chunk_last_t is not None:
                 last_t = chunk_last_t if last_t is None else max(last_t, chunk_last_t)
@@ -167,7 +173,7 @@ class RunWriter:
         if not isinstance(message, str):
             raise TypeError(f"event message must be str, got {message!r}")
         data_json = to_json(data, f"data of event {kind!r}")
-        with self.store._lock, self._transaction() as conn:
+        with self._db.lock, self._transaction() as conn:
             conn.execute(
                 "INSERT INTO events (run_id, seq, t_s, kind, message, data_json) "
                 "VALUES (?, ?, ?, ?, ?, ?)",
@@ -238,7 +244,8 @@ class RunWriter:
             if cursor.rowcount != 1:
                 raise self._closed_error(conn)
         self.finished_status, self._finished_reason = status, reason
-        self.store._open_writers.pop(self.id, None)
+        if self._on_finish is not None:
+            self._on_finish(self.id)
 
     # -- internals -----------------------------------------------------------------------
     def _check_open(self) -> None:
@@ -247,7 +254,7 @@ class RunWriter:
                 f"run {self.id} is finished ({self.finished_status}); it takes no more data")
 
     def _transaction(self):
-        return self.store._write_transaction()
+        return self._db.write_transaction()
 
     def _touch(self, conn: sqlite3.Connection, **extra: Any) -> None:
         """Mark the run as written now, in the caller's transaction; refuse if not running."""
