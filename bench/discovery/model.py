@@ -27,7 +27,6 @@ import math
 import tomllib
 import zlib
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -476,23 +475,3 @@ def model_from_toml(text: str) -> Model:
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"model file is not valid TOML: {exc}") from None
     return model_from_dict(doc)
-
-
-def write_model(model: Model, path, *, rate_hz: float | None = None) -> None:
-    """Write the TOML model file; ``rate_hz`` (the record's sample rate) is recorded with the
-    per-sample noise sd (``Model.at_rate``), so the file means the same at any rate."""
-    if rate_hz is not None:
-        model = model.at_rate(rate_hz)
-    Path(path).write_text(model_to_toml(model), encoding="utf-8")
-
-
-def read_model(path, *, rate_hz: float | None = None) -> Model:
-    """Read and validate a TOML model file (ValueError naming the bad key, value or range);
-    with ``rate_hz``, carried to that sample rate (``Model.at_rate``: noise_sd rescaled when the
-    file records its rate)."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ValueError(f"cannot read model file {str(path)!r}: {exc.strerror}") from None
-    model = model_from_toml(text)
-    return model if rate_hz is None else model.at_rate(rate_hz)

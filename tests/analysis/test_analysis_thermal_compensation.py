@@ -18,13 +18,9 @@ from bench.analysis.thermal._compensation import (
     compensation_model,
     model_output,
 )
-from bench.analysis.thermal._compensation_file import (
-    compensation_from_toml,
-    compensation_to_toml,
-    read_compensation,
-    write_compensation,
-)
-from tests.analysis.thermal_truth import poly, sweep_points
+from bench.analysis.thermal._compensation_file import compensation_from_toml, compensation_to_toml
+from bench.app.files import read_compensation, write_compensation
+from bench.testing.generators.thermal_truth import poly, sweep_points
 
 SWEEP_C = (-40.0, -20.0, 0.0, 25.0, 45.0, 60.0, 70.0)
 VERIFY_C = (-35.0, -10.0, 10.0, 35.0, 55.0, 65.0)  # a different profile inside the calibrated range

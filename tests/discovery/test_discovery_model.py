@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import ndtr, ndtri
 
+from bench.app.files import read_model, write_model
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import KINDS
@@ -21,7 +22,7 @@ from bench.discovery.effects_transforms import (
     quantized_variance,
 )
 from bench.discovery.experiments import make_experiment
-from bench.discovery.model import BaseModel, Model, base_model, model_from_toml, model_to_toml, read_model, write_model
+from bench.discovery.model import BaseModel, Model, base_model, model_from_toml, model_to_toml
 
 
 def _rec(n=1000, rate=10.0, **cols):

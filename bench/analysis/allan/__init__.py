@@ -1,5 +1,14 @@
 """Allan deviation of a static record and the IEEE Std 952 noise terms read from it.
 
+The overlapping Allan deviation (NIST SP 1065) of a gyro or accelerometer record taken at
+rest, with Greenhall EDF confidence intervals, and the five IEEE 952 terms — quantization
+Q, random walk N, bias instability B, rate random walk K and ramp R — both fitted (weighted
+non-negative least squares of the Allan variance model) and read off slope lines, in the
+customary units of the sensor.  The entry point is :func:`overlapping_adev`, which returns
+an :class:`AllanResult`; the other functions are its building blocks, for refitting a curve
+(:func:`fit_noise_terms`, :func:`read_off`), drawing slope lines (:func:`term_adev`) or
+intervals of other estimates (:func:`edf_greenhall`, :func:`adev_interval`).
+
 What a user calls::
 
     overlapping_adev, AllanResult, NoiseCoefficient, averaging_factors

@@ -6,15 +6,15 @@
 both fitted and read off slope lines, with units.
 
 * ADEV: the overlapping estimator, identical to allantools' ``oadev`` with
-  ``data_type="freq"`` (NIST SP 1065 eq. 11); numerics in :mod:`.allan_core`.
+  ``data_type="freq"`` (NIST SP 1065 eq. 11); numerics in :mod:`._core`.
 * τ list: ``"octave"`` (m = 1, 2, 4, … while at least two differences remain — the same
   list as allantools), ``"log"`` (``points_per_decade`` rounded log-spaced m), or any τ
   in s (rounded to whole samples, duplicates merged; allowed ``τ0 ≤ τ ≤ ⌊N/2⌋·τ0``).
 * Confidence intervals: Greenhall's EDF for the noise type that the fitted model says
   dominates at each τ, chi-squared bounds at ``confidence`` (default 68.27 %, one
-  sigma); :mod:`.allan_stats`.
+  sigma); :mod:`._stats`.
 * Noise terms: weighted NNLS fit of the Allan variance model and the slope-line
-  read-off; :mod:`.allan_noise`; units per sensor kind in :mod:`.allan_units`.
+  read-off; :mod:`._noise`; units per sensor kind in :mod:`._units`.
 
 Pure: arrays and numbers in, a frozen dataclass out; bad input raises ``ValueError``
 naming the value and the allowed range.
@@ -28,7 +28,7 @@ from typing import Literal
 
 import numpy as np
 
-from bench.analysis.allan import _core as core
+import bench.analysis.allan._core as core
 from bench.analysis.allan._noise import READ_TAU_S, SLOPE, TERMS, design_matrix, fit_noise_terms, read_off
 from bench.analysis.allan._stats import ONE_SIGMA, adev_interval
 from bench.analysis.allan._units import check_unit, rate_unit_name, term_units
@@ -45,13 +45,66 @@ def _num(x) -> float | None:
 
 @dataclass(frozen=True)
 class NoiseCoefficient:
-    """One IEEE 952 term.  ``*_input`` values are in ``input_unit`` (the record's rate unit
-    times a power of s); the properties give the customary ``unit``; ``alt_*`` the other.
+    """One IEEE 952 noise term of an :class:`AllanResult`, fitted and read off, with its units.
+
+    ``*_input`` values are in ``input_unit`` (the record's rate unit times a power of s);
+    the properties give the customary ``unit``; ``alt_*`` the other.
 
     ``fit_input`` is 0 when the fit excluded the term (non-negativity) and None when the
     term was not in the fitted set; ``read_off_input`` is None when no part of the curve
     has the term's slope.  ``read_off_tau_s`` is the curve point the line went through,
     ``read_at_tau_s`` where the line is read (None for B, read at the minimum).
+
+    Attributes
+    ----------
+    name : str
+        Term symbol: ``"Q"``, ``"N"``, ``"B"``, ``"K"`` or ``"R"``.
+    label : str
+        Its name for the sensor kind, e.g. ``"angle random walk"`` or ``"velocity random walk"``.
+    slope : float
+        Log-log slope of the term's ADEV line: -1, -0.5, 0, 0.5 or 1.
+    input_unit : str
+        Unit of the ``*_input`` values: the record's rate unit times a power of s
+        (e.g. ``"deg/s*sqrt(s)"`` for N of a deg/s record).
+    unit : str
+        Customary unit of the term for the sensor kind (e.g. ``"deg/sqrt(h)"``); the unit of
+        :attr:`fit`, :attr:`fit_std` and :attr:`read_off`.
+    alt_unit : str
+        The alternative unit (e.g. ``"deg/sqrt(s)"``).
+    factor : float
+        Multiplier from ``input_unit`` to ``unit`` (dimensionless).
+    alt_factor : float
+        Multiplier from ``input_unit`` to ``alt_unit`` (dimensionless).
+    fit_input : float or None
+        Least-squares value in ``input_unit``; 0 when the non-negative fit excluded the term,
+        None when the term was not in the fitted set.
+    fit_std_input : float or None
+        Standard error of ``fit_input`` in ``input_unit``; None when the term is not in the
+        fit's support.
+    read_off_input : float or None
+        Slope-line (graphical) reading in ``input_unit``; None when no part of the curve has
+        the term's slope.
+    read_off_tau_s : float or None
+        τ in s of the curve point the slope line went through (for B: of the minimum).
+    read_at_tau_s : float or None
+        τ in s at which the line is read (√3, 1, 3, √2 s for Q, N, K, R); None for B.
+    fit : float or None
+        Property: ``fit_input`` in ``unit``.
+    fit_std : float or None
+        Property: ``fit_std_input`` in ``unit``.
+    read_off : float or None
+        Property: ``read_off_input`` in ``unit``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.allan import overlapping_adev
+    >>> y = np.random.default_rng(0).normal(0.0, 0.1, 20_000)  # deg/s at 100 Hz
+    >>> n = overlapping_adev(y, 100.0, unit="dps").coefficients["N"]
+    >>> n.label, n.input_unit, n.unit
+    ('angle random walk', 'deg/s*sqrt(s)', 'deg/sqrt(h)')
+    >>> bool(abs(n.fit - 60 * n.fit_input) < 1e-12)  # 1 deg/sqrt(s) = 60 deg/sqrt(h)
+    True
     """
 
     name: str
@@ -73,14 +126,17 @@ class NoiseCoefficient:
 
     @property
     def fit(self) -> float | None:
+        """Fitted value in the customary ``unit`` (None when the term was not fitted)."""
         return self._scaled(self.fit_input, self.factor)
 
     @property
     def fit_std(self) -> float | None:
+        """Standard error of :attr:`fit` in ``unit`` (None when unknown)."""
         return self._scaled(self.fit_std_input, self.factor)
 
     @property
     def read_off(self) -> float | None:
+        """Slope-line reading in ``unit`` (None when the curve has no part of that slope)."""
         return self._scaled(self.read_off_input, self.factor)
 
     def to_dict(self) -> dict:
@@ -96,13 +152,64 @@ class NoiseCoefficient:
 
 @dataclass(frozen=True, eq=False)
 class AllanResult:
-    """Overlapping ADEV of one record (module docstring).  Arrays are per τ.
+    """Overlapping Allan deviation of one record, its confidence interval and the noise terms.
+
+    Returned by :func:`overlapping_adev` (module docstring for the method).  Arrays are per τ.
 
     ``adev`` and ``adev_ci`` (rows ``(lo, hi)``) are in the record's rate unit
     (``units["adev"]``); ``edf`` the equivalent degrees of freedom behind the interval,
     ``noise_alpha`` the power-law exponent assumed for it, ``n_terms`` the number of
     overlapping differences and ``averaging_factor`` m = τ/τ0.  ``n_samples`` counts
     rate samples (one fewer than the points of a phase record).
+
+    Attributes
+    ----------
+    tau_s : ndarray of float, shape (k,)
+        Averaging times τ in s, increasing.
+    adev : ndarray of float, shape (k,)
+        Overlapping Allan deviation at each τ, in the record's rate unit (``units["adev"]``).
+    adev_ci : ndarray of float, shape (k, 2)
+        Confidence interval ``(lo, hi)`` of ``adev`` at level ``confidence``, same unit.
+    edf : ndarray of float, shape (k,)
+        Equivalent degrees of freedom (Greenhall) behind the interval (dimensionless).
+    noise_alpha : ndarray of int, shape (k,)
+        Power-law exponent α of ``S_y(f) ∝ f^α`` assumed at each τ (from the dominant fitted term).
+    n_terms : ndarray of int, shape (k,)
+        Number of overlapping second differences, ``N + 1 − 2m``.
+    averaging_factor : ndarray of int, shape (k,)
+        m = τ/τ0 (samples).
+    confidence : float
+        Confidence level of ``adev_ci``, in (0, 1).
+    sample_rate_hz : float
+        Sample rate of the record, in Hz.
+    n_samples : int
+        Number of rate samples N.
+    data_type : str
+        ``"rate"`` or ``"phase"``, as given.
+    unit : str or None
+        Rate unit code of the record (``"dps"``, ``"g"``, …) or None (generic).
+    coefficients : dict of str to NoiseCoefficient
+        The five IEEE 952 terms Q, N, B, K, R, fitted and read off, with their units.
+    fit_terms : tuple of str
+        Terms the least-squares fit was allowed to use, in Q, N, B, K, R order.
+    fit_reduced_chi2 : float or None
+        Reduced χ² of the weighted fit (None when undefined, e.g. no degrees of freedom).
+    fit_iterations : int
+        Fixed-point iterations of fit, noise types and EDF.
+    notes : tuple of str
+        Warnings about the record or the fit a user should read.
+    units : dict of str to str
+        Property: unit of every reported quantity (``"tau"``, ``"adev"`` and each term).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.allan import overlapping_adev
+    >>> r = overlapping_adev(np.random.default_rng(1).normal(0.0, 1.0, 4096), 10.0, unit="mg")
+    >>> r.tau_s.shape == r.adev.shape == r.edf.shape, r.adev_ci.shape[1]
+    (True, 2)
+    >>> r.units["tau"], r.units["adev"], r.units["N"]
+    ('s', 'mg', 'g/sqrt(Hz)')
     """
 
     tau_s: np.ndarray
@@ -176,7 +283,45 @@ def _checked_record(y, data_type: str, rate_hz: float) -> np.ndarray:
 
 
 def averaging_factors(n: int, rate_hz: float, taus, points_per_decade: int = 10) -> np.ndarray:
-    """Averaging factors m = τ·rate for ``n`` rate samples (module docstring for the lists)."""
+    """Averaging factors m = τ·rate for ``n`` rate samples.
+
+    The τ lists (module docstring): ``"octave"`` gives m = 1, 2, 4, … while at least two
+    differences remain (the allantools list); ``"log"`` gives ``points_per_decade``
+    log-spaced m, rounded and deduplicated, up to ⌊(n − 1)/2⌋; explicit τ values are
+    rounded to whole samples and duplicates merged.
+
+    Parameters
+    ----------
+    n : int
+        Number of rate samples in the record.
+    rate_hz : float
+        Sample rate in Hz (τ0 = 1/rate_hz s).
+    taus : {"octave", "log"} or array_like of float
+        The list to generate, or τ values in s, each within ``[τ0, ⌊n/2⌋·τ0]``.
+    points_per_decade : int, default 10
+        Points per decade of the ``"log"`` list, an integer in [1, 100].
+
+    Returns
+    -------
+    ndarray of int64
+        Distinct averaging factors m (samples), increasing.
+
+    Raises
+    ------
+    ValueError
+        If ``taus`` is an unknown string or an empty/non-1-D array, if a τ lies outside
+        ``[τ0, ⌊n/2⌋·τ0]`` s, or if ``points_per_decade`` is not an integer in [1, 100].
+
+    Examples
+    --------
+    >>> from bench.analysis.allan import averaging_factors
+    >>> averaging_factors(1000, 10.0, "octave").tolist()
+    [1, 2, 4, 8, 16, 32, 64, 128, 256]
+    >>> averaging_factors(1000, 10.0, "log", points_per_decade=2).tolist()
+    [1, 3, 10, 32, 100, 316]
+    >>> averaging_factors(1000, 10.0, [0.1, 1.0, 1.04, 2.04]).tolist()  # τ in s, rounded to samples
+    [1, 10, 20]
+    """
     gen_max = (n - 1) // 2  # generated lists keep at least two differences
     if isinstance(taus, str):
         if taus == "octave":
@@ -218,6 +363,70 @@ def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = 
     sample rate; ``taus``: ``"octave"``, ``"log"`` or τ values in s; ``unit``: one of
     ``dps, dph, radps, g, mg, ug, mps2`` or None (generic); ``confidence`` in (0, 1);
     ``terms``: the IEEE 952 terms the fit may use (default all five).
+
+    At ``τ = m·τ0`` the estimator is NIST SP 1065 eq. 11 (allantools' ``oadev``), the
+    interval uses Greenhall's EDF for the noise type the fitted model says dominates, and
+    the terms come from the Allan variance model
+    ``σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)·B² + K²·τ/3 + R²·τ²/2`` (module docstring).
+
+    Parameters
+    ----------
+    y : array_like of float, shape (N,) or (N + 1,)
+        The record: rate samples in ``unit`` (e.g. deg/s) for ``data_type="rate"``, or their
+        integral in ``unit``·s (angle, velocity) for ``"phase"``; finite, at least 8 rate samples.
+    rate_hz : float
+        Sample rate in Hz, finite and > 0.
+    taus : {"octave", "log"} or array_like of float, default "octave"
+        τ list (see :func:`averaging_factors`) or τ values in s within ``[τ0, ⌊N/2⌋·τ0]``.
+    data_type : {"rate", "phase"}, default "rate"
+        Whether ``y`` holds rate samples or their integral.
+    points_per_decade : int, default 10
+        Density of the ``"log"`` list, in [1, 100].
+    unit : {"dps", "dph", "radps", "g", "mg", "ug", "mps2"} or None, default "dps"
+        Rate unit of the record (deg/s, deg/h, rad/s, g, mg, µg, m/s²); it sets the
+        customary unit of every term. None: a generic unit ``u``.
+    confidence : float, default ONE_SIGMA
+        Confidence level of the interval, in (0, 1); default 0.6827 (one sigma).
+    terms : tuple of str, default TERMS
+        Distinct names from ``("Q", "N", "B", "K", "R")`` the least-squares fit may use.
+
+    Returns
+    -------
+    AllanResult
+        Averaging times τ in s, ADEV and its interval in the rate unit, EDF, and the five
+        :class:`NoiseCoefficient` terms in their customary units (``result.units``).
+
+    Raises
+    ------
+    ValueError
+        If ``rate_hz`` is not a finite number > 0, ``unit`` is not one of the codes above,
+        ``confidence`` is outside (0, 1), ``terms`` are not distinct names from
+        :data:`TERMS`, ``data_type`` is not ``"rate"``/``"phase"``, the record is not 1-D,
+        has fewer than 8 rate samples or a non-finite value, or a τ is out of range
+        (:func:`averaging_factors`).
+
+    Examples
+    --------
+    White rate noise of 0.1 deg/s at 100 Hz has an angle random walk
+    N = 0.1/√100 = 0.01 deg/√s = 0.6 deg/√h, and ADEV(τ) = N/√τ:
+
+    >>> import numpy as np
+    >>> from bench.analysis.allan import overlapping_adev
+    >>> y = np.random.default_rng(0).normal(0.0, 0.1, 20_000)
+    >>> r = overlapping_adev(y, 100.0, unit="dps")
+    >>> r.tau_s[:3].tolist()
+    [0.01, 0.02, 0.04]
+    >>> round(float(r.adev[0]), 3)  # the sample std at τ = τ0
+    0.1
+    >>> n = r.coefficients["N"]
+    >>> round(n.fit, 2), n.unit
+    (0.6, 'deg/sqrt(h)')
+    >>> bool(abs(n.fit - 0.6) < 3 * n.fit_std)
+    True
+    >>> i = int(np.flatnonzero(r.averaging_factor == 128)[0])  # τ = 1.28 s
+    >>> lo, hi = r.adev_ci[i]
+    >>> bool(lo < r.adev[i] < hi), round(float(r.edf[i]))  # ±1σ ≈ ±1/√(2·edf) relative
+    (True, 232)
     """
     if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float, np.integer, np.floating)) \
             or not math.isfinite(rate_hz) or rate_hz <= 0:

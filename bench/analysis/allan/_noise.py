@@ -73,7 +73,34 @@ def design_matrix(tau_s: np.ndarray, terms: tuple[str, ...] = TERMS) -> np.ndarr
 
 
 def term_adev(name: str, value: float, tau_s: np.ndarray) -> np.ndarray:
-    """ADEV of one term alone (``value`` in the input unit · s^k), for slope lines."""
+    """ADEV of one term alone (``value`` in the input unit · s^k), for slope lines.
+
+    The square root of that term's part of the Allan variance model (module docstring),
+    e.g. ``N/√τ`` for N and ``0.664·B`` for B: the straight line a plot draws for the term.
+
+    Parameters
+    ----------
+    name : {"Q", "N", "B", "K", "R"}
+        The IEEE 952 term.
+    value : float
+        Its coefficient in the input form: the record's rate unit ``u`` times s, √s, 1,
+        1/√s or 1/s for Q, N, B, K, R (``NoiseCoefficient.fit_input``).
+    tau_s : array_like of float
+        Averaging times τ in s, > 0.
+
+    Returns
+    -------
+    ndarray of float
+        ADEV of the term alone at each τ, in ``u``.
+
+    Examples
+    --------
+    >>> from bench.analysis.allan import term_adev
+    >>> term_adev("N", 0.01, [1.0, 4.0, 100.0]).round(6).tolist()  # N/√τ
+    [0.01, 0.005, 0.001]
+    >>> term_adev("B", 1.0, [1.0, 100.0]).round(4).tolist()  # flat at B·√(2 ln2/π)
+    [0.6643, 0.6643]
+    """
     return np.sqrt(design_matrix(np.asarray(tau_s, dtype=float), (name,))[:, 0]) * value
 
 
@@ -123,7 +150,29 @@ def nnls_enumerated(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, tuple[int
 
 @dataclass(frozen=True)
 class NoiseFit:
-    """Least-squares noise terms (values in the input unit · s^k) and the EDF they imply."""
+    """Least-squares noise terms (values in the input unit · s^k) and the EDF they imply.
+
+    Returned by :func:`fit_noise_terms`.
+
+    Attributes
+    ----------
+    terms : tuple of str
+        Terms the fit was allowed to use, e.g. ``("Q", "N", "B", "K", "R")``.
+    values : dict of str to float
+        Fitted coefficient of each term in its input form (rate unit ``u`` times s, √s, 1,
+        1/√s, 1/s for Q, N, B, K, R); 0 for a term outside the non-negative support.
+    stds : dict of str to float or None
+        Standard error of each value, same unit; None for a term outside the support.
+    alpha : ndarray of int, shape (k,)
+        Power-law noise exponent used for the EDF at each τ (Q → 2, N → 0, B → −1, K, R → −2).
+    edf : ndarray of float, shape (k,)
+        Equivalent degrees of freedom of each Allan variance (dimensionless).
+    reduced_chi2 : float or None
+        Weighted residual sum of squares per degree of freedom; None with no support or
+        no degree of freedom left.
+    iterations : int
+        Fixed-point iterations of fit, noise types and EDF (0 for a constant record).
+    """
 
     terms: tuple[str, ...]
     values: dict[str, float]
@@ -147,7 +196,52 @@ def _weights(avar: np.ndarray, edf: np.ndarray) -> np.ndarray:
 
 def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase: int,
                     terms: tuple[str, ...] = TERMS) -> NoiseFit:
-    """Fit the IEEE 952 model to Allan variances ``avar`` at ``tau_s`` (module docstring)."""
+    """Fit the IEEE 952 model to Allan variances ``avar`` at ``tau_s`` (module docstring).
+
+    Weighted non-negative least squares of
+    ``σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)·B² + K²·τ/3 + R²·τ²/2`` in the squared
+    coefficients, each point weighted by ``1/(σ²_model²·(2/edf + 0.02²))``, iterated with
+    the noise type (and so the EDF) each τ implies.  :func:`overlapping_adev` calls it;
+    call it directly to refit a curve with other ``terms``.
+
+    Parameters
+    ----------
+    tau_s : ndarray of float, shape (k,)
+        Averaging times τ in s.
+    avar : ndarray of float, shape (k,)
+        Allan variances at ``tau_s``, in ``u²`` (``u`` the record's rate unit).
+    m : ndarray of int, shape (k,)
+        Averaging factors τ/τ0 of the points, each in ``[1, (n_phase − 1) // 2]``.
+    n_phase : int
+        Phase points of the record (rate samples + 1), for the EDF.
+    terms : tuple of str, default TERMS
+        Terms the model may use, in Q, N, B, K, R order.
+
+    Returns
+    -------
+    NoiseFit
+        Coefficients in the input form (``u``·s, ``u``·√s, ``u``, ``u``/√s, ``u``/s), their
+        standard errors, the EDF per τ and the fit quality.
+
+    Raises
+    ------
+    ValueError
+        If an averaging factor is outside ``[1, (n_phase − 1) // 2]`` (from :func:`edf_greenhall`).
+
+    Examples
+    --------
+    An exact model curve with N = 0.01 u·√s and K = 0.002 u/√s is recovered:
+
+    >>> import numpy as np
+    >>> from bench.analysis.allan import fit_noise_terms
+    >>> m = 2 ** np.arange(13)
+    >>> tau = m / 100.0  # 100 Hz
+    >>> fit = fit_noise_terms(tau, 0.01**2 / tau + 0.002**2 * tau / 3, m, 20_001)
+    >>> {name: round(v, 4) for name, v in fit.values.items()}
+    {'Q': 0.0, 'N': 0.01, 'B': 0.0, 'K': 0.002, 'R': 0.0}
+    >>> fit.alpha.tolist()  # white FM (N) at short τ, random-walk FM (K) at long τ
+    [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -2, -2, -2]
+    """
     a = design_matrix(tau_s, terms)
     if not np.any(avar > 0):  # a constant record: nothing to fit
         zero_alpha = np.zeros(len(tau_s), dtype=int)
@@ -229,7 +323,23 @@ def _single_point_var(term: np.ndarray, model: np.ndarray, edf: np.ndarray, c2: 
 
 @dataclass(frozen=True)
 class ReadOff:
-    """A slope-line reading: value (input unit · s^k) and the curve point it went through."""
+    """A slope-line reading: value (input unit · s^k) and the curve point it went through.
+
+    Returned by :func:`read_off`.
+
+    Attributes
+    ----------
+    value : float
+        The term's coefficient in its input form (rate unit ``u`` times s, √s, 1, 1/√s or
+        1/s for Q, N, B, K, R).
+    tau_s : float
+        τ in s of the curve point the line went through (B: the minimum).
+    adev : float
+        ADEV at that point, in ``u``.
+    at_edge : bool, default False
+        B only: the minimum is the first or last readable point, so the reading is only an
+        upper bound.
+    """
 
     value: float
     tau_s: float
@@ -244,6 +354,42 @@ def read_off(tau_s: np.ndarray, adev: np.ndarray, name: str, edf: np.ndarray | N
     and a slope is read only where its standard deviation (from the neighbours' EDF,
     ``var ln σ̂ ≈ 1/(2·edf)``) is at most ``MAX_SLOPE_SD``, so that it tells the terms
     apart; the last, scattered octaves would otherwise produce any slope.
+
+    The point whose local log-log slope is nearest the term's (and within ±0.25 of it)
+    carries a line of that slope, read at τ = √3, 1, 3, √2 s for Q, N, K, R; B is the
+    curve's minimum divided by √(2 ln2/π) ≈ 0.664.  Neighbouring terms lift the curve
+    above each line, so read-offs tend high.
+
+    Parameters
+    ----------
+    tau_s : array_like of float, shape (k,)
+        Averaging times τ in s, increasing.
+    adev : array_like of float, shape (k,)
+        Allan deviation at ``tau_s`` in the rate unit ``u``; points ≤ 0 are ignored.
+    name : {"Q", "N", "B", "K", "R"}
+        The term to read.
+    edf : array_like of float, shape (k,), optional
+        Equivalent degrees of freedom per point; None treats every point as exact.
+
+    Returns
+    -------
+    ReadOff or None
+        The reading in the term's input form (``u``·s, ``u``·√s, ``u``, ``u``/√s, ``u``/s), or
+        None when no part of the curve has the term's slope (or fewer than 3 points for a slope).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.allan import read_off
+    >>> tau = 2.0 ** np.arange(13) / 100.0
+    >>> adev = np.sqrt(0.01**2 / tau + 0.002**2 * tau / 3)  # N = 0.01, K = 0.002
+    >>> r = read_off(tau, adev, "N")
+    >>> round(r.value, 4), r.tau_s
+    (0.01, 0.01)
+    >>> round(read_off(tau, adev, "K").value, 5)  # true 0.002, lifted a little by N
+    0.00204
+    >>> read_off(tau, adev, "Q") is None  # no slope −1 anywhere
+    True
     """
     tau, dev = np.asarray(tau_s, dtype=float), np.asarray(adev, dtype=float)
     ok = dev > 0

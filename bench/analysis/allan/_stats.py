@@ -101,6 +101,38 @@ def edf_greenhall(alpha: np.ndarray | int, m: np.ndarray | int, n_phase: int) ->
 
     ``alpha``: noise exponent(s) in {2, 1, 0, −1, −2}; ``m``: averaging factor(s) ≥ 1 with
     ``n_phase − 2m ≥ 1``; ``n_phase``: phase points (rate samples + 1).
+
+    Greenhall & Riley (35th PTTI, 2003), as Stable32 and allantools' ``edf_greenhall``, for
+    the unmodified overlapping variance (``d = 2``, ``F = m``, ``S = m``) and power-law noise
+    ``S_y(f) ∝ f^α``; white phase noise (α = 2) is evaluated exactly.
+
+    Parameters
+    ----------
+    alpha : int or array_like of int
+        Noise exponent(s) α: 2 white PM, 1 flicker PM, 0 white FM, −1 flicker FM, −2
+        random-walk FM.  Broadcast against ``m``.
+    m : int or array_like of int
+        Averaging factor(s) τ/τ0, each in ``[1, (n_phase − 1) // 2]``.
+    n_phase : int
+        Number of phase points of the record (rate samples + 1).
+
+    Returns
+    -------
+    ndarray of float
+        EDF (dimensionless) with the broadcast shape of ``alpha`` and ``m``.
+
+    Raises
+    ------
+    ValueError
+        If an α is not one of {2, 1, 0, −1, −2} or an ``m`` is outside ``[1, (n_phase − 1) // 2]``.
+
+    Examples
+    --------
+    >>> from bench.analysis.allan import edf_greenhall
+    >>> edf_greenhall(0, [1, 10, 100], 1001).round(1).tolist()  # white FM: fewer dof at long τ
+    [782.0, 135.1, 12.8]
+    >>> edf_greenhall([2, 0, -2], 10, 1001).round(1).tolist()  # at one τ, by noise type
+    [507.2, 135.1, 91.0]
     """
     alpha_arr, m_arr = np.broadcast_arrays(np.asarray(alpha), np.asarray(m))
     out = np.empty(alpha_arr.shape, dtype=float)
@@ -176,7 +208,33 @@ def chi2_ppf(p: float, dof: np.ndarray) -> np.ndarray:
 
 
 def adev_interval(adev: np.ndarray, edf: np.ndarray, confidence: float = ONE_SIGMA) -> np.ndarray:
-    """``(lo, hi)`` per deviation at ``confidence`` for chi-squared with ``edf`` degrees of freedom."""
+    """``(lo, hi)`` per deviation at ``confidence`` for chi-squared with ``edf`` degrees of freedom.
+
+    ``lo = σ̂·√(edf / χ²_{(1+c)/2}(edf))`` and ``hi = σ̂·√(edf / χ²_{(1−c)/2}(edf))``
+    (NIST SP 1065 eq. 45), the chi-squared quantile computed in this module.
+
+    Parameters
+    ----------
+    adev : array_like of float, shape (k,)
+        Allan deviations, in any unit.
+    edf : array_like of float, shape (k,)
+        Their equivalent degrees of freedom, > 0 (e.g. from :func:`edf_greenhall`).
+    confidence : float, default ONE_SIGMA
+        Two-sided confidence level ``c`` in (0, 1); default 0.6827 (one sigma).
+
+    Returns
+    -------
+    ndarray of float, shape (k, 2)
+        Lower and upper bound of each deviation, in the unit of ``adev``.
+
+    Examples
+    --------
+    >>> from bench.analysis.allan import adev_interval
+    >>> adev_interval([1.0, 1.0], [50.0, 5000.0]).round(3).tolist()  # ≈ ±1/√(2·edf)
+    [[0.913, 1.117], [0.99, 1.01]]
+    >>> adev_interval([1.0], [50.0], confidence=0.95).round(3).tolist()
+    [[0.837, 1.243]]
+    """
     adev, edf = np.asarray(adev, dtype=float), np.asarray(edf, dtype=float)
     tail = (1.0 - confidence) / 2.0
     lo = adev * np.sqrt(edf / chi2_ppf(1.0 - tail, edf))

@@ -41,7 +41,32 @@ MAIN_LOBE_BINS = 3  # Hann main lobe half-width (2 bins) plus one
 
 @dataclass(frozen=True)
 class Component:
-    """One EMD component described; ``index`` is the IMF number (1 = fastest) or 0 for the residue."""
+    """One EMD component described; ``index`` is the IMF number (1 = fastest) or 0 for the residue.
+
+    Attributes
+    ----------
+    index : int
+        IMF number (1 = fastest), or 0 for the residue.
+    kind : {"trend", "periodic", "random"}
+        Label given by the rule of :func:`nonrandom_terms`.
+    frequency_hz : float
+        Line frequency in Hz (periodic), mean zero-crossing frequency in Hz (others), 0 (residue).
+    amplitude : float
+        In the signal's unit: the fitted sinusoid's amplitude (periodic), half the
+        peak-to-peak range (trend), ``√2 × rms`` (random).
+    rms : float
+        RMS of the mean-removed component, in the signal's unit.
+    cycles : float
+        Oscillations over the record (zero crossings / 2).
+    line_ratio : float
+        Highest Hann-windowed periodogram ordinate over the local median (dimensionless).
+    line_fraction : float
+        Share of the component's variance carried by the fitted sinusoid, in [0, 1].
+    reason : str
+        Why the component got its label, in words.
+    label : str
+        Property: ``"IMF<k>"`` or ``"residue"``.
+    """
 
     index: int
     kind: str  # "trend" | "periodic" | "random"
@@ -55,9 +80,11 @@ class Component:
 
     @property
     def label(self) -> str:
+        """``"IMF<index>"``, or ``"residue"`` for index 0."""
         return "residue" if self.index == 0 else f"IMF{self.index}"
 
     def to_dict(self) -> dict:
+        """JSON-ready fields plus ``"component"`` (the label)."""
         d = asdict(self)
         d["component"] = self.label
         return d
@@ -65,7 +92,23 @@ class Component:
 
 @dataclass(frozen=True, eq=False)
 class NonRandomTerms:
-    """The classification of every component and the sum of the non-random ones."""
+    """The classification of every component and the sum of the non-random ones.
+
+    Returned by :func:`nonrandom_terms`.
+
+    Attributes
+    ----------
+    components : tuple of Component
+        IMF1..IMFk, then the residue.
+    signal : ndarray of float, shape (n,)
+        Sum of the trend and periodic components (Document C's ``u + s``), in the signal's unit.
+    random_indices : tuple of int
+        IMF numbers labelled random: the stationary part left to the AR models.
+    settings : dict
+        The rule's options and derived threshold (``line_threshold_medians``, ``background_bins``).
+    nonrandom : tuple of Component
+        Property: the components labelled trend or periodic.
+    """
 
     components: tuple[Component, ...]  # IMF1..IMFk then the residue
     signal: np.ndarray  # trend + periodic terms, in the signal's units
@@ -74,9 +117,11 @@ class NonRandomTerms:
 
     @property
     def nonrandom(self) -> tuple[Component, ...]:
+        """The components labelled trend or periodic."""
         return tuple(c for c in self.components if c.kind != "random")
 
     def to_dict(self) -> dict:
+        """JSON-ready non-random components, random IMF numbers and the rule's settings."""
         return {"components": [c.to_dict() for c in self.nonrandom], "random_imfs": list(self.random_indices),
                 "rule": dict(self.settings)}
 
@@ -112,7 +157,60 @@ def _fit_line(x: np.ndarray, rate_hz: float) -> tuple[float, float, float, float
 
 def nonrandom_terms(imfs: np.ndarray, residue: np.ndarray, rate_hz: float, *, min_cycles: float = 8.0,
                     line_alpha: float = 1e-3, line_dominance: float = 0.5) -> NonRandomTerms:
-    """Label the residue and each IMF (rows of ``imfs``, fastest first) by the module's rule."""
+    """Label the residue and each IMF (rows of ``imfs``, fastest first) by the module's rule.
+
+    In this order: the residue is the trend; an IMF with fewer than ``min_cycles``
+    oscillations is trend; an IMF whose periodogram line exceeds the local median by the
+    false-alarm threshold ``ln(bins / line_alpha) / ln 2`` **and** whose fitted sinusoid
+    carries at least ``line_dominance`` of its variance is periodic; the rest is random.
+
+    Parameters
+    ----------
+    imfs : array_like of float, shape (k, n)
+        IMFs, fastest first (e.g. ``EmdResult.imfs``), in the signal's unit.
+    residue : array_like of float, shape (n,)
+        The EMD residue, same unit.
+    rate_hz : float
+        Sampling rate in Hz, > 0.
+    min_cycles : float, default 8.0
+        Fewest oscillations over the record for an IMF not to count as trend; ≥ 0.
+    line_alpha : float, default 1e-3
+        False-alarm probability of the spectral-line test over all bins, in (0, 1).
+    line_dominance : float, default 0.5
+        Least share of an IMF's variance its fitted sinusoid must carry to be periodic, in (0, 1].
+
+    Returns
+    -------
+    NonRandomTerms
+        Every component's label, frequency (Hz) and amplitude (signal unit), the sum of the
+        non-random ones and the numbers of the random IMFs.
+
+    Raises
+    ------
+    ValueError
+        If ``imfs`` and ``residue`` do not share the sample count (or ``residue`` is not 1-D),
+        ``rate_hz`` is not > 0, ``min_cycles`` < 0, ``line_alpha`` is outside (0, 1) or
+        ``line_dominance`` outside (0, 1].
+
+    Examples
+    --------
+    Hand-made components at 100 Hz: white noise, a 5 Hz tone, a wave too slow to tell from a
+    trend, and a ramp as the residue:
+
+    >>> import numpy as np
+    >>> from bench.analysis.emd import nonrandom_terms
+    >>> t = np.arange(2000) / 100.0
+    >>> noise = 0.2 * np.random.default_rng(0).normal(size=t.size)
+    >>> imfs = np.array([noise, np.sin(2 * np.pi * 5.0 * t), 0.3 * np.sin(2 * np.pi * 0.2 * t)])
+    >>> terms = nonrandom_terms(imfs, 0.05 * t, 100.0)
+    >>> [(c.label, c.kind) for c in terms.components]
+    [('IMF1', 'random'), ('IMF2', 'periodic'), ('IMF3', 'trend'), ('residue', 'trend')]
+    >>> tone = terms.components[1]
+    >>> round(tone.frequency_hz, 2), round(tone.amplitude, 2)
+    (5.0, 1.0)
+    >>> terms.random_indices, bool(np.allclose(terms.signal, imfs[1] + imfs[2] + 0.05 * t))
+    ((1,), True)
+    """
     imfs = np.atleast_2d(np.asarray(imfs, dtype=float))
     residue = np.asarray(residue, dtype=float)
     if residue.ndim != 1 or imfs.shape[1] != residue.size:

@@ -72,14 +72,56 @@ def _cplx(z) -> list:
 
 @dataclass(frozen=True)
 class SineFit:
-    """One record's sine fit at ``freq_hz`` (see module docstring for the convention).
+    """A record's least-squares sine fit at one frequency: complex amplitude, harmonics and uncertainties.
+
+    One record's sine fit at ``freq_hz`` (see module docstring for the convention).
 
     ``amplitude`` ``A₁`` (y unit, complex, phase at ``t0_s``), ``cov`` the 2×2 covariance of
     ``(Re A₁, Im A₁)``, ``mag_std`` and ``phase_std_deg`` the standard uncertainties of ``|A₁|``
     and ``arg A₁``; ``harmonics`` ``A₂ … A_H`` (NaN where not modelled), ``offset`` ``c``,
     ``trend_per_s`` ``d`` (0 if not fitted), ``residual_rms`` (y unit), ``noise_factor`` the
     residual's spectrum at ``f`` over its variance (1 for white noise), ``window_s`` the
-    ``[start, stop)`` fitted, ``n_periods`` periods of ``f`` in it, ``n_samples`` samples used."""
+    ``[start, stop)`` fitted, ``n_periods`` periods of ``f`` in it, ``n_samples`` samples used.
+
+    Attributes
+    ----------
+    freq_hz : float
+        The fitted tone's frequency f, in Hz.
+    amplitude : complex
+        A₁, in the unit of y: ``|A₁|`` the tone's amplitude, ``arg A₁`` its cosine phase at
+        ``t0_s`` (rad; a lead is positive).
+    cov : ndarray, shape (2, 2)
+        Covariance of ``(Re A₁, Im A₁)``, in y unit² (autocorrelation-aware, module docstring).
+    mag_std : float
+        Standard uncertainty of ``|A₁|``, y unit.
+    phase_std_deg : float
+        Standard uncertainty of ``arg A₁``, in degrees (∞ when ``|A₁|`` is 0).
+    harmonics : ndarray of complex, shape (harmonics − 1,)
+        A₂ … A_H, y unit, same convention; NaN where not modelled (at or above Nyquist).
+    offset : float
+        The constant c, y unit.
+    trend_per_s : float
+        The linear term d, y unit per s (0 when not fitted).
+    residual_rms : float
+        RMS of the fit's residual over the window, y unit.
+    noise_factor : float
+        The residual's spectrum at f over its variance (1 for white noise); the factor the
+        white-noise covariance was scaled by.
+    window_s : tuple of float
+        ``(start, stop)`` of the fitted window, in s.
+    n_periods : float
+        Periods of f in the window (whole, unless ``whole_periods=False``).
+    n_samples : int
+        Samples used.
+    t0_s : float
+        Time at which the phases are quoted, in s.
+    mag : float
+        Property: ``|A₁|``, y unit.
+    phase_deg : float
+        Property: ``arg A₁`` in degrees, wrapped to (−180, 180].
+    amplitude_std : float
+        Property: per-component standard error ``√(tr cov / 2)``, y unit.
+    """
 
     freq_hz: float
     amplitude: complex
@@ -157,13 +199,70 @@ def _local_noise_level(t, e, freq_hz, window_len_s, tones_hz, dt, trend) -> tupl
 
 def sine_fit(t_s, y, freq_hz: float, harmonics: int = 3, *, trend: bool = False, span_s=None,
              whole_periods: bool = True, min_periods: float = 1.0, t0_s: float = 0.0) -> SineFit:
-    """Linear least-squares sine fit of ``y`` at ``freq_hz`` and its harmonics (module docstring).
+    """Least-squares fit of a tone and its harmonics in a record, with autocorrelation-aware standard errors.
+
+    Linear least-squares sine fit of ``y`` at ``freq_hz`` and its harmonics (module docstring).
 
     ``t_s`` (s, strictly increasing, any clock the caller has aligned), ``y`` (any unit);
     ``harmonics`` ≥ 1 the number of multiples of ``f`` modelled (1 = the tone alone);
     ``trend`` adds a linear term (a drifting bias, a high-pass settling tail); ``span_s``
     ``(start, stop)`` restricts the fit (default the whole record); ``t0_s`` the time at which
-    phases are quoted.  Needs ``0 < f < Nyquist`` of the samples and ``≥ min_periods`` periods."""
+    phases are quoted.  Needs ``0 < f < Nyquist`` of the samples and ``≥ min_periods`` periods.
+    Model ``y ≈ c [+ d·(t − t_mid)] + Σₖ Re(Aₖ·e^{j2πkf(t − t0_s)})`` over the longest whole
+    number of periods of the span (window rule and standard errors in the module docstring).
+
+    Parameters
+    ----------
+    t_s : array_like, shape (N,)
+        Sample times in s, finite and strictly increasing; N ≥ 4.
+    y : array_like, shape (N,)
+        The record, any unit, finite.
+    freq_hz : float
+        Tone frequency f in Hz, within (0, Nyquist) of the samples (0.5/median interval).
+    harmonics : int, default 3
+        Number of multiples of f modelled, an integer in [1, 20] (1 = the tone alone);
+        those at or above Nyquist are left out.
+    trend : bool, default False
+        Add a linear term d (a drifting bias, a high-pass settling tail).
+    span_s : tuple of float, optional
+        ``(start, stop)`` in s, start < stop, restricting the fit; default from the first
+        sample to the last plus one interval.
+    whole_periods : bool, default True
+        Cut the span to a whole number of periods from its start.
+    min_periods : float, default 1.0
+        Fewest periods of f the span must hold, > 0.
+    t0_s : float, default 0.0
+        Time, in s, at which the phases are quoted.
+
+    Returns
+    -------
+    SineFit
+        Complex amplitude A₁ with its covariance, magnitude and phase uncertainties, the
+        harmonics, offset, trend and the fitted window.
+
+    Raises
+    ------
+    ValueError
+        If the record is not 1-D finite of one length ≥ 4 with increasing times;
+        ``harmonics`` is not an integer in [1, 20]; ``freq_hz`` is outside (0, Nyquist);
+        ``min_periods`` is not > 0; ``t0_s`` or ``span_s`` is not finite (or start ≥ stop);
+        the span holds fewer than ``min_periods`` periods, or the window fewer than 8 samples
+        more than the parameters.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.frf import sine_fit
+    >>> t = np.arange(2000) / 1000.0  # 2 s at 1 kHz
+    >>> y = 0.5 + 2.0 * np.cos(2 * np.pi * 5.0 * t + 0.3) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    >>> f = sine_fit(t, y, 5.0)
+    >>> round(f.mag, 3), round(f.phase_deg, 1), round(float(np.degrees(0.3)), 1)
+    (2.0, 17.2, 17.2)
+    >>> round(f.offset, 3), f.n_periods, f.n_samples
+    (0.5, 10.0, 2000)
+    >>> bool(abs(f.mag - 2.0) < 3 * f.mag_std)
+    True
+    """
     t, v, dt = check_record(t_s, y)
     if not (isinstance(harmonics, (int, np.integer)) and 1 <= harmonics <= 20):
         raise ValueError(f"harmonics {harmonics} must be an integer in [1, 20]")
@@ -230,9 +329,31 @@ def sine_fit(t_s, y, freq_hz: float, harmonics: int = 3, *, trend: bool = False,
 
 @dataclass(frozen=True)
 class FrfPoint:
-    """The sensor's response at one frequency: ``h = A_y/A_ref`` (sensor unit per reference
+    """A sensor's response to the reference at one frequency, with its uncertainties and both fits.
+
+    The sensor's response at one frequency: ``h = A_y/A_ref`` (sensor unit per reference
     unit), ``mag``, ``phase_deg`` in (−180, 180] (lead positive), their standard uncertainties
-    (first order: relative variances of the two fits add; valid for SNR ≫ 1), and both fits."""
+    (first order: relative variances of the two fits add; valid for SNR ≫ 1), and both fits.
+
+    Attributes
+    ----------
+    freq_hz : float
+        The dwell's frequency, in Hz.
+    h : complex
+        Response ``A_y/A_ref``, sensor unit per reference unit.
+    mag : float
+        ``|h|``, sensor unit per reference unit.
+    phase_deg : float
+        ``arg h`` in degrees, in (−180, 180], a lead positive.
+    mag_std : float
+        Standard uncertainty of ``mag``, same unit.
+    phase_std_deg : float
+        Standard uncertainty of ``phase_deg``, in degrees.
+    ref_fit : SineFit
+        The reference's sine fit.
+    y_fit : SineFit
+        The sensor's sine fit (same window, same ``t0_s``).
+    """
 
     freq_hz: float
     h: complex
@@ -252,9 +373,62 @@ class FrfPoint:
 
 def frf_point(t_ref, ref, t_y, y, freq_hz: float, *, harmonics: int = 3, trend: bool = False,
               skip_s: float = 0.0, min_periods: float = 1.0) -> FrfPoint:
-    """Response of ``y`` (times ``t_y``, already on the reference clock) to the reference
-    ``ref`` (times ``t_ref``) at ``freq_hz``, both fitted by :func:`sine_fit` over the same
-    whole-period window inside their common span (after skipping ``skip_s`` s of settling)."""
+    """Response of a sensor to the reference at one stepped-sine frequency.
+
+    ``y`` (times ``t_y``, already on the reference clock) against the reference ``ref``
+    (times ``t_ref``) at ``freq_hz``, both fitted by :func:`sine_fit` over the same
+    whole-period window inside their common span (after skipping ``skip_s`` s of settling).
+
+    Parameters
+    ----------
+    t_ref : array_like, shape (N,)
+        Reference sample times, in s (table clock), strictly increasing.
+    ref : array_like, shape (N,)
+        Reference record (e.g. table rate in °/s), finite.
+    t_y : array_like, shape (M,)
+        Sensor sample times, in s, already on the reference clock (:func:`apply_time_base`).
+    y : array_like, shape (M,)
+        Sensor record, any unit, finite.
+    freq_hz : float
+        The dwell's frequency, in Hz (within Nyquist of both records).
+    harmonics : int, default 3
+        Harmonics modelled in both fits, in [1, 20].
+    trend : bool, default False
+        Add a linear term to both fits.
+    skip_s : float, default 0.0
+        Settling time skipped at the start of the common span, in s; finite and ≥ 0.
+    min_periods : float, default 1.0
+        Fewest periods of f the window must hold, > 0.
+
+    Returns
+    -------
+    FrfPoint
+        ``h`` (sensor unit per reference unit), magnitude, phase (degrees) and their standard
+        uncertainties, and both fits.
+
+    Raises
+    ------
+    ValueError
+        If a record is invalid (see :func:`sine_fit`), ``skip_s`` is negative or not finite,
+        the records share no time after ``skip_s``, or the reference's amplitude does not
+        exceed 3× its standard error.
+
+    Examples
+    --------
+    A sensor with a gain of 0.9 and a 10° lag at 5 Hz:
+
+    >>> import numpy as np
+    >>> from bench.analysis.frf import frf_point
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(2000) / 1000.0
+    >>> ref = np.sin(2 * np.pi * 5 * t) + 0.01 * rng.standard_normal(t.size)
+    >>> y = 0.9 * np.sin(2 * np.pi * 5 * t - np.radians(10)) + 0.01 * rng.standard_normal(t.size)
+    >>> p = frf_point(t, ref, t, y, 5.0)
+    >>> round(p.mag, 2), round(p.phase_deg, 1)
+    (0.9, -10.0)
+    >>> bool(abs(p.mag - 0.9) < 3 * p.mag_std and abs(p.phase_deg + 10) < 3 * p.phase_std_deg)
+    True
+    """
     t_r, v_r, dt_r = check_record(t_ref, ref, "ref")
     t_s, v_s, dt_s = check_record(t_y, y, "y")
     if not (math.isfinite(skip_s) and skip_s >= 0):
@@ -278,8 +452,34 @@ def frf_point(t_ref, ref, t_y, y, freq_hz: float, *, harmonics: int = 3, trend: 
 
 @dataclass
 class FrfResult:
-    """An FRF over the dwells, in the order given: arrays ``freq_hz``, complex ``h``, ``mag``,
-    ``phase_deg``, ``mag_std``, ``phase_std_deg``, and the points themselves."""
+    """A stepped-sine frequency response over its dwells.
+
+    An FRF over the dwells, in the order given: arrays ``freq_hz``, complex ``h``, ``mag``,
+    ``phase_deg``, ``mag_std``, ``phase_std_deg``, and the points themselves.
+
+    Attributes
+    ----------
+    freq_hz : ndarray, shape (K,)
+        Dwell frequencies, in Hz.
+    h : ndarray of complex, shape (K,)
+        Response at each, sensor unit per reference unit.
+    mag : ndarray, shape (K,)
+        ``|h|``, same unit.
+    phase_deg : ndarray, shape (K,)
+        ``arg h`` in degrees, in (−180, 180], a lead positive.
+    mag_std : ndarray, shape (K,)
+        Standard uncertainty of ``mag``.
+    phase_std_deg : ndarray, shape (K,)
+        Standard uncertainty of ``phase_deg``, in degrees.
+    points : list of FrfPoint
+        The points themselves, with both sine fits.
+    h_std : ndarray, shape (K,)
+        Property: per-component standard uncertainty of ``Re h``/``Im h``
+        (:func:`component_std`).
+    weights : ndarray, shape (K,)
+        Property: ``1/h_std``, the ``weights`` argument of
+        :func:`~bench.analysis.fusion.fit_transfer_function`.
+    """
 
     freq_hz: np.ndarray
     h: np.ndarray
@@ -307,16 +507,84 @@ class FrfResult:
 
 
 def component_std(mag, mag_std, phase_std_deg) -> np.ndarray:
-    """Per-component standard uncertainty of ``Re h``/``Im h`` from a magnitude ``mag`` with
-    standard uncertainty ``mag_std`` and a phase uncertainty ``phase_std_deg`` (degrees): the
-    mean of the magnitude and tangential (|h|·σφ) variances, square-rooted."""
+    """Per-component standard uncertainty of ``Re h``/``Im h`` from magnitude and phase uncertainties.
+
+    From a magnitude ``mag`` with standard uncertainty ``mag_std`` and a phase uncertainty
+    ``phase_std_deg`` (degrees): the mean of the magnitude and tangential (|h|·σφ) variances,
+    square-rooted, ``√((σ_|h|² + (|h|·σφ)²)/2)``.
+
+    Parameters
+    ----------
+    mag : array_like
+        Magnitude ``|h|``, any unit.
+    mag_std : array_like
+        Its standard uncertainty, same unit (broadcast with ``mag``).
+    phase_std_deg : array_like
+        Standard uncertainty of the phase, in degrees.
+
+    Returns
+    -------
+    ndarray
+        Per-component standard uncertainty, in the unit of ``mag`` (the broadcast shape).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.frf import component_std
+    >>> component_std([1.0, 2.0], [0.01, 0.0], [0.0, 0.0]).round(6).tolist()
+    [0.007071, 0.0]
+    >>> float(component_std(1.0, 0.01, np.degrees(0.01)))  # equal radial and tangential parts
+    0.01
+    """
     mag, mag_std, phase_std_deg = (np.asarray(a, dtype=float) for a in (mag, mag_std, phase_std_deg))
     return np.sqrt(0.5 * (mag_std ** 2 + (mag * np.radians(phase_std_deg)) ** 2))
 
 
 def frf(dwells, **kwargs) -> FrfResult:
-    """:func:`frf_point` over ``dwells``, each ``(t_ref, ref, t_y, y, freq_hz)``; ``kwargs`` as
-    :func:`frf_point` takes them."""
+    """Stepped-sine FRF: :func:`frf_point` over ``dwells``, each ``(t_ref, ref, t_y, y, freq_hz)``.
+
+    ``kwargs`` as :func:`frf_point` takes them. The result feeds
+    :func:`~bench.analysis.fusion.fit_transfer_function` (with ``weights=FrfResult.weights``).
+
+    Parameters
+    ----------
+    dwells : iterable of tuple
+        One ``(t_ref, ref, t_y, y, freq_hz)`` per dwell: times in s (the sensor's on the
+        reference clock), records in their units, frequency in Hz; at least one.
+    **kwargs
+        ``harmonics``, ``trend``, ``skip_s``, ``min_periods`` as :func:`frf_point` takes them.
+
+    Returns
+    -------
+    FrfResult
+        Arrays over the dwells, in the order given (Hz, sensor unit per reference unit,
+        degrees), and the points.
+
+    Raises
+    ------
+    ValueError
+        If there are no dwells, or a dwell fails :func:`frf_point`'s checks.
+
+    Examples
+    --------
+    A first-order low-pass at 20 Hz measured at four frequencies:
+
+    >>> import numpy as np
+    >>> from bench.analysis.frf import frf
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(2000) / 1000.0
+    >>> def dwell(f):
+    ...     g = 1 / (1 + 1j * f / 20.0)
+    ...     ref = np.sin(2 * np.pi * f * t) + 0.01 * rng.standard_normal(t.size)
+    ...     y = abs(g) * np.sin(2 * np.pi * f * t + np.angle(g)) + 0.01 * rng.standard_normal(t.size)
+    ...     return t, ref, t, y, f
+    >>> r = frf([dwell(f) for f in (2.0, 5.0, 20.0, 50.0)])
+    >>> r.mag.round(2).tolist(), r.phase_deg.round(0).tolist()
+    ([0.99, 0.97, 0.71, 0.37], [-6.0, -14.0, -45.0, -68.0])
+    >>> truth = 1 / (1 + 1j * r.freq_hz / 20.0)
+    >>> bool(np.all(np.abs(r.h - truth) < 3 * r.h_std)), r.weights.shape
+    (True, (4,))
+    """
     pts = [frf_point(*d, **kwargs) for d in dwells]
     if not pts:
         raise ValueError("no dwells: at least 1 is needed")

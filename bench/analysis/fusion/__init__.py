@@ -1,5 +1,16 @@
 """Angular-rate fusion of a high- and a low-frequency sensor (Document B) and its baselines.
 
+Two coaxial rate sensors see the same rate: an HF sensor (a high-pass, e.g. an MHD) and an
+LF sensor (a low-pass, e.g. a FOG), each described by a :class:`SensorModel`, fitted to a
+measured FRF by :func:`fit_transfer_function`. :func:`analyze_fusion`, the main entry point,
+runs every fusion method (:data:`METHODS`) on one record: each sensor alone, the
+complementary filter (:func:`complementary_filter`), Document B's sequential adaptive-R Kalman
+filter (:func:`sequential_fusion`, tuned by :func:`tune_fusion`), a fixed-R Kalman filter
+(:func:`fixed_r_kalman`) and the complementary Kalman filter and smoother
+(:func:`complementary_kalman`); with the table's reference it tunes them on the first part of
+the record, judges them on the rest and recommends one that is no worse than the
+:data:`BASELINES`.
+
 What a user calls::
 
     analyze_fusion, FusionAnalysis, METHODS, BASELINES, excess_over_best

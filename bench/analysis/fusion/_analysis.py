@@ -59,8 +59,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.analysis.fusion import _complementary as fc
-from bench.analysis.fusion import _sequential as fu
+import bench.analysis.fusion._complementary as fc
+import bench.analysis.fusion._sequential as fu
 from bench.analysis.fusion._alignment import MIN_TONES, PairAlignment, fit_and_align
 from bench.analysis.fusion._metrics import (
     detect_tones,
@@ -233,9 +233,67 @@ def recommend(judgement: Judgement) -> tuple[str, str]:
 
 @dataclass
 class FusionAnalysis:
-    """Everything :func:`analyze_fusion` found.  ``t_s`` and ``estimates`` (every method's rate,
+    """Every fusion method's rate on one record, its settings, the judgement and the recommendation.
+
+    Everything :func:`analyze_fusion` found.  ``t_s`` and ``estimates`` (every method's rate,
     whole record) stay out of :meth:`to_dict`; the judged metrics (``judgement``, on samples
-    ``judged_from`` onwards) go in."""
+    ``judged_from`` onwards) go in.
+
+    Rates are in the unit of the reference (each reading ÷ its sensor's gain).
+
+    Attributes
+    ----------
+    rate_hz : float
+        Sample rate, in Hz.
+    t_s : ndarray, shape (n,)
+        Sample times, in s (after alignment, when the record was aligned).
+    model : FusionModel
+        Document B's model: both sensor models and the tuned process noise q (rate²/s).
+    params : FusionParams
+        Document B's measurement-noise settings (sensor unit²).
+    model_source : str
+        Where the sensor models came from: given, fitted (aligned or not), or default.
+    crossover_hz : float
+        The complementary filter's crossover, in Hz.
+    estimates : dict of str to ndarray
+        Every method's rate over the whole record, keyed as :data:`METHODS`.
+    nis : dict of str to NisStats
+        χ² checks of the Kalman filters' NIS on the judged part.
+    r_interval_fraction : dict of str to ndarray
+        Fraction of the judged samples in each interval (0, 1, 2) of Document B's rule, per
+        sensor (and for the adaptive complementary filter's LF update).
+    r_range : dict of str to list of float
+        ``[min, max]`` of the R used on the judged part, sensor unit².
+    recommended : str
+        Key of the recommended method.
+    recommendation_rule : str
+        The rule that picked it, in words.
+    complementary_noise : ComplementaryNoise
+        The complementary Kalman filter's noise (maximum likelihood).
+    settings : dict of str to dict
+        Each method's settings (tuned or given), JSON-ready.
+    tune_samples : int
+        Samples of the tuning part (0 without a reference).
+    judged_from : int
+        First judged sample (after tuning and ``settle_s``).
+    judgement : Judgement or None
+        RMS error, amplitude/phase error and excess per tone for every method; None without
+        a reference.
+    tuning : FusionTuning or None
+        Document B's grid search; None when not tuned.
+    noise_fit : NoiseFit or None
+        The maximum-likelihood fit behind ``complementary_noise``.
+    alignment : PairAlignment or None
+        The fitted sensor models, clocks and delays; None unless fitted.
+    notes : list of str
+        What the analysis assumed or changed.
+    n_samples : int
+        Property: number of samples.
+    recommended_rate : ndarray
+        Property: the recommended method's rate.
+    rms_error : dict of str to float or None
+        Property: each method's RMS error on the judged part; None without a reference.
+    """
 
     rate_hz: float
     t_s: np.ndarray
@@ -306,11 +364,43 @@ class FusionAnalysis:
 
 
 def excess_over_best(analysis: dict, method: str = "fused") -> tuple[np.ndarray, np.ndarray]:
-    """Per tone: ``method``'s |amplitude error| less the better single sensor's (pp) and the
+    """Per tone, a method's amplitude error in excess of the better single sensor's, with its standard error.
+
+    Per tone: ``method``'s |amplitude error| less the better single sensor's (pp) and the
     standard error of that difference, from an analysis dict (:meth:`FusionAnalysis.to_dict`;
     also a stored analysis from before the methods were many, where ``excess_pct`` was
     Document B's alone — or absent, then from each series' own standard error, an
-    overestimate: the two share their noise)."""
+    overestimate: the two share their noise).
+
+    Parameters
+    ----------
+    analysis : dict
+        An analysis as :meth:`FusionAnalysis.to_dict` writes it (or a stored older one): with
+        ``excess_pct``/``excess_std_pct`` per method, or ``amplitude_error_pct`` (and
+        optionally ``amplitude_error_std_pct``) per series including ``"hf"`` and ``"lf"``.
+    method : str, default "fused"
+        The method's key (:data:`METHODS`).
+
+    Returns
+    -------
+    excess : ndarray
+        Per tone, the method's |amplitude error| less the better single sensor's, in
+        percentage points.
+    excess_std : ndarray
+        Its standard error, in percentage points.
+
+    Examples
+    --------
+    >>> from bench.analysis.fusion import excess_over_best
+    >>> old = {"amplitude_error_pct": {"hf": [-0.1, -40.0], "lf": [-30.0, 0.2], "fused": [0.3, -0.5]},
+    ...        "amplitude_error_std_pct": {"hf": [0.1, 0.1], "lf": [0.1, 0.1], "fused": [0.1, 0.1]}}
+    >>> ex, sd = excess_over_best(old)  # |0.3| − |−0.1|, |−0.5| − |0.2|
+    >>> ex.round(3).tolist(), sd.round(3).tolist()
+    ([0.2, 0.3], [0.141, 0.141])
+    >>> new = {"excess_pct": {"fused": [0.2, 0.3]}, "excess_std_pct": {"fused": [0.05, 0.05]}}
+    >>> excess_over_best(new)[1].tolist()
+    [0.05, 0.05]
+    """
     ex = analysis.get("excess_pct")
     if isinstance(ex, dict):
         return np.asarray(ex[method], dtype=float), np.asarray(analysis["excess_std_pct"][method], dtype=float)
@@ -351,11 +441,95 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
                    params: fu.FusionParams | None = None, q: float | None = None, settle_s: float = 0.0,
                    discretization: str = "euler", alpha: float = 0.05, tune_fraction: float = TUNE_FRACTION,
                    align: bool = True) -> FusionAnalysis:
-    """Tune every method on the first part, judge on the rest and recommend one (module
+    """Every rate-fusion method on one HF/LF record: tuned, judged against a reference and one recommended.
+
+    Tune every method on the first part, judge on the rest and recommend one (module
     docstring).  Models: the given ones; else, with ``ref`` and ≥ 4 tones, fitted (with delays,
     the record aligned if ``align``); else :data:`DEFAULT_HF`/:data:`DEFAULT_LF`.
     ``crossover_hz``, ``params`` and ``q`` fix what they name instead of tuning it.  With
-    ``tune_fraction`` 0 nothing is tuned against the reference and the whole record is judged."""
+    ``tune_fraction`` 0 nothing is tuned against the reference and the whole record is judged.
+    Without ``ref`` nothing can be judged: every method runs with settings from the data
+    alone and the complementary smoother is recommended.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Sample times, in s (one grid for both sensors).
+    hf : array_like, shape (n,)
+        HF sensor readings, its output unit; finite.
+    lf : array_like, shape (n,)
+        LF sensor readings, its output unit; finite.
+    ref : array_like, shape (n,), optional
+        The table's reference rate (rate unit), finite; None: nothing is tuned or judged.
+    rate_hz : float, optional
+        Sample rate, in Hz, finite and > 0; default from ``t``.
+    hf_model : SensorModel, optional
+        The HF sensor's model; default fitted against ``ref`` (≥ 4 tones) or
+        :data:`DEFAULT_HF` (high-pass, 2 Hz).
+    lf_model : SensorModel, optional
+        The LF sensor's model; default fitted or :data:`DEFAULT_LF` (low-pass, 30 Hz).
+    tones_hz : array_like, optional
+        The reference's tones, in Hz, within (0, ``rate_hz``/2); default detected in ``ref``.
+    crossover_hz : float, optional
+        Fix the complementary filter's crossover, in Hz, instead of tuning it.
+    params : FusionParams, optional
+        Fix Document B's measurement-noise settings instead of tuning them.
+    q : float, optional
+        Fix Document B's process noise, rate²/s, instead of tuning it.
+    settle_s : float, default 0.0
+        Start-up left out of the judged part after the tuning part, in s; finite and ≥ 0.
+    discretization : {"euler", "zoh"}, default "euler"
+        Discretisation of Document B's model.
+    alpha : float, default 0.05
+        Significance of the NIS χ² checks, in (0, 1).
+    tune_fraction : float, default 0.4
+        Fraction of the record that tunes (with ``ref``), in [0, 0.7].
+    align : bool, default True
+        With fitted models, align the record (clock rates, delays) before running the methods.
+
+    Returns
+    -------
+    FusionAnalysis
+        Every method's rate, its settings, the judgement on the judged part (with ``ref``),
+        the NIS checks and the recommended method with its rule.
+
+    Raises
+    ------
+    ValueError
+        If the series are not finite and of one length, ``rate_hz``, ``tune_fraction`` or
+        ``settle_s`` is out of range, ``ref`` is not finite or not as long, the tones are empty
+        or outside (0, Nyquist), or the judged part holds fewer than 3 periods of the lowest
+        tone.
+
+    Examples
+    --------
+    Without a reference, on the two-tone record of :func:`sequential_fusion`'s example; the
+    caller, who knows the true rate here, judges the estimates himself:
+
+    >>> import numpy as np
+    >>> from bench.analysis.fusion import SensorModel, analyze_fusion
+    >>> hf_model, lf_model = SensorModel("highpass", 1, 2.0), SensorModel("lowpass", 1, 30.0)
+    >>> fs, f = 1000.0, np.array([0.5, 100.0])  # 1 kHz; a slow and a fast tone, 1 dps each
+    >>> t = np.arange(4000) / fs
+    >>> rng = np.random.default_rng(0)
+    >>> def read(model, sd):  # the sensor's steady-state reading of the tones, plus white noise
+    ...     g = model.response(f)
+    ...     y = np.sum(np.abs(g) * np.sin(2 * np.pi * np.outer(t, f) + np.angle(g)), axis=1)
+    ...     return y + sd * rng.standard_normal(t.size)
+    >>> rate = np.sin(2 * np.pi * np.outer(t, f)).sum(axis=1)
+    >>> hf, lf = read(hf_model, 0.02), read(lf_model, 0.01)
+    >>> def rms(x):  # error against the true rate after the first second, dps
+    ...     return round(float(np.sqrt(np.mean((x - rate)[1000:] ** 2))), 3)
+    >>> rms(hf / hf_model.gain), rms(lf / lf_model.gain)  # each sensor alone loses one tone
+    (0.687, 0.678)
+    >>> a = analyze_fusion(t, hf, lf, rate_hz=fs, hf_model=hf_model, lf_model=lf_model)
+    >>> a.recommended, a.judgement is None, a.model_source
+    ('complementary_smoother', True, 'given')
+    >>> rms(a.recommended_rate), rms(a.estimates["complementary_kf"]), rms(a.estimates["fused"])
+    (0.019, 0.02, 0.057)
+    >>> round(a.complementary_noise.hf_var / 0.02 ** 2, 1)  # noise by maximum likelihood
+    0.9
+    """
     t, hf, lf, ref, rate_hz = _check_inputs(t, hf, lf, ref, rate_hz, tune_fraction, settle_s)
     notes: list[str] = []
     tones = None

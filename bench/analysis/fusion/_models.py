@@ -43,8 +43,44 @@ ORDER_GAIN_FACTOR = 2.0  # a higher order is kept only if it divides the relativ
 
 @dataclass(frozen=True)
 class SensorModel:
-    """One sensor's transfer function: ``kind`` high/low-pass, ``order`` 1 or 2, corner
-    ``corner_hz``, passband ``gain`` (output unit per rate unit), damping ``zeta`` (order 2)."""
+    """One rate sensor's transfer function: a high- or low-pass of order 1 or 2.
+
+    One sensor's transfer function: ``kind`` high/low-pass, ``order`` 1 or 2, corner
+    ``corner_hz``, passband ``gain`` (output unit per rate unit), damping ``zeta`` (order 2).
+
+    High-pass ``G(s) = k·(s/ωc)ⁿ / D(s/ωc)``, low-pass ``G(s) = k / D(s/ωc)`` with
+    ``D(p) = 1 + p`` (order 1) or ``1 + 2ζp + p²`` (order 2), ``ωc = 2π·corner_hz`` (module
+    docstring). Methods: ``response(freq_hz)`` (complex), ``state_space()`` ``(A, b, c, d)``.
+
+    Parameters
+    ----------
+    kind : {"highpass", "lowpass"}
+        High-pass (the HF sensor, e.g. an MHD) or low-pass (the LF sensor, e.g. a FOG).
+    order : {1, 2}
+        Order n of the filter.
+    corner_hz : float
+        Corner frequency, in Hz; finite and > 0.
+    gain : float, default 1.0
+        Passband gain k, in output unit per rate unit; finite and non-zero.
+    zeta : float, default √0.5
+        Damping ζ of a second-order filter (unused at order 1); finite and > 0.
+
+    Raises
+    ------
+    ValueError
+        If a parameter is outside what is allowed above.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.fusion import SensorModel
+    >>> hf = SensorModel("highpass", 1, 2.0)
+    >>> g = hf.response(2.0)  # at the corner: −3 dB, a 45° lead
+    >>> round(abs(g), 4), round(float(np.degrees(np.angle(g))), 1)
+    (0.7071, 45.0)
+    >>> [m.shape for m in SensorModel("lowpass", 2, 30.0).state_space()[:3]]
+    [(2, 2), (2,), (2,)]
+    """
 
     kind: str
     order: int
@@ -97,12 +133,41 @@ def _response(f, kind, order, corner_hz, gain, zeta):
 
 @dataclass(frozen=True)
 class TransferFit:
-    """Result of :func:`fit_transfer_function`: the chosen model, its relative RMS misfit
+    """A sensor model fitted to a measured FRF, with its delay, misfit and order rule.
+
+    Result of :func:`fit_transfer_function`: the chosen model, its relative RMS misfit
     ``residual`` (``rms(|Ĝ−G|/|G|)``, delay included), the misfit of every order tried, the
     rule used, the fitted pure delay ``delay_s`` (s; 0.0 when not fitted), when weights
     were given, ``chi2_reduced`` = ``Σ|w(Ĝ−G)|² / (2N − p)`` (≈ 1 when the model explains the
     FRF within its stated uncertainty), and a first-order pole above the band ``upper_hz``
-    (``None`` when not fitted) — like the delay, part of the fit, not of ``model``."""
+    (``None`` when not fitted) — like the delay, part of the fit, not of ``model``.
+
+    ``response(freq_hz)`` is the fit's complex response, delay and upper pole included.
+
+    Attributes
+    ----------
+    model : SensorModel
+        The chosen model (kind, order, corner in Hz, gain in output unit per rate unit).
+    residual : float
+        Relative RMS misfit ``rms(|Ĝ−G|/|G|)`` of the chosen order, delay included
+        (dimensionless).
+    residual_by_order : dict of int to float
+        The relative RMS misfit of every order tried.
+    rule : str
+        The order rule used, in words.
+    delay_s : float
+        Fitted pure delay τ, in s (positive: the sensor lags); 0.0 when not fitted.
+    chi2_reduced : float or None
+        ``Σ|w(Ĝ−G)|² / (2N − p)`` when weights were given, else None.
+    upper_hz : float or None
+        Fitted first-order pole above the band, in Hz; None when not fitted.
+    corner_hz : float
+        Property: ``model.corner_hz``, in Hz.
+    gain : float
+        Property: ``model.gain``.
+    order : int
+        Property: ``model.order``.
+    """
 
     model: SensorModel
     residual: float
@@ -178,6 +243,54 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
     **Order rule**: start at order 1; order ``n+1`` replaces ``n`` only if
     its relative RMS misfit is below ``1/ORDER_GAIN_FACTOR`` (half) of order ``n``'s — one
     more parameter must explain at least half of the remaining misfit, not just noise.
+
+    Parameters
+    ----------
+    freq_hz : array_like, shape (N,)
+        FRF frequencies, in Hz; finite and > 0 (any order). N ≥ ``2·max_order + 1``, plus one
+        with ``fit_delay`` and one with ``upper_pole`` at order 1.
+    response_complex : array_like of complex, shape (N,)
+        Measured response at each, sensor output unit per rate unit; finite and non-zero.
+    kind : {"highpass", "lowpass"}, default "highpass"
+        The filter family fitted.
+    max_order : {1, 2}, default 2
+        Highest order tried.
+    fit_delay : bool, default False
+        Fit a signed pure delay τ (s) too.
+    weights : array_like, shape (N,), optional
+        ``1/σ`` of each FRF point (σ the standard uncertainty of its real and imaginary
+        parts, response unit), finite and > 0, e.g. :attr:`bench.analysis.frf.FrfResult.weights`;
+        default: the relative misfit.
+    upper_pole : bool, default False
+        Fit a first-order pole above the band too (``kind="highpass"`` only).
+
+    Returns
+    -------
+    TransferFit
+        The chosen model, its misfit and every order's, the delay (s), the reduced χ² (with
+        weights) and the upper pole (Hz).
+
+    Raises
+    ------
+    ValueError
+        If ``kind`` or ``max_order`` is not allowed, the arrays differ in length or hold too
+        few points, a frequency is not finite and > 0, a response is not finite and non-zero,
+        ``weights`` are not N finite values > 0, or ``upper_pole`` is asked of a low-pass.
+
+    Examples
+    --------
+    A high-pass at 2 Hz with a gain of 0.9 and 1 ms of latency, measured at 12 frequencies
+    with a little noise:
+
+    >>> import numpy as np
+    >>> from bench.analysis.fusion import SensorModel, fit_transfer_function
+    >>> f = np.array([0.5, 1, 2, 3, 5, 8, 12, 20, 35, 60, 100, 200])
+    >>> rng = np.random.default_rng(0)
+    >>> g = SensorModel("highpass", 1, 2.0, 0.9).response(f) * np.exp(-2j * np.pi * f * 1e-3)
+    >>> g = g + 0.002 * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
+    >>> fit = fit_transfer_function(f, g, "highpass", fit_delay=True)
+    >>> fit.order, round(fit.corner_hz, 2), round(fit.gain, 3), round(fit.delay_s * 1e3, 2)
+    (1, 2.01, 0.899, 1.0)
     """
     f = np.asarray(freq_hz, dtype=float).ravel()
     g = np.asarray(response_complex, dtype=complex).ravel()
@@ -270,9 +383,37 @@ def fit_transfer_function(freq_hz, response_complex, kind: str = "highpass", max
 
 @dataclass(frozen=True)
 class FusionModel:
-    """Combined continuous model of the true rate and both sensors (see module docstring).
+    """Document B's state-space model: the true rate as a random walk and both sensors' dynamics.
+
+    Combined continuous model of the true rate and both sensors (see module docstring).
 
     ``q`` is the spectral density of the white noise driving the rate random walk (rate²/s).
+    State ``x = [ω, x_hf…, x_lf…]``. Methods: ``continuous()`` ``(A, B, H1, H2)`` and
+    ``discretize(ts_s, method)`` ``(Φ, Q)``, ``"euler"`` (Document B) or ``"zoh"`` (exact,
+    Van Loan).
+
+    Parameters
+    ----------
+    hf : SensorModel
+        The HF sensor's model (a high-pass, for Document B's fusion).
+    lf : SensorModel
+        The LF sensor's model.
+    q : float
+        Spectral density of the white noise driving the rate random walk, in rate unit²/s;
+        finite and > 0.
+
+    Raises
+    ------
+    ValueError
+        If ``q`` is not a finite value > 0.
+
+    Examples
+    --------
+    >>> from bench.analysis.fusion import FusionModel, SensorModel
+    >>> model = FusionModel(SensorModel("highpass", 1, 2.0), SensorModel("lowpass", 1, 30.0), q=1000.0)
+    >>> phi, q = model.discretize(1e-3)
+    >>> model.n_states, phi.shape, round(float(q[0, 0]), 6)  # Q = B q Bᵀ Ts
+    (3, (3, 3), 1.0)
     """
 
     hf: SensorModel

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import bilinear, lfilter, lfilter_zi
 
-from bench.analysis.fusion import _kernel as fusion_kernel
+import bench.analysis.fusion._kernel as fusion_kernel
 from bench.analysis.fusion._models import FusionModel, SensorModel, TransferFit
 
 UPPER_FACTOR = 10.0  # r_upper = 10 σ²: a sensor's weight can fall by at most 10×
@@ -51,9 +51,45 @@ INFLATE = 3.0  # a "disturbed" reading (index > r_upper) counts as 3× noisier
 
 @dataclass(frozen=True)
 class AdaptiveNoise:
-    """Piecewise-adaptive bounded measurement noise of one sensor (see module docstring).
+    """Document B's piecewise-adaptive, bounded measurement noise R of one sensor.
 
-    ``nominal`` is the sensor's white-noise variance σ² (used by the fixed-R baseline)."""
+    Piecewise-adaptive bounded measurement noise of one sensor (see module docstring).
+
+    ``nominal`` is the sensor's white-noise variance σ² (used by the fixed-R baseline).
+    The segmentation index ``s = (y − H x)² − H P Hᵀ`` picks interval 0 (``s < r_lower``),
+    1 or 2 (``s > r_upper``), whose ``R = a_i + b_i·(H x)²`` is clipped to
+    ``[r_lower, r_upper]`` (:meth:`evaluate`). Constructors: :meth:`from_noise` (Document B's
+    defaults) and :meth:`fixed` (a constant R).
+
+    Parameters
+    ----------
+    nominal : float
+        The sensor's white-noise variance σ², in sensor unit²; finite and > 0.
+    r_lower : float
+        Lower noise threshold, sensor unit²; finite and > 0.
+    r_upper : float
+        Upper noise threshold, sensor unit²; finite and ≥ ``r_lower``.
+    a : tuple of float, default (0, 0, 0)
+        White floor a_i of each interval's noise function, sensor unit²; three values ≥ 0.
+    b : tuple of float, default (0, 0, 0)
+        Relative model error² b_i of each interval (dimensionless); three values ≥ 0.
+
+    Raises
+    ------
+    ValueError
+        If a value is outside what is allowed above.
+
+    Examples
+    --------
+    >>> from bench.analysis.fusion import AdaptiveNoise
+    >>> r = AdaptiveNoise.from_noise(1e-4)  # σ = 0.01 dps: r_upper = 10σ², disturbed R = 3σ²
+    >>> r.r_lower, r.r_upper
+    (0.0001, 0.001)
+    >>> r.evaluate(1.0, 1.0)  # reading as predicted: interval 0, R = σ²
+    (0, 0.0001)
+    >>> r.evaluate(1.05, 1.0)[0]  # a 5σ innovation: disturbed
+    2
+    """
 
     nominal: float
     r_lower: float
@@ -107,7 +143,25 @@ class AdaptiveNoise:
 
 @dataclass(frozen=True)
 class FusionParams:
-    """Measurement-noise settings of both sensors and the filter's discretisation and start."""
+    """Measurement-noise settings of both sensors and the filter's discretisation and start.
+
+    Parameters
+    ----------
+    hf_noise : AdaptiveNoise
+        The HF sensor's measurement noise (its unit²).
+    lf_noise : AdaptiveNoise
+        The LF sensor's measurement noise (its unit²).
+    discretization : {"euler", "zoh"}, default "euler"
+        How :meth:`FusionModel.discretize` turns the model into ``(Φ, Q)``: Document B's
+        Euler step or the exact zero-order hold.
+
+    Examples
+    --------
+    >>> from bench.analysis.fusion import AdaptiveNoise, FusionParams
+    >>> p = FusionParams(AdaptiveNoise.from_noise(0.02 ** 2), AdaptiveNoise.fixed(0.01 ** 2))
+    >>> p.discretization, p.lf_noise.r_lower == p.lf_noise.r_upper
+    ('euler', True)
+    """
 
     hf_noise: AdaptiveNoise
     lf_noise: AdaptiveNoise
@@ -120,8 +174,27 @@ class FusionParams:
 
 @dataclass
 class FilterRun:
-    """Output of a Kalman run: the fused rate, per-sample NIS (per update), the R used and
-    the interval picked per sensor (``-1`` where not adaptive)."""
+    """Output of a Kalman fusion run: the fused rate and the filter's diagnostics.
+
+    Output of a Kalman run: the fused rate, per-sample NIS (per update), the R used and
+    the interval picked per sensor (``-1`` where not adaptive).
+
+    Attributes
+    ----------
+    rate : ndarray, shape (n,)
+        The fused rate per sample (first state component), in rate units.
+    nis : ndarray, shape (n, m) or (n, 1)
+        Normalised innovation squared ν²/S per sample: one column per sequential update,
+        or one for the stacked update.
+    nis_dof : int
+        Degrees of freedom of each NIS value (1 per scalar update, 2 for the stacked one).
+    r : ndarray, shape (n, m)
+        The R used per sample and sensor, sensor unit² (empty for the fixed-R filter).
+    interval : ndarray of int, shape (n, m)
+        The interval (0, 1, 2) picked per sample and sensor (empty for the fixed-R filter).
+    final_p : ndarray, shape (k, k)
+        The state covariance after the last sample.
+    """
 
     rate: np.ndarray
     nis: np.ndarray  # (n, m) for m sequential updates, (n, 1) for one stacked update
@@ -164,7 +237,65 @@ def sequential_kalman(measurements, h_rows, noises, phi, q, x0, p0) -> FilterRun
     :class:`AdaptiveNoise`; ``phi``/``q`` the discrete model; ``x0``/``p0`` the start.  The
     covariance update ``(I − K H) P`` is computed as ``P − K (H P)`` (the same product
     expanded, one outer product instead of an n×n matrix product).  The loop runs compiled in
-    :func:`~bench.analysis.fusion._kernel.sequential_kernel`."""
+    :func:`~bench.analysis.fusion._kernel.sequential_kernel`.
+
+    Parameters
+    ----------
+    measurements : sequence of array_like, m series of shape (n,)
+        The readings, one series per sensor, each in its own unit.
+    h_rows : sequence of array_like, m rows of shape (k,)
+        Each sensor's row of ``H`` (k states).
+    noises : sequence of AdaptiveNoise
+        Each sensor's measurement noise (its unit²).
+    phi : array_like, shape (k, k)
+        The discrete transition matrix Φ.
+    q : array_like, shape (k, k)
+        The discrete process-noise covariance Q (symmetrised).
+    x0 : array_like, shape (k,)
+        The start state.
+    p0 : array_like, shape (k, k)
+        The start covariance (symmetrised).
+
+    Returns
+    -------
+    FilterRun
+        The first state component per sample, NIS per update (1 degree of freedom each), the
+        R used and the interval picked per sensor, and the final covariance.
+
+    Raises
+    ------
+    ValueError
+        If the series, rows and noises are not as many (and at least one), the series differ
+        in length, a row has not k values, or ``phi``, ``q``, ``p0`` are not k × k.
+
+    Examples
+    --------
+    Document B's model run by hand (what :func:`sequential_fusion` does, with its own start):
+
+    >>> import numpy as np
+    >>> from bench.analysis.fusion import AdaptiveNoise, FusionModel, FusionParams, SensorModel, sequential_kalman
+    >>> hf_model, lf_model = SensorModel("highpass", 1, 2.0), SensorModel("lowpass", 1, 30.0)
+    >>> fs, f = 1000.0, np.array([0.5, 100.0])  # 1 kHz; a slow and a fast tone, 1 dps each
+    >>> t = np.arange(4000) / fs
+    >>> rng = np.random.default_rng(0)
+    >>> def read(model, sd):  # the sensor's steady-state reading of the tones, plus white noise
+    ...     g = model.response(f)
+    ...     y = np.sum(np.abs(g) * np.sin(2 * np.pi * np.outer(t, f) + np.angle(g)), axis=1)
+    ...     return y + sd * rng.standard_normal(t.size)
+    >>> rate = np.sin(2 * np.pi * np.outer(t, f)).sum(axis=1)
+    >>> hf, lf = read(hf_model, 0.02), read(lf_model, 0.01)
+    >>> def rms(x):  # error against the true rate after the first second, dps
+    ...     return round(float(np.sqrt(np.mean((x - rate)[1000:] ** 2))), 3)
+    >>> rms(hf / hf_model.gain), rms(lf / lf_model.gain)  # each sensor alone loses one tone
+    (0.687, 0.678)
+    >>> model = FusionModel(hf_model, lf_model, q=1000.0)
+    >>> phi, q = model.discretize(1 / fs)
+    >>> _, _, h1, h2 = model.continuous()
+    >>> noises = [AdaptiveNoise.from_noise(0.02 ** 2), AdaptiveNoise.from_noise(0.01 ** 2)]
+    >>> run = sequential_kalman([hf, lf], [h1, h2], noises, phi, q, np.full(3, lf[0]), np.eye(3))
+    >>> rms(run.rate), run.nis.shape, run.interval.shape
+    (0.02, (4000, 2), (4000, 2))
+    """
     ys = [np.asarray(y, dtype=float).ravel() for y in measurements]
     n_states = np.asarray(x0).size
     hs = [np.asarray(h, dtype=float).ravel() for h in h_rows]
@@ -194,7 +325,64 @@ def _model_arrays(phi, q, x0, p0) -> tuple:
 
 
 def sequential_fusion(hf, lf, ts_s: float, model: FusionModel, params: FusionParams) -> FilterRun:
-    """Document B's filter on the HF then the LF reading (see module docstring)."""
+    """Document B's sequential adaptive-R Kalman fusion of an HF and an LF rate sensor.
+
+    Document B's filter on the HF then the LF reading (see module docstring).
+
+    The rate random walk and both sensors' dynamics as states
+    (:class:`~bench.analysis.fusion.FusionModel`); per sample a prediction, then a scalar
+    update with the HF reading and one with the LF reading, each with its piecewise-adaptive
+    bounded R (:class:`AdaptiveNoise`). The start: the rate from the first LF reading, the
+    sensors at rest, ``P0 = (var(hf/k1) + var(lf/k2))·I``.
+
+    Parameters
+    ----------
+    hf : array_like, shape (n,)
+        HF sensor readings, its output unit; finite, n ≥ 2.
+    lf : array_like, shape (n,)
+        LF sensor readings on the same time grid, its output unit; finite.
+    ts_s : float
+        Sample interval, in s; finite and > 0.
+    model : FusionModel
+        Both sensors' models and the process noise q (rate²/s).
+    params : FusionParams
+        Both sensors' measurement noise and the discretisation.
+
+    Returns
+    -------
+    FilterRun
+        The fused rate (rate units), NIS per update (n × 2), the R used and the interval
+        picked per sensor, and the final covariance.
+
+    Raises
+    ------
+    ValueError
+        If the series differ in length, hold fewer than 2 samples or a non-finite value, or
+        ``ts_s`` or the discretisation is not allowed.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.fusion import AdaptiveNoise, FusionModel, FusionParams, SensorModel, sequential_fusion
+    >>> hf_model, lf_model = SensorModel("highpass", 1, 2.0), SensorModel("lowpass", 1, 30.0)
+    >>> fs, f = 1000.0, np.array([0.5, 100.0])  # 1 kHz; a slow and a fast tone, 1 dps each
+    >>> t = np.arange(4000) / fs
+    >>> rng = np.random.default_rng(0)
+    >>> def read(model, sd):  # the sensor's steady-state reading of the tones, plus white noise
+    ...     g = model.response(f)
+    ...     y = np.sum(np.abs(g) * np.sin(2 * np.pi * np.outer(t, f) + np.angle(g)), axis=1)
+    ...     return y + sd * rng.standard_normal(t.size)
+    >>> rate = np.sin(2 * np.pi * np.outer(t, f)).sum(axis=1)
+    >>> hf, lf = read(hf_model, 0.02), read(lf_model, 0.01)
+    >>> def rms(x):  # error against the true rate after the first second, dps
+    ...     return round(float(np.sqrt(np.mean((x - rate)[1000:] ** 2))), 3)
+    >>> rms(hf / hf_model.gain), rms(lf / lf_model.gain)  # each sensor alone loses one tone
+    (0.687, 0.678)
+    >>> params = FusionParams(AdaptiveNoise.from_noise(0.02 ** 2), AdaptiveNoise.from_noise(0.01 ** 2))
+    >>> run = sequential_fusion(hf, lf, 1 / fs, FusionModel(hf_model, lf_model, q=1000.0), params)
+    >>> rms(run.rate), run.nis.shape  # both tones kept: down to the HF sensor's noise
+    (0.02, (4000, 2))
+    """
     hf, lf = check_series(hf, lf)
     phi, q = model.discretize(ts_s, params.discretization)
     _, _, h1, h2 = model.continuous()
@@ -203,9 +391,62 @@ def sequential_fusion(hf, lf, ts_s: float, model: FusionModel, params: FusionPar
 
 
 def fixed_r_kalman(hf, lf, ts_s: float, model: FusionModel, params: FusionParams) -> FilterRun:
-    """Conventional Kalman fusion: one stacked update ``y = [hf, lf]`` per sample with fixed
+    """Conventional fixed-R Kalman fusion of the HF and LF readings (a baseline).
+
+    Conventional Kalman fusion: one stacked update ``y = [hf, lf]`` per sample with fixed
     ``R = diag(σ1², σ2²)`` (the sensors' nominal variances), same model and discretisation
-    (compiled: :func:`~bench.analysis.fusion._kernel.stacked_kernel`)."""
+    (compiled: :func:`~bench.analysis.fusion._kernel.stacked_kernel`). The start is that of
+    :func:`sequential_fusion`.
+
+    Parameters
+    ----------
+    hf : array_like, shape (n,)
+        HF sensor readings, its output unit; finite, n ≥ 2.
+    lf : array_like, shape (n,)
+        LF sensor readings on the same time grid, its output unit; finite.
+    ts_s : float
+        Sample interval, in s; finite and > 0.
+    model : FusionModel
+        Both sensors' models and the process noise q (rate²/s).
+    params : FusionParams
+        Only ``hf_noise.nominal``, ``lf_noise.nominal`` (σ², sensor unit²) and the
+        discretisation are used.
+
+    Returns
+    -------
+    FilterRun
+        The fused rate (rate units), the stacked update's NIS (n × 1, 2 degrees of freedom)
+        and the final covariance; ``r`` and ``interval`` empty.
+
+    Raises
+    ------
+    ValueError
+        If the series differ in length, hold fewer than 2 samples or a non-finite value, or
+        ``ts_s`` or the discretisation is not allowed.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.fusion import AdaptiveNoise, FusionModel, FusionParams, SensorModel, fixed_r_kalman
+    >>> hf_model, lf_model = SensorModel("highpass", 1, 2.0), SensorModel("lowpass", 1, 30.0)
+    >>> fs, f = 1000.0, np.array([0.5, 100.0])  # 1 kHz; a slow and a fast tone, 1 dps each
+    >>> t = np.arange(4000) / fs
+    >>> rng = np.random.default_rng(0)
+    >>> def read(model, sd):  # the sensor's steady-state reading of the tones, plus white noise
+    ...     g = model.response(f)
+    ...     y = np.sum(np.abs(g) * np.sin(2 * np.pi * np.outer(t, f) + np.angle(g)), axis=1)
+    ...     return y + sd * rng.standard_normal(t.size)
+    >>> rate = np.sin(2 * np.pi * np.outer(t, f)).sum(axis=1)
+    >>> hf, lf = read(hf_model, 0.02), read(lf_model, 0.01)
+    >>> def rms(x):  # error against the true rate after the first second, dps
+    ...     return round(float(np.sqrt(np.mean((x - rate)[1000:] ** 2))), 3)
+    >>> rms(hf / hf_model.gain), rms(lf / lf_model.gain)  # each sensor alone loses one tone
+    (0.687, 0.678)
+    >>> params = FusionParams(AdaptiveNoise.from_noise(0.02 ** 2), AdaptiveNoise.from_noise(0.01 ** 2))
+    >>> run = fixed_r_kalman(hf, lf, 1 / fs, FusionModel(hf_model, lf_model, q=1000.0), params)
+    >>> rms(run.rate), run.nis.shape, run.nis_dof
+    (0.02, (4000, 1), 2)
+    """
     hf, lf = check_series(hf, lf)
     phi, q = model.discretize(ts_s, params.discretization)
     _, _, h1, h2 = model.continuous()
@@ -224,7 +465,57 @@ def complementary_filter(hf, lf, rate_hz: float, model: FusionModel, crossover_h
     relative degree ``m2``, ``HPc = U/(τs+1)ⁿ`` a zero of order ``m1`` at DC and ``HPc + LPc = 1``.
     The HF path ``HPc/G1`` and the LF path ``LPc/G2`` are then proper, so a noiseless pair of
     exact models is reconstructed exactly (for ``n = 1`` the textbook first-order pair).  Each
-    path is discretised by the bilinear transform at ``rate_hz``."""
+    path is discretised by the bilinear transform at ``rate_hz``. The LF path starts at rest
+    for its first reading (a constant rate before the record).
+
+    Parameters
+    ----------
+    hf : array_like, shape (n,)
+        HF sensor readings, its output unit; finite, n ≥ 2.
+    lf : array_like, shape (n,)
+        LF sensor readings on the same time grid, its output unit; finite.
+    rate_hz : float
+        Sample rate, in Hz.
+    model : FusionModel
+        Both sensors' models (``q`` unused).
+    crossover_hz : float
+        Crossover frequency fc, in Hz, within (0, ``rate_hz``/2).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The fused rate, in rate units (each reading ÷ its gain).
+
+    Raises
+    ------
+    ValueError
+        If the series differ in length, hold fewer than 2 samples or a non-finite value, or
+        ``crossover_hz`` is outside (0, ``rate_hz``/2).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.fusion import FusionModel, SensorModel, complementary_filter
+    >>> hf_model, lf_model = SensorModel("highpass", 1, 2.0), SensorModel("lowpass", 1, 30.0)
+    >>> fs, f = 1000.0, np.array([0.5, 100.0])  # 1 kHz; a slow and a fast tone, 1 dps each
+    >>> t = np.arange(4000) / fs
+    >>> rng = np.random.default_rng(0)
+    >>> def read(model, sd):  # the sensor's steady-state reading of the tones, plus white noise
+    ...     g = model.response(f)
+    ...     y = np.sum(np.abs(g) * np.sin(2 * np.pi * np.outer(t, f) + np.angle(g)), axis=1)
+    ...     return y + sd * rng.standard_normal(t.size)
+    >>> rate = np.sin(2 * np.pi * np.outer(t, f)).sum(axis=1)
+    >>> hf, lf = read(hf_model, 0.02), read(lf_model, 0.01)
+    >>> def rms(x):  # error against the true rate after the first second, dps
+    ...     return round(float(np.sqrt(np.mean((x - rate)[1000:] ** 2))), 3)
+    >>> rms(hf / hf_model.gain), rms(lf / lf_model.gain)  # each sensor alone loses one tone
+    (0.687, 0.678)
+    >>> model = FusionModel(hf_model, lf_model, q=1.0)
+    >>> rms(complementary_filter(hf, lf, fs, model, crossover_hz=10.0))
+    0.02
+    >>> rms(complementary_filter(read(hf_model, 0.0), read(lf_model, 0.0), fs, model, 10.0))  # noise-free
+    0.002
+    """
     hf, lf = check_series(hf, lf)
     if not (math.isfinite(crossover_hz) and 0 < crossover_hz < rate_hz / 2):
         raise ValueError(f"crossover_hz {crossover_hz} must be in (0, {rate_hz / 2:g}) Hz (below Nyquist)")

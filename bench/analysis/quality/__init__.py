@@ -1,5 +1,13 @@
 """Factory statistics: yield with its interval, control charts, and the decision risk of a limit.
 
+:func:`wilson_interval` puts a confidence interval on a proportion from counts (a yield, a
+false-accept rate). :func:`individuals_chart` and :func:`xbar_r_charts` draw Shewhart control
+charts of production results and flag the Western Electric rules (:func:`western_electric`,
+:data:`RULES`). :func:`decision_risk` judges a pass/fail limit against known true values:
+probability of false accept and false reject, counted and modelled, and the guard band that
+holds false accept to the ANSI/NCSL Z540.3 target; :func:`overall_risk` does the same over
+all of a unit's parameters.
+
 What a user calls::
 
     individuals_chart, xbar_r_charts, western_electric, ControlChart, RULES

@@ -38,8 +38,35 @@ RULES = {1: "1 point beyond 3σ", 2: "2 of 3 beyond 2σ, same side",
 
 @dataclass(frozen=True)
 class ControlChart:
-    """A chart of ``values`` (one point each) with its centre line, control limits and the
-    sigma its zones use; ``violations`` are (point index, Western Electric rule number)."""
+    """A Shewhart control chart: points, centre line, control limits and rule violations.
+
+    A chart of ``values`` (one point each) with its centre line, control limits and the
+    sigma its zones use; ``violations`` are (point index, Western Electric rule number).
+
+    All values, limits and sigma are in the unit of the charted quantity (a range chart's in
+    that unit too).
+
+    Attributes
+    ----------
+    kind : str
+        ``"individuals"``, ``"xbar"`` (subgroup means) or ``"range"`` (subgroup ranges).
+    values : ndarray, shape (k,)
+        The plotted points, in time order.
+    centre : float
+        Centre line: the (baseline) mean, the grand mean X̿ or the mean range R̄.
+    lcl : float
+        Lower control limit.
+    ucl : float
+        Upper control limit.
+    sigma : float
+        The zone width the run rules use: σ̂ (individuals), σ̂/√n (X̄), R̄/d₂ (range);
+        0 when the data do not vary.
+    violations : tuple of (int, int)
+        ``(point index, rule number)`` for every rule (1 … 4, :data:`RULES`) broken by a window
+        ending at that point; for the range chart only rule 1 (a point beyond its limits).
+    flagged : ndarray of int
+        Property: indices of the points that break any rule, ascending.
+    """
 
     kind: str                       # "individuals" | "xbar" | "range"
     values: np.ndarray
@@ -56,7 +83,39 @@ class ControlChart:
 
 
 def western_electric(values: npt.ArrayLike, centre: float, sigma: float) -> tuple[tuple[int, int], ...]:
-    """(index, rule) for every point of ``values`` that ends a window breaking rule 1..4."""
+    """(index, rule) for every point of ``values`` that ends a window breaking rule 1..4.
+
+    The Western Electric rules of the module docstring, judged against zones of width
+    ``sigma`` about ``centre``: 1 one point beyond 3σ; 2 two of three beyond 2σ, same side;
+    3 four of five beyond 1σ, same side; 4 eight in a row on one side.
+
+    Parameters
+    ----------
+    values : array_like, shape (k,)
+        The plotted points in time order, in the charted quantity's unit.
+    centre : float
+        Centre line, same unit.
+    sigma : float
+        Zone width σ, same unit; > 0.
+
+    Returns
+    -------
+    tuple of (int, int)
+        ``(index, rule)`` pairs in index order; a point may appear once per rule it breaks.
+
+    Raises
+    ------
+    ValueError
+        If ``values`` is not 1-D or ``sigma`` is not > 0.
+
+    Examples
+    --------
+    >>> from bench.analysis.quality import western_electric
+    >>> western_electric([0.5, 2.5, 2.4, 0.1, 3.5], centre=0.0, sigma=1.0)
+    ((2, 2), (4, 1), (4, 2))
+    >>> western_electric([0.5] * 8, centre=0.0, sigma=1.0)  # eight on one side
+    ((7, 4),)
+    """
     x = np.asarray(values, dtype=float)
     if x.ndim != 1:
         raise ValueError(f"values must be 1-D, got shape {x.shape}")
@@ -81,9 +140,43 @@ def western_electric(values: npt.ArrayLike, centre: float, sigma: float) -> tupl
 
 
 def individuals_chart(values: npt.ArrayLike, baseline: int | None = None) -> ControlChart:
-    """Individuals chart of ``values`` in time order (at least 2, finite).  ``baseline``: the
-    centre and sigma come from the first ``baseline`` values only (phase I: limits from a
-    period known to be in control, every value judged against them); default all."""
+    """Individuals chart of ``values`` in time order (at least 2, finite).
+
+    ``baseline``: the centre and sigma come from the first ``baseline`` values only (phase I:
+    limits from a period known to be in control, every value judged against them); default
+    all. σ̂ = MR̄/d₂ with d₂ = 1.128 (average moving range of consecutive values), limits at
+    centre ± 3σ̂, and the Western Electric rules (:func:`western_electric`) on every value.
+
+    Parameters
+    ----------
+    values : array_like, shape (k,)
+        One value per unit in time order, any unit; finite, k ≥ 2.
+    baseline : int, optional
+        Number of leading values the centre and σ̂ come from, in [2, k]; default all.
+
+    Returns
+    -------
+    ControlChart
+        ``kind="individuals"``, limits and sigma in the values' unit, the rule violations
+        (none, and every limit at the centre, when the baseline does not vary).
+
+    Raises
+    ------
+    ValueError
+        If ``values`` is not 1-D with at least 2 finite values, or ``baseline`` is outside
+        [2, k].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.quality import individuals_chart
+    >>> x = np.r_[np.random.default_rng(0).normal(10.0, 0.1, 20), 10.5]  # a jump at the end
+    >>> c = individuals_chart(x, baseline=20)
+    >>> round(c.centre, 2), c.lcl < 10.0 < c.ucl
+    (9.98, True)
+    >>> c.violations, c.flagged.tolist()
+    (((20, 1),), [20])
+    """
     x = _finite_1d(values, "values", 2)
     if baseline is not None and not 2 <= baseline <= x.size:
         raise ValueError(f"baseline={baseline!r} not in 2..{x.size} (the number of values)")
@@ -98,7 +191,41 @@ def individuals_chart(values: npt.ArrayLike, baseline: int | None = None) -> Con
 
 
 def xbar_r_charts(subgroups: npt.ArrayLike) -> tuple[ControlChart, ControlChart]:
-    """X̄ and R charts of ``subgroups`` (k × n, k ≥ 2 subgroups of n = 2..10 values each)."""
+    """X̄ and R charts of ``subgroups`` (k × n, k ≥ 2 subgroups of n = 2..10 values each).
+
+    X̄ limits X̿ ± A₂R̄, range limits D₃R̄ … D₄R̄, σ̂ = R̄/d₂ (constants of the module
+    docstring). The X̄ chart is judged by all four Western Electric rules with zones of
+    σ̂/√n; the range chart by its limits only (rule 1).
+
+    Parameters
+    ----------
+    subgroups : array_like, shape (k, n)
+        k ≥ 2 subgroups (e.g. the units of one day or lot), one per row, of n in 2 … 10
+        values each, any unit; finite.
+
+    Returns
+    -------
+    xbar : ControlChart
+        ``kind="xbar"``: the subgroup means, in the values' unit.
+    r_chart : ControlChart
+        ``kind="range"``: the subgroup ranges, same unit.
+
+    Raises
+    ------
+    ValueError
+        If ``subgroups`` is not k × n with k ≥ 2 and n in [2, 10], or is not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.quality import xbar_r_charts
+    >>> g = np.random.default_rng(1).normal(5.0, 0.2, (20, 5))  # 20 lots of 5 units
+    >>> xbar, r = xbar_r_charts(g)
+    >>> xbar.kind, r.kind, xbar.values.shape
+    ('xbar', 'range', (20,))
+    >>> round(xbar.centre, 2), round(r.centre, 2), xbar.violations, r.violations
+    (4.99, 0.4, (), ())
+    """
     g = np.asarray(subgroups, dtype=float)
     if g.ndim != 2 or g.shape[0] < 2 or g.shape[1] not in XBAR_R_CONSTANTS:
         raise ValueError(f"subgroups must be k x n with k >= 2 and n in 2..10, got shape {g.shape}")

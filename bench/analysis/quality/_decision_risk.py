@@ -36,7 +36,47 @@ Z540_TARGET = 0.02
 
 @dataclass(frozen=True)
 class DecisionRisk:
-    """One parameter's decision risk over ``n`` units (see the module docstring)."""
+    """One parameter's decision risk: counted and modelled false accept/reject rates and the guard band.
+
+    One parameter's decision risk over ``n`` units (see the module docstring).
+
+    Counted rates are :class:`Proportion` of the ``n`` units with their Wilson intervals;
+    model rates are fractions of ``n`` from the normal error model. Limits, bias, spread and
+    guard band are in the unit of the measured values.
+
+    Attributes
+    ----------
+    n : int
+        Number of units.
+    low : float or None
+        Lower limit L (None: open).
+    high : float or None
+        Upper limit H (None: open).
+    nonconforming : Proportion
+        Units whose true value is outside the limits.
+    accepted : Proportion
+        Units whose measured value is inside the limits (the test's yield).
+    false_accept : Proportion
+        Units accepted and nonconforming (counts): Z540.3's unconditional PFA.
+    false_reject : Proportion
+        Units rejected and conforming (counts): the PFR.
+    error_bias : float
+        Mean of measured − true over the values produced.
+    error_sd : float
+        Its standard deviation (ddof 1; 0 with fewer than two values).
+    pfa_model : float
+        PFA(0) from the error model, a fraction.
+    pfr_model : float
+        PFR(0) from the error model, a fraction.
+    guard_band : float
+        Smallest g ≥ 0 with PFA(g) ≤ ``target`` (0 when the limits already meet it).
+    pfa_guarded : float
+        PFA(guard_band), a fraction.
+    pfr_guarded : float
+        PFR(guard_band), a fraction: the cost of the guard band.
+    target : float
+        The PFA target, a fraction (Z540.3: 0.02).
+    """
 
     n: int
     low: float | None
@@ -66,7 +106,32 @@ class DecisionRisk:
 
 
 def inside(x: np.ndarray, low: float | None, high: float | None) -> np.ndarray:
-    """``low <= x <= high`` with open sides where None; NaN is never inside."""
+    """``low <= x <= high`` with open sides where None; NaN is never inside.
+
+    Parameters
+    ----------
+    x : ndarray
+        Values, any shape, in the limits' unit.
+    low : float or None
+        Lower limit (inclusive); None for no lower limit.
+    high : float or None
+        Upper limit (inclusive); None for no upper limit.
+
+    Returns
+    -------
+    ndarray of bool
+        Same shape as ``x``: True where the value is finite and within the limits.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.quality import inside
+    >>> x = np.array([0.5, 1.5, np.nan, -1.0])
+    >>> inside(x, 0.0, 1.0).tolist()
+    [True, False, False, False]
+    >>> inside(x, None, 1.0).tolist()  # open below
+    [True, False, False, True]
+    """
     ok = np.isfinite(x)
     if low is not None:
         ok &= x >= low
@@ -99,8 +164,59 @@ def model_rates(true: np.ndarray, bias: float, sd: float, low: float | None, hig
 def decision_risk(measured: npt.ArrayLike, true: npt.ArrayLike, low: float | None,
                   high: float | None, *, target: float = Z540_TARGET,
                   confidence: float = 0.95) -> DecisionRisk:
-    """Decision risk of judging ``measured`` against [low, high] when ``true`` holds (same
-    length, same unit; measured may hold NaN for a value not produced, true must be finite)."""
+    """Decision risk of judging ``measured`` against [low, high] when ``true`` holds.
+
+    ``measured`` and ``true`` have the same length and unit; measured may hold NaN for a
+    value not produced (that unit is rejected), true must be finite. PFA and PFR are counted
+    and modelled with a normal measurement error, and the guard band holding PFA to
+    ``target`` is found by bisection (module docstring, ANSI/NCSL Z540.3 §5.3 b).
+
+    Parameters
+    ----------
+    measured : array_like, shape (N,)
+        Measured value of each unit, in the parameter's unit; NaN where none was produced.
+    true : array_like, shape (N,)
+        True value of each unit, same unit; finite, N ≥ 2.
+    low : float or None
+        Lower limit L, same unit; None for an open side.
+    high : float or None
+        Upper limit H, same unit; None for an open side. At least one limit, and L < H.
+    target : float, default 0.02
+        PFA the guard band must reach, a fraction in (0, 1) (Z540.3's 2 %).
+    confidence : float, default 0.95
+        Confidence level of the counts' Wilson intervals, in (0, 1).
+
+    Returns
+    -------
+    DecisionRisk
+        Counted and modelled PFA/PFR, the error model's bias and spread, and the guard band
+        (same unit as the values) with the rates it leaves.
+
+    Raises
+    ------
+    ValueError
+        If the arrays are not 1-D of one length ≥ 2, ``true`` is not finite, both limits are
+        None, ``low`` ≥ ``high``, ``target`` is outside (0, 1), or ``confidence`` outside
+        (0, 1).
+
+    Examples
+    --------
+    500 units drawn N(0, 1), measured with an error N(0, 0.2²), limits ±2; a tight 0.2 %
+    target needs a guard band:
+
+    >>> import numpy as np
+    >>> from bench.analysis.quality import decision_risk
+    >>> rng = np.random.default_rng(0)
+    >>> true = rng.normal(0.0, 1.0, 500)
+    >>> measured = true + rng.normal(0.0, 0.2, true.size)
+    >>> r = decision_risk(measured, true, -2.0, 2.0, target=0.002)
+    >>> r.nonconforming.successes, r.false_accept.successes, r.false_reject.successes
+    (21, 3, 6)
+    >>> round(r.error_sd, 2), round(r.pfa_model, 4), round(r.guard_band, 3)
+    (0.19, 0.0048, 0.128)
+    >>> bool(r.pfa_guarded <= 0.002 and r.pfr_guarded > r.pfr_model)
+    True
+    """
     m, t = np.asarray(measured, dtype=float), np.asarray(true, dtype=float)
     if m.ndim != 1 or m.shape != t.shape or m.size < 2:
         raise ValueError(f"measured and true must be 1-D of one length >= 2, got {m.shape}, {t.shape}")
@@ -142,10 +258,47 @@ def decision_risk(measured: npt.ArrayLike, true: npt.ArrayLike, low: float | Non
 def overall_risk(accepted: npt.ArrayLike, conforming: npt.ArrayLike,
                  undecidable: npt.ArrayLike | None = None,
                  confidence: float = 0.95) -> tuple[Proportion, Proportion]:
-    """(PFA, PFR) of the whole test over all units: a unit accepted (every measurement) while
-    some scored parameter is nonconforming, or rejected while every scored parameter conforms.
+    """(PFA, PFR) of the whole test over all units.
+
+    A false accept is a unit accepted (every measurement) while some scored parameter is
+    nonconforming; a false reject a unit rejected while every scored parameter conforms.
     ``undecidable`` marks units rejected on a measurement that has no true value: whether
-    that rejection was false cannot be told, so they are never counted as false rejects."""
+    that rejection was false cannot be told, so they are never counted as false rejects.
+
+    Parameters
+    ----------
+    accepted : array_like of bool, shape (N,)
+        Per unit: the test accepted it (every measurement within its limits).
+    conforming : array_like of bool, shape (N,)
+        Per unit: every scored parameter's true value is within its limits.
+    undecidable : array_like of bool, shape (N,), optional
+        Per unit: rejected on a measurement with no true value; default none.
+    confidence : float, default 0.95
+        Confidence level of the Wilson intervals, in (0, 1).
+
+    Returns
+    -------
+    pfa : Proportion
+        Units accepted and nonconforming, of N.
+    pfr : Proportion
+        Units rejected, conforming and not undecidable, of N.
+
+    Raises
+    ------
+    ValueError
+        If the three arrays are not 1-D of one length, or ``confidence`` is outside (0, 1).
+
+    Examples
+    --------
+    >>> from bench.analysis.quality import overall_risk
+    >>> accepted = [True, True, False, True, False]
+    >>> conforming = [True, False, True, True, False]
+    >>> pfa, pfr = overall_risk(accepted, conforming)
+    >>> pfa.successes, pfr.successes, pfa.trials
+    (1, 1, 5)
+    >>> overall_risk(accepted, conforming, undecidable=[False, False, True, False, False])[1].successes
+    0
+    """
     a, c = np.asarray(accepted, dtype=bool), np.asarray(conforming, dtype=bool)
     u = np.zeros(a.shape, bool) if undecidable is None else np.asarray(undecidable, dtype=bool)
     if a.shape != c.shape or a.shape != u.shape or a.ndim != 1:

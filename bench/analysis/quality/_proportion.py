@@ -20,8 +20,26 @@ from scipy.stats import norm
 
 @dataclass(frozen=True)
 class Proportion:
-    """``successes`` of ``trials``: the estimate ``p`` (NaN when ``trials`` is 0) and its
-    two-sided Wilson interval ``[low, high]`` at ``confidence``."""
+    """A proportion from counts with its Wilson confidence interval.
+
+    ``successes`` of ``trials``: the estimate ``p`` (NaN when ``trials`` is 0) and its
+    two-sided Wilson interval ``[low, high]`` at ``confidence``.
+
+    Attributes
+    ----------
+    successes : int
+        Number of successes k (units passed, false accepts …).
+    trials : int
+        Number of trials n.
+    p : float
+        The estimate k/n, a fraction in [0, 1]; NaN when ``trials`` is 0.
+    low : float
+        Lower end of the Wilson interval, a fraction in [0, 1] (exactly 0 when k = 0).
+    high : float
+        Upper end of the Wilson interval, a fraction in [0, 1] (exactly 1 when k = n).
+    confidence : float
+        Two-sided confidence level of the interval, in (0, 1).
+    """
 
     successes: int
     trials: int
@@ -37,8 +55,41 @@ class Proportion:
 
 
 def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> Proportion:
-    """Wilson score interval of ``successes`` out of ``trials`` (0 ≤ successes ≤ trials);
-    with no trials the interval is the whole [0, 1]."""
+    """Wilson score interval of ``successes`` out of ``trials`` (0 ≤ successes ≤ trials).
+
+    With no trials the interval is the whole [0, 1]. Formula and references in the module
+    docstring: centre (k + z²/2)/(n + z²), half-width z √(k(n−k)/n + z²/4)/(n + z²).
+
+    Parameters
+    ----------
+    successes : int
+        Number of successes k, an int in [0, ``trials``].
+    trials : int
+        Number of trials n, an int ≥ 0.
+    confidence : float, default 0.95
+        Two-sided confidence level, in (0, 1).
+
+    Returns
+    -------
+    Proportion
+        The counts, the estimate k/n and the interval ``[low, high]`` (fractions).
+
+    Raises
+    ------
+    ValueError
+        If ``successes`` or ``trials`` is not an int ≥ 0, ``successes`` > ``trials``, or
+        ``confidence`` is outside (0, 1).
+
+    Examples
+    --------
+    >>> from bench.analysis.quality import wilson_interval
+    >>> y = wilson_interval(98, 100)  # a yield of 98 %
+    >>> y.p, round(y.low, 4), round(y.high, 4)
+    (0.98, 0.93, 0.9945)
+    >>> fa = wilson_interval(0, 300)  # no false accept in 300 units: still up to 1.3 %
+    >>> fa.low, round(fa.high, 4)
+    (0.0, 0.0126)
+    """
     for name, value in (("successes", successes), ("trials", trials)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise ValueError(f"{name}={value!r} must be an int >= 0")

@@ -50,8 +50,36 @@ def _real(value) -> bool:
 
 
 def earth_rate_vertical_dps(latitude_deg: float) -> float:
-    """Earth-rate component along local Up in °/s (Ω sin φ): add it to the table rate for an
-    input axis pointing up (subtract it for one pointing down)."""
+    """Earth-rate component along local Up, Ω sin φ, in °/s.
+
+    Add it to the table rate for an input axis pointing up (subtract it for one pointing
+    down). Ω is the WGS-84 Earth rotation rate, 7.292115·10⁻⁵ rad/s (15.04 °/h).
+
+    Parameters
+    ----------
+    latitude_deg : float
+        Geodetic latitude φ of the table, in degrees, within [-90, 90].
+
+    Returns
+    -------
+    float
+        Vertical (Up) component of the Earth rate, in °/s; negative in the southern hemisphere.
+
+    Raises
+    ------
+    ValueError
+        If ``latitude_deg`` is not a real number in the allowed range [-90, 90].
+
+    Examples
+    --------
+    >>> from bench.analysis.ratetable import earth_rate_vertical_dps
+    >>> round(earth_rate_vertical_dps(90.0) * 3600, 3)  # at the pole: the whole rate, °/h
+    15.041
+    >>> round(earth_rate_vertical_dps(45.0) * 3600, 3)
+    10.636
+    >>> earth_rate_vertical_dps(0.0)
+    0.0
+    """
     if not (_real(latitude_deg) and -90.0 <= latitude_deg <= 90.0):
         raise ValueError(f"latitude_deg={latitude_deg!r} outside the allowed range [-90, 90]")
     return EARTH_RATE_DPS * math.sin(math.radians(latitude_deg))
@@ -59,10 +87,45 @@ def earth_rate_vertical_dps(latitude_deg: float) -> float:
 
 def rate_plan(full_scale_dps: float, n_per_sign: int = 6, *, min_fraction: float = 0.01,
               max_fraction: float = 1.0) -> np.ndarray:
-    """Default table rates in °/s: ``n_per_sign`` magnitudes log-spaced from
-    ``min_fraction·FS`` to ``max_fraction·FS``, each visited + then −, smallest first.
-    Interleaving the signs keeps a slow thermal drift from posing as asymmetry. A gyro that
-    clips at exactly FS needs ``max_fraction`` < 1 so the Earth rate does not push it over."""
+    """Default table rates of a rate-table calibration, in °/s.
+
+    ``n_per_sign`` magnitudes log-spaced from ``min_fraction·FS`` to ``max_fraction·FS``,
+    each visited + then −, smallest first. Interleaving the signs keeps a slow thermal drift
+    from posing as asymmetry. A gyro that clips at exactly FS needs ``max_fraction`` < 1 so
+    the Earth rate does not push it over.
+
+    Parameters
+    ----------
+    full_scale_dps : float
+        The gyro's full-scale rate FS, in °/s, within (0, 1e5].
+    n_per_sign : int, default 6
+        Number of rate magnitudes, each visited with both signs; an integer in [1, 50]. With 1
+        the plan is ``±max_fraction·FS`` alone.
+    min_fraction : float, default 0.01
+        Smallest magnitude as a fraction of FS, in [1e-4, 1).
+    max_fraction : float, default 1.0
+        Largest magnitude as a fraction of FS, in (``min_fraction``, 1].
+
+    Returns
+    -------
+    ndarray of float, shape (2·n_per_sign,)
+        Table rates in °/s: ``[m₁, −m₁, m₂, −m₂, …]`` with increasing magnitudes mₖ, the
+        last exactly ``max_fraction·FS``.
+
+    Raises
+    ------
+    ValueError
+        If ``full_scale_dps`` is outside (0, 1e5], ``n_per_sign`` not an integer in [1, 50],
+        ``min_fraction`` outside [1e-4, 1) or ``max_fraction`` outside (``min_fraction``, 1].
+
+    Examples
+    --------
+    >>> from bench.analysis.ratetable import rate_plan
+    >>> rate_plan(100.0, 3).tolist()
+    [1.0, -1.0, 10.0, -10.0, 100.0, -100.0]
+    >>> rate_plan(500.0, 2, min_fraction=0.1, max_fraction=0.9).round(1).tolist()
+    [50.0, -50.0, 450.0, -450.0]
+    """
     _check_full_scale(full_scale_dps)
     if isinstance(n_per_sign, bool) or not isinstance(n_per_sign, (int, np.integer)) \
             or not 1 <= n_per_sign <= 50:
@@ -81,7 +144,38 @@ def rate_plan(full_scale_dps: float, n_per_sign: int = 6, *, min_fraction: float
 
 
 def whole_revolution_duration_s(rate_dps: float, min_duration_s: float) -> float:
-    """Shortest whole number (≥ 1) of revolutions at ``rate_dps`` lasting ≥ ``min_duration_s``, in s."""
+    """Shortest whole number (≥ 1) of revolutions at ``rate_dps`` lasting ≥ ``min_duration_s``, in s.
+
+    Averaging the output over whole revolutions cancels the Earth rate's horizontal part and
+    the table's wobble, which turn with the table.
+
+    Parameters
+    ----------
+    rate_dps : float
+        Table rate in °/s, finite and non-zero (either sign; its magnitude sets the period
+        360/|rate| s).
+    min_duration_s : float
+        Shortest acceptable dwell, in s, within (0, 1e6].
+
+    Returns
+    -------
+    float
+        Duration of the dwell in s: n·360/|rate_dps| with n ≥ 1 the smallest whole number of
+        revolutions that lasts at least ``min_duration_s``.
+
+    Raises
+    ------
+    ValueError
+        If ``rate_dps`` is zero or not finite, or ``min_duration_s`` is outside (0, 1e6].
+
+    Examples
+    --------
+    >>> from bench.analysis.ratetable import whole_revolution_duration_s
+    >>> whole_revolution_duration_s(10.0, 60.0)  # 36 s per revolution: two of them
+    72.0
+    >>> whole_revolution_duration_s(-100.0, 1.0)  # never less than one revolution
+    3.6
+    """
     if not (_real(rate_dps) and math.isfinite(rate_dps) and rate_dps != 0.0):
         raise ValueError(f"rate_dps={rate_dps!r} must be finite and non-zero")
     if not (_real(min_duration_s) and 0.0 < min_duration_s <= 1e6):
@@ -100,10 +194,55 @@ def _check_full_scale(full_scale_dps) -> None:
 
 @dataclass(frozen=True, eq=False)
 class RateTableResult:
-    """Rate-table calibration. ``scale_factor`` and ``intercept`` in output units (per °/s);
-    ppm figures of the nominal scale factor (``scale_factor_error_ppm``, ``asymmetry_ppm``)
-    or of the full-scale output |SF·FS| (nonlinearity, residuals). ``line_covariance`` is
-    that of (intercept, scale_factor). Residuals: output − LS line, per input rate."""
+    """Rate-table calibration of a gyro, as :func:`fit_rate_table` returns it.
+
+    ``scale_factor`` and ``intercept`` in output units (per °/s); ppm figures of the nominal
+    scale factor (``scale_factor_error_ppm``, ``asymmetry_ppm``) or of the full-scale output
+    |SF·FS| (nonlinearity, residuals). ``line_covariance`` is that of (intercept,
+    scale_factor). Residuals: output − LS line, per input rate. Every
+    :class:`~bench.values.Estimate` carries its standard error in the same unit.
+
+    Attributes
+    ----------
+    scale_factor : Estimate
+        Slope SF of the weighted least-squares line ``output = SF·ω + b``, in output units
+        per °/s.
+    intercept : Estimate
+        Intercept b of that line, in output units.
+    bias_dph : Estimate
+        Bias in °/h: ``3600·b/SF_nominal`` with b the intercept of the asymmetry fit
+        ``output = b + S·ω + D·|ω|`` (module docstring).
+    scale_factor_error_ppm : Estimate
+        ``SF/SF_nominal − 1``, in ppm.
+    nonlinearity_ppm : Estimate
+        ``max_k |r_k| / |SF·FS|``, in ppm of the full-scale output; its std is that of the
+        residual at the argmax (biased upward when near the noise, module docstring).
+    nonlinearity_at_rate_dps : float
+        Input rate, in °/s, of the largest residual.
+    asymmetry_ppm : Estimate
+        ``(SF+ − SF−)/SF_nominal``, in ppm, from half-lines sharing one bias.
+    scale_factor_positive : Estimate
+        Slope SF+ = S + D of the positive half-line, in output units per °/s.
+    scale_factor_negative : Estimate
+        Slope SF− = S − D of the negative half-line, in output units per °/s.
+    input_rate_dps : ndarray, shape (m,)
+        The input rates fitted, in °/s (Earth rate included).
+    residuals : ndarray, shape (m,)
+        Output − LS line at each input rate, in output units.
+    residuals_ppm_fs : ndarray, shape (m,)
+        The residuals in ppm of the full-scale output SF·FS (signed as SF·FS).
+    residual_std_ppm_fs : ndarray, shape (m,)
+        Standard uncertainty of each residual, from ``Cov(r) = Σ − X (XᵀΣ⁻¹X)⁻¹ Xᵀ``, in
+        ppm of |SF·FS|.
+    line_covariance : ndarray, shape (2, 2)
+        Covariance of (intercept, scale_factor), in output units² (per °/s as they go).
+    dof : int
+        Degrees of freedom of the line fit, m − 2.
+    full_scale_dps : float
+        The full-scale rate FS used for the ppm-of-FS figures, in °/s.
+    nominal_scale_factor : float
+        Nominal scale factor, in output units per °/s.
+    """
 
     scale_factor: Estimate
     intercept: Estimate
@@ -183,6 +322,55 @@ def fit_rate_table(input_rate_dps, output, output_sigma, *, full_scale_dps: floa
     indicated output in output units; ``output_sigma`` (m,): the standard error of each mean
     (> 0). ``nominal_scale_factor``: output units per °/s (1.0 when the output is already
     °/s through the nominal scale factor; the fitted SF must lie within a factor 2 of it).
+    The method (IEEE Std 952 / 647) is described in the module docstring.
+
+    Parameters
+    ----------
+    input_rate_dps : array_like, shape (m,)
+        Input rate along the input axis at each point, in °/s: table rate plus the Earth
+        rate's component (:func:`earth_rate_vertical_dps`). Finite, m ≥ 3, within
+        [−1.01·FS, 1.01·FS], with at least one positive and one negative rate and at least two
+        magnitudes.
+    output : array_like, shape (m,)
+        Mean indicated output at each rate (over whole revolutions), in output units.
+    output_sigma : array_like, shape (m,)
+        Standard error of each mean, in output units; finite and > 0.
+    full_scale_dps : float
+        The gyro's full-scale rate FS, in °/s, within (0, 1e5].
+    nominal_scale_factor : float, default 1.0
+        Nominal scale factor in output units per °/s, finite and non-zero; the fitted scale
+        factor must lie within [0.5, 2] times it.
+
+    Returns
+    -------
+    RateTableResult
+        Scale factor and its error (ppm), bias (°/h), nonlinearity (ppm of FS), asymmetry
+        (ppm), both half-line slopes, the residuals and the line's covariance.
+
+    Raises
+    ------
+    ValueError
+        If a rate lies outside ±1.01·``full_scale_dps``, the rates are fewer than 3, not finite
+        or of one sign only, or cannot separate the fitted terms (a single magnitude);
+        ``full_scale_dps`` is outside (0, 1e5]; ``output`` or ``output_sigma`` has the wrong
+        shape, is not finite, or a sigma is ≤ 0; ``nominal_scale_factor`` is zero or not
+        finite, or the fitted scale factor is outside [0.5, 2] times it.
+
+    Examples
+    --------
+    A gyro with a 200 ppm scale-factor error and a 10 °/h bias, read in °/s through its
+    nominal scale factor, on the plan of :func:`rate_plan` at 45° latitude:
+
+    >>> import numpy as np
+    >>> from bench.analysis.ratetable import earth_rate_vertical_dps, fit_rate_table, rate_plan
+    >>> w = rate_plan(500.0, 4) + earth_rate_vertical_dps(45.0)
+    >>> rng = np.random.default_rng(0)
+    >>> y = 10.0 / 3600 + (1 + 200e-6) * w + 1e-4 * rng.standard_normal(w.size)
+    >>> r = fit_rate_table(w, y, np.full(w.size, 1e-4), full_scale_dps=500.0)
+    >>> round(r.scale_factor_error_ppm.value), round(r.bias_dph.value, 1), r.dof
+    (200, 10.0, 6)
+    >>> bool(abs(r.asymmetry_ppm.value) < 3 * r.asymmetry_ppm.std)  # none simulated
+    True
     """
     w, y, sigma = _check_inputs(input_rate_dps, output, output_sigma, full_scale_dps, nominal_scale_factor)
     x = np.column_stack([np.ones_like(w), w])

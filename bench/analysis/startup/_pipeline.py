@@ -14,7 +14,7 @@ Steps (Document A numbering) and the choices made where the document is silent:
 5. Outliers ``|z| > outlier_z`` are replaced, not dropped: ARMA lags need a uniform time
    base, and dropping samples would join non-adjacent samples as lag-1 pairs.  Each is
    replaced by its conditional expectation given the other samples under an AR model of
-   the series (Burg, BIC order; :func:`timeseries.ar_interpolate`), started from linear
+   the series (Burg, BIC order; :func:`bench.analysis.timeseries._ar.ar_interpolate`), started from linear
    interpolation.  Linear interpolation alone guesses the wrong sign for negatively
    correlated noise and biased φ by ~4.5 standard errors at N = 2·10⁴ in our tests;
    the AR interpolator keeps the bias under one.  Note that for Gaussian noise the 3σ
@@ -54,9 +54,9 @@ from typing import Literal
 import numpy as np
 from scipy.signal import lfilter
 
+import bench.analysis.timeseries._fit as ts
 from bench.analysis.startup._denoise import DenoiseResult, wavelet_denoise
 from bench.analysis.startup._trend import TrendFit, fit_trend
-from bench.analysis.timeseries import _fit as ts
 from bench.values import Estimate
 
 MIN_SAMPLES = 64
@@ -64,7 +64,33 @@ Source = Literal["raw", "denoised"]
 
 
 def json_safe(obj):
-    """Plain Python types only, non-finite floats as None (strict JSON has no NaN/inf)."""
+    """Plain Python types only, non-finite floats as None (strict JSON has no NaN/inf).
+
+    Recurses into dicts (keys become ``str``), lists and tuples (both become lists);
+    converts numpy booleans, integers and floats to ``bool``, ``int`` and ``float``.
+    Anything else (strings, None, numpy arrays, …) is returned unchanged.
+
+    Parameters
+    ----------
+    obj : object
+        A value or a nested structure of dicts, lists and tuples.
+
+    Returns
+    -------
+    object
+        The same structure with plain Python scalars; NaN and ±inf as None.
+
+    Examples
+    --------
+    >>> import json
+    >>> import numpy as np
+    >>> from bench.analysis.startup import json_safe
+    >>> d = json_safe({"tau_s": np.float64(19.7), "lags": (np.int64(20), float("nan")), 1: np.bool_(True)})
+    >>> d
+    {'tau_s': 19.7, 'lags': [20, None], '1': True}
+    >>> json.dumps(d, allow_nan=False)
+    '{"tau_s": 19.7, "lags": [20, null], "1": true}'
+    """
     if isinstance(obj, dict):
         return {str(k): json_safe(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -83,6 +109,41 @@ def validate_trace(t_s: np.ndarray, y: np.ndarray, sampling_tolerance: float = 0
 
     Requires equal 1-D lengths ≥ 64, finite values, strictly increasing time and every
     interval within ``sampling_tolerance`` (relative) of the median interval.
+
+    Parameters
+    ----------
+    t_s : array_like of float, shape (N,)
+        Sample times in s.
+    y : array_like of float, shape (N,)
+        Sample values, in any unit.
+    sampling_tolerance : float, default 0.01
+        Largest allowed relative deviation of any interval from the median interval
+        (0.01 = 1 %).
+
+    Returns
+    -------
+    float
+        The median sampling interval, in s.
+
+    Raises
+    ------
+    ValueError
+        If the arrays are not 1-D of equal length, have fewer than 64 samples or a
+        non-finite value, time is not strictly increasing, or an interval deviates from the
+        median by more than ``sampling_tolerance``; the message names the first offending sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.startup import validate_trace
+    >>> t = np.arange(100) * 0.1
+    >>> round(validate_trace(t, np.zeros(100)), 9)
+    0.1
+    >>> t[50] += 0.005  # one sample 5 % late
+    >>> validate_trace(t, np.zeros(100))
+    Traceback (most recent call last):
+        ...
+    ValueError: sampling is not uniform: an interval deviates 5.000% from the median 0.1 s (allowed ≤ 1.000%)
     """
     t, v = np.asarray(t_s, dtype=float), np.asarray(y, dtype=float)
     if t.ndim != 1 or v.ndim != 1 or t.size != v.size:
@@ -128,10 +189,80 @@ class Outliers:
 class StartupModel:
     """``y(t) = c + a·exp(-u/τ) [+ a2·exp(-u/τ2)] + b·u + m + s·z_k``, ``u = t - t0_s``.
 
-    ``z_k`` is the zero-mean, unit-scale ARMA(p, q) process of :mod:`timeseries`
+    The start-up model of a trace: trend plus ARMA noise.  It prints its equation
+    (:meth:`equation`), generates new traces (:meth:`simulate`) and round-trips through
+    JSON (:meth:`to_dict`, :meth:`from_dict`).
+
+    ``z_k`` is the zero-mean, unit-scale ARMA(p, q) process of :mod:`bench.analysis.timeseries`
     (innovation variance ``sigma2``) sampled every ``sample_interval_s``; ``m`` and ``s``
     (``noise_mean``, ``noise_std``) return it to the trace's units.
     ``measurement_noise_std`` is the wavelet σ — the white noise the denoising removed.
+
+    Parameters
+    ----------
+    trend : dict of str to Estimate
+        ``offset`` c and ``exp_amplitude`` a (unit of the trace), ``exp_tau_s`` τ (s),
+        ``linear_slope_per_s`` b (unit per s), and optionally ``exp2_amplitude``, ``exp2_tau_s``.
+    t0_s : float
+        Time origin of ``u``, in s.
+    sample_interval_s : float
+        Sampling interval of ``z_k``, in s.
+    kind : {"AR", "MA", "ARMA"}
+        Model class of ``z_k``.
+    ar : tuple of float
+        φ1..φp: ``z_k = Σ φ_i z_{k−i} + ε_k + Σ θ_j ε_{k−j}``.
+    ma : tuple of float
+        θ1..θq (statsmodels' sign convention).
+    ar_std : tuple of float
+        Standard errors of ``ar``.
+    ma_std : tuple of float
+        Standard errors of ``ma``.
+    sigma2 : float
+        Innovation variance of ε (of the standardised series, dimensionless).
+    aic : float
+        AIC of the noise model fit.
+    bic : float
+        BIC of the noise model fit.
+    method : str
+        Estimator of the noise model (e.g. ``"ulrych-clayton"``, ``"ml"``, ``"css"``).
+    noise_mean : float
+        ``m``, in the trace's unit.
+    noise_std : float
+        ``s``, in the trace's unit.
+    measurement_noise_std : float
+        Wavelet σ of the trace, in its unit.
+    noise_source : {"raw", "denoised"}, default "raw"
+        Series the noise model was fitted to (raw − trend, or denoised − trend).
+
+    Attributes
+    ----------
+    p : int
+        Property: AR order.
+    q : int
+        Property: MA order.
+    order_label : str
+        Property: ``"AR(p)"``, ``"MA(q)"`` or ``"ARMA(p,q)"``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.values import Estimate
+    >>> from bench.analysis.startup import StartupModel
+    >>> trend = {"offset": Estimate(1.0, 1e-4), "exp_amplitude": Estimate(0.05, 1e-3),
+    ...          "exp_tau_s": Estimate(20.0, 0.5), "linear_slope_per_s": Estimate(1e-5, 1e-6)}
+    >>> m = StartupModel(trend, t0_s=0.0, sample_interval_s=0.1, kind="AR", ar=(0.6,), ma=(), ar_std=(0.01,),
+    ...                  ma_std=(), sigma2=0.64, aic=0.0, bic=0.0, method="burg", noise_mean=0.0,
+    ...                  noise_std=0.0025, measurement_noise_std=0.0)
+    >>> m.order_label
+    'AR(1)'
+    >>> print(m.equation().splitlines()[-1])
+    z_k = 0.6000(±0.01)·z_(k−1) + ε_k,  ε_k ~ N(0, 0.64)   [AR(1) by burg]
+    >>> t = np.arange(4000) * 0.1
+    >>> y = m.simulate(t, np.random.default_rng(0))  # unit-variance z_k scaled by noise_std
+    >>> round(float(np.std(y - m.trend_at(t))), 4)
+    0.0025
+    >>> StartupModel.from_dict(m.to_dict()) == m
+    True
     """
 
     trend: dict[str, Estimate]  # offset, exp_amplitude, exp_tau_s, linear_slope_per_s[, exp2_*]
@@ -153,10 +284,12 @@ class StartupModel:
 
     @property
     def p(self) -> int:
+        """AR order."""
         return len(self.ar)
 
     @property
     def q(self) -> int:
+        """MA order."""
         return len(self.ma)
 
     @property
@@ -253,7 +386,47 @@ class StartupModel:
 
 @dataclass(frozen=True, eq=False)
 class StartupAnalysis:
-    """Everything :func:`analyze_startup` computed; arrays are read-only, indexed by sample."""
+    """Everything :func:`analyze_startup` computed; arrays are read-only, indexed by sample.
+
+    Attributes
+    ----------
+    time_s : ndarray of float, shape (N,)
+        Sample times, in s.
+    raw : ndarray of float, shape (N,)
+        The trace as given, in its unit.
+    denoise : DenoiseResult
+        Step 2: the wavelet denoising (σ, λ, denoised trace).
+    trend : TrendFit
+        Step 3: the fitted trend.
+    standardized : ndarray of float, shape (N,)
+        Steps 4–5: the detrended series standardised to zero mean and unit variance, after
+        outlier replacement — the series the ARMA model describes (dimensionless).
+    outliers : Outliers
+        Samples with ``|z| > outlier_z``: count, indices, times (s) and threshold.
+    correlogram : Correlogram
+        ACF/PACF of ``standardized`` with confidence bands.
+    identification : Identification
+        Model class and orders proposed by the ACF/PACF cut-off rules.
+    order_selection : OrderSelection
+        AIC/BIC table over the order grid.
+    criterion : {"aic", "bic"}
+        Criterion that chose the order.
+    fit : ArmaFit
+        The final noise model fit.
+    ar_estimates : dict of str to tuple of float
+        AR coefficients of every estimator in :data:`~bench.analysis.timeseries.AR_METHODS`
+        at the chosen p (AR models with p ≥ 1 only; else empty).
+    ljung_box : LjungBox
+        Ljung–Box test of the residuals with ``p + q`` dof removed.
+    residual_correlogram : Correlogram
+        ACF/PACF of the model residuals.
+    model : StartupModel
+        The start-up model (trend + ARMA noise) in the trace's units.
+    settings : dict
+        The options used.
+    notes : tuple of str
+        Warnings a user should read before trusting the model.
+    """
 
     time_s: np.ndarray
     raw: np.ndarray
@@ -340,6 +513,84 @@ def analyze_startup(
     order, and the chosen MA/ARMA model is refitted by exact ML (statsmodels) up to
     ``ml_max_samples`` samples (CSS beyond, where the two agree).  Raises ``ValueError`` naming the
     offending value and its allowed range on bad input.
+
+    Steps: wavelet denoising (2), trend ``c + a·exp(−t/τ) + b·t`` (3), standardisation (4),
+    outlier replacement by the AR interpolator (5), ACF/PACF identification, AIC/BIC order
+    table, estimation and Ljung–Box (6).
+
+    Parameters
+    ----------
+    t_s : array_like of float, shape (N,)
+        Sample times in s: finite, strictly increasing, uniform within ``sampling_tolerance``; N ≥ 64.
+    y : array_like of float, shape (N,)
+        The power-on trace in any unit (V, mA, g, …); finite, not constant, with peak
+        magnitude within 1e-150..1e150.
+    noise_source : {"raw", "denoised"}, default "raw"
+        Series detrended for the noise model (``"denoised"`` both times is Document A's literal order).
+    trend_source : {"raw", "denoised"}, default "raw"
+        Series the trend is fitted to.
+    criterion : {"aic", "bic"}, default "bic"
+        Criterion that picks the order from the table.
+    ar_method : {"ulrych-clayton", "burg", "yule-walker"}, default "ulrych-clayton"
+        AR estimator of the AR grid and the final AR fit.
+    max_ar_order : int, optional
+        Largest AR order, in ``0..N // 10``; default ``min(10, N // 10)``.
+    max_arma_order : int, optional
+        Largest MA and AR order of the MA/ARMA grids, in ``0..N // 10`` with ``2·max_arma_order ≤ N // 10``;
+        default ``min(2, N // 10)``.
+    identification_max_order : int, default 8
+        Largest cut-off lag the ACF/PACF identification considers, an integer ≥ 0.
+    alpha : float, default 0.05
+        Significance level of the correlogram bands, in (0, 1).
+    outlier_z : float, default 3.0
+        Standardised samples with ``|z| > outlier_z`` are replaced; > 0.
+    sampling_tolerance : float, default 0.01
+        Allowed relative deviation of a sampling interval from the median; > 0.
+    wavelet : str, optional
+        Daubechies wavelet of the denoising (see :func:`wavelet_denoise`).
+    level : int, optional
+        Its decomposition depth (see :func:`wavelet_denoise`).
+    allow_two_exponentials : bool, default True
+        Let the trend use a second exponential when the data demand it.
+    ml_max_samples : int, default 50000
+        Longest series refitted by exact ML when the model has an MA part.
+
+    Returns
+    -------
+    StartupAnalysis
+        Every intermediate result; ``.model`` is the :class:`StartupModel` (trace units, s)
+        and ``.notes`` the warnings to read.
+
+    Raises
+    ------
+    ValueError
+        If a choice (``noise_source``, ``trend_source``, ``criterion``, ``ar_method``) is not one
+        of its values, ``outlier_z`` or ``sampling_tolerance`` is not > 0,
+        ``identification_max_order`` is not an integer ≥ 0, the trace fails
+        :func:`validate_trace`, an order limit exceeds ``N // 10``, the values are constant
+        or outside 1e-150..1e150, nothing is left after the trend, or more than half the
+        samples are outliers.
+
+    Examples
+    --------
+    A 400 s trace: exponential settling (τ = 20 s) on a small drift, plus AR(1) noise (φ = 0.6):
+
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from bench.analysis.startup import analyze_startup
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(4000) * 0.1
+    >>> noise = lfilter([1.0], [1.0, -0.6], rng.normal(0.0, 0.002, t.size))
+    >>> a = analyze_startup(t, 1.0 + 0.05 * np.exp(-t / 20.0) + 1e-5 * t + noise)
+    >>> a.identification.kind, a.model.order_label
+    ('AR', 'AR(1)')
+    >>> bool(abs(a.model.ar[0] - 0.6) < 3 * a.model.ar_std[0])
+    True
+    >>> tau = a.model.trend["exp_tau_s"]
+    >>> bool(abs(tau.value - 20.0) < 3 * tau.std)
+    True
+    >>> a.ljung_box.p_value > 0.05, a.notes
+    (True, ())
     """
     for name, value, allowed in (("noise_source", noise_source, ("raw", "denoised")),
                                  ("trend_source", trend_source, ("raw", "denoised")),

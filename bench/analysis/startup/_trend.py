@@ -37,7 +37,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
-from bench.analysis.timeseries import _fit as ts
+import bench.analysis.timeseries._fit as ts
 from bench.values import Estimate
 
 MIN_SAMPLES = 32
@@ -53,6 +53,49 @@ class TrendFit:
 
     ``exp_*`` is the faster exponential (τ1) and ``exp2_*`` the slower one when
     ``kind == "exp2"``.  ``covariance`` is ordered as ``param_names``.
+
+    The model, with ``u = t − t0_s``, is ``y(u) = c + a·exp(−u/τ) [+ a2·exp(−u/τ2)] + b·u``.
+
+    Attributes
+    ----------
+    kind : {"exp1", "exp2"}
+        One exponential, or two when the data demand it (BIC and 3σ amplitudes).
+    offset : Estimate
+        ``c``, in the unit of ``y``.
+    exp_amplitude : Estimate
+        ``a`` of the faster exponential, in the unit of ``y``.
+    exp_tau_s : Estimate
+        Its time constant τ (τ1), in s.
+    linear_slope_per_s : Estimate
+        Drift ``b``, in the unit of ``y`` per s.
+    exp2_amplitude : Estimate or None
+        ``a2`` of the slower exponential (unit of ``y``); None unless ``kind == "exp2"``.
+    exp2_tau_s : Estimate or None
+        Its time constant τ2 in s; None unless ``kind == "exp2"``.
+    t0_s : float
+        Time of the first sample, in s (the origin of ``u``).
+    param_names : tuple of str
+        Names of the fitted parameters, the order of ``covariance``.
+    covariance : ndarray of float, shape (k, k)
+        Sandwich covariance of the parameters under the AR model of the residual, in their units.
+    noise_ar : tuple of float
+        AR coefficients φ (Burg, BIC order ≤ 10) of the residual behind the standard errors.
+    noise_sigma2 : float
+        Innovation variance of that AR model, in (unit of ``y``)².
+    bic_exp1 : float
+        BIC of the one-exponential trend plus its AR noise.
+    bic_exp2 : float or None
+        BIC of the two-exponential fit; None when it was not attempted or failed.
+    fitted : ndarray of float, shape (N,)
+        Trend at the sample times (read-only), in the unit of ``y``.
+    residual : ndarray of float, shape (N,)
+        ``y − fitted`` (read-only).
+
+    Raises
+    ------
+    ValueError
+        On construction, if ``exp2_amplitude`` and ``exp2_tau_s`` are not both set for
+        ``kind == "exp2"`` and both None otherwise.
     """
 
     kind: Literal["exp1", "exp2"]
@@ -87,6 +130,7 @@ class TrendFit:
         return out + self.linear_slope_per_s.value * u
 
     def to_dict(self) -> dict:
+        """JSON-ready parameters (``{"value", "std"}`` each), ``kind``, ``t0_s``, noise AR and BICs."""
         d: dict[str, object] = {"kind": self.kind, "t0_s": float(self.t0_s)}
         for name in ("offset", "exp_amplitude", "exp_tau_s", "linear_slope_per_s", "exp2_amplitude", "exp2_tau_s"):
             est = getattr(self, name)
@@ -261,6 +305,50 @@ def fit_trend(t_s: np.ndarray, y: np.ndarray, *, allow_two_exponentials: bool = 
 
     ``t_s``: strictly increasing times in s (uniform sampling assumed for the noise
     model); ``y``: the trace in its own units.  Needs at least 32 samples.
+
+    ``y(u) = c + a·exp(−u/τ) + b·u`` (``u = t − t0``) by nonlinear least squares from a
+    variable-projection scan of τ; standard errors by the sandwich formula under an AR
+    model of the residual.  A second exponential is kept only when the BIC falls by more
+    than 10 and both amplitudes exceed three standard errors.
+
+    Parameters
+    ----------
+    t_s : array_like of float, shape (N,)
+        Sample times in s, finite and strictly increasing (uniform sampling assumed by the
+        noise model).
+    y : array_like of float, shape (N,)
+        The trace in its own unit (V, mA, g, …), finite; N ≥ 32.
+    allow_two_exponentials : bool, default True
+        Try ``c + a1·exp(−u/τ1) + a2·exp(−u/τ2) + b·u`` as well; False fits one exponential only.
+
+    Returns
+    -------
+    TrendFit
+        Parameters as :class:`~bench.values.Estimate` (unit of ``y``, τ in s, slope per s),
+        their covariance, the fitted trend and the residual.
+
+    Raises
+    ------
+    ValueError
+        If ``t_s`` and ``y`` are not 1-D of equal length, have fewer than 32 samples or a
+        non-finite value, ``t_s`` is not strictly increasing, or the values overflow the
+        sum of squares (rescale the trace).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.startup import fit_trend
+    >>> t = np.arange(2000) * 0.1  # s
+    >>> y = 1.0 + 0.05 * np.exp(-t / 20.0) + 1e-4 * t + np.random.default_rng(0).normal(0.0, 0.002, t.size)
+    >>> f = fit_trend(t, y)
+    >>> f.kind, f.param_names
+    ('exp1', ('offset', 'exp_amplitude', 'exp_tau_s', 'linear_slope_per_s'))
+    >>> bool(abs(f.exp_tau_s.value - 20.0) < 3 * f.exp_tau_s.std), round(f.exp_tau_s.value)
+    (True, 20)
+    >>> round(f.exp_amplitude.value, 3), round(f.linear_slope_per_s.value * 1e4, 1)
+    (0.05, 1.0)
+    >>> round(float(np.std(f.residual)), 4)  # the white noise is what is left
+    0.002
     """
     t = np.asarray(t_s, dtype=float)
     y = np.asarray(y, dtype=float)

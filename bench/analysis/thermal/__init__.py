@@ -1,5 +1,16 @@
 """Calibration over temperature: soak detection, bias and scale-factor polynomials, ramps, compensation.
 
+A thermal sweep soaks the unit at each set point until its own sensor is stable
+(:func:`soak_status`) and estimates every calibrated quantity there (:class:`QuantityPoints`).
+:func:`calibrate_over_temperature`, the main entry point, fits each quantity as a polynomial
+of temperature (:func:`fit_temperature_polynomial`, order by BIC) and reads its temperature
+coefficient; :func:`compensation_model` turns the result into the compensation file a
+navigation computer loads (:func:`compensation_to_toml`, :func:`compensation_from_toml`),
+:func:`compensate` applies it to raw outputs, and :func:`verify_compensation` checks it on a
+second run. :func:`analyze_thermal_ramp` reads bias over temperature, thermal hysteresis and
+rate sensitivity from one record over a temperature ramp. ``as_array`` and ``check_real`` are
+the argument checks the thermal and turn-on analyses share.
+
 What a user calls::
 
     calibrate_over_temperature, ThermalCalibration, QuantityCalibration

@@ -35,10 +35,32 @@ from bench.values import Estimate
 
 @dataclass(frozen=True, eq=False)
 class QuantityCalibration:
-    """One quantity over temperature: its fit, its value and temperature coefficient at the
+    """One quantity's calibration over temperature: its fit, value and temperature coefficient.
+
+    One quantity over temperature: its fit, its value and temperature coefficient at the
     reference temperature (BIC-averaged over the orders; ``temperature_coefficient_selected``
     that of the selected curve), the coefficient in ``tc_unit``: "ppm/°C" for a scale factor,
-    "<unit>/°C" otherwise."""
+    "<unit>/°C" otherwise.
+
+    Attributes
+    ----------
+    points : QuantityPoints
+        The quantity's per-temperature estimates.
+    fit : TemperaturePolynomial
+        Its polynomial of temperature about the reference.
+    value_at_reference : Estimate
+        q(T_ref), BIC-averaged over the candidate orders, in the quantity's unit.
+    temperature_coefficient : Estimate
+        Temperature coefficient at T_ref, BIC-averaged, in ``tc_unit``: 10⁶·q'/q for a scale
+        factor, q' otherwise.
+    temperature_coefficient_selected : Estimate
+        The same from the selected curve alone (the slope of the curve the compensation
+        file holds), in ``tc_unit``.
+    tc_unit : str
+        ``"ppm/°C"`` for a scale factor, ``"<unit>/°C"`` otherwise.
+    name : str
+        Property: the quantity's name.
+    """
 
     points: QuantityPoints
     fit: TemperaturePolynomial
@@ -63,7 +85,19 @@ class QuantityCalibration:
 
 @dataclass(frozen=True, eq=False)
 class ThermalCalibration:
-    """Every quantity's calibration, in the order given, about ``reference_c`` (°C)."""
+    """Every quantity's calibration, in the order given, about ``reference_c`` (°C).
+
+    Index it by name: ``calibration["k0"]`` is that quantity's :class:`QuantityCalibration`.
+
+    Attributes
+    ----------
+    reference_c : float
+        Reference temperature of every fit, in °C.
+    quantities : tuple of QuantityCalibration
+        One per quantity, in the order given.
+    names : tuple of str
+        Property: the quantities' names, in order.
+    """
 
     reference_c: float
     quantities: tuple[QuantityCalibration, ...]
@@ -109,6 +143,56 @@ def calibrate_over_temperature(quantities: Sequence[QuantityPoints], *, referenc
     ``quantities``: one :class:`QuantityPoints` per quantity, names unique, at most one
     ``bias`` and one ``scale_factor`` and one ``k2`` (the output model has one of each).
     ``orders`` fixes the order of named quantities; the others are chosen by ``criterion``.
+    Each quantity is fitted by :func:`fit_temperature_polynomial` and its value and
+    temperature coefficient at the reference are BIC-averaged over the candidate orders
+    (module docstring).
+
+    Parameters
+    ----------
+    quantities : sequence of QuantityPoints
+        One per quantity, at least one; names unique, at most one each of the roles
+        ``bias``, ``scale_factor`` and ``k2``.
+    reference_c : float, default 25.0
+        Reference temperature, in °C, within [−100, 200].
+    orders : mapping of str to int, optional
+        Fixed polynomial order (0 … 3) of the named quantities.
+    max_order : int, default 3
+        Highest order considered for the others, 0 … 3.
+    criterion : {"bic", "loo"}, default "bic"
+        How the others' order is chosen.
+    uncertainty : {"stated", "scaled", "birge"}, default "stated"
+        How the coefficient covariance uses the stated σ.
+
+    Returns
+    -------
+    ThermalCalibration
+        Every quantity's fit, value at the reference (its unit) and temperature coefficient
+        (ppm/°C for a scale factor, unit/°C otherwise).
+
+    Raises
+    ------
+    ValueError
+        If ``reference_c`` is outside [−100, 200], ``quantities`` is empty, names repeat, a
+        single-instance role appears twice, ``orders`` names an unknown quantity, or a fit
+        fails (see :func:`fit_temperature_polynomial`).
+
+    Examples
+    --------
+    An accelerometer's bias (g) and scale factor (mA/g, +100 ppm/°C) at six temperatures:
+
+    >>> import numpy as np
+    >>> from bench.analysis.thermal import QuantityPoints, calibrate_over_temperature
+    >>> t = np.array([-40.0, -20.0, 0.0, 25.0, 45.0, 70.0])
+    >>> rng = np.random.default_rng(0)
+    >>> bias = 2e-3 + 5e-5 * (t - 25) + 1e-5 * rng.standard_normal(t.size)
+    >>> sf = 1.2 * (1 + 100e-6 * (t - 25)) + 1e-5 * rng.standard_normal(t.size)
+    >>> cal = calibrate_over_temperature([
+    ...     QuantityPoints("k0", "bias", "g", t, bias, np.full(t.size, 1e-5)),
+    ...     QuantityPoints("k1", "scale_factor", "mA/g", t, sf, np.full(t.size, 1e-5))])
+    >>> cal.names, cal["k1"].tc_unit, cal["k0"].tc_unit
+    (('k0', 'k1'), 'ppm/°C', 'g/°C')
+    >>> round(cal["k1"].temperature_coefficient.value), round(cal["k0"].temperature_coefficient.value * 1e6)
+    (100, 50)
     """
     ref = check_real("reference_c", reference_c, -100.0, 200.0)
     if not quantities:

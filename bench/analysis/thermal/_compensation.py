@@ -66,7 +66,35 @@ def _check_range(key: str, value) -> tuple[float, float]:
 class QuantityCompensation:
     """One quantity of the model: polynomial ``coefficients`` about the model's reference
     temperature (unit per °C^k), their ``covariance``, and the fit's figures (module
-    docstring). ``key`` is the TOML path used in error messages."""
+    docstring). ``key`` is the TOML path used in error messages.
+
+    Attributes
+    ----------
+    name : str
+        The quantity's name (an identifier): its ``[quantities.<name>]`` table.
+    role : {"bias", "scale_factor", "k2", "cross_axis"}
+        Its role in the output model.
+    unit : str
+        Its unit.
+    coefficients : ndarray, shape (n + 1,)
+        c_k of q(T) = Σ c_k (T − reference_c)^k, in unit per °C^k; orders 0 … 3.
+    covariance : ndarray, shape (n + 1, n + 1)
+        Their covariance (symmetric positive semi-definite).
+    residual_rms : float
+        RMS of the fit's residuals, in unit.
+    residual_max_abs : float
+        Largest absolute residual, in unit.
+    prediction_std_max : float
+        Largest standard uncertainty of the curve over the valid range, in unit.
+    n_points : int
+        Number of temperatures fitted.
+    order_selection : {"bic", "loo", "fixed"}
+        How the order was chosen.
+    cross_input : str or None
+        For ``cross_axis`` only: the other-axis input it multiplies.
+    sign : float
+        For ``cross_axis`` only: ±1 as the model writes the term (1.0 otherwise).
+    """
 
     name: str
     role: str
@@ -148,8 +176,47 @@ class QuantityCompensation:
 
 @dataclass(frozen=True, eq=False)
 class CompensationModel:
-    """The whole compensation file (module docstring). ``created`` and ``notes`` are the
-    caller's free text (a date, a run id: the library reads no clock)."""
+    """A thermal compensation model: per-quantity polynomials of temperature and the output model.
+
+    The whole compensation file (module docstring). ``created`` and ``notes`` are the
+    caller's free text (a date, a run id: the library reads no clock).
+
+    Usually made by :func:`compensation_model` or read by :func:`compensation_from_toml`;
+    a model built in code passes the same checks. Index it by name
+    (``model["k0"]``) or by role (``model.quantity("bias")``).
+
+    Parameters
+    ----------
+    unit_serial : str
+        Serial number of the unit, non-empty (≤ 4096 characters).
+    unit_model : str
+        Model of the unit, non-empty.
+    temperature_source : {"unit_sensor", "element"}
+        Which temperature T the curves take: the unit's own sensor or the sensing element.
+    reference_c : float
+        Reference temperature of every polynomial, in °C, within −100 … 200.
+    valid_range_c : tuple of float
+        ``(low, high)`` in °C with −100 ≤ low < high ≤ 200: where the model holds.
+    input_unit : str
+        Unit of the input x along the sensitive axis (e.g. ``"g"``).
+    output_unit : str
+        Unit of the raw output (e.g. ``"mA"``); must equal ``input_unit`` without a
+        scale-factor quantity.
+    quantities : tuple of QuantityCompensation
+        One or more, names unique, at most one each of ``bias``, ``scale_factor``, ``k2``; a
+        scale factor must not cross zero within ``valid_range_c``.
+    created : str, default ""
+        The caller's free text (a date, a run id).
+    notes : str, default ""
+        The caller's free text.
+    version : int, default 1
+        File format version; this reader supports 1.
+
+    Raises
+    ------
+    ValueError
+        If a field is outside what is allowed above (the message names the file's key).
+    """
 
     unit_serial: str
     unit_model: str
@@ -220,8 +287,61 @@ def compensation_model(calibration: ThermalCalibration, *, unit_serial: str, uni
                        input_unit: str, output_unit: str, temperature_source: str = "unit_sensor",
                        valid_range_c: tuple[float, float] | None = None, created: str = "",
                        notes: str = "") -> CompensationModel:
-    """The compensation model of a calibration. ``valid_range_c`` defaults to the temperature
-    span every quantity was calibrated over (the intersection of their points' ranges)."""
+    """The compensation model of a calibration.
+
+    ``valid_range_c`` defaults to the temperature span every quantity was calibrated over
+    (the intersection of their points' ranges). Each quantity's selected polynomial, its
+    covariance and its fit figures go into the model; write it with
+    :func:`compensation_to_toml`.
+
+    Parameters
+    ----------
+    calibration : ThermalCalibration
+        The result of :func:`calibrate_over_temperature`.
+    unit_serial : str
+        Serial number of the unit.
+    unit_model : str
+        Model of the unit.
+    input_unit : str
+        Unit of the input along the sensitive axis (e.g. ``"g"``, ``"deg/s"``).
+    output_unit : str
+        Unit of the raw output (e.g. ``"mA"``); ``input_unit`` when no quantity is a scale
+        factor.
+    temperature_source : {"unit_sensor", "element"}, default "unit_sensor"
+        Which temperature the curves take.
+    valid_range_c : tuple of float, optional
+        ``(low, high)`` in °C, −100 ≤ low < high ≤ 200; default the calibrated span.
+    created : str, default ""
+        The caller's free text (a date, a run id).
+    notes : str, default ""
+        The caller's free text.
+
+    Returns
+    -------
+    CompensationModel
+        The model the navigation computer loads.
+
+    Raises
+    ------
+    ValueError
+        If the quantities' temperature ranges do not overlap (and no ``valid_range_c`` is
+        given), ``valid_range_c`` is not an allowed range, or the model's own checks fail
+        (:class:`CompensationModel`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.thermal import QuantityPoints, calibrate_over_temperature, compensation_model
+    >>> t = np.array([-40.0, -20.0, 0.0, 25.0, 45.0, 70.0])  # noise-free points, for brevity
+    >>> bias = QuantityPoints("k0", "bias", "g", t, 2e-3 + 5e-5 * (t - 25), np.full(t.size, 1e-5))
+    >>> sf = QuantityPoints("k1", "scale_factor", "mA/g", t, 1.2 * (1 + 100e-6 * (t - 25)), np.full(t.size, 1e-5))
+    >>> model = compensation_model(calibrate_over_temperature([bias, sf]), unit_serial="QA-0001",
+    ...                            unit_model="QA-2000", input_unit="g", output_unit="mA")
+    >>> model.valid_range_c, model.reference_c, [q.name for q in model.quantities]
+    ((-40.0, 70.0), 25.0, ['k0', 'k1'])
+    >>> model["k1"].coefficients.round(6).tolist()  # mA/g, mA/g/°C
+    [1.2, 0.00012]
+    """
     lo = max(q.fit.temperature_range_c[0] for q in calibration.quantities)
     hi = min(q.fit.temperature_range_c[1] for q in calibration.quantities)
     if valid_range_c is None:
@@ -253,7 +373,19 @@ def compensation_model(calibration: ThermalCalibration, *, unit_serial: str, uni
 class CompensatedOutput:
     """Compensated input estimate x̂ (``input_unit``) per sample; ``applied`` names the
     quantities used, ``not_applied`` the cross-axis ones whose input was not given (reason);
-    ``in_range`` marks the samples whose temperature lies in the model's valid range."""
+    ``in_range`` marks the samples whose temperature lies in the model's valid range.
+
+    Attributes
+    ----------
+    input_estimate : ndarray, shape (N,)
+        x̂ per sample, in the model's ``input_unit``.
+    applied : tuple of str
+        Names of the quantities used, in the order applied.
+    not_applied : dict of str to str
+        Cross-axis quantities left out, with the reason.
+    in_range : ndarray of bool, shape (N,)
+        Samples whose temperature lies within ``valid_range_c``.
+    """
 
     input_estimate: np.ndarray
     applied: tuple[str, ...]
@@ -298,11 +430,63 @@ def _cross_terms(model: CompensationModel, t: np.ndarray, cross_inputs, n: int) 
 
 def compensate(model: CompensationModel, output, temperature_c, *,
                cross_inputs: Mapping[str, np.ndarray] | None = None, outside: str = "raise") -> CompensatedOutput:
-    """Invert the output model: the input x̂ per sample from raw ``output`` (``output_unit``)
+    """The input estimate x̂ per sample from raw outputs and temperatures, by inverting the model.
+
+    Invert the output model: the input x̂ per sample from raw ``output`` (``output_unit``)
     at ``temperature_c`` (°C, per sample or one value). ``cross_inputs`` maps a cross-axis
     term's ``cross_input`` name to that axis's input per sample. ``outside``: "raise" (a
     temperature outside ``valid_range_c`` is an error), "clamp" (evaluate at the nearer
-    limit, as a navigation computer would) or "extrapolate"."""
+    limit, as a navigation computer would) or "extrapolate". The inversion is
+    x̂ = 2z / (1 + √(1 + 4·K2·z)) with z = output/SF(T) − B(T) − Σ sign·M(T)·u (module
+    docstring).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The compensation model.
+    output : array_like, shape (N,)
+        Raw output per sample, in the model's ``output_unit``; finite.
+    temperature_c : float or array_like, shape (N,)
+        Temperature per sample (or one for all), in °C, from the model's
+        ``temperature_source``; finite.
+    cross_inputs : mapping of str to array_like, optional
+        Input along another axis per sample (``input_unit``), keyed by a cross-axis term's
+        ``cross_input`` name; a term whose input is missing is not applied.
+    outside : {"raise", "clamp", "extrapolate"}, default "raise"
+        What to do with a temperature outside ``valid_range_c``.
+
+    Returns
+    -------
+    CompensatedOutput
+        x̂ per sample (``input_unit``), the quantities applied and not applied, and which
+        samples were in range.
+
+    Raises
+    ------
+    ValueError
+        If ``output`` or ``temperature_c`` is not finite or not of one length, ``outside`` is
+        unknown, a temperature is outside the valid range with ``outside="raise"``,
+        ``cross_inputs`` names an input the model has not, or an output lies beyond the K2
+        model's turning point.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.thermal import QuantityPoints, calibrate_over_temperature, compensate, compensation_model
+    >>> t = np.array([-40.0, -20.0, 0.0, 25.0, 45.0, 70.0])  # noise-free points, for brevity
+    >>> bias = QuantityPoints("k0", "bias", "g", t, 2e-3 + 5e-5 * (t - 25), np.full(t.size, 1e-5))
+    >>> sf = QuantityPoints("k1", "scale_factor", "mA/g", t, 1.2 * (1 + 100e-6 * (t - 25)), np.full(t.size, 1e-5))
+    >>> model = compensation_model(calibrate_over_temperature([bias, sf]), unit_serial="QA-0001",
+    ...                            unit_model="QA-2000", input_unit="g", output_unit="mA")
+    >>> temp = np.array([-30.0, 10.0, 60.0])
+    >>> x = np.array([0.0, 0.5, 1.0])  # g
+    >>> raw = 1.2 * (1 + 100e-6 * (temp - 25)) * (x + 2e-3 + 5e-5 * (temp - 25))  # mA
+    >>> out = compensate(model, raw, temp)
+    >>> bool(np.all(np.abs(out.input_estimate - x) < 1e-9)), out.applied
+    (True, ('k1', 'k0'))
+    >>> compensate(model, raw, [-50.0, 10.0, 60.0], outside="clamp").in_range.tolist()
+    [False, True, True]
+    """
     y = as_array("output", output)
     t, in_range = _temperatures(model, temperature_c, y.size, outside)
     ref = model.reference_c

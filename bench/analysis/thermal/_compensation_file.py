@@ -35,7 +35,6 @@ the key, the value and what is allowed; the model's own checks
 from __future__ import annotations
 
 import tomllib
-from pathlib import Path
 
 from bench.analysis.thermal._compensation import (
     FORMAT,
@@ -64,7 +63,38 @@ def _toml_value(v) -> str:
 
 
 def compensation_to_toml(model: CompensationModel) -> str:
-    """The compensation file's text (TOML)."""
+    """The compensation file's text (TOML).
+
+    Layout in the module docstring; numbers are written with Python's shortest round-trip
+    repr, so :func:`compensation_from_toml` reads the file back bit for bit.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model to write.
+
+    Returns
+    -------
+    str
+        The file's text: three comment lines, the header keys, then one
+        ``[quantities.<name>]`` table per quantity.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.thermal import QuantityPoints, calibrate_over_temperature, compensation_model
+    >>> from bench.analysis.thermal import compensation_to_toml
+    >>> t = np.array([-40.0, -20.0, 0.0, 25.0, 45.0, 70.0])  # noise-free points, for brevity
+    >>> bias = QuantityPoints("k0", "bias", "g", t, 2e-3 + 5e-5 * (t - 25), np.full(t.size, 1e-5))
+    >>> sf = QuantityPoints("k1", "scale_factor", "mA/g", t, 1.2 * (1 + 100e-6 * (t - 25)), np.full(t.size, 1e-5))
+    >>> model = compensation_model(calibrate_over_temperature([bias, sf]), unit_serial="QA-0001",
+    ...                            unit_model="QA-2000", input_unit="g", output_unit="mA")
+    >>> text = compensation_to_toml(model)
+    >>> text.splitlines()[3:5]
+    ['format = "inertial-bench-thermal-compensation"', 'version = 1']
+    >>> "[quantities.k1]" in text
+    True
+    """
     d = model.to_dict()
     lines = ["# inertial-bench thermal compensation model (docs/METHODS.md, \"Calibration over temperature\")",
              "# output = SF(T) * (x + B(T) + K2(T)*x^2 + sum_j sign_j * M_j(T) * u_j)",
@@ -89,7 +119,46 @@ def _expect_keys(where: str, table, allowed: tuple[str, ...], required: tuple[st
 
 
 def compensation_from_toml(text: str) -> CompensationModel:
-    """Parse and validate a compensation file's text (ValueError naming the key and what is allowed)."""
+    """Parse and validate a compensation file's text (ValueError naming the key and what is allowed).
+
+    Every key is checked (unknown and missing keys too), then the model's own checks
+    (:class:`CompensationModel`) apply.
+
+    Parameters
+    ----------
+    text : str
+        The file's TOML text (layout in the module docstring).
+
+    Returns
+    -------
+    CompensationModel
+        The validated model.
+
+    Raises
+    ------
+    ValueError
+        If the text is not valid TOML, a key is unknown or missing, ``format`` or
+        ``version`` is not supported, or a value is not allowed; the message names the key
+        (e.g. ``quantities.k0.coefficients``) and what is allowed.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.thermal import QuantityPoints, calibrate_over_temperature, compensation_model
+    >>> from bench.analysis.thermal import compensation_from_toml, compensation_to_toml
+    >>> t = np.array([-40.0, -20.0, 0.0, 25.0, 45.0, 70.0])  # noise-free points, for brevity
+    >>> bias = QuantityPoints("k0", "bias", "g", t, 2e-3 + 5e-5 * (t - 25), np.full(t.size, 1e-5))
+    >>> sf = QuantityPoints("k1", "scale_factor", "mA/g", t, 1.2 * (1 + 100e-6 * (t - 25)), np.full(t.size, 1e-5))
+    >>> model = compensation_model(calibrate_over_temperature([bias, sf]), unit_serial="QA-0001",
+    ...                            unit_model="QA-2000", input_unit="g", output_unit="mA")
+    >>> again = compensation_from_toml(compensation_to_toml(model))
+    >>> again.to_dict() == model.to_dict()  # bit for bit
+    True
+    >>> compensation_from_toml(compensation_to_toml(model).replace("version = 1", "version = 9"))
+    Traceback (most recent call last):
+    ...
+    ValueError: version = 9: this reader supports versions 1
+    """
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -122,17 +191,3 @@ def compensation_from_toml(text: str) -> CompensationModel:
         valid_range_c=doc["valid_range_c"], input_unit=doc["input_unit"], output_unit=doc["output_unit"],
         quantities=tuple(quantities), created=doc.get("created", ""), notes=doc.get("notes", ""),
         version=version)
-
-
-def write_compensation(model: CompensationModel, path) -> None:
-    """Write the compensation file (TOML) to ``path``."""
-    Path(path).write_text(compensation_to_toml(model), encoding="utf-8")
-
-
-def read_compensation(path) -> CompensationModel:
-    """Read and validate a compensation file (ValueError naming the bad key or the unreadable path)."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read compensation file {str(path)!r}: {exc}") from None
-    return compensation_from_toml(text)

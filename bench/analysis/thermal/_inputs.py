@@ -35,8 +35,45 @@ def is_real(value) -> bool:
 
 
 def check_real(name: str, value, low: float, high: float, *, low_open: bool = False) -> float:
-    """``value`` as a float when finite and in [low, high] ((low, high] with ``low_open``);
-    otherwise ValueError naming the value and the allowed range."""
+    """``value`` as a float when finite and in [low, high] ((low, high] with ``low_open``).
+
+    Otherwise ValueError naming the value and the allowed range: the argument check the
+    thermal (and turn-on) analyses share.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, for the message.
+    value : float
+        The value to check (a real number; bool is refused).
+    low : float
+        Lower end of the allowed range, in the value's unit.
+    high : float
+        Upper end (inclusive), same unit.
+    low_open : bool, default False
+        Exclude ``low`` itself: the range is (low, high].
+
+    Returns
+    -------
+    float
+        ``value`` as a float.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` is not a finite real number within the range; the message names
+        ``name``, the value and the allowed range.
+
+    Examples
+    --------
+    >>> from bench.analysis.thermal import check_real
+    >>> check_real("reference_c", 25, -100.0, 200.0)
+    25.0
+    >>> check_real("confidence", 1.5, 0.5, 0.999)
+    Traceback (most recent call last):
+    ...
+    ValueError: confidence = 1.5 outside the allowed range [0.5, 0.999]
+    """
     ok = is_real(value) and (low < value if low_open else low <= value) and value <= high
     if not ok:
         bracket = "(" if low_open else "["
@@ -58,7 +95,47 @@ def check_choice(name: str, value, allowed: tuple[str, ...]) -> str:
 
 def as_array(name: str, values, *, size: int | None = None, min_size: int = 1,
              positive: bool = False, limits: tuple[float, float] | None = None) -> np.ndarray:
-    """1-D finite float array (a copy), checked for length, sign and range."""
+    """1-D finite float array (a copy), checked for length, sign and range.
+
+    The array check the thermal (and turn-on) analyses share.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, for the message.
+    values : array_like
+        The values, any unit.
+    size : int, optional
+        Required length; default any length ≥ ``min_size``.
+    min_size : int, default 1
+        Shortest allowed length (when ``size`` is None).
+    positive : bool, default False
+        Require every value > 0.
+    limits : tuple of float, optional
+        ``(low, high)``: require every value within [low, high], in the values' unit.
+
+    Returns
+    -------
+    ndarray of float, shape (n,)
+        A copy of ``values``.
+
+    Raises
+    ------
+    ValueError
+        If ``values`` is not 1-D of the required length, or a value is not finite, not > 0
+        (with ``positive``) or outside ``limits``; the message names the first bad element
+        and the allowed range.
+
+    Examples
+    --------
+    >>> from bench.analysis.thermal import as_array
+    >>> as_array("temperature_c", [-40, 25, 70], limits=(-100.0, 200.0)).tolist()
+    [-40.0, 25.0, 70.0]
+    >>> as_array("std", [0.1, 0.0], positive=True)
+    Traceback (most recent call last):
+    ...
+    ValueError: std[1] = 0.0 outside the allowed range (0, ∞)
+    """
     arr = np.array(values, dtype=float)
     if arr.ndim != 1 or arr.size < min_size or (size is not None and arr.size != size):
         want = f"length {size}" if size is not None else f"length ≥ {min_size}"
@@ -87,6 +164,41 @@ class QuantityPoints:
     slope. ``role``: one of :data:`ROLES`; ``cross_input`` and ``sign`` only for
     ``cross_axis`` (the name of the other-axis input it multiplies, e.g. ``"a_p"``, and the
     sign the model writes it with).
+
+    Parameters
+    ----------
+    name : str
+        The quantity's name, an identifier (e.g. ``"k0"``, ``"bias"``); the key of the
+        compensation file.
+    role : {"bias", "scale_factor", "k2", "cross_axis"}
+        Its role in the output model (module docstring).
+    unit : str
+        Unit of ``value`` and ``std`` (e.g. ``"g"``, ``"mA/g"``), non-empty.
+    temperature_c : array_like, shape (m,)
+        Temperature of each point, in °C, within −100 … +200.
+    value : array_like, shape (m,)
+        The estimate at each temperature, in ``unit``; a scale factor's non-zero.
+    std : array_like, shape (m,)
+        Its standard uncertainty, in ``unit``; > 0.
+    temperature_std_c : array_like, shape (m,), optional
+        Standard uncertainty of each point's temperature, in °C, within [0, 50].
+    cross_input : str, optional
+        For ``cross_axis`` only: the other-axis input it multiplies (an identifier).
+    sign : float, default 1.0
+        For ``cross_axis`` only: +1 or −1, as the model writes the term.
+
+    Raises
+    ------
+    ValueError
+        If a field is outside what is allowed above (the message names the field, e.g.
+        ``k0.std[2]``, and the allowed range).
+
+    Examples
+    --------
+    >>> from bench.analysis.thermal import QuantityPoints
+    >>> q = QuantityPoints("k0", "bias", "g", [-40, 25, 70], [1.2e-3, 1.0e-3, 0.9e-3], [1e-5, 1e-5, 1e-5])
+    >>> q.temperature_c.tolist(), q.role
+    ([-40.0, 25.0, 70.0], 'bias')
     """
 
     name: str

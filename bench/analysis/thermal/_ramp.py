@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, signal
 
-from bench.analysis.thermal import _drift_gls as drift_gls
+import bench.analysis.thermal._drift_gls as drift_gls
 from bench.analysis.thermal._drift_gls import NoiseModel
 from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C, check_int, check_real
 from bench.analysis.thermal._poly import MAX_ORDER, PolynomialCurve, polynomial_rows
@@ -81,10 +81,77 @@ _LAG_GRID = 10
 
 @dataclass(frozen=True, eq=False)
 class ThermalRampResult:
-    """Thermal ramp analysis (module docstring). Output units: those of ``output``;
+    """Bias curve, thermal hysteresis and temperature-rate sensitivity from a ramp record.
+
+    Thermal ramp analysis (module docstring). Output units: those of ``output``;
     ``rate_sensitivity`` per °C/min; ``lag_s`` in s (std None when fixed by the caller).
     ``not_separable`` names each term the record could not separate and why. Block-level
-    arrays: ``block_*``; ``block_used`` marks the blocks every fit used."""
+    arrays: ``block_*``; ``block_used`` marks the blocks every fit used.
+
+    Attributes
+    ----------
+    curve : PolynomialCurve
+        Bias-vs-temperature curve p(T_e) about ``reference_c`` (output units per °C^j), at
+        zero rate and mid-way between the branches.
+    hysteresis : Estimate or None
+        h, the up-minus-down offset at equal temperature and zero rate, output units; None
+        when not separable from the rate term.
+    rate_sensitivity : Estimate or None
+        k, output units per °C/min; None when not separable.
+    lag_s : Estimate
+        τ, the element's lag behind the sensor, in s (std None when fixed by the caller or
+        not separable).
+    branch_offset : Estimate
+        h + k·(r_up − r_down): the up-minus-down difference at equal temperature at the
+        record's ramp rates, output units (always determined).
+    ramp_rates_c_per_min : tuple of float
+        ``(r_up, r_down)``: median rate of the up and the down blocks, dwells left out, °C/min.
+    not_separable : dict of str to str
+        Each term (``"hysteresis"``, ``"rate_sensitivity"``, ``"lag_s"``) the record could not
+        separate, with the reason.
+    separation_rate : float
+        Fraction of the steady rate column outside the span of the curve and branch columns
+        (1/√VIF); compared with ``min_separation``.
+    separation_lag : float or None
+        The same for the lag's column; None when the lag was fixed.
+    branch_difference_t_c : ndarray
+        Temperature grid over the range both branches cover, in °C.
+    branch_difference : ndarray
+        Model-free up-minus-down difference of separate branch polynomials on that grid,
+        output units.
+    branch_difference_std : ndarray
+        Its standard uncertainty, output units.
+    branch_difference_mean : Estimate
+        Its mean over the grid, output units.
+    segments : tuple of RampSegment
+        Each branch between reversals, with its direction and steady rate.
+    order : int
+        The curve's order (0 … 3).
+    bic_by_order : dict of int to float
+        BIC of every order tried.
+    noise : NoiseModel
+        The fitted AR noise model (white plus Gauss–Markov drift).
+    noise_sigma : float
+        The white noise's standard deviation, output units.
+    dof : int
+        Degrees of freedom of the final fit.
+    block_s : float
+        Averaging block, in s.
+    block_t_s : ndarray
+        Block mean times, in s.
+    block_output : ndarray
+        Block mean outputs, output units.
+    block_temperature_c : ndarray
+        Block mean sensor temperatures, in °C.
+    block_rate_c_per_min : ndarray
+        The sensor's rate at each block, in °C/min.
+    block_branch : ndarray of int
+        +1 up, −1 down, 0 before the first branch is known.
+    block_used : ndarray of bool
+        Blocks every fit used.
+    block_residual : ndarray
+        Output − fitted model per block, output units.
+    """
 
     curve: PolynomialCurve
     hysteresis: Estimate | None
@@ -201,7 +268,9 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
                          settle_s: float | None = None, lag_s: float | None = None, lag_max_s: float = 7200.0,
                          min_separation: float = 0.1, steady_tolerance: float = 0.1,
                          steady_window_s: float = 600.0) -> ThermalRampResult:
-    """Analyse a static record over an up-and-down temperature ramp (module docstring).
+    """Bias over temperature, hysteresis and rate sensitivity from a static record over a temperature ramp.
+
+    Analyse a static record over an up-and-down temperature ramp (module docstring).
 
     ``t_s`` (s, increasing), ``output`` (any unit), ``temperature_c`` (the unit's sensor, °C)
     of one length. ``order`` fixes the curve's order (0 … 3; None: BIC). ``block_s`` (0, 3600]
@@ -210,7 +279,87 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     out after each reversal (default 600 s, or a quarter of the record); ``lag_s`` the element's lag behind
     the sensor in s, [0, 1e5], or None to fit it within [0, ``lag_max_s``];
     ``min_separation`` (0, 1), ``steady_tolerance`` (0, 1) and ``steady_window_s``
-    [rate_window_s, record/4] the identifiability check.
+    [rate_window_s, record/4] the identifiability check. The model
+    ``y = p(T_e) + h·s/2 + k·Ṫ + noise`` is fitted by feasible GLS under an AR noise model on
+    block means; h and k separate only when the steady rate takes more values than the branch
+    explains (ramps at two rates).
+
+    Parameters
+    ----------
+    t_s : array_like, shape (N,)
+        Sample times, in s, strictly increasing; N ≥ 40.
+    output : array_like, shape (N,)
+        The unit's static output (bias plus a constant input), any unit.
+    temperature_c : array_like, shape (N,)
+        The unit's own sensor temperature, in °C, within −100 … 200; it must reverse (up and
+        down) by more than ``reversal_band_c``.
+    order : int, optional
+        The curve's order, 0 … 3; None chooses it by BIC.
+    reference_c : float, default 25.0
+        Reference temperature of the curve, in °C.
+    block_s : float, default 60.0
+        Averaging block, in s, in (0, 3600]; the record must give ≥ 40 blocks.
+    rate_window_s : float, default 180.0
+        Window of the rate's local slope, in s, in [2·block_s, record/4].
+    reversal_band_c : float, default 0.5
+        Dead band for reversals, in °C, in (0, 20].
+    settle_s : float, optional
+        Time left out after each reversal, in s, in [0, record/4]; default 600 s or a quarter
+        of the record.
+    lag_s : float, optional
+        The element's lag behind the sensor, in s, in [0, 1e5]; None fits it within
+        [0, ``lag_max_s``].
+    lag_max_s : float, default 7200.0
+        Largest lag fitted, in s, in (0, 1e5].
+    min_separation : float, default 0.1
+        Separation below which a term is not separable, in (0, 1].
+    steady_tolerance : float, default 0.1
+        Rate agreement that makes a block steady, as a fraction of the largest rate, in (0, 1].
+    steady_window_s : float, default 600.0
+        Distance before and after a block whose rates must agree, in s, in
+        [rate_window_s, record/4].
+
+    Returns
+    -------
+    ThermalRampResult
+        The bias curve, hysteresis and rate sensitivity (or why not), their combination, the
+        lag, the branch difference curve, the noise model and the block-level arrays.
+
+    Raises
+    ------
+    ValueError
+        If the arrays are not 1-D of one length, finite, with increasing times and ≥ 40
+        samples, or the temperature is out of range; a setting is outside its range; the
+        record gives fewer than 40 blocks, never reverses by more than ``reversal_band_c``, or
+        leaves no up or no down branch after ``settle_s``; or the branches share no
+        temperature range.
+
+    Examples
+    --------
+    A 5-h record: chamber air ramping 25 → 70 → −20 °C at 1 °C/min, then 70 and −20 at
+    2 °C/min; the unit's case follows it with τ = 300 s. The unit: bias curve, 20 µg
+    hysteresis (its branch flips once the case has turned back), 15 µg per °C/min and 2 µg
+    of white noise.
+
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from bench.analysis.thermal import analyze_thermal_ramp
+    >>> t = np.arange(0.0, 18000.0, 10.0)
+    >>> air = np.interp(t, [0, 2700, 8100, 10800, 13500, 18000], [25, 70, -20, 70, -20, 25])
+    >>> a = np.exp(-10.0 / 300.0)
+    >>> case = lfilter([1 - a], [1, -a], air, zi=[a * air[0]])[0]
+    >>> rate = np.gradient(case, t) * 60.0  # °C/min
+    >>> branch = np.sign(np.interp(t - 300.0, t, rate))
+    >>> rng = np.random.default_rng(0)
+    >>> y = (1e-3 + 10e-6 * (case - 25) + 3e-8 * (case - 25) ** 2 + 20e-6 / 2 * branch + 15e-6 * rate
+    ...      + 2e-6 * rng.standard_normal(t.size))
+    >>> r = analyze_thermal_ramp(t, y, case + 0.01 * rng.standard_normal(t.size), lag_s=0.0)
+    >>> r.order, r.not_separable
+    (2, {})
+    >>> round(r.hysteresis.value * 1e6, 1), round(r.rate_sensitivity.value * 1e6, 1)  # µg, µg per °C/min
+    (20.1, 14.9)
+    >>> bool(abs(r.hysteresis.value - 20e-6) < 3 * r.hysteresis.std)
+    True
     """
     t = np.asarray(t_s, dtype=float)
     y_raw = np.asarray(output, dtype=float)

@@ -33,9 +33,33 @@ from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C, check_int, chec
 
 @dataclass(frozen=True)
 class SoakCriterion:
-    """Stability criterion (module docstring). Ranges: ``window_s`` (0, 86400];
+    """When a unit counts as soaked: rate, spread and (optionally) target limits over a trailing window.
+
+    Stability criterion (module docstring). Ranges: ``window_s`` (0, 86400];
     ``max_rate_c_per_min`` (0, 10]; ``band_c`` (0, 20]; ``min_samples`` 3 … 10⁶;
-    ``target_c`` None or −100 … 200; ``target_tolerance_c`` (0, 50]."""
+    ``target_c`` None or −100 … 200; ``target_tolerance_c`` (0, 50].
+
+    Parameters
+    ----------
+    window_s : float, default 600.0
+        Trailing window judged, in s, in (0, 86400].
+    max_rate_c_per_min : float, default 0.05
+        Largest |slope| of the window's least-squares line, in °C/min, in (0, 10].
+    band_c : float, default 0.2
+        Largest max − min of the readings in the window, in °C, in (0, 20]; choose it above
+        the sensor's own peak-to-peak noise.
+    min_samples : int, default 10
+        Fewest readings in the window, 3 … 10⁶.
+    target_c : float, optional
+        Temperature the window's mean must be near, in °C (−100 … 200); None: no target.
+    target_tolerance_c : float, default 2.0
+        Largest |mean − target_c|, in °C, in (0, 50].
+
+    Raises
+    ------
+    ValueError
+        If a field is outside its range (the message names it).
+    """
 
     window_s: float = 600.0
     max_rate_c_per_min: float = 0.05
@@ -56,8 +80,28 @@ class SoakCriterion:
 
 @dataclass(frozen=True)
 class SoakStatus:
-    """The criterion judged at ``t_s`` over the window ending there. ``reason`` says why it
-    is not stable (empty when it is); the figures are None until the window is covered."""
+    """A soak criterion judged at one reading: stable or not, the window's figures and why.
+
+    The criterion judged at ``t_s`` over the window ending there. ``reason`` says why it
+    is not stable (empty when it is); the figures are None until the window is covered.
+
+    Attributes
+    ----------
+    stable : bool
+        Every condition of the criterion holds.
+    t_s : float
+        Time of the reading judged (the window's end), in s.
+    rate_c_per_min : float or None
+        Slope of the window's least-squares line, in °C/min.
+    spread_c : float or None
+        Max − min of the readings in the window, in °C.
+    mean_c : float or None
+        Mean of the readings in the window, in °C.
+    samples : int
+        Readings in the window (0 until the window is covered).
+    reason : str
+        Why it is not stable, conditions joined by ``"; "``; empty when stable.
+    """
 
     stable: bool
     t_s: float
@@ -134,9 +178,54 @@ def _start(t: np.ndarray, start_s) -> float:
 
 
 def soak_status(t_s, temp_c, criterion: SoakCriterion, *, start_s: float | None = None) -> SoakStatus:
-    """Is the unit stable at its last reading? ``t_s`` (s, increasing) and ``temp_c`` (°C):
-    the unit's sensor so far; ``start_s``: when the set point was commanded (default the
-    first reading). Reads, and checks, only the trailing window and the first reading."""
+    """Is the unit stable at its last reading?
+
+    ``t_s`` (s, increasing) and ``temp_c`` (°C): the unit's sensor so far; ``start_s``: when
+    the set point was commanded (default the first reading). Reads, and checks, only the
+    trailing window and the first reading, so a procedure polling the sensor can call it after
+    each reading. The window must lie wholly after ``start_s`` (module docstring).
+
+    Parameters
+    ----------
+    t_s : array_like, shape (N,)
+        Reading times, in s, strictly increasing; N ≥ 1.
+    temp_c : array_like, shape (N,)
+        The unit's sensor temperature, in °C, within −100 … 200.
+    criterion : SoakCriterion
+        The stability criterion.
+    start_s : float, optional
+        When the set point was commanded, in s, not after the last reading; default the
+        first reading.
+
+    Returns
+    -------
+    SoakStatus
+        Whether the criterion holds at the last reading, the window's rate (°C/min), spread
+        and mean (°C), and the reason when it does not.
+
+    Raises
+    ------
+    ValueError
+        If the arrays are not 1-D of one length ≥ 1, the window's readings (or the first) are
+        not finite, not increasing or outside −100 … 200 °C, or ``start_s`` is not finite or
+        after the last reading.
+
+    Examples
+    --------
+    A unit settling exponentially (τ = 400 s) from 45 °C onto 25 °C, read every 10 s:
+
+    >>> import numpy as np
+    >>> from bench.analysis.thermal import SoakCriterion, soak_status
+    >>> t = np.arange(0.0, 3600.0, 10.0)
+    >>> temp = 25.0 + 20.0 * np.exp(-t / 400.0) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    >>> c = SoakCriterion(window_s=300.0, max_rate_c_per_min=0.05, band_c=0.2, target_c=25.0)
+    >>> early = soak_status(t[:60], temp[:60], c)
+    >>> early.stable, early.reason
+    (False, 'rate -1.014 °C/min beyond ±0.05; spread 5.12 °C > band 0.2; mean 31.83 °C not within 2 of target 25')
+    >>> late = soak_status(t, temp, c)
+    >>> late.stable, late.samples, round(late.mean_c, 2)
+    (True, 31, 25.0)
+    """
     t = np.asarray(t_s, dtype=float)
     y = np.asarray(temp_c, dtype=float)
     if t.ndim != 1 or t.shape != y.shape or t.size == 0:

@@ -37,7 +37,45 @@ _PPM = 1e6
 @dataclass(frozen=True, eq=False)
 class QuantityVerification:
     """One quantity's errors over the verification temperatures, in ``error_unit`` ("ppm"
-    for a scale factor, the quantity's unit otherwise)."""
+    for a scale factor, the quantity's unit otherwise).
+
+    Attributes
+    ----------
+    name : str
+        The quantity's name.
+    role : str
+        Its role in the output model.
+    error_unit : str
+        Unit of every error below.
+    temperature_c : ndarray, shape (m,)
+        Verification temperatures used, in °C.
+    compensated_error : ndarray, shape (m,)
+        e_c = q_v(T) − q̂(T) (relative, in ppm, for a scale factor).
+    compensated_std : ndarray, shape (m,)
+        Its standard uncertainty (run and model).
+    uncompensated_error : ndarray, shape (m,)
+        e_u = q_v(T) − q̂(T_ref).
+    uncompensated_std : ndarray, shape (m,)
+        Its standard uncertainty.
+    compensated_rms : float
+        RMS of the compensated errors.
+    compensated_max_abs : float
+        Largest |compensated error|.
+    uncompensated_rms : float
+        RMS of the uncompensated errors.
+    uncompensated_max_abs : float
+        Largest |uncompensated error|.
+    noise_rms : float
+        RMS of the compensated errors' standard uncertainties: what the noise alone allows.
+    chi2 : float
+        eᵀ Σ⁻¹ e of the compensated errors with their full covariance.
+    dof : int
+        Degrees of freedom of the χ² test (the number of points).
+    p_value : float
+        P(χ²_dof ≥ chi2): small when the compensation leaves more than the noise.
+    skipped_temperatures_c : ndarray
+        Run temperatures outside the model's valid range, left out (``outside="skip"``).
+    """
 
     name: str
     role: str
@@ -69,7 +107,17 @@ class QuantityVerification:
 
 @dataclass(frozen=True, eq=False)
 class CompensationVerification:
-    """Every verified quantity, and the model's quantities the run did not measure."""
+    """Every verified quantity, and the model's quantities the run did not measure.
+
+    Index it by name: ``verification["k0"]`` is that quantity's errors.
+
+    Attributes
+    ----------
+    quantities : tuple of QuantityVerification
+        One per quantity both the model and the run hold, in the model's order.
+    not_verified : tuple of str
+        Names of the model's quantities the run did not measure.
+    """
 
     quantities: tuple[QuantityVerification, ...]
     not_verified: tuple[str, ...]
@@ -135,9 +183,59 @@ def _verify_one(model: CompensationModel, q: QuantityCompensation, points: Quant
 
 def verify_compensation(model: CompensationModel, run: Sequence[QuantityPoints], *,
                         outside: str = "raise") -> CompensationVerification:
-    """Errors of the second ``run``'s quantities against ``model`` (matched by name, roles
-    must agree). ``outside``: "raise" on a run temperature outside the model's valid range,
-    or "skip" such points (they are listed in ``skipped_temperatures_c``)."""
+    """Errors of a second run's quantities against a compensation model.
+
+    The second ``run``'s quantities against ``model`` (matched by name, roles must agree).
+    ``outside``: "raise" on a run temperature outside the model's valid range, or "skip" such
+    points (they are listed in ``skipped_temperatures_c``). Compensated and uncompensated
+    errors, their uncertainties and the χ² consistency test are defined in the module
+    docstring: a compensation that works leaves ``compensated_rms`` ≈ ``noise_rms`` and a
+    p-value that is not small.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The compensation model under test.
+    run : sequence of QuantityPoints
+        The verification run's estimates over its own temperatures (°C), at least one; names
+        unique and in the model, roles as in the model.
+    outside : {"raise", "skip"}, default "raise"
+        What to do with a run temperature outside the model's ``valid_range_c``.
+
+    Returns
+    -------
+    CompensationVerification
+        Per quantity: compensated and uncompensated errors (ppm for a scale factor, its unit
+        otherwise), their RMS, the noise RMS and the χ² test; and the quantities not verified.
+
+    Raises
+    ------
+    ValueError
+        If ``outside`` is unknown, ``run`` is empty, names a quantity not in the model or
+        repeats a name, a role differs from the model's, a temperature is outside the valid
+        range with ``outside="raise"``, or a quantity has no temperature within it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bench.analysis.thermal import QuantityPoints, calibrate_over_temperature, compensation_model
+    >>> from bench.analysis.thermal import verify_compensation
+    >>> t = np.array([-40.0, -20.0, 0.0, 25.0, 45.0, 70.0])
+    >>> bias = QuantityPoints("k0", "bias", "g", t, 2e-3 + 5e-5 * (t - 25), np.full(t.size, 1e-5))
+    >>> sf = QuantityPoints("k1", "scale_factor", "mA/g", t, 1.2 * (1 + 100e-6 * (t - 25)), np.full(t.size, 1e-5))
+    >>> model = compensation_model(calibrate_over_temperature([bias, sf]), unit_serial="QA-0001",
+    ...                            unit_model="QA-2000", input_unit="g", output_unit="mA")
+    >>> t2 = np.array([-35.0, -5.0, 35.0, 65.0])  # a second run, other temperatures, 10 µg noise
+    >>> b2 = 2e-3 + 5e-5 * (t2 - 25) + 1e-5 * np.random.default_rng(0).standard_normal(t2.size)
+    >>> v = verify_compensation(model, [QuantityPoints("k0", "bias", "g", t2, b2, np.full(t2.size, 1e-5))])
+    >>> v.not_verified, v["k0"].error_unit, v["k0"].dof
+    (('k1',), 'g', 4)
+    >>> q = v["k0"]  # µg: compensated ≈ noise, uncompensated ≈ 2 mg
+    >>> round(q.compensated_rms * 1e6, 1), round(q.noise_rms * 1e6, 1), round(q.uncompensated_rms * 1e6)
+    (3.4, 11.6, 1969)
+    >>> bool(q.p_value > 0.05)
+    True
+    """
     check_choice("outside", outside, OUTSIDE)
     if not run:
         raise ValueError("run is empty: give the verification run's quantities")

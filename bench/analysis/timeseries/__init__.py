@@ -1,5 +1,14 @@
 """Stationary time-series models: ACF/PACF identification, AR and ARMA fits, order selection, whiteness.
 
+The Box–Jenkins workflow for a zero-mean stationary series (lags in samples; the
+sampling interval stays with the caller): :func:`correlogram` and :func:`identify` propose
+a model class and orders from the ACF/PACF cut-off/tail-off table, :func:`select_order`
+fills the AIC/BIC table over a grid of orders, :func:`fit_ar` (Ulrych–Clayton, Burg or
+Yule–Walker), :func:`fit_arma_css` (conditional least squares) and :func:`fit_arma_ml`
+(exact maximum likelihood) return an :class:`ArmaFit`, and :func:`ljung_box` tests the
+residuals' whiteness.  The model is
+``x_k = Σ φ_i x_{k−i} + e_k + Σ θ_j e_{k−j}`` (statsmodels' sign convention).
+
 What a user calls::
 
     correlogram, Correlogram, identify, Identification, sample_acf, sample_pacf

@@ -46,7 +46,38 @@ def check_order(order: int, n: int, name: str = "p") -> int:
 
 
 def sample_acf(x: np.ndarray, nlags: int) -> np.ndarray:
-    """Biased sample autocorrelation ``r_0..r_nlags`` (``r_0 = 1``), computed by FFT."""
+    """Biased sample autocorrelation ``r_0..r_nlags`` (``r_0 = 1``), computed by FFT.
+
+    ``r_k = c_k / c_0`` with ``c_k = (1/n) Σ_{t=k}^{n-1} x̃_t x̃_{t-k}`` of the demeaned series
+    ``x̃`` (the biased estimate, which keeps Toeplitz matrices positive definite).
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit; finite, not constant, n ≥ 2.
+    nlags : int
+        Largest lag, in samples, in ``[0, n − 1]``.
+
+    Returns
+    -------
+    ndarray of float, shape (nlags + 1,)
+        ``r_0..r_nlags`` (dimensionless, ``r_0 = 1``), index = lag.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not 1-D, has fewer than 2 samples, a non-finite value or is constant,
+        or ``nlags`` is outside ``[0, n − 1]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6
+    >>> from bench.analysis.timeseries import sample_acf
+    >>> sample_acf(x, 3).round(2).tolist()  # φ^k
+    [1.0, 0.6, 0.36, 0.21]
+    """
     xd = as_series(x, 2)
     n = xd.size
     if not 0 <= nlags < n:
@@ -80,7 +111,38 @@ def levinson_durbin(r: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray, 
 
 
 def sample_pacf(x: np.ndarray, nlags: int) -> np.ndarray:
-    """Partial autocorrelation ``pacf[0..nlags]`` by Levinson–Durbin on the biased ACF."""
+    """Partial autocorrelation ``pacf[0..nlags]`` by Levinson–Durbin on the biased ACF.
+
+    ``pacf[k]`` is the last coefficient of the Yule–Walker AR(k) fit (the reflection
+    coefficient κ_k); the PACF of an AR(p) vanishes beyond lag p.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit; finite, not constant, n ≥ 2.
+    nlags : int
+        Largest lag, in samples, in ``[0, n − 1]``.
+
+    Returns
+    -------
+    ndarray of float, shape (nlags + 1,)
+        Partial autocorrelations (dimensionless, ``pacf[0] = 1``), index = lag.
+
+    Raises
+    ------
+    ValueError
+        As :func:`sample_acf`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6
+    >>> from bench.analysis.timeseries import sample_pacf
+    >>> pacf = sample_pacf(x, 3)
+    >>> round(float(pacf[1]), 2), bool(np.all(np.abs(pacf[2:]) < 2 / np.sqrt(x.size)))  # cuts off after lag 1
+    (0.6, True)
+    """
     return levinson_durbin(sample_acf(x, nlags), nlags)[1]
 
 
@@ -91,6 +153,23 @@ class Correlogram:
     ``acf_band[k]`` follows Bartlett's formula (an MA(k-1) null hypothesis, the right
     test for "the ACF cuts off after lag k-1"); ``pacf_band`` is ``z / sqrt(n)`` (the
     PACF of an AR(p) is asymptotically N(0, 1/n) beyond lag p).  Index = lag.
+
+    Attributes
+    ----------
+    acf : ndarray of float, shape (nlags + 1,)
+        Biased sample autocorrelation, ``acf[0] = 1`` (dimensionless).
+    acf_band : ndarray of float, shape (nlags + 1,)
+        Half-width of the ACF band at each lag, ``z·sqrt((1 + 2 Σ_{j<k} r_j²)/n)``; 0 at lag 0.
+    pacf : ndarray of float, shape (nlags + 1,)
+        Sample partial autocorrelation, ``pacf[0] = 1``.
+    pacf_band : float
+        Half-width of the PACF band, ``z / sqrt(n)``.
+    alpha : float
+        Significance level of the bands, in (0, 1).
+    n : int
+        Length of the series, in samples.
+    nlags : int
+        Property: largest lag.
     """
 
     acf: np.ndarray
@@ -102,11 +181,48 @@ class Correlogram:
 
     @property
     def nlags(self) -> int:
+        """Largest lag of the correlogram, in samples."""
         return self.acf.size - 1
 
 
 def correlogram(x: np.ndarray, nlags: int | None = None, alpha: float = 0.05) -> Correlogram:
-    """ACF and PACF of ``x`` up to ``nlags`` (default ``min(max(20, 10 log10 n), n // 4)``)."""
+    """ACF and PACF of ``x`` up to ``nlags`` (default ``min(max(20, 10 log10 n), n // 4)``).
+
+    Bands are two-sided at level ``1 − alpha`` with ``z = Φ⁻¹(1 − alpha/2)``: Bartlett's
+    formula for the ACF, ``z / sqrt(n)`` for the PACF (see :class:`Correlogram`).
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit; finite, not constant, n ≥ 8.
+    nlags : int, optional
+        Largest lag in samples, in ``[1, n // 2]``; default ``min(max(20, 10 log10 n), n // 4)``.
+    alpha : float, default 0.05
+        Significance level of the bands, in (0, 1).
+
+    Returns
+    -------
+    Correlogram
+        ACF, PACF and their band half-widths, index = lag.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` has fewer than 8 samples (or fails :func:`sample_acf`'s checks), ``alpha`` is
+        outside (0, 1) or ``nlags`` outside ``[1, n // 2]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6
+    >>> from bench.analysis.timeseries import correlogram
+    >>> c = correlogram(x)
+    >>> c.nlags, round(c.pacf_band, 4)  # 10 log10(5000) lags; 1.96 / sqrt(5000)
+    (36, 0.0277)
+    >>> bool(c.acf[1] > c.acf_band[1]), bool(abs(c.pacf[2]) < c.pacf_band)
+    (True, True)
+    """
     n = np.asarray(x).size
     if n < 8:
         raise ValueError(f"x has {n} samples; at least 8 are required for a correlogram")
@@ -130,7 +246,25 @@ def correlogram(x: np.ndarray, nlags: int | None = None, alpha: float = 0.05) ->
 
 @dataclass(frozen=True)
 class Identification:
-    """Model class and initial orders proposed by Document A's ACF/PACF table."""
+    """Model class and initial orders proposed by Document A's ACF/PACF table.
+
+    Returned by :func:`identify`.
+
+    Attributes
+    ----------
+    kind : {"AR", "MA", "ARMA"}
+        Proposed model class.
+    p : int
+        Proposed AR order.
+    q : int
+        Proposed MA order.
+    acf_cutoff : int or None
+        Last significant ACF lag if the ACF cuts off, else None (it tails off).
+    pacf_cutoff : int or None
+        Last significant PACF lag if the PACF cuts off, else None.
+    reason : str
+        The rule that decided, in words.
+    """
 
     kind: Literal["AR", "MA", "ARMA"]
     p: int
@@ -163,7 +297,36 @@ def cutoff_lag(values: np.ndarray, band: np.ndarray | float, max_order: int, alp
 
 def identify(corr: Correlogram, max_order: int = 8) -> Identification:
     """Apply the cut-off/tail-off rules: AR if only the PACF cuts off, MA if only the ACF,
-    the shorter of the two if both do (parsimony), ARMA(1, 1) to start with if neither."""
+    the shorter of the two if both do (parsimony), ARMA(1, 1) to start with if neither.
+
+    A sequence cuts off after lag k when lag k is at least twice its band, lag k + 1 is
+    inside, and no more later lags stick out than white noise would by chance
+    (:func:`~bench.analysis.timeseries._acf.cutoff_lag`); otherwise it tails off.
+
+    Parameters
+    ----------
+    corr : Correlogram
+        ACF/PACF with bands, from :func:`correlogram`.
+    max_order : int, default 8
+        Largest cut-off lag (model order) considered, in samples.
+
+    Returns
+    -------
+    Identification
+        Model class, initial orders ``p``, ``q``, the cut-off lags and the reason.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6
+    >>> from bench.analysis.timeseries import correlogram, identify
+    >>> ident = identify(correlogram(x))
+    >>> ident.kind, ident.p, ident.q
+    ('AR', 1, 0)
+    >>> ident.reason
+    'PACF cuts off after lag 1; ACF tails off'
+    """
     a = cutoff_lag(corr.acf, corr.acf_band, max_order, corr.alpha)
     p = cutoff_lag(corr.pacf, corr.pacf_band, max_order, corr.alpha)
     if p is not None and (a is None or p <= a):

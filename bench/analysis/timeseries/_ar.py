@@ -52,6 +52,38 @@ def ulrych_clayton(x: np.ndarray, p: int, _full: np.ndarray | None = None) -> tu
     over ``φ``: the forward and the time-reversed (backward) prediction errors share one
     coefficient vector.  Returns ``(phi, sigma2)`` with ``sigma2`` the mean of the ``2(n-p)``
     squared errors.  Stationarity is not guaranteed (unlike Burg/Yule–Walker).
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit ``u``; finite, not constant; the sample mean is removed first.
+    p : int
+        AR order, a non-negative integer ≤ ``n // 10`` (10 samples per coefficient).
+    _full : ndarray, optional
+        Internal: precomputed lag sums of the demeaned series, shared when fitting every order.
+
+    Returns
+    -------
+    phi : ndarray of float, shape (p,)
+        AR coefficients φ1..φp of ``x_k = Σ φ_i x_{k−i} + e_k`` (dimensionless).
+    sigma2 : float
+        Innovation variance estimate, in ``u²``.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not 1-D, has fewer than 2 samples, a non-finite value or is constant, or
+        ``p`` is not a non-negative integer ≤ ``n // 10``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6, σ² = 1
+    >>> from bench.analysis.timeseries import ulrych_clayton
+    >>> phi, sigma2 = ulrych_clayton(x, 1)
+    >>> round(float(phi[0]), 2), round(sigma2, 2)
+    (0.6, 0.99)
     """
     xd = as_series(x, 2)
     p = check_order(p, xd.size)
@@ -65,7 +97,42 @@ def ulrych_clayton(x: np.ndarray, p: int, _full: np.ndarray | None = None) -> tu
 
 
 def burg(x: np.ndarray, p: int) -> tuple[np.ndarray, float]:
-    """AR(p) by Burg's method; ``sigma2`` is the mean squared forward–backward error."""
+    """AR(p) by Burg's method; ``sigma2`` is the mean squared forward–backward error.
+
+    Each order's reflection coefficient ``κ_k = 2 Σ f b / (Σ f² + Σ b²)`` minimises the
+    forward plus backward prediction error power, so |κ_k| ≤ 1 and the model is always
+    stationary.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit ``u``; finite, not constant; the sample mean is removed first.
+    p : int
+        AR order, a non-negative integer ≤ ``n // 10`` (10 samples per coefficient).
+
+    Returns
+    -------
+    phi : ndarray of float, shape (p,)
+        AR coefficients φ1..φp of ``x_k = Σ φ_i x_{k−i} + e_k`` (dimensionless).
+    sigma2 : float
+        Innovation variance estimate, in ``u²``.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not 1-D, has fewer than 2 samples, a non-finite value or is constant, or
+        ``p`` is not a non-negative integer ≤ ``n // 10``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6, σ² = 1
+    >>> from bench.analysis.timeseries import burg
+    >>> phi, sigma2 = burg(x, 2)
+    >>> phi.round(2).tolist(), round(sigma2, 2)
+    ([0.6, 0.0], 0.99)
+    """
     phi, sigma2 = burg_path(as_series(x, 2), check_order(p, np.asarray(x).size))
     return phi[-1], float(sigma2[-1])
 
@@ -89,7 +156,41 @@ def burg_path(xd: np.ndarray, pmax: int) -> tuple[list[np.ndarray], np.ndarray]:
 
 
 def yule_walker(x: np.ndarray, p: int) -> tuple[np.ndarray, float]:
-    """AR(p) by Yule–Walker (method of moments) on the biased autocovariances."""
+    """AR(p) by Yule–Walker (method of moments) on the biased autocovariances.
+
+    Solves ``Γ_p φ = γ`` (Toeplitz, biased autocovariances) by Levinson–Durbin; the biased
+    estimates keep ``Γ_p`` positive definite, so the model is stationary.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit ``u``; finite, not constant; the sample mean is removed first.
+    p : int
+        AR order, a non-negative integer ≤ ``n // 10`` (10 samples per coefficient).
+
+    Returns
+    -------
+    phi : ndarray of float, shape (p,)
+        AR coefficients φ1..φp of ``x_k = Σ φ_i x_{k−i} + e_k`` (dimensionless).
+    sigma2 : float
+        Innovation variance estimate, in ``u²``.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not 1-D, has fewer than 2 samples, a non-finite value or is constant, or
+        ``p`` is not a non-negative integer ≤ ``n // 10``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6, σ² = 1
+    >>> from bench.analysis.timeseries import yule_walker
+    >>> phi, sigma2 = yule_walker(x, 1)
+    >>> round(float(phi[0]), 2), round(sigma2, 2)
+    (0.6, 0.99)
+    """
     xd = as_series(x, 2)
     p = check_order(p, xd.size)
     r = np.array([xd[k:] @ xd[: xd.size - k] for k in range(p + 1)]) / xd.size

@@ -4,9 +4,9 @@ This module holds the fitted-model layer: :class:`ArmaFit`, the AR fit with
 standard errors and conditional likelihood (:func:`fit_ar`), exact ML (:func:`fit_arma_ml`)
 and conditional-least-squares ARMA fitting (:func:`fit_arma_css`, Hannan–Rissanen start
 values), and order selection by AIC/BIC (:func:`select_order`, :func:`burg_bic`).  It is
-the module callers import from: it re-exports the correlation and identification tools
-of :mod:`.timeseries_acf`, the AR estimators of :mod:`.timeseries_ar` and the Ljung–Box
-test of :mod:`.timeseries_diag`.
+the module the library's other methods import from: it re-exports the correlation and
+identification tools of :mod:`._acf`, the AR estimators of :mod:`._ar` and the Ljung–Box
+test of :mod:`._diag` (users import from :mod:`bench.analysis.timeseries`).
 
 Conventions used throughout:
 
@@ -70,7 +70,44 @@ __all__ = [
 
 @dataclass(frozen=True, eq=False)
 class ArmaFit:
-    """A fitted zero-mean ARMA(p, q) model (conventions in the module docstring)."""
+    """A fitted zero-mean ARMA(p, q) model (conventions in the module docstring).
+
+    ``x_k = φ1 x_{k-1} + … + φp x_{k-p} + e_k + θ1 e_{k-1} + … + θq e_{k-q}``, ``e_k`` white
+    with variance ``sigma2``; ``x`` is the series with its sample mean removed, in unit ``u``.
+
+    Attributes
+    ----------
+    kind : {"AR", "MA", "ARMA"}
+        Model class (``"AR"`` also for p = q = 0, white noise).
+    p : int
+        AR order.
+    q : int
+        MA order.
+    ar : tuple of float
+        φ1..φp (dimensionless).
+    ma : tuple of float
+        θ1..θq (dimensionless, statsmodels' sign convention).
+    ar_std : tuple of float
+        Standard errors of ``ar``.
+    ma_std : tuple of float
+        Standard errors of ``ma``.
+    sigma2 : float
+        Innovation variance, in ``u²``.
+    loglik : float
+        Gaussian log-likelihood (conditional for ``fit_ar``/``fit_arma_css``, exact for ``fit_arma_ml``).
+    aic : float
+        ``-2 ln L + 2k``, ``k = p + q + 1``.
+    bic : float
+        ``-2 ln L + k ln n``.
+    method : str
+        Estimator: an AR method name, ``"ml"`` or ``"css"`` (or a note on a fallback).
+    n : int
+        Length of the series, in samples.
+    residuals : ndarray of float
+        One-step prediction errors, in ``u`` (AR fits: from sample p on).
+    is_stationary : bool
+        Property: every root of ``1 - Σ φ_k z^k`` lies outside the unit circle.
+    """
 
     kind: Literal["AR", "MA", "ARMA"]
     p: int
@@ -120,6 +157,44 @@ def fit_ar(x: np.ndarray, p: int, method: ArMethod = "ulrych-clayton", n_conditi
     matrix of sample autocovariances), shared by all three estimators.  ``n_condition``
     (default ``p``) sets the samples conditioned on in the likelihood, so a table of orders
     can use one common sample.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit ``u``; finite, not constant, n ≥ 16; the sample mean is removed.
+    p : int
+        AR order, a non-negative integer ≤ ``n // 10``.
+    method : {"ulrych-clayton", "burg", "yule-walker"}, default "ulrych-clayton"
+        Estimator (:func:`ulrych_clayton`, :func:`burg`, :func:`yule_walker`).
+    n_condition : int, optional
+        Samples conditioned on in the likelihood, in ``[p, n // 2 − 1]``; default ``p``.
+
+    Returns
+    -------
+    ArmaFit
+        ``kind="AR"``, coefficients with standard errors, ``sigma2`` in ``u²``, conditional
+        log-likelihood, AIC/BIC, and the ``n − p`` residuals in ``u``.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not 1-D, has fewer than 16 samples, a non-finite value or is constant,
+        ``p`` is not a non-negative integer ≤ ``n // 10``, ``n_condition`` is outside
+        ``[p, n // 2 − 1]`` or ``method`` is not one of :data:`AR_METHODS`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6, σ² = 1
+    >>> from bench.analysis.timeseries import fit_ar
+    >>> fit = fit_ar(x, 1)
+    >>> fit.kind, fit.method, fit.residuals.size
+    ('AR', 'ulrych-clayton', 4999)
+    >>> bool(abs(fit.ar[0] - 0.6) < 3 * fit.ar_std[0]), round(fit.ar_std[0], 3)
+    (True, 0.011)
+    >>> round(fit.sigma2, 2), fit.is_stationary
+    (0.99, True)
     """
     xd = as_series(x, 16)
     p = check_order(p, xd.size)
@@ -143,6 +218,40 @@ def fit_arma_ml(x: np.ndarray, p: int, q: int) -> ArmaFit:
 
     Uses the innovations-algorithm likelihood (same optimum as the state-space one, several
     times faster); stationarity and invertibility are enforced by the parametrisation.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit ``u``; finite, not constant, n ≥ 16; the sample mean is removed.
+    p : int
+        AR order, a non-negative integer ≤ ``n // 10``.
+    q : int
+        MA order, a non-negative integer ≤ ``n // 10``.
+
+    Returns
+    -------
+    ArmaFit
+        ``method="ml"``: coefficients with standard errors, ``sigma2`` in ``u²``, exact
+        log-likelihood, AIC/BIC and the ``n`` residuals in ``u``.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not 1-D, has fewer than 16 samples, a non-finite value or is constant, or
+        ``p`` or ``q`` is not a non-negative integer ≤ ``n // 10``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> e = np.random.default_rng(1).normal(size=3000)
+    >>> x = lfilter([1.0, 0.4], [1.0, -0.5], e)  # ARMA(1, 1): φ = 0.5, θ = 0.4, σ² = 1
+    >>> from bench.analysis.timeseries import fit_arma_ml
+    >>> fit = fit_arma_ml(x, 1, 1)
+    >>> fit.kind, fit.method
+    ('ARMA', 'ml')
+    >>> round(fit.ar[0], 1), round(fit.ma[0], 1), round(fit.sigma2, 1)
+    (0.5, 0.4, 1.0)
     """
     xd = as_series(x, 16)
     p, q = check_order(p, xd.size, "p"), check_order(q, xd.size, "q")
@@ -222,6 +331,50 @@ def fit_arma_css(
     (:func:`_css_start`).  ``_long_ar`` (long-AR residuals of the series the start values
     come from, :func:`_segment_long_ar`) and ``_start`` (admissible start values, e.g. a
     neighbouring fit) let a caller share work between fits.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit ``u``; finite, not constant, n ≥ 16; the sample mean is removed.
+    p : int
+        AR order, a non-negative integer ≤ ``n // 10``.
+    q : int
+        MA order, a non-negative integer ≤ ``n // 10``.
+    n_condition : int, optional
+        Leading residuals left out of the likelihood, in ``[max(p, q), n // 2 − 1]``;
+        default ``max(p, q)``.
+    _long_ar : tuple of (ndarray, int), optional
+        Internal: long-AR residuals and their order for the Hannan–Rissanen start.
+    _start : ndarray, optional
+        Internal: admissible start values ``[φ1..φp, θ1..θq]``; ignored if not admissible.
+
+    Returns
+    -------
+    ArmaFit
+        ``method="css"``: coefficients with standard errors, ``sigma2`` in ``u²``, conditional
+        log-likelihood, AIC/BIC and the ``n − n_condition`` residuals in ``u``.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not 1-D, has fewer than 16 samples, a non-finite value or is constant,
+        ``p`` or ``q`` is not a non-negative integer ≤ ``n // 10``, or ``n_condition`` is
+        outside ``[max(p, q), n // 2 − 1]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> e = np.random.default_rng(1).normal(size=3000)
+    >>> x = lfilter([1.0, 0.4], [1.0, -0.5], e)  # ARMA(1, 1): φ = 0.5, θ = 0.4, σ² = 1
+    >>> from bench.analysis.timeseries import fit_arma_css
+    >>> fit = fit_arma_css(x, 1, 1)
+    >>> fit.method, fit.residuals.size
+    ('css', 2999)
+    >>> round(fit.ar[0], 1), round(fit.ma[0], 1), round(fit.sigma2, 1)
+    (0.5, 0.4, 1.0)
+    >>> bool(abs(fit.ma[0] - 0.4) < 3 * fit.ma_std[0])
+    True
     """
     xd = as_series(x, 16)
     p, q = check_order(p, xd.size, "p"), check_order(q, xd.size, "q")
@@ -302,7 +455,21 @@ class OrderCandidate:
 
 @dataclass(frozen=True)
 class OrderSelection:
-    """AIC/BIC over a grid of orders; ``best_aic``/``best_bic`` are ``(p, q)``."""
+    """AIC/BIC over a grid of orders; ``best_aic``/``best_bic`` are ``(p, q)``.
+
+    Returned by :func:`select_order`.
+
+    Attributes
+    ----------
+    candidates : tuple of OrderCandidate
+        One cell per order pair, each with ``p``, ``q``, ``aic`` and ``bic``, in grid order.
+    best_aic : tuple of (int, int)
+        ``(p, q)`` of the smallest AIC.
+    best_bic : tuple of (int, int)
+        ``(p, q)`` of the smallest BIC.
+    method : str
+        Estimator used for every cell (the AR method, or ``"css"``).
+    """
 
     candidates: tuple[OrderCandidate, ...]
     best_aic: tuple[int, int]
@@ -319,6 +486,45 @@ def select_order(
     AR: p = 0..max_p by ``ar_method``.  MA: q = 0..max_q; ARMA: p = 0..max_p × q = 0..max_q;
     both by conditional least squares (:func:`fit_arma_css`), which is O(n) per cell.
     ``_fits``, if given, receives every MA/ARMA cell's :class:`ArmaFit` keyed by ``(p, q)``.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The series, in any unit; finite, not constant, n ≥ 16; the sample mean is removed.
+    kind : {"AR", "MA", "ARMA"}
+        Model class of the grid.
+    max_p : int
+        Largest AR order, a non-negative integer ≤ ``n // 10`` (ignored for ``"MA"``).
+    max_q : int, default 0
+        Largest MA order, a non-negative integer ≤ ``n // 10`` (ignored for ``"AR"``).
+    ar_method : {"ulrych-clayton", "burg", "yule-walker"}, default "ulrych-clayton"
+        AR estimator of an ``"AR"`` grid.
+    _fits : dict, optional
+        Internal: receives every MA/ARMA cell's :class:`ArmaFit` keyed by ``(p, q)``.
+
+    Returns
+    -------
+    OrderSelection
+        Every cell's AIC and BIC and the ``(p, q)`` each criterion picks.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` is not 1-D, has fewer than 16 samples, a non-finite value or is constant,
+        ``max_p`` or ``max_q`` is not a non-negative integer ≤ ``n // 10``, ``kind`` is not
+        ``"AR"``, ``"MA"`` or ``"ARMA"``, or ``ar_method`` is not one of :data:`AR_METHODS`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> x = lfilter([1.0], [1.0, -0.6], np.random.default_rng(0).normal(size=5000))  # AR(1), φ = 0.6, σ² = 1
+    >>> from bench.analysis.timeseries import select_order
+    >>> sel = select_order(x, "AR", 5)
+    >>> sel.best_aic, sel.best_bic, len(sel.candidates)
+    ((1, 0), (1, 0), 6)
+    >>> [c.p for c in sel.candidates]
+    [0, 1, 2, 3, 4, 5]
     """
     xd = as_series(x, 16)
     max_p = check_order(max_p, xd.size, "max_p")

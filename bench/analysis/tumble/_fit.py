@@ -66,6 +66,31 @@ def tumble_positions(n_positions: int, planes: int = 1) -> np.ndarray:
     divisible by 4, so IA up, down and both horizontals are always visited). Plane 1 has
     inner 0° — the IA–OA plane for :data:`DEFAULT_MOUNT`; ``planes=2`` adds the same
     outer angles at inner 90° — the IA–PA plane.
+
+    Parameters
+    ----------
+    n_positions : int
+        Outer-axis positions per plane, a multiple of 4 in [4, 360].
+    planes : {1, 2}, default 1
+        Tumble planes: inner 0° only, or inner 0° and 90°.
+
+    Returns
+    -------
+    ndarray of float, shape (n_positions · planes, 2)
+        Rows ``(inner_deg, outer_deg)``: table angles in degrees, plane by plane.
+
+    Raises
+    ------
+    ValueError
+        If ``n_positions`` is not an integer multiple of 4 in [4, 360], or ``planes`` is not 1 or 2.
+
+    Examples
+    --------
+    >>> from bench.analysis.tumble import tumble_positions
+    >>> tumble_positions(4).tolist()
+    [[0.0, 0.0], [0.0, 90.0], [0.0, 180.0], [0.0, 270.0]]
+    >>> tumble_positions(8, planes=2).shape
+    (16, 2)
     """
     if isinstance(n_positions, bool) or not isinstance(n_positions, (int, np.integer)) \
             or not (4 <= n_positions <= 360 and n_positions % 4 == 0):
@@ -90,6 +115,41 @@ def specific_force_iapo_g(inner_deg, outer_deg, g_over_g0: float = 1.0,
     """Specific force along (IA, PA, OA) in standard g at table angles in degrees, shape (m, 3).
 
     ``g_over_g0`` is local gravity over standard gravity (allowed 0.95 … 1.05).
+
+    In platform axes the specific force is ``g/g0 · (sin θo sin θi, sin θo cos θi, cos θo)``
+    (θi inner, θo outer); ``mount`` maps it to the sensor's (IA, PA, OA).  Sines and cosines
+    are exact at multiples of 90°, so unexcited axes give exact zeros.
+
+    Parameters
+    ----------
+    inner_deg : float or array_like of float, shape (m,)
+        Inner-axis angles θi (about platform z), in degrees; finite.
+    outer_deg : float or array_like of float, shape (m,)
+        Outer-axis angles θo (about level East), in degrees; finite, same shape as ``inner_deg``.
+    g_over_g0 : float, default 1.0
+        Local gravity over standard gravity (9.80665 m/s²), in [0.95, 1.05].
+    mount : array_like of float, shape (3, 3), default DEFAULT_MOUNT
+        Orthonormal matrix whose rows are IA, PA, OA in platform axes
+        (default IA = z, PA = x, OA = y).
+
+    Returns
+    -------
+    ndarray of float, shape (m, 3)
+        Rows ``(a_i, a_p, a_o)``, in standard g.
+
+    Raises
+    ------
+    ValueError
+        If the angle arrays are not 1-D of one length or not finite, ``g_over_g0`` is outside
+        [0.95, 1.05], or ``mount`` is not a 3×3 orthonormal matrix (‖M Mᵀ − I‖ ≤ 1e-9).
+
+    Examples
+    --------
+    >>> from bench.analysis.tumble import specific_force_iapo_g
+    >>> specific_force_iapo_g([0.0, 0.0, 90.0], [0.0, 90.0, 90.0]).tolist()  # IA up, OA up, PA up
+    [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]
+    >>> specific_force_iapo_g(0.0, 180.0, g_over_g0=0.98).tolist()  # IA down, local g
+    [[-0.98, 0.0, 0.0]]
     """
     inner = np.atleast_1d(np.asarray(inner_deg, dtype=float))
     outer = np.atleast_1d(np.asarray(outer_deg, dtype=float))
@@ -148,6 +208,48 @@ class TumbleResult:
     ``sigma_source``: "stated" (output_sigma given), "residuals" (estimated from the
     residual scatter; use ``coverage_factor_95`` = Student t for ``dof``) or "unknown".
     ``condition_number`` is that of the weighted design with unit-norm columns.
+
+    Attributes
+    ----------
+    params : dict of str to Estimate
+        Identifiable parameters among ``k0_g`` (g), ``k1_ma_per_g`` (mA/g), ``k2_g_per_g2``
+        (g/g²), ``k3_g_per_g3`` (g/g³), ``delta_o_rad``, ``delta_p_rad`` (rad),
+        ``kip_g_per_g2``, ``kio_g_per_g2`` (g/g²), in that order.
+    param_names : tuple of str
+        Keys of ``params``, the order of ``covariance``.
+    not_identifiable : dict of str to str
+        Parameters the positions cannot determine, with the reason (never excited, or aliased).
+    terms : tuple of str
+        Regressors fitted (``"1"``, ``"a_i"``, ``"a_p"``, …), the order of ``coefficients``.
+    coefficients : ndarray of float
+        Linear coefficients of ``terms``, in output units per gᵏ.
+    covariance : ndarray of float or None
+        Covariance of the parameters in their units (ordered as ``param_names``); None when
+        the noise is unknown.
+    residuals : ndarray of float, shape (m,)
+        Output − fit per position, in output units.
+    residuals_g : ndarray of float, shape (m,)
+        Residuals in g (divided by the fitted K1 in output units per g).
+    rms : float
+        RMS residual, in output units.
+    rms_g : float
+        RMS residual, in g.
+    dof : int
+        Degrees of freedom: positions − fitted parameters.
+    noise_sigma : float or None
+        Output noise σ used, in output units (rms of ``output_sigma``, or from the residuals);
+        None when unknown.
+    sigma_source : {"stated", "residuals", "unknown"}
+        Where the uncertainties come from.
+    chi2_per_dof : float or None
+        Weighted χ²/dof with stated sigmas (None otherwise or when dof = 0).
+    coverage_factor_95 : float or None
+        Factor turning a standard error into a 95 % interval (normal 1.96 for stated sigmas,
+        Student t for ``dof`` otherwise); None when unknown.
+    condition_number : float
+        Condition number of the weighted design with unit-norm columns.
+    output_unit_per_ma : float
+        Output units per mA, as given.
     """
 
     params: dict[str, Estimate]
@@ -177,6 +279,7 @@ class TumbleResult:
         return _regressors(f)[:, cols] @ self.coefficients
 
     def to_dict(self) -> dict:
+        """JSON-ready fields (lists and floats; None where unknown)."""
         def opt(v):
             return None if v is None else float(v)
         return {
@@ -239,6 +342,69 @@ def fit_tumble(f_iapo_g, output, output_sigma=None, *, output_unit_per_ma: float
     a sampling resistor R read in volts gives R·1e-3). ``output_sigma`` (m,): standard error of
     each mean in output units, or None to estimate one common σ from the residuals (needs
     dof > 0; with dof = 0 the estimates come without uncertainty).
+
+    The model ``I = K1 · (K0 + a_i + K2 a_i² + K3 a_i³ + δo a_p − δp a_o + Kip a_i a_p + Kio a_i a_o)``
+    is linear in ``c = (K1K0, K1, K1δo, −K1δp, K1K2, K1Kip, K1Kio, K1K3)``: weighted linear
+    least squares gives ``c``, the parameters follow as ratios to K1 and their standard
+    errors by first-order propagation.  A regressor is fitted only if the positions excite
+    it apart from those already kept (``alias_tol``); the rest are listed as not identifiable.
+
+    Parameters
+    ----------
+    f_iapo_g : array_like of float, shape (m, 3)
+        Specific force ``(a_i, a_p, a_o)`` in g per position, each component in [−2, 2]; m ≥ 2.
+    output : array_like of float, shape (m,)
+        Mean output per position, in output units (proportional to the current); finite.
+    output_sigma : array_like of float, shape (m,), optional
+        Standard error of each mean in output units, finite and > 0; None: one common σ
+        estimated from the residuals.
+    output_unit_per_ma : float, default 1e-3
+        Output units per mA, finite and non-zero (1e-3: output in A; a sampling resistor
+        R in Ω read in volts gives R·1e-3).
+    alias_tol : float, default ALIAS_TOL
+        Least relative part of a regressor outside the span of the earlier ones for it to be
+        fitted, in [1e-12, 0.1]; default 1e-3.
+
+    Returns
+    -------
+    TumbleResult
+        Identifiable parameters as :class:`~bench.values.Estimate` (g, mA/g, rad, g/g², g/g³),
+        their covariance, the not identifiable ones with reasons, and the residuals.
+
+    Raises
+    ------
+    ValueError
+        If the shapes are wrong, a value is not finite, a specific-force component is
+        outside [−2, 2] g, ``output_sigma`` is not > 0, ``output_unit_per_ma`` is zero or not
+        finite, ``alias_tol`` is outside [1e-12, 0.1], the specific force is zero everywhere,
+        a_i takes fewer than two distinct values, or the output does not follow a_i.
+
+    Examples
+    --------
+    Two tumble planes of 8 positions; an output in A with K1 = 1.2 mA/g, K0 = 1e-4 g and
+    δo = 1e-4 rad, plus 10 nA of noise:
+
+    >>> import numpy as np
+    >>> from bench.analysis.tumble import fit_tumble, specific_force_iapo_g, tumble_positions
+    >>> pos = tumble_positions(8, planes=2)
+    >>> f = specific_force_iapo_g(pos[:, 0], pos[:, 1])
+    >>> a_i, a_p, a_o = f.T
+    >>> current_a = 1.2e-3 * (1e-4 + a_i + 1e-4 * a_p) + np.random.default_rng(0).normal(0.0, 1e-8, len(f))
+    >>> r = fit_tumble(f, current_a)
+    >>> r.sigma_source, r.dof, r.not_identifiable
+    ('residuals', 8, {})
+    >>> k0, k1, d_o = r.params["k0_g"], r.params["k1_ma_per_g"], r.params["delta_o_rad"]
+    >>> round(k1.value, 4), bool(abs(k0.value - 1e-4) < 3 * k0.std), bool(abs(d_o.value - 1e-4) < 3 * d_o.std)
+    (1.2, True, True)
+
+    Four positions in one plane determine only K0, K1, K2 and δp:
+
+    >>> f4 = specific_force_iapo_g(*tumble_positions(4).T)
+    >>> r4 = fit_tumble(f4, 1.2e-3 * (1e-4 + f4[:, 0]))
+    >>> r4.param_names, r4.sigma_source
+    (('k0_g', 'k1_ma_per_g', 'k2_g_per_g2', 'delta_p_rad'), 'unknown')
+    >>> r4.not_identifiable["k3_g_per_g3"]
+    'a_i^3 = 1·a_i at every position: not separable from k1_ma_per_g'
     """
     f, y, sigma = _check_inputs(f_iapo_g, output, output_sigma, output_unit_per_ma, alias_tol)
     scale = float(np.mean(np.linalg.norm(f, axis=1)))

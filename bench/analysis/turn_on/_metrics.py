@@ -26,6 +26,38 @@ _TREND_POINTS = 4000  # the trend is fitted to block means: the warm-up is slow,
 
 @dataclass(frozen=True, eq=False)
 class TurnOnResult:
+    """Turn-on time, settled value and warm-up drift of one start-up record.
+
+    As :func:`turn_on_metrics` returns it (definitions in the module docstring). Times in s
+    from power-on; every other figure in the unit of the record's output.
+
+    Attributes
+    ----------
+    turn_on_time_s : float
+        Time after power-on, in s, from which the causal ``smooth_s`` moving average stays
+        within ± ``band`` of the settled value (the time of the first average when it never
+        leaves the band).
+    settled_value : float
+        Mean output over the last ``settled_window_s`` of the record, output unit.
+    band : float
+        The band used, output unit.
+    smooth_s : float
+        The moving average's length used, in s.
+    warmup_drift : float
+        Change of the fitted start-up trend from ``smooth_s`` after power-on to the end of
+        the record, output unit.
+    warmup_drift_std : float or None
+        Its standard error by the delta method, output unit; None when the trend's
+        covariance is not usable.
+    trend : TrendFit
+        The start-up trend (exponential(s) + linear term) fitted to block means of the record
+        (:func:`bench.analysis.startup.fit_trend`).
+    smoothed_t_s : ndarray, shape (N − n + 1,)
+        Times of the moving averages (the end of each window), in s.
+    smoothed : ndarray, shape (N − n + 1,)
+        The causal moving average of the output, output unit.
+    """
+
     turn_on_time_s: float
     settled_value: float
     band: float
@@ -49,6 +81,59 @@ def _moving_average(y: np.ndarray, n: int) -> np.ndarray:
 
 def turn_on_metrics(t_s, y, *, band: float, smooth_s: float = 10.0,
                     settled_window_s: float = 300.0) -> TurnOnResult:
+    """Turn-on time and warm-up drift of a sensor from its start-up record.
+
+    The **settled value** is the mean output over the last ``settled_window_s``; the
+    **turn-on time** the time after power-on from which the output averaged over the
+    preceding ``smooth_s`` (a causal moving average, which lags an exponential by about
+    ``smooth_s``/2) stays within ± ``band`` of it; the **warm-up drift** the change of the
+    fitted start-up trend from ``smooth_s`` after power-on to the end of the record, with its
+    delta-method standard error (module docstring).
+
+    Parameters
+    ----------
+    t_s : array_like, shape (N,)
+        Sample times in s from power-on (t = 0), finite and strictly increasing; N ≥ 64.
+    y : array_like, shape (N,)
+        The sensor's output, any unit, finite.
+    band : float
+        Half-width of the settling band, in the output's unit; > 0.
+    smooth_s : float, default 10.0
+        Length of the causal moving average, in s, from the sample interval to a quarter of
+        the record.
+    settled_window_s : float, default 300.0
+        Trailing window the settled value is the mean of, in s, from ``smooth_s`` to half the
+        record.
+
+    Returns
+    -------
+    TurnOnResult
+        Turn-on time (s), settled value, warm-up drift and its standard error (output unit),
+        the fitted trend and the moving average.
+
+    Raises
+    ------
+    ValueError
+        If ``t_s`` and ``y`` are not 1-D of one length ≥ 64, not finite or not increasing;
+        ``band`` is not > 0; ``smooth_s`` is outside [sample interval, record/4] or
+        ``settled_window_s`` outside [``smooth_s``, record/2].
+
+    Examples
+    --------
+    An exponential warm-up of 100 ppm with τ = 120 s and 1 ppm of noise, band ± 10 ppm: the
+    exponential itself enters the band at τ·ln 10 = 276 s, its 10-s average a few s later.
+
+    >>> import numpy as np
+    >>> from bench.analysis.turn_on import turn_on_metrics
+    >>> t = np.arange(0.0, 1200.0, 1.0)
+    >>> y = 1.0 + 100e-6 * np.exp(-t / 120.0) + 1e-6 * np.random.default_rng(0).standard_normal(t.size)
+    >>> r = turn_on_metrics(t, y, band=10e-6, smooth_s=10.0)
+    >>> r.turn_on_time_s, round(r.settled_value, 5)
+    (280.0, 1.0)
+    >>> truth = 100e-6 * (np.exp(-1199 / 120) - np.exp(-10 / 120))
+    >>> bool(abs(r.warmup_drift - truth) < 3 * r.warmup_drift_std)
+    True
+    """
     t = np.asarray(t_s, dtype=float)
     y = np.asarray(y, dtype=float)
     if t.ndim != 1 or t.shape != y.shape or t.size < 64:

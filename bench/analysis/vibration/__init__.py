@@ -1,5 +1,14 @@
 """Random-vibration error model of a gyro channel (Document C): EMD, AR per IMF, AR-Kalman fit.
 
+A rate record taken under vibration is split by empirical mode decomposition; the trend
+and periodic components are kept as the non-random terms, and every random IMF is tested
+(stationarity, whiteness), given a Yule–Walker AR model and fitted twice — by the AR
+one-step prediction and by an AR-based Kalman filter — so that the two fits of the record
+can be compared by their error statistics.  The entry point is :func:`analyze_vibration`,
+which returns a :class:`VibrationAnalysis`; :func:`model_imf` (an :class:`ImfModel`) and
+:func:`kalman_ar_fit` (a :class:`KalmanFit`) work on one IMF, and :class:`FitError` holds
+the error statistics of a fit.
+
 What a user calls::
 
     kalman_ar_fit, KalmanFit

@@ -35,7 +35,7 @@ from scipy import fft as sp_fft
 from scipy import stats
 from statsmodels.tsa.adfvalues import mackinnonp
 
-from bench.analysis.timeseries import _fit as ts
+import bench.analysis.timeseries._fit as ts
 
 KPSS_CRIT = (0.347, 0.463, 0.574, 0.739)  # Kwiatkowski et al. (1992) Table 1, level stationarity
 KPSS_P = (0.10, 0.05, 0.025, 0.01)
@@ -120,7 +120,53 @@ def whiteness(x: np.ndarray, lags: int, model_df: int = 0, alpha: float = 0.05) 
 
 @dataclass(frozen=True, eq=False)
 class ImfModel:
-    """Tests, order selection and the Yule–Walker AR model of one IMF (module docstring)."""
+    """Tests, order selection and the Yule–Walker AR model of one IMF (module docstring).
+
+    Returned by :func:`model_imf`.
+
+    Attributes
+    ----------
+    index : int
+        IMF number, 1 = fastest.
+    n : int
+        Number of samples.
+    mean : float
+        Sample mean of the IMF, in its unit.
+    std : float
+        Sample standard deviation of the IMF, in its unit.
+    adf : StationarityTest
+        Augmented Dickey–Fuller test (H0 unit root): ``statistic``, ``p_value``, ``lags``.
+    kpss : StationarityTest
+        KPSS test (H0 level-stationary); its p-value is clipped to [0.01, 0.10].
+    stationary : bool
+        ADF rejects and KPSS does not, both at ``alpha``.
+    imf_white : Whiteness
+        Whiteness of the IMF itself: Ljung–Box p-value, share of ACF lags outside ``±z/√N``, verdict.
+    identified : {"AR", "MA", "ARMA"}
+        Class proposed by the ACF/PACF table (the model is AR regardless).
+    identification_reason : str
+        Why, in words.
+    orders : tuple of int
+        AR orders scored, 1..p_max.
+    aic : tuple of float
+        AIC of each order (conditional likelihood on samples ``t ≥ p_max``).
+    bic : tuple of float
+        BIC of each order.
+    aic_order : int
+        Order with the smallest AIC.
+    bic_order : int
+        Order with the smallest BIC.
+    criterion : {"aic", "bic"}
+        Criterion whose order the model uses.
+    ar : tuple of float
+        φ1..φp (Yule–Walker): ``x_n = Σ φ_k x_{n-k} + a_n`` with the mean removed.
+    sigma2 : float
+        Innovation variance of ``a_n``, in (unit)².
+    residual_white : Whiteness
+        Whiteness of the AR residuals (``p`` dof removed from Ljung–Box).
+    p : int
+        Property: AR order.
+    """
 
     index: int  # IMF number, 1 = fastest
     n: int
@@ -144,9 +190,11 @@ class ImfModel:
 
     @property
     def p(self) -> int:
+        """AR order of the model."""
         return len(self.ar)
 
     def to_dict(self) -> dict:
+        """JSON-ready summary: model, test statistics and p-values, order table."""
         return {
             "index": self.index, "p": self.p, "ar": list(self.ar), "sigma2": self.sigma2,
             "mean": self.mean, "std": self.std,
@@ -164,7 +212,54 @@ class ImfModel:
 
 def model_imf(x: np.ndarray, index: int = 1, *, p_max: int = 15, criterion: str = "bic",
               lb_lags: int = 20, alpha: float = 0.05) -> ImfModel:
-    """Test and model one IMF (module docstring); ``x`` in any unit, uniformly sampled."""
+    """Test and model one IMF (module docstring); ``x`` in any unit, uniformly sampled.
+
+    ADF (``p_max`` lags) and KPSS stationarity tests, Ljung–Box and autocorrelation
+    whiteness of the IMF, ACF/PACF identification, AIC/BIC of Yule–Walker AR(1..p_max) on
+    common samples, the Yule–Walker model at ``criterion``'s order, and the whiteness of
+    its residuals.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+        The IMF (or any stationary series), uniformly sampled, in any unit;
+        n ≥ ``max(10·p_max, 5·lb_lags, 64)``.
+    index : int, default 1
+        IMF number, for labels and messages.
+    p_max : int, default 15
+        Largest AR order scored, an integer ≥ 1.
+    criterion : {"aic", "bic"}, default "bic"
+        Criterion that picks the model order.
+    lb_lags : int, default 20
+        Lags of the IMF's whiteness test.
+    alpha : float, default 0.05
+        Significance level of every test, in (0, 1).
+
+    Returns
+    -------
+    ImfModel
+        Tests, order table and the AR model (``ar``, ``sigma2`` in (unit)²).
+
+    Raises
+    ------
+    ValueError
+        If ``criterion`` is not ``"aic"`` or ``"bic"``, ``p_max`` is not an integer ≥ 1, or
+        the IMF has fewer than ``max(10·p_max, 5·lb_lags, 64)`` samples.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from bench.analysis.vibration import model_imf
+    >>> x = lfilter([1.0], [1.0, -0.5, 0.3], np.random.default_rng(0).normal(size=2000))  # AR(2)
+    >>> m = model_imf(x, p_max=5)
+    >>> m.p, m.identified, m.stationary, m.imf_white.white
+    (2, 'AR', True, False)
+    >>> m.residual_white.ljung_box_p > 0.05, m.residual_white.white
+    (True, True)
+    >>> [round(c, 1) for c in m.ar], round(m.sigma2, 1)  # true (0.5, -0.3), 1
+    ([0.5, -0.3], 1.0)
+    """
     x = np.asarray(x, dtype=float)
     if criterion not in ("aic", "bic"):
         raise ValueError(f"criterion = {criterion!r} must be 'aic' or 'bic'")
