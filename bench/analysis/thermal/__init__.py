@@ -8,15 +8,14 @@ coefficient; :func:`compensation_model` turns the result into the compensation f
 navigation computer loads (:func:`compensation_to_toml`, :func:`compensation_from_toml`),
 :func:`compensate` applies it to raw outputs, and :func:`verify_compensation` checks it on a
 second run. :func:`analyze_thermal_ramp` reads bias over temperature, thermal hysteresis and
-rate sensitivity from one record over a temperature ramp. ``as_array`` and ``check_real`` are
-the argument checks the thermal and turn-on analyses share.
+rate sensitivity from one record over a temperature ramp.
 
 What a user calls::
 
     calibrate_over_temperature, ThermalCalibration, QuantityCalibration
     compensation_model, CompensationModel, compensate
     compensation_to_toml, compensation_from_toml
-    QuantityPoints, as_array, check_real
+    QuantityPoints
     fit_temperature_polynomial, TemperaturePolynomial
     analyze_thermal_ramp, ThermalRampResult
     soak_status, SoakCriterion, SoakStatus
@@ -28,7 +27,7 @@ The modules behind it are private: import from ``bench.analysis.thermal``.
 from bench.analysis.thermal._calibration import QuantityCalibration, ThermalCalibration, calibrate_over_temperature
 from bench.analysis.thermal._compensation import CompensationModel, compensate, compensation_model
 from bench.analysis.thermal._compensation_file import compensation_from_toml, compensation_to_toml
-from bench.analysis.thermal._inputs import QuantityPoints, as_array, check_real
+from bench.analysis.thermal._inputs import QuantityPoints
 from bench.analysis.thermal._poly import TemperaturePolynomial, fit_temperature_polynomial
 from bench.analysis.thermal._ramp import ThermalRampResult, analyze_thermal_ramp
 from bench.analysis.thermal._soak import SoakCriterion, SoakStatus, soak_status
@@ -45,9 +44,7 @@ __all__ = [
     "ThermalCalibration",
     "ThermalRampResult",
     "analyze_thermal_ramp",
-    "as_array",
     "calibrate_over_temperature",
-    "check_real",
     "compensate",
     "compensation_from_toml",
     "compensation_model",

@@ -23,7 +23,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from bench.analysis.thermal._inputs import QuantityPoints, check_real
+from bench.analysis._checks import check_real
+from bench.analysis.thermal._inputs import QuantityPoints
 from bench.analysis.thermal._poly import (
     MAX_ORDER,
     PolynomialCurve,

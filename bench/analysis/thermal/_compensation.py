@@ -26,16 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.analysis._checks import as_array, check_choice, check_int, check_real, is_real
 from bench.analysis.thermal._calibration import ThermalCalibration
-from bench.analysis.thermal._inputs import (
-    ROLES,
-    TEMPERATURE_LIMITS_C,
-    as_array,
-    check_choice,
-    check_int,
-    check_real,
-    is_real,
-)
+from bench.analysis.thermal._inputs import ROLES, TEMPERATURE_LIMITS_C
 from bench.analysis.thermal._poly import MAX_ORDER, polynomial_rows
 
 FORMAT = "inertial-bench-thermal-compensation"

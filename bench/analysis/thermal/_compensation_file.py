@@ -36,13 +36,13 @@ from __future__ import annotations
 
 import tomllib
 
+from bench.analysis._checks import is_real
 from bench.analysis.thermal._compensation import (
     FORMAT,
     SUPPORTED_VERSIONS,
     CompensationModel,
     QuantityCompensation,
 )
-from bench.analysis.thermal._inputs import is_real
 
 _HEADER_KEYS = ("format", "version", "unit_serial", "unit_model", "created", "temperature_source",
                 "reference_c", "valid_range_c", "input_unit", "output_unit", "notes", "quantities")

@@ -45,13 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from bench.analysis.thermal._inputs import (
-    TEMPERATURE_LIMITS_C,
-    as_array,
-    check_choice,
-    check_int,
-    check_real,
-)
+from bench.analysis._checks import as_array, check_choice, check_int, check_real
+from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C
 from bench.values import Estimate
 
 MAX_ORDER = 3

@@ -60,8 +60,9 @@ import numpy as np
 from scipy import optimize, signal
 
 import bench.analysis.thermal._drift_gls as drift_gls
+from bench.analysis._checks import check_int, check_real
 from bench.analysis.thermal._drift_gls import NoiseModel
-from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C, check_int, check_real
+from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C
 from bench.analysis.thermal._poly import MAX_ORDER, PolynomialCurve, polynomial_rows
 from bench.analysis.thermal._ramp_record import (
     RampSegment,

@@ -28,7 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C, check_int, check_real
+from bench.analysis._checks import check_int, check_real
+from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C
 
 
 @dataclass(frozen=True)

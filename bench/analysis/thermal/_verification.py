@@ -26,8 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from bench.analysis._checks import check_choice
 from bench.analysis.thermal._compensation import CompensationModel, QuantityCompensation
-from bench.analysis.thermal._inputs import QuantityPoints, check_choice
+from bench.analysis.thermal._inputs import QuantityPoints
 from bench.analysis.thermal._poly import polynomial_rows
 
 OUTSIDE = ("raise", "skip")

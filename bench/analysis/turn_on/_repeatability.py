@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
-from bench.analysis.thermal import as_array, check_real
+from bench.analysis._checks import as_array, check_real
 from bench.values import Estimate
 
 
