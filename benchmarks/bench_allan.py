@@ -26,7 +26,7 @@ import tracemalloc
 
 import numpy as np
 
-from bench.analysis.allan import _core as allan_core
+import bench.analysis.allan._core as allan_core
 from bench.analysis.allan import overlapping_adev
 
 GOAL_RATIO = 5.0

@@ -24,14 +24,13 @@ block_bootstrap 9 s in the bootstrap p-values. This times, on a record of that s
 ``lattice.fit_lattice`` + ``lattice.heldout_score`` (the quantization candidate) and
 ``significance.bootstrap_p_value`` (one deterministic candidate's null, up to ``--reps``
 replicates) with the current code and with the straightforward implementations they replaced
-(kept in tests/discovery/test_discovery_fastpaths.py as the references), checks both give the same
+(``bench.testing.references.discovery``, the tests' references too), checks both give the same
 numbers, and prints the times and the ratio. The reference "peer" here is our own old code.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import subprocess
 import sys
@@ -42,25 +41,13 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
 from bench.discovery import lattice as lat
 from bench.discovery import significance as sig
-
-
-def _reference():
-    path = ROOT / "tests" / "discovery" / "test_discovery_fastpaths.py"
-    spec = importlib.util.spec_from_file_location("fastpath_ref", path)
-    if spec is None or spec.loader is None:
-        raise FileNotFoundError(f"reference implementations not found at {path}")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from bench.testing.references import discovery as ref
 
 
 @contextmanager
-def old_code(ref):
+def old_code():
     """Swap the reference implementations in for the duration of the block."""
     saved = lat.visibility, sig.LinearScorer, sig.block_bootstrap
 
@@ -140,8 +127,7 @@ def startup_run(jobs: int) -> int:
         store = str(Path(tmp) / "bench.sqlite")
         bench = Path(sys.executable).with_name("bench")
         t0 = time.perf_counter()
-        subprocess.run([str(bench), "--store", store, "run", "startup"], check=True, stdout=subprocess.DEVNULL,
-                       env={**os.environ, "PYTHONPATH": str(ROOT)})
+        subprocess.run([str(bench), "--store", store, "run", "startup"], check=True, stdout=subprocess.DEVNULL)
         t_run = time.perf_counter() - t0
         rec, kind, label = read_run(store, "latest", None)
     print(f"start-up run: {rec.n} samples at {rec.rate_hz:g} Hz ({kind}); `bench run startup` {t_run:.1f} s")
@@ -181,9 +167,8 @@ def main(argv=None) -> int:
         from bench.app.commands.discover import default_jobs
 
         return startup_run(default_jobs() if a.jobs is None else a.jobs)
-    ref = _reference()
     new = workload(a.n, a.reps)
-    with old_code(ref):
+    with old_code():
         old = workload(a.n, a.reps)
     print(f"n = {a.n} samples, {a.reps} bootstrap replicates")
     print(f"{'function':26s} {'old (s)':>9s} {'new (s)':>9s} {'ratio':>7s}  same result")

@@ -18,7 +18,7 @@ Printed (goal: fusion of 10⁶ samples < 1 s):
 * the peer, the same recursion written as the plain Python loop people write (lists and
   floats, no numpy in the loop), timed on ``--python-samples`` and **extrapolated**
   linearly to ``--samples`` (it is O(N)); its output is checked against ours on that part;
-* optionally the former per-sample numpy loop (the oracle of ``tests/analysis/test_fusion_kernel.py``)
+* optionally the former per-sample numpy loop (``bench.testing.references.fusion``, the tests' oracle)
   on ``--numpy-samples``, extrapolated the same way;
 * ``fixed_r_kalman`` on ``--samples``;
 * the complementary Kalman filter (``complementary_kalman``, 5 states: the HF reading drives
@@ -43,10 +43,11 @@ from pathlib import Path
 import numba
 import numpy as np
 
+import bench.analysis.fusion._complementary as fc
+import bench.analysis.fusion._kernel as fusion_kernel
+import bench.analysis.fusion._sequential as fu
 from bench.analysis.fusion import SensorModel, analyze_fusion
-from bench.analysis.fusion import _complementary as fc
-from bench.analysis.fusion import _kernel as fusion_kernel
-from bench.analysis.fusion import _sequential as fu
+from bench.testing.references.fusion import reference_sequential
 
 GOAL_S = 1.0
 FS_HZ = 10_000.0
@@ -58,8 +59,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 COLD_COMPILE = """
 import time, numpy as np
-from bench.analysis.fusion import _sequential as fu
-from bench.analysis.fusion import _complementary as fc
+import bench.analysis.fusion._sequential as fu
+import bench.analysis.fusion._complementary as fc
 from bench.analysis.fusion import FusionModel, SensorModel
 model = FusionModel(SensorModel("highpass", 1, 2.5), SensorModel("lowpass", 2, 40.0), 100.0)
 params = fu.FusionParams(fu.AdaptiveNoise.from_noise(4e-4), fu.AdaptiveNoise.from_noise(1e-4))
@@ -190,9 +191,6 @@ def main() -> None:
     print(f"ratio  plain-Python loop / ours (steady): {py_full / ours_s:,.0f}×")
 
     if args.numpy_samples > 0:
-        sys.path.insert(0, str(ROOT))  # the former numpy loop is the test oracle; borrowed, not copied
-        from tests.analysis.test_fusion_kernel import reference_sequential
-
         k = min(args.numpy_samples, n)
         t0 = time.perf_counter()
         reference_sequential([hf[:k], lf[:k]], [h1, h2], [params.hf_noise, params.lf_noise], phi, q, x0, p0)

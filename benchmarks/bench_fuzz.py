@@ -8,7 +8,7 @@ the gyro's serial line) sends its share of ``--messages``: valid commands and qu
 invalid headers, lexically broken messages, binary junk, blocks declared and never sent,
 plus ``--oversize`` messages over the 1 MiB limit spread over the SCPI servers.  After
 each message the client probes the server (``SYST:ERR?;*CLS``; ``$ID?`` on the gyro
-line; the probe's expected fate comes from a reference framer, see tests/sim/fuzz_wire.py).
+line; the probe's expected fate comes from a reference framer, see bench/testing/fuzz_wire.py).
 
 Prints: messages tried; crashes (a connection the server dropped, a handler exception
 logged, or a server that no longer answers ``*IDN?`` at the end); hangs (a reply due and
@@ -27,12 +27,9 @@ import random
 import sys
 import threading
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
+from bench.testing.fuzz_wire import GyroFuzzClient, NoReplyError, ScpiFuzzClient, Tally, gyro_line, scpi_message
 from sim.station import SimulatedStation
-from tests.sim.fuzz_wire import GyroFuzzClient, NoReplyError, ScpiFuzzClient, Tally, gyro_line, scpi_message
 
 VALID = {  # messages each server must take without an error
     "dmm": ["VOLT:NPLC 1", "VOLT:NPLC?", "TRIG:COUN 3", "TRIG:COUN?", "SAMP:COUN 5",

@@ -17,7 +17,6 @@ Usage: ``python benchmarks/bench_operator_page.py`` (needs ``make chromium``).
 from __future__ import annotations
 
 import statistics
-import sys
 import tempfile
 import time
 import urllib.request
@@ -27,10 +26,9 @@ SERIALS = {1: "QA-SIM-0003", 2: "QA-SIM-0002", 3: "QA-SIM-0004", 4: "QA-SIM-0001
 
 
 def main() -> None:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' station helper
-    from playwright.sync_api import sync_playwright
+    from playwright.sync_api import sync_playwright  # the test extra: imported when the benchmark runs
 
-    from tests.app.operator_server import CHROMIUM, serve
+    from bench.testing.operator_station import CHROMIUM, serve
 
     with tempfile.TemporaryDirectory() as tmp, serve(Path(tmp)) as (url, _), sync_playwright() as p:
         browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])

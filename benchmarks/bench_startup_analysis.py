@@ -35,7 +35,7 @@ import warnings
 import numpy as np
 from scipy.signal import lfilter
 
-from bench.analysis.startup import _trend as trend_mod
+import bench.analysis.startup._trend as trend_mod
 from bench.analysis.startup import analyze_startup, wavelet_denoise
 
 GOAL_S = 2.0

@@ -13,14 +13,10 @@ The old figure (the workflow's localization before this change) is from the audi
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.discovery.data import Record
 from bench.discovery.localize import unexplained_structure

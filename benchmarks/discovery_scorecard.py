@@ -7,16 +7,19 @@ samples; the workflow starts from the bare base model):
   ``Effect.draw`` (physical range, detectable) and simulated by the catalogue's own
   ``Model.simulate``: named first (target ≥ 90 %), nothing else named, main parameter within 2
   stated standard errors, final gap ≤ 1.1;
-* **independent** — the same draws realised by :mod:`discovery_generator`, a second generator
-  written apart from the catalogue (the simulator's FOG and accelerometer physics where it has
-  the effect): the rates should be within 5 points of the catalogue draws' (issue 15);
+* **independent** — the same draws realised by :mod:`bench.testing.generators.discovery_effects`,
+  a second generator written apart from the catalogue (the simulator's FOG and accelerometer
+  physics where it has the effect): the rates should be within 5 points of the catalogue
+  draws' (issue 15);
 * **pairs** / **triples** — two / three effects at once (triples mix deterministic and
   stochastic): all named and nothing else (target ≥ 80 %); each effect at snr ≥ 15 inside its
-  mixture (:func:`hidden_case`; ``--white-draws``: against white noise only, stop 27's rule);
+  mixture (:func:`bench.testing.discovery_cases.hidden_case`; ``--white-draws``: against white
+  noise only, stop 27's rule);
 * **clean** — nothing hidden: nothing named (target ≥ 95 %), for both generators;
-* **out-of-catalogue** — shapes no effect has (:mod:`discovery_shapes`: triangle and square
-  waves, a chirp, bursts, noise bursts, a dependence on the supply column, a tanh compression):
-  nothing named and unexplained structure reported (target ≥ 95 %), and found where it is;
+* **out-of-catalogue** — shapes no effect has (:mod:`bench.testing.generators.discovery_shapes`:
+  triangle and square waves, a chirp, bursts, noise bursts, a dependence on the supply column,
+  a tanh compression): nothing named and unexplained structure reported (target ≥ 95 %), and
+  found where it is;
 * the confusion matrix (hidden → first named).
 
 ``--power 0.5,1,2``: instead, the power curve of the naming near its minimum effect size — each
@@ -54,87 +57,17 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from discovery_generator import realise
-from discovery_shapes import SHAPES, found_where, hide
-
 from bench.discovery.effects import CATALOGUE
-from bench.discovery.effects_base import DEFAULT_NOISE_SD, DRAW_SNR_FACTOR, MIN_SNR
+from bench.discovery.effects_base import MIN_SNR
 from bench.discovery.experiments import make_experiment
-from bench.discovery.model import BaseModel, Model, base_model
+from bench.discovery.model import Model, base_model
 from bench.discovery.workflow import discover
+from bench.testing.discovery_cases import hidden_case, truth_base
+from bench.testing.generators.discovery_shapes import SHAPES, found_where, hide
 
-BASE_BIAS = {"accelerometer": 2e-3, "gyro": 0.05, "mhd": 0.5}
 #: issue 15's new effects (their named-first rate is a row of its own)
 NEW_EFFECTS = ("flicker_noise", "bias_jump", "angle_quantization", "thermal_two_node", "temperature_rate",
                "thermal_hysteresis")
-
-
-def _truth_base(kind: str, rng: np.random.Generator) -> Model:
-    sd = DEFAULT_NOISE_SD[kind]
-    return Model(BaseModel(kind=kind, bias=BASE_BIAS[kind] * rng.uniform(-1, 1),
-                           scale_factor=1.0 + rng.normal(0, 2e-3), noise_sd=sd))
-
-
-#: redraws of a mixture whose rest hides one of its effects before the case counts as not drawable
-MIX_REDRAWS = 12
-
-
-def hidden_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None = None,
-                generator: str = "catalogue", mix_rule: bool = True):
-    """(record, truth model, snr of each effect, redraws) or None when an effect cannot be drawn
-    on this record (not detectable; with ``at_snr``: that snr outside its physical range).
-    ``generator``: "catalogue" (``Model.simulate``) or "independent" (:mod:`discovery_generator`);
-    the same seed draws the same record and parameters for both.
-
-    A mixture (two or three effects) is held to the draw rule of a single inside its mixture: each
-    effect's ``Model.effect_snr`` at least DRAW_SNR_FACTOR·MIN_SNR (15), as a single's snr is
-    against white noise — for a term what tells it from the rest of the mixture (the other
-    effects' directions out) against the mixture's whole noise (white + its random process), for
-    a random process its excess Allan variance over the readings' floor (a quantizer's rounding
-    included, as in the naming's size gate); an output transform as drawn. A draw that
-    breaks it (a 19-sigma temperature bias drawn beside a random walk holding 1.8 sigma of it) is
-    drawn again with the next sub-seed, up to MIX_REDRAWS times; ``redraws`` counts them.
-    ``mix_rule=False``: each effect drawn against white noise only, as a single (stop 27's rule,
-    ``--white-draws``; the first draw of every mixture — the same record)."""
-    floor = DRAW_SNR_FACTOR * MIN_SNR
-    for attempt in range(MIX_REDRAWS + 1 if len(effects) > 1 and mix_rule else 1):
-        drawn = _draw_case(kind, effects, seed, n, at_snr, attempt)
-        if drawn is None:
-            if attempt == 0:
-                return None
-            continue  # this redraw's record cannot hold an effect: the next one
-        rec, truth, snrs, rng = drawn
-        if len(effects) == 1 or not mix_rule or all(not truth.effect_snr(rec, i) < floor
-                                                    for i in range(len(effects))):
-            y = truth.simulate(rec, rng) if generator == "catalogue" else realise(kind, rec, truth, rng)
-            return rec.replace(y=y), truth, snrs, attempt
-    return None
-
-
-def _draw_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None, attempt: int):
-    """(record without readings, truth model, snr of each effect, the rng to simulate with) —
-    each effect drawn by ``Effect.draw`` — or None when one cannot be drawn on the record."""
-    salt = ([] if at_snr is None else [int(round(1000 * at_snr))]) + ([10_000 + attempt] if attempt else [])
-    rng = np.random.default_rng([seed, len(effects), *[list(CATALOGUE).index(e) for e in effects], *salt])
-    rec = make_experiment(kind, rng, n=n)
-    sd = DEFAULT_NOISE_SD[kind]
-    truth = _truth_base(kind, rng)
-    snrs = []
-    # an output-stage effect (clipping, rounding) acts on bias + SF·input: drawn and sized there
-    on_output = rec.replace(input=truth.base.bias + truth.base.scale_factor * rec.column("input"))
-    for eid in effects:
-        eff = CATALOGUE[eid]
-        where = on_output if eff.stage == "output" else rec
-        try:
-            p = eff.draw(rng, where, kind=kind, noise_sd=sd, at_snr=at_snr)
-        except ValueError:
-            return None
-        snrs.append(float(eff.snr(p, where, sd)))
-        truth = truth.with_effect(eid, p)
-    return rec, truth, snrs, rng
 
 
 def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: float | None = None,
@@ -164,10 +97,11 @@ def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: flo
 
 
 def run_open_case(kind: str, shape: str, seed: int, n: int) -> dict | None:
-    """An out-of-catalogue shape hidden in a clean record of the kind (:mod:`discovery_shapes`)."""
+    """An out-of-catalogue shape hidden in a clean record of the kind
+    (:mod:`bench.testing.generators.discovery_shapes`)."""
     rng = np.random.default_rng([seed, 15, SHAPES.index(shape)])
     rec = make_experiment(kind, rng, n=n)
-    truth = _truth_base(kind, rng)
+    truth = truth_base(kind, rng)
     try:
         rec, extra, where = hide(shape, kind, rec, rng, truth.base.noise_sd)
     except ValueError:

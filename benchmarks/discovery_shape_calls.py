@@ -26,20 +26,17 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import discovery_scorecard as sc
+import discovery_scorecard as sc  # its neighbour in this folder: the scorecard's case list
 
 from bench.discovery import choosing, naming
 from bench.discovery.calibration import calibrate
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.model import Model
+from bench.testing.discovery_cases import hidden_case
 
 #: the catch-all processes whose shapes are told apart (an angle quantizer is white angle noise)
 SHAPES = ("gauss_markov", "flicker_noise", "rate_random_walk")
@@ -59,7 +56,7 @@ def _reading(named, *args, **kwargs):
 def shape_call(job: tuple) -> dict | None:
     """The named processes at the step after the deterministic effects of one record."""
     kind, effects, seed, generator = job
-    case = sc.hidden_case(kind, effects, seed, 3000, None, generator)
+    case = hidden_case(kind, effects, seed, 3000, None, generator)
     if case is None:
         return None
     rec, truth, _, _ = case
@@ -109,6 +106,32 @@ def jobs_for(pairs: list[int], singles: int) -> list[tuple]:
     return list(dict.fromkeys(jobs))
 
 
+def check() -> int:
+    """``--check``: each rule on a worked close call, and the job list, without naming any record.
+
+    The close call is the independent-generator flicker record's (accelerometer, seed 1 of the
+    singles): flicker and Gauss–Markov within the tie, the walk outside it. Prints a line per
+    check; 0 when every one holds."""
+    two_close = [{"id": "flicker_noise", "bic": 732.5, "shape": 69737.3},
+                 {"id": "gauss_markov", "bic": 730.7, "shape": 69740.4},
+                 {"id": "rate_random_walk", "bic": 703.4, "shape": math.nan}]
+    all_close = [dict(t, shape=69730.0, bic=730.0) if t["id"] == "rate_random_walk" else t for t in two_close]
+    jobs = jobs_for([0], 0)
+    checks = {
+        "exact-any: the exact likelihood decides when two shapes are in the tie":
+            RULES["exact-any"](two_close) == "gauss_markov",
+        "exact-all: the Whittle order unless every shape is in the tie":
+            RULES["exact-all"](two_close) == RULES["whittle"](two_close) == "flicker_noise",
+        "exact-all and exact-any agree when every shape is in the tie":
+            RULES["exact-all"](all_close) == RULES["exact-any"](all_close) == "gauss_markov",
+        "the jobs of --pairs 0 --singles 0 are triples holding a shape":
+            bool(jobs) and all(len(j[1]) == 3 and set(j[1]) & set(SHAPES) for j in jobs),
+    }
+    for what, holds in checks.items():
+        print(f"{'ok  ' if holds else 'FAIL'} {what}")
+    return 0 if all(checks.values()) else 1
+
+
 def report(calls: list[dict]) -> None:
     right: dict[str, Counter] = {}
     total: Counter = Counter()
@@ -138,7 +161,10 @@ def main(argv=None) -> int:
     ap.add_argument("--singles", type=int, default=5, help="single-process records a shape, kind and generator")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--json", default=None, help="write every record's named processes here")
+    ap.add_argument("--check", action="store_true", help="check the rules and the job list, name no record")
     args = ap.parse_args(argv)
+    if args.check:
+        return check()
     pairs = [int(p) for p in args.pairs.split(",") if p.strip()]
     jobs = jobs_for(pairs, args.singles)
     print(f"{len(jobs)} records", flush=True)

@@ -4,8 +4,8 @@ over regimes by an independent generator, graded against the exact rate.
     .venv/bin/python benchmarks/fusion_battery.py [--cases 60] [--first 0] [--seeds S ...]
         [--max-samples 400000] [--json FILE] [--quiet] [--noise-draws K]
 
-Each pair (``tests/analysis/fusion_pairs.py``: corner ratio 3–300, sample rate 1–20 kHz, tones
-up to a fifth of the sample rate, noise 1e-4…1e-1 of the signal, spikes, dropouts, clock skew
+Each pair (``bench.testing.generators.fusion_pairs``: corner ratio 3–300, sample rate
+1–20 kHz, tones up to a fifth of the sample rate, noise 1e-4…1e-1 of the signal, spikes, dropouts, clock skew
 and delay; sensors simulated as bilinear-transform digital filters at 16× the sample rate, then
 decimated — not the rig's closed-form physics) goes through
 :func:`bench.analysis.fusion._analysis.analyze_fusion` exactly as a CSV would (one time column,
@@ -35,20 +35,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # the generator lives with the tests, apart from the code it grades
-
 from bench.analysis.fusion import BASELINES, METHODS, analyze_fusion
-from tests.analysis.fusion_pairs import draw_spec, judge, make_pair
+from bench.testing.generators.fusion_pairs import draw_spec, judge, make_pair
 
-#: the amplitude tests of :class:`~tests.analysis.fusion_pairs.Grade`, each once: the recommended
-#: method's verdict (key in a case), the property graded for every method, the summary's line, its column
+#: the amplitude tests of :class:`~bench.testing.generators.fusion_pairs.Grade`, each once: the
+#: recommended method's verdict (key in a case), the property graded for every method, the summary's line, its column
 AMPLITUDE_TESTS = (
     ("amplitude_ok", "within_2_sigma",
      "amplitude error within 2σ of the better sensor's at every tone, σ of the excess", "2σ excess"),

@@ -16,7 +16,7 @@ from scipy.optimize import nnls
 from scipy.signal import lfilter
 from scipy.stats import chi2
 
-from bench.analysis.allan import _core as allan_core
+import bench.analysis.allan._core as allan_core
 from bench.analysis.allan import overlapping_adev
 from bench.analysis.allan._noise import B_FACTOR, design_matrix, nnls_enumerated
 from bench.analysis.allan._stats import adev_interval, chi2_ppf, edf_greenhall

@@ -18,6 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import cont2discrete
 
+import bench.analysis.fusion._sequential as fu
 from bench.analysis.fusion import (
     BASELINES,
     METHODS,
@@ -28,7 +29,6 @@ from bench.analysis.fusion import (
     analyze_fusion,
     fit_transfer_function,
 )
-from bench.analysis.fusion import _sequential as fu
 from bench.analysis.fusion._metrics import detect_tones, nis_check, sine_phasors
 
 FS_HZ = 4000.0

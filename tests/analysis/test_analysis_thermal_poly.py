@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from bench.analysis.thermal import QuantityPoints, fit_temperature_polynomial
 from bench.analysis.thermal._calibration import calibrate_over_temperature, calibrate_quantity
-from tests.analysis.thermal_truth import poly, poly_slope, sweep_points
+from bench.testing.generators.thermal_truth import poly, poly_slope, sweep_points
 
 SWEEP_C = (-40.0, -20.0, 0.0, 25.0, 45.0, 60.0, 70.0)
 

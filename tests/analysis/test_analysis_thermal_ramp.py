@@ -11,11 +11,11 @@ from hypothesis import Phase, given, settings
 from hypothesis import strategies as st
 from scipy.linalg import toeplitz
 
-from bench.analysis.thermal import _drift_gls as drift_gls
+import bench.analysis.thermal._drift_gls as drift_gls
 from bench.analysis.thermal._drift_gls import NoiseModel
 from bench.analysis.thermal._ramp import analyze_thermal_ramp, lag_filter
 from bench.analysis.thermal._ramp_record import branch_states, steady_blocks
-from tests.analysis.thermal_truth import Program, ThermalUnit, poly, simulate_ramp
+from bench.testing.generators.thermal_truth import Program, ThermalUnit, poly, simulate_ramp
 
 TWO_RATES = Program.cycles(25.0, -40.0, 70.0, (1.0, 2.0))
 ONE_RATE = Program.cycles(25.0, -40.0, 70.0, (0.5,))

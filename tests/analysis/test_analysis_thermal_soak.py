@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.analysis.thermal._soak import SoakCriterion, find_soak, soak_status
-from tests.analysis.thermal_truth import Program, ThermalUnit, simulate_ramp
+from bench.testing.generators.thermal_truth import Program, ThermalUnit, simulate_ramp
 
 
 def approach(t, start_c, final_c, tau_s):

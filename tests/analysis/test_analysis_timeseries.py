@@ -20,7 +20,7 @@ from statsmodels.stats.diagnostic import acorr_ljungbox
 from statsmodels.tsa.stattools import acf as sm_acf
 from statsmodels.tsa.stattools import pacf as sm_pacf
 
-from bench.analysis.timeseries import _fit as ts
+import bench.analysis.timeseries._fit as ts
 
 FAST = settings(max_examples=25, deadline=None, derandomize=True)
 

@@ -1,5 +1,5 @@
 """The pair's alignment finds an LF sensor whose samples are means over their interval (an
-integrating converter), on pairs from the independent generator (tests/analysis/fusion_pairs.py),
+integrating converter), on pairs from the independent generator (bench.testing.generators.fusion_pairs),
 and does not see one where the sensor samples."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from scipy.signal import freqs
 
 from bench.analysis.fusion._alignment import fit_and_align, inverse_sinc_taps, undo_interval_mean
 from bench.analysis.fusion._models import fit_transfer_function, min_frf_points
-from tests.analysis.fusion_pairs import Sensor, analog_prototype, draw_spec, make_pair
+from bench.testing.generators.fusion_pairs import Sensor, analog_prototype, draw_spec, make_pair
 
 
 def quiet_pair(seed: int, averaging: bool):

@@ -1,7 +1,7 @@
 """The robustness battery's generator checked on its own, and a small fixed-seed subset of the
 battery (the full ≥ 50 pairs run in ``benchmarks/fusion_battery.py``).
 
-The generator (``tests/analysis/fusion_pairs.py``) is the judge's ground truth, so it is tested
+The generator (``bench.testing.generators.fusion_pairs``) is the judge's ground truth, so it is tested
 against the analog prototypes it claims to simulate, and for its independence from the code it
 grades.
 """
@@ -18,7 +18,8 @@ import pytest
 from scipy.signal import lfilter
 
 from bench.analysis.fusion import BASELINES, analyze_fusion
-from tests.analysis.fusion_pairs import (
+from bench.testing.generators import fusion_pairs
+from bench.testing.generators.fusion_pairs import (
     alone_noise_free_pct,
     analog_prototype,
     draw_spec,
@@ -29,7 +30,7 @@ from tests.analysis.fusion_pairs import (
 
 
 def test_the_generator_imports_nothing_of_the_bench_or_the_simulator():
-    tree = ast.parse(Path(__file__).with_name("fusion_pairs.py").read_text(encoding="utf-8"))
+    tree = ast.parse(Path(fusion_pairs.__file__).read_text(encoding="utf-8"))
     roots = {(node.module or "").split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     roots |= {alias.name.split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.Import)
               for alias in node.names}

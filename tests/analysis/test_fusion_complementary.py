@@ -15,9 +15,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import bench.analysis.fusion._complementary as fc
+import bench.analysis.fusion._complementary_kernel as kernel
 from bench.analysis.fusion import AdaptiveNoise, SensorModel
-from bench.analysis.fusion import _complementary as fc
-from bench.analysis.fusion import _complementary_kernel as kernel
 from bench.analysis.fusion._metrics import sine_phasors
 
 

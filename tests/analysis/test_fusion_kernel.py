@@ -1,8 +1,9 @@
 """The compiled fusion kernels (bench.analysis.fusion._kernel) against the per-sample numpy
 code they replaced, and the sequential filter against a textbook Kalman filter.
 
-The reference functions below are the former numpy bodies of ``sequential_kalman`` and
-``fixed_r_kalman`` (kept here only, as the oracle).  Agreement is asked to 1e-12 relative to
+The references are the former numpy bodies of ``sequential_kalman``
+(``bench.testing.references.fusion``, which the benchmark times too) and ``fixed_r_kalman``
+(below, kept here only), as the oracles.  Agreement is asked to 1e-12 relative to
 the record's scale (``atol = 1e-12·max|rate|``; single samples near a zero crossing of the
 rate have a larger *elementwise* relative difference, from rounding alone).
 """
@@ -14,8 +15,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import bench.analysis.fusion._sequential as fu
 from bench.analysis.fusion import AdaptiveNoise, FusionModel, SensorModel
-from bench.analysis.fusion import _sequential as fu
+from bench.testing.references.fusion import reference_sequential
 
 TONES_HZ = np.array([0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0])
 REL = 1e-12
@@ -34,36 +36,6 @@ def record(hf_model, lf_model, n, fs_hz=4000.0, seed=0, hf_sigma=0.02, lf_sigma=
 
     return (through(hf_model) + hf_sigma * rng.normal(size=n),
             through(lf_model) + lf_sigma * rng.normal(size=n) + bias)
-
-
-def reference_sequential(measurements, h_rows, noises, phi, q, x0, p0):
-    """The former numpy per-sample loop of ``sequential_kalman`` (the oracle)."""
-    ys = [np.asarray(y, dtype=float).tolist() for y in measurements]
-    hs = [np.asarray(h, dtype=float).ravel() for h in h_rows]
-    m, n_samples = len(ys), len(ys[0])
-    phi_t = phi.T.copy()
-    x, p = np.array(x0, dtype=float), np.array(p0, dtype=float)
-    out, nis = np.empty(n_samples), np.empty((n_samples, m))
-    r_used, interval = np.empty((n_samples, m)), np.empty((n_samples, m), dtype=np.int8)
-    for k in range(n_samples):
-        x = phi @ x
-        p = phi @ p @ phi_t + q
-        for j in range(m):
-            h, nz = hs[j], noises[j]
-            hx = float(h @ x)
-            ph = p @ h
-            hph = float(h @ ph)
-            nu = ys[j][k] - hx
-            idx = nu * nu - hph
-            i = 0 if idx < nz.r_lower else (1 if idx <= nz.r_upper else 2)
-            r = min(max(nz.a[i] + nz.b[i] * hx * hx, nz.r_lower), nz.r_upper)
-            s = hph + r
-            gain = ph / s
-            x = x + gain * nu
-            p = p - np.outer(gain, h @ p)
-            nis[k, j], r_used[k, j], interval[k, j] = nu * nu / s, r, i
-        out[k] = x[0]
-    return out, nis, r_used, interval, p
 
 
 def reference_stacked(hf, lf, ts_s, model, params):

@@ -25,7 +25,7 @@ from bench.analysis.thermal import (
     verify_compensation,
 )
 from bench.analysis.turn_on import turn_on_repeatability
-from tests.analysis.thermal_truth import Program, ThermalUnit, simulate_ramp, sweep_points
+from bench.testing.generators.thermal_truth import Program, ThermalUnit, simulate_ramp, sweep_points
 
 SWEEP_C = (-40.0, -20.0, 0.0, 25.0, 45.0, 60.0, 70.0)
 VERIFY_C = (-35.0, -10.0, 10.0, 35.0, 55.0, 65.0)

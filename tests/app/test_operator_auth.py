@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from bench.app.cli import main
 from bench.app.operator.auth import Users, add_user, hash_password, verify_password
-from tests.app.operator_server import CHROMIUM, serve
+from bench.testing.operator_station import CHROMIUM, serve
 
 
 @settings(max_examples=8, deadline=None)  # scrypt: tens of ms a hash

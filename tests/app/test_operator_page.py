@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import json
 import urllib.request
+from pathlib import Path
 
 import pytest
 from playwright.sync_api import expect
 
-from tests.app.operator_server import ARTIFACTS, CHROMIUM, serve
-from tests.procedures.test_batch_acceptance import SHORT_SPEC
+from bench.testing.operator_station import CHROMIUM, serve
+from bench.testing.specs import SHORT_ACCEPTANCE_SPEC
 
+ARTIFACTS = Path(__file__).resolve().parents[2] / "bench-data" / "test-artifacts" / "operator"
 SERIALS = {1: "QA-SIM-0003", 2: "QA-SIM-0002", 3: "QA-SIM-0004", 4: "QA-SIM-0001"}
 COVER = "Close the fixture's acoustic cover for the static record"
 MID_RUN_PROMPT = f"""
@@ -43,7 +45,7 @@ def shot(page, name: str) -> None:
 
 def test_an_operators_batch_of_four_with_a_prompt_and_a_failing_socket(browser, tmp_path):
     spec = tmp_path / "short.toml"
-    spec.write_text(SHORT_SPEC + MID_RUN_PROMPT)
+    spec.write_text(SHORT_ACCEPTANCE_SPEC + MID_RUN_PROMPT)
     failing = {"fixture_units": {"2": {"k0_g": 6e-3}}}  # socket 2's unit: bias out of its limit
     with serve(tmp_path, spec_path=str(spec), simulation=failing) as (url, station):
         page = browser.new_page(viewport={"width": 1400, "height": 1000})

@@ -13,8 +13,8 @@ from bench.core.batch import BatchProcedure, BatchStep, SocketResult, execute_ba
 from bench.core.operator import OperatorAbort
 from bench.core.step import Context, Limit
 from bench.core.store import RunStore
+from bench.testing.steps import Count, bare_station
 from bench.values import Estimate
-from tests.core.test_procedure import Count, station
 
 
 class CountBatch(BatchStep):
@@ -64,7 +64,7 @@ class Judged(BatchProcedure):
 def run(tmp_path, procedure: BatchProcedure, sockets: dict[int, str], **kw: Any):
     store = RunStore(tmp_path / "b.sqlite")
     ended: list[tuple[int, str]] = []
-    outcomes = execute_batch(procedure, station(meter=object()), store, sockets=sockets, seed=1,
+    outcomes = execute_batch(procedure, bare_station(meter=object()), store, sockets=sockets, seed=1,
                              labels={"station_id": "line-3"},
                              on_socket=lambda n, status, reason: ended.append((n, status)), **kw)
     return store, outcomes, ended
@@ -101,7 +101,7 @@ def test_a_shared_fault_aborts_every_running_socket_and_tears_down_once(tmp_path
 def test_a_station_without_the_scanner_is_refused_before_any_record(tmp_path) -> None:
     store = RunStore(tmp_path / "b.sqlite")
     with pytest.raises(ValueError, match="lacks \\['meter'\\]"):
-        execute_batch(Judged([CountBatch(1)]), station(), store, sockets={1: "SN-1"}, seed=None)
+        execute_batch(Judged([CountBatch(1)]), bare_station(), store, sockets={1: "SN-1"}, seed=None)
     assert store.list_runs() == []
 
 

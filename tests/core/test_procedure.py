@@ -7,50 +7,16 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from types import SimpleNamespace
 from typing import Any
 
 import pytest
 
 from bench.core.operator import OperatorAbort
 from bench.core.procedure import Procedure, execute
-from bench.core.step import Catalogue, Context, Limit, Step, parameter
+from bench.core.step import Catalogue, Context, Limit, Step
 from bench.core.store import RunStore
+from bench.testing.steps import Count, CountParameters, bare_station
 from bench.values import Estimate
-
-
-@dataclasses.dataclass
-class CountParameters:
-    n: int = parameter(3, "values to produce")
-    fail_at: int = parameter(-1, "raise at this value (-1: never)")
-
-    def validate(self) -> None:
-        if not 1 <= self.n <= 10:
-            raise ValueError(f"n = {self.n} not in 1..10")
-
-
-class Count(Step[CountParameters]):
-    """Counts: produces ``n`` values, one per simulated second."""
-
-    name = "count"
-    requires = ("meter",)
-    kinds = ("accelerometer",)
-    produces = {"total": ("s", "sum of the values"), "last": ("s", "the last value")}
-    Parameters = CountParameters
-
-    def duration_s(self) -> float:
-        return float(self.p.n)
-
-    def run(self, ctx: Context) -> Mapping[str, Estimate]:
-        total = 0.0
-        for k in range(1, self.p.n + 1):
-            if k == self.p.fail_at:
-                raise RuntimeError(f"meter lost at {k}")
-            ctx.clock.sleep(1.0)
-            ctx.run.append("counts", t_s=[ctx.clock.now()], value=[k])
-            total += k
-            ctx.progress(k, self.p.n, f"value {k}")
-        return {"total": Estimate(total, 0.5)}  # "last" left out: not produced
 
 
 class Bare(Step[CountParameters]):
@@ -64,17 +30,6 @@ class Bare(Step[CountParameters]):
 
     def run(self, ctx: Context) -> Mapping[str, Estimate]:
         return {}
-
-
-class FakeClock:
-    def __init__(self) -> None:
-        self.t = 0.0
-
-    def now(self) -> float:
-        return self.t
-
-    def sleep(self, seconds: float) -> None:
-        self.t += seconds
 
 
 class Recorded(Procedure):
@@ -91,12 +46,6 @@ class Recorded(Procedure):
         self.calls.append("teardown")
         if self.teardown_fails:
             raise OSError("supply unreachable")
-
-
-def station(**instruments: Any) -> Any:
-    return SimpleNamespace(instruments=instruments, clock=FakeClock(),
-                           config=SimpleNamespace(name="bench", wiring={}, site=None),
-                           snapshot=lambda: {"name": "bench"})
 
 
 def test_a_step_is_built_validated_and_recorded() -> None:
@@ -135,7 +84,7 @@ def test_steps_run_in_order_between_setup_and_teardown_and_are_judged(tmp_path) 
     store = RunStore(tmp_path / "b.sqlite")
     procedure = Recorded([Count(n=3), Count(n=2)])
     seen: list[tuple[float, float, str]] = []
-    outcome = execute(procedure, station(meter=object()), store, unit_serial="U1", seed=None,
+    outcome = execute(procedure, bare_station(meter=object()), store, unit_serial="U1", seed=None,
                       progress=lambda done, total, message="": seen.append((done, total, message)))
     assert outcome.status == "passed" and procedure.calls == ["setup", "teardown"]
     # every produced value, in its own unit, no limits; "last" was not produced
@@ -154,7 +103,7 @@ def test_steps_run_in_order_between_setup_and_teardown_and_are_judged(tmp_path) 
 def test_one_step_records_its_own_parameters_and_a_fault_aborts_keeping_the_data(tmp_path) -> None:
     store = RunStore(tmp_path / "b.sqlite")
     procedure = Recorded([Count(n=5, fail_at=3)])
-    outcome = execute(procedure, station(meter=object()), store, unit_serial=None, seed=1)
+    outcome = execute(procedure, bare_station(meter=object()), store, unit_serial=None, seed=1)
     assert outcome.status == "aborted" and outcome.reason == "RuntimeError: meter lost at 3"
     assert procedure.calls == ["setup", "teardown"]
     assert store.get_run(outcome.run_id).parameters == {"n": 5, "fail_at": 3}
@@ -164,7 +113,7 @@ def test_one_step_records_its_own_parameters_and_a_fault_aborts_keeping_the_data
 
 def test_a_failed_teardown_aborts_a_passed_run_and_is_logged(tmp_path) -> None:
     store = RunStore(tmp_path / "b.sqlite")
-    outcome = execute(Recorded([Count(n=1)], teardown_fails=True), station(meter=1), store,
+    outcome = execute(Recorded([Count(n=1)], teardown_fails=True), bare_station(meter=1), store,
                       unit_serial=None, seed=None)
     assert (outcome.status, outcome.reason) == ("aborted", "teardown failed: OSError: supply unreachable")
     assert ("teardown_error", "OSError: supply unreachable") in [
@@ -174,7 +123,7 @@ def test_a_failed_teardown_aborts_a_passed_run_and_is_logged(tmp_path) -> None:
 def test_a_station_without_what_the_steps_need_is_refused_before_a_run(tmp_path) -> None:
     store = RunStore(tmp_path / "b.sqlite")
     with pytest.raises(ValueError, match=r"lacks \['meter'\] needed by 'recorded'"):
-        execute(Recorded([Bare(), Count()]), station(), store, unit_serial=None, seed=None)
+        execute(Recorded([Bare(), Count()]), bare_station(), store, unit_serial=None, seed=None)
     assert store.list_runs() == []
     with pytest.raises(ValueError, match="has no steps"):
         Recorded([])
@@ -206,7 +155,7 @@ def test_a_prompt_before_a_step_is_asked_and_recorded_and_abort_leaves_the_stati
     store = RunStore(tmp_path / "b.sqlite")
     first, second = Count(n=1), Count(n=2)
     operator = Answering(True)
-    outcome = execute(Prompted([first, second], {1: "close the cover"}), station(meter=object()), store,
+    outcome = execute(Prompted([first, second], {1: "close the cover"}), bare_station(meter=object()), store,
                       unit_serial="U1", seed=None, operator=operator)
     assert outcome.status == "passed" and operator.asked == ["close the cover"]
     events = [(e.kind, e.message, e.data) for e in store.events(outcome.run_id)]
@@ -216,7 +165,7 @@ def test_a_prompt_before_a_step_is_asked_and_recorded_and_abort_leaves_the_stati
 
     procedure = Prompted([Count(n=1), Count(n=2)], {1: "close the cover"})
     with pytest.raises(OperatorAbort):
-        execute(procedure, station(meter=object()), store, unit_serial="U2", seed=None,
+        execute(procedure, bare_station(meter=object()), store, unit_serial="U2", seed=None,
                 operator=Answering(False))
     info = store.get_run(store.list_runs()[0].id)
     assert info.status == "aborted"
@@ -224,7 +173,7 @@ def test_a_prompt_before_a_step_is_asked_and_recorded_and_abort_leaves_the_stati
     assert procedure.calls == ["setup", "teardown"]           # the teardown ran: station safe
     assert len(store.load(info.id, "counts")["value"]) == 1  # the first step's data kept
 
-    unattended = execute(Prompted([Count(n=1)], {0: "mount the unit"}), station(meter=object()), store,
+    unattended = execute(Prompted([Count(n=1)], {0: "mount the unit"}), bare_station(meter=object()), store,
                          unit_serial="U3", seed=None)  # nobody to ask: continues, says so
     answer = [e for e in store.events(unattended.run_id) if e.kind == "operator_answer"]
     assert unattended.status == "passed" and answer[0].data == {"operator": "unattended"}

@@ -3,8 +3,9 @@ calibration and the whole loop on data with a hidden effect (a fast subset of th
 
 from __future__ import annotations
 
-import importlib
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,9 @@ from bench.discovery.workflow import (
     unjumped,
     unnested,
 )
+from bench.testing.discovery_cases import hidden_case
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 GM, RW = CATALOGUE["gauss_markov"], CATALOGUE["rate_random_walk"]
 
@@ -520,7 +524,7 @@ def test_a_shape_nesting_the_pick_must_add_beyond_what_an_earlier_effects_error_
     assert one >= 9
 
 
-def test_the_audit_withdraws_one_name_then_re_chooses_before_judging_the_others(monkeypatch):
+def test_the_audit_withdraws_one_name_then_re_chooses_before_judging_the_others():
     """The scorecard's triple scale-factor asymmetry + temperature scale factor + bias jump
     (accelerometer, seed 3002): K2 is named for the asymmetry (its look-alike), then the scale
     factor and the jump beside it. K2's shape fails its audit; judged beside the missing
@@ -529,10 +533,8 @@ def test_the_audit_withdraws_one_name_then_re_chooses_before_judging_the_others(
     hold. A random walk named beside K2 for its misfit, re-estimated once the asymmetry is named
     (``workflow.refit_processes``), is no longer significant there (p = 1) and is withdrawn
     (``workflow.faded_processes``) — refitted and kept, it was an extra name."""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
     hidden = ("scale_factor_asymmetry", "temperature_scale_factor", "bias_jump")
-    rec, _, _, redraws = scorecard.hidden_case("accelerometer", hidden, 3002, 3000)
+    rec, _, _, redraws = hidden_case("accelerometer", hidden, 3002, 3000)
     assert redraws == 0  # the draw this test describes
     said: list[str] = []
     d = discover(rec, Model(base_model("accelerometer")), max_effects=4, seed=3002, progress=said.append)
@@ -544,16 +546,14 @@ def test_the_audit_withdraws_one_name_then_re_chooses_before_judging_the_others(
             assert said[i + 1] == "re-choosing after the withdrawal"
 
 
-def test_a_withdrawn_effect_may_be_named_again_beside_its_look_alike(monkeypatch):
+def test_a_withdrawn_effect_may_be_named_again_beside_its_look_alike():
     """The scorecard's pair scale-factor asymmetry + K2 (gyro, seed 1001): K2 is named first, with
     the asymmetry folded into it; beside that biased K2 the asymmetry is not significant, and
     K2's shape fails its audit (|input| still explains the residual). The re-choice names the
     asymmetry; K2, withdrawn, sat out every re-choice after — its shape failed the asymmetry's
     audit in turn and nothing was named (gap 14). Beside the asymmetry K2 may come back."""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
     hidden = ("scale_factor_asymmetry", "k2_nonlinearity")
-    rec, _, _, redraws = scorecard.hidden_case("gyro", hidden, 1001, 3000)
+    rec, _, _, redraws = hidden_case("gyro", hidden, 1001, 3000)
     assert redraws == 0  # the draw this test describes
     d = discover(rec, Model(base_model("gyro")), max_effects=3, seed=1001)
     assert sorted(s.effect_id for s in d.steps) == sorted(hidden)
@@ -596,7 +596,7 @@ def test_an_input_transform_named_after_another_takes_its_place_in_the_chain():
         CandidateFitter(rest, rec, CATALOGUE["dead_zone"], at=3)
 
 
-def test_a_term_the_later_names_made_redundant_is_withdrawn(monkeypatch):
+def test_a_term_the_later_names_made_redundant_is_withdrawn():
     """The scorecard's accelerometer triple jumps + dead zone + Gauss–Markov (seed 3017): a
     two-node warm-up named first for the slope of the jump staircase stayed named beside the
     jumps (an extra name). On the final model without it — the others refitted, the process
@@ -605,10 +605,8 @@ def test_a_term_the_later_names_made_redundant_is_withdrawn(monkeypatch):
     triple; since stop 29 weighs a two-node against the warm-up it nests in the innovations of
     the named process, a one-node warm-up of τ 1 486 s is named first instead, the jumps are
     never named, and the triple is one of the usual sample's misses — README, issue 15.)"""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
     hidden = ("bias_jump", "dead_zone", "gauss_markov")
-    rec, truth, _, _ = scorecard.hidden_case("accelerometer", hidden, 3017, 3000)
+    rec, truth, _, _ = hidden_case("accelerometer", hidden, 3017, 3000)
     spare = truth.with_effect("warmup_exponential", {"amplitude": 2e-5, "tau_s": 300.0})
     spare = calibrate(spare, rec, noise=False)
     r = rec.y - spare.predict(rec)
@@ -617,24 +615,22 @@ def test_a_term_the_later_names_made_redundant_is_withdrawn(monkeypatch):
     assert "no longer significant" in faded[0].describe()
 
 
-def test_the_scorecard_draws_each_effect_of_a_mixture_at_snr_15_inside_it(monkeypatch):
+def test_the_scorecard_draws_each_effect_of_a_mixture_at_snr_15_inside_it():
     """The scorecard's gyro triple temperature bias + K3 + random walk (seed 3014): first drawn,
     the bias is 19σ against white noise but 1.8σ against the walk beside it — no method could
     name it. The mixture's draw rule (``hidden_case``) draws it again until every effect is at
     snr ≥ 15 inside its mixture (``Model.effect_snr``); ``mix_rule=False`` (``--white-draws``)
     keeps the first draw, stop 27's rule."""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
     hidden = ("temperature_bias", "k3_nonlinearity", "rate_random_walk")
-    rec0, truth0, snrs0, redraws0 = scorecard.hidden_case("gyro", hidden, 3014, 3000, mix_rule=False)
+    rec0, truth0, snrs0, redraws0 = hidden_case("gyro", hidden, 3014, 3000, mix_rule=False)
     assert redraws0 == 0 and snrs0[0] >= 15
     assert truth0.effect_snr(rec0, 0) < 3
-    rec, truth, _, redraws = scorecard.hidden_case("gyro", hidden, 3014, 3000)
+    rec, truth, _, redraws = hidden_case("gyro", hidden, 3014, 3000)
     assert redraws > 0
     assert all(truth.effect_snr(rec, i) >= 15 for i in range(3))
     assert not np.array_equal(rec.y, rec0.y)
     # a single is never redrawn: its rule is Effect.draw's alone
-    assert scorecard.hidden_case("gyro", ("temperature_bias",), 0, 3000)[3] == 0
+    assert hidden_case("gyro", ("temperature_bias",), 0, 3000)[3] == 0
 
 
 def test_a_jump_found_beside_a_wrong_shape_is_searched_again_once_the_model_changes():
@@ -671,44 +667,44 @@ def test_a_jump_found_beside_a_wrong_shape_is_searched_again_once_the_model_chan
     assert CATALOGUE["bias_jump"].count(starts[0]) == 1
 
 
-def _named_at_step(monkeypatch, kind: str, hidden: tuple[str, ...], seed: int, known: int):
+def _named_at_step(kind: str, hidden: tuple[str, ...], seed: int, known: int):
     """The naming step of the scorecard's triple ``hidden`` (``hidden_case(kind, hidden, seed)``)
     on the model that holds its first ``known`` effects at the truth, calibrated — the step
     ``discover`` reaches after naming them (its seed: the record's + ``known``)."""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
-    rec, truth, _, _ = scorecard.hidden_case(kind, hidden, seed, 3000)
+    case = hidden_case(kind, hidden, seed, 3000)
+    assert case is not None, "the scorecard's case is drawable"
+    rec, truth, _, _ = case
     model = calibrate(Model(truth.base, truth.effects[:known]), rec)
     return name_effect(model, rec, seed=seed + known)
 
 
-def test_a_walk_that_keeps_nothing_beside_the_jumps_does_not_take_their_name(monkeypatch):
+def test_a_walk_that_keeps_nothing_beside_the_jumps_does_not_take_their_name():
     """The scorecard's accelerometer triple asymmetry + temperature scale factor + two jumps of
     3e-6 g (seed 3005 of ``--pairs 0 --triples 30``): at the third step a walk of 6e-8 g/√s
     made the jumps look typical (a walk steps too) and their likelihood gain was not 25 above
     the walk's, so the walk was named. Refitted beside the jumps the walk keeps nothing of its
     evidence: the jumps are named."""
-    naming = _named_at_step(monkeypatch, "accelerometer",
+    naming = _named_at_step("accelerometer",
                             ("scale_factor_asymmetry", "temperature_scale_factor", "bias_jump"), 3005, 2)
     walk = next(c for c in naming.candidates if c.id == "rate_random_walk")
     assert walk.named  # significant and big enough on its own: the two were in contest
     assert naming.best is not None and naming.best.id == "bias_jump"
 
 
-def test_a_jump_and_a_warm_up_of_as_many_parameters_tied_held_out_are_told_apart_in_sample(monkeypatch):
+def test_a_jump_and_a_warm_up_of_as_many_parameters_tied_held_out_are_told_apart_in_sample():
     """The scorecard's MHD triple K3 + temperature scale factor + a jump at 0.73 s of a 6-s record
     (seed 3002): at the third step a warm-up of τ 0.73 s scored 0.068 held-out and the jump 0.059
     (standard error 0.024) — a held-out block that holds the jump hides its time — and the
     warm-up was named. Both have two free parameters; refitted with the model, the jump leaves
     43 white variances less: it is named (``parsimonious`` with ``rec``)."""
-    naming = _named_at_step(monkeypatch, "mhd", ("k3_nonlinearity", "temperature_scale_factor", "bias_jump"), 3002, 2)
+    naming = _named_at_step("mhd", ("k3_nonlinearity", "temperature_scale_factor", "bias_jump"), 3002, 2)
     warm = next(c for c in naming.candidates if c.id == "warmup_exponential")
     jump = next(c for c in naming.candidates if c.id == "bias_jump")
     assert warm.named and jump.named and warm.score > jump.score
     assert naming.best is not None and naming.best.id == "bias_jump"
 
 
-def test_a_one_node_warm_up_beside_a_walk_is_not_taken_for_two_nodes(monkeypatch):
+def test_a_one_node_warm_up_beside_a_walk_is_not_taken_for_two_nodes():
     """The scorecard's gyro triple sine + warm-up + random walk (seed 3013 of ``--pairs 0
     --triples 30``): at the second step the two-node scored best held-out and its second node
     explained more than 25 white variances beyond the one-node warm-up in-sample — by following
@@ -716,7 +712,7 @@ def test_a_one_node_warm_up_beside_a_walk_is_not_taken_for_two_nodes(monkeypatch
     the one it nests are weighed in the innovations of the named process refitted beside the
     simpler (``naming.colour_beside``): there the second node adds less than the gate, and the
     warm-up is named."""
-    naming = _named_at_step(monkeypatch, "gyro",
+    naming = _named_at_step("gyro",
                             ("sinusoidal_interference", "warmup_exponential", "rate_random_walk"), 3013, 1)
     two = next(c for c in naming.candidates if c.id == "thermal_two_node")
     assert two.named  # in contest
@@ -766,7 +762,7 @@ def test_a_two_node_named_for_a_drift_and_a_warm_up_for_its_fast_node_are_merged
     assert renested(three, rec3) is None
 
 
-def test_a_two_node_whose_slow_share_the_range_stopped_is_not_named_alone(monkeypatch):
+def test_a_two_node_whose_slow_share_the_range_stopped_is_not_named_alone():
     """A two-node transient whose slow node's share sits at either end of its range is a hump the
     range stopped: two jumps down on the MHD's 6-s record took f = 3.0, τ 0.92/2.74 s at the second
     step of the scorecard's MHD triple jumps + saturation + Gauss–Markov (seed 3029 of ``--pairs 3
@@ -776,9 +772,7 @@ def test_a_two_node_whose_slow_share_the_range_stopped_is_not_named_alone(monkey
     p = {"amplitude": 0.2, "fraction_slow": 0.5, "tau_fast_s": 0.92, "tau_slow_s": 2.74}
     assert two.shape_inside(p) and two.shape_inside(p | {"fraction_slow": 2.9})
     assert not two.shape_inside(p | {"fraction_slow": 3.0}) and not two.shape_inside(p | {"fraction_slow": -2.0})
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
-    rec, truth, _, _ = scorecard.hidden_case("mhd", ("bias_jump", "saturation", "gauss_markov"), 3029, 3000)
+    rec, truth, _, _ = hidden_case("mhd", ("bias_jump", "saturation", "gauss_markov"), 3029, 3000)
     model = calibrate(Model(truth.base, truth.effects[1:2]), rec)  # the clip, as discover names it first
     naming = name_effect(model, rec, seed=3029 + 1)
     cand = next(c for c in naming.candidates if c.id == "thermal_two_node")
@@ -786,40 +780,40 @@ def test_a_two_node_whose_slow_share_the_range_stopped_is_not_named_alone(monkey
     assert naming.best is not None and naming.best.id == "bias_jump"
 
 
-def test_a_walk_is_judged_at_its_exact_likelihood_level_not_the_whittle_one(monkeypatch):
+def test_a_walk_is_judged_at_its_exact_likelihood_level_not_the_whittle_one():
     """The scorecard's gyro triple asymmetry + low-pass + random walk (seed 3022 of ``--pairs 0
     --triples 30``): at the third step the walk had the best BIC gain, but its Whittle level
     (3.9e-4 °/s/√s for 2.2e-4: a finite walk's levels periodogram leaks at the record's ends)
     left innovations at 0.27× their level over the lowest bins — its signature "failed" and a
     Gauss–Markov was named. Judged at its exact-likelihood level on the same residual
     (``evidence.process_evidence``), the walk's signature holds and it is named."""
-    naming = _named_at_step(monkeypatch, "gyro",
+    naming = _named_at_step("gyro",
                             ("scale_factor_asymmetry", "lowpass_bandwidth", "rate_random_walk"), 3022, 2)
     assert naming.best is not None and naming.best.id == "rate_random_walk"
     assert naming.set_aside == ()
 
 
-def test_behind_a_coarse_quantizer_the_null_through_it_decides_a_localized_term(monkeypatch):
+def test_behind_a_coarse_quantizer_the_null_through_it_decides_a_localized_term():
     """The scorecard's MHD triple quantizer + K3 + flicker (seed 3003 of ``--pairs 9 --triples
     30``): at the third step three jumps were typical under the flicker drawn through the
     quantizer (p = 0.06), but their Gaussian likelihood gain was 200 above the flicker's — a
     process crossing coarse steps reads as steps — and they were named, a Gauss–Markov beside
     them. Behind an effect that colours the residual (``Effect.colours_residual``) the null drawn
     through it decides: the flicker is named."""
-    naming = _named_at_step(monkeypatch, "mhd", ("quantization", "k3_nonlinearity", "flicker_noise"), 3003, 2)
+    naming = _named_at_step("mhd", ("quantization", "k3_nonlinearity", "flicker_noise"), 3003, 2)
     jump = next(c for c in naming.candidates if c.id == "bias_jump")
     assert jump.named  # significant against white noise: in contest
     assert naming.best is not None and naming.best.id == "flicker_noise"
 
 
-def test_a_process_behind_a_clip_is_carried_across_the_clipped_stretches(monkeypatch):
+def test_a_process_behind_a_clip_is_carried_across_the_clipped_stretches():
     """The scorecard's accelerometer triple K3 + saturation + Gauss–Markov (seed 3015 of
     ``--pairs 1 --triples 30``; 18 % of the tumble clipped): a clipped reading is the limit
     whatever the noise, so the residual there is flat. Read as samples of the process, the flat
     stretches set the GM aside (its innovations jumped 6 σ at a stretch's end), a warm-up took
     its place, and the audit withdrew every name. With the clipped samples missing to the filter
     and the likelihood (``Model.noise_seen``) the GM is named at its exact-likelihood values."""
-    naming = _named_at_step(monkeypatch, "accelerometer", ("k3_nonlinearity", "saturation", "gauss_markov"), 3015, 2)
+    naming = _named_at_step("accelerometer", ("k3_nonlinearity", "saturation", "gauss_markov"), 3015, 2)
     assert naming.best is not None and naming.best.id == "gauss_markov", naming.set_aside
     assert naming.set_aside == ()
     # truth σ 9.3e-6, τ 21.2 s (Whittle on the flat stretches: 8.6e-6, 15.2 s)
@@ -827,20 +821,20 @@ def test_a_process_behind_a_clip_is_carried_across_the_clipped_stretches(monkeyp
     assert naming.best.params["tau_s"] == pytest.approx(21.2, rel=0.3)
 
 
-def _scorecard_record(monkeypatch, kind: str, hidden: tuple[str, ...], seed: int):
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
-    rec, truth, _, _ = scorecard.hidden_case(kind, hidden, seed, 3000)
+def _scorecard_record(kind: str, hidden: tuple[str, ...], seed: int):
+    case = hidden_case(kind, hidden, seed, 3000)
+    assert case is not None, "the scorecard's case is drawable"
+    rec, truth, _, _ = case
     return rec, truth
 
 
-def test_a_clip_that_shrinks_the_calibrated_scale_factor_is_still_fitted_held_out(monkeypatch):
+def test_a_clip_that_shrinks_the_calibrated_scale_factor_is_still_fitted_held_out():
     """The scorecard's accelerometer triple clip + dead zone + vibration rectification (seed 3010
     of ``--pairs 1 --triples 30``): clipped at 0.61 g, the tumble's calibrated scale factor
     shrank to 0.73, so every limit the grid offered the held-out fits (0.86, 0.74) clipped
     nothing and could not move: held-out score 0, nothing named at all. The clip's fits start
     from the readings' own extreme on the rows they see (``Saturation.fit_starts``)."""
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer",
+    rec, truth = _scorecard_record("accelerometer",
                                    ("saturation", "dead_zone", "vibration_rectification"), 3010)
     model = calibrate(Model(truth.base), rec)
     assert model.base.scale_factor < 0.8
@@ -850,14 +844,14 @@ def test_a_clip_that_shrinks_the_calibrated_scale_factor_is_still_fitted_held_ou
     assert naming.best.params["limit"] == pytest.approx(dict(truth.effects)["saturation"]["limit"], rel=1e-3)
 
 
-def test_a_look_alike_named_first_is_swapped_once_the_others_are_named(monkeypatch):
+def test_a_look_alike_named_first_is_swapped_once_the_others_are_named():
     """The scorecard's accelerometer triple saturation + low-pass + thermal hysteresis (seed 3006
     of ``--pairs 9 --triples 30``): a 0.189-s delay and the 0.84-Hz low-pass tied at the first
     step (held-out 0.6916 and 0.6914) and the delay was named; beside the clip named next it
     left 7.6× the floor, which a sinusoid and K2 were named for. Once the names are in, the
     low-pass in the delay's place leaves far less (``relooked``); with the truth's low-pass
     there is nothing to swap, nor for K3 (no look-alike)."""
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer",
+    rec, truth = _scorecard_record("accelerometer",
                                    ("saturation", "lowpass_bandwidth", "thermal_hysteresis"), 3006)
     sat = dict(truth.effects)["saturation"]
     delayed = calibrate(Model(truth.base, (("time_delay", {"delay_s": 0.189}), ("saturation", sat))), rec)
@@ -869,12 +863,12 @@ def test_a_look_alike_named_first_is_swapped_once_the_others_are_named(monkeypat
     assert relooked(right, rec) is None
 
 
-def test_a_swap_keeps_the_story_of_the_initial_model(monkeypatch):
+def test_a_swap_keeps_the_story_of_the_initial_model():
     """On the same record ``discover`` names the delay, then swaps it for the low-pass. The swap
     once wrote the gap, rms and residual of the model without the look-alike over the discovery's
     initial ones (``rms_initial`` 1.84e-2 for the initial model's 2.15e-2): the report's "before"
     was not the starting model. The look-alike's own step starts from that model instead."""
-    rec, _ = _scorecard_record(monkeypatch, "accelerometer",
+    rec, _ = _scorecard_record("accelerometer",
                                ("saturation", "lowpass_bandwidth", "thermal_hysteresis"), 3006)
     d = discover(rec, Model(base_model("accelerometer")), max_effects=4, seed=3006)
     assert any(w.startswith("time_delay: its look-alike lowpass_bandwidth") for w in d.withdrawn), d.withdrawn
@@ -885,13 +879,13 @@ def test_a_swap_keeps_the_story_of_the_initial_model(monkeypatch):
     assert low.rms_before > low.rms_after and low.rms_before != rms0
 
 
-def test_a_term_idle_beside_a_clip_is_judged_on_the_samples_the_clip_leaves(monkeypatch):
+def test_a_term_idle_beside_a_clip_is_judged_on_the_samples_the_clip_leaves():
     """The same record: a K2 named for the delay's misfit stayed beside the low-pass that replaced
     it (and the hysteresis named after) — the audit's likelihood test was not run through an
     output stage. Behind a clip (no
     colour: ``Model.colours_residual``) it counts the samples the clip leaves: K2 is idle there,
     the low-pass is not."""
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer",
+    rec, truth = _scorecard_record("accelerometer",
                                    ("saturation", "lowpass_bandwidth", "thermal_hysteresis"), 3006)
     sat = dict(truth.effects)["saturation"]
     hyst = dict(truth.effects)["thermal_hysteresis"]
@@ -903,14 +897,14 @@ def test_a_term_idle_beside_a_clip_is_judged_on_the_samples_the_clip_leaves(monk
     assert faded == {"k2_nonlinearity"}
 
 
-def test_two_slow_terms_together_are_weighed_before_the_walk_that_follows_their_sum(monkeypatch):
+def test_two_slow_terms_together_are_weighed_before_the_walk_that_follows_their_sum():
     """The scorecard's accelerometer triple temperature bias + drift + two-node warm-up (seed 3003
     of ``--pairs 1 --triples 30``): once the two-node is named, a walk (held-out 0.25) follows the
     sum of the other two better than either alone (drift 0.14, temperature 0.12), and was named.
     Fitted together beside the model the pair explains the record better than the walk by the
     size gate and leaves nothing of it (``choosing.pair_over_process``): the temperature bias —
     not the drift, a catch-all whose signature its partner breaks — is named, then the drift."""
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer",
+    rec, truth = _scorecard_record("accelerometer",
                                    ("temperature_bias", "linear_drift", "thermal_two_node"), 3003)
     model = calibrate(Model(truth.base, truth.effects[2:]), rec)
     naming = name_effect(model, rec, seed=3004)
@@ -922,13 +916,13 @@ def test_two_slow_terms_together_are_weighed_before_the_walk_that_follows_their_
     assert then.best is not None and then.best.id == "linear_drift"
 
 
-def test_a_two_node_named_before_a_walk_gives_way_to_the_warm_up_it_nests(monkeypatch):
+def test_a_two_node_named_before_a_walk_gives_way_to_the_warm_up_it_nests():
     """The scorecard's gyro triple asymmetry + warm-up + walk (seed 3013 of ``--pairs 1 --triples
     30``): a two-node (slow node 168 s of share −0.24 on a 300-s record) was named before the
     walk. With the walk in the model a warm-up alone in its place, fitted by the exact
     likelihood, costs 3.4 in −2 ln L for two parameters fewer (``unnested``): it is the name, at
     the truth's values. Beside a Gauss–Markov instead of the walk the rule is not tried."""
-    rec, truth = _scorecard_record(monkeypatch, "gyro",
+    rec, truth = _scorecard_record("gyro",
                                    ("scale_factor_asymmetry", "warmup_exponential", "rate_random_walk"), 3013)
     two_node = {"amplitude": -0.0793, "fraction_slow": -0.2365, "tau_fast_s": 1.904, "tau_slow_s": 167.85}
     model = calibrate(Model(truth.base, (("scale_factor_asymmetry", {"asymmetry": 1.27e-3}),
@@ -945,7 +939,7 @@ def test_a_two_node_named_before_a_walk_gives_way_to_the_warm_up_it_nests(monkey
     assert unnested(beside_gm, rec) is None
 
 
-def test_jumps_and_a_gauss_markov_give_way_to_the_walk_that_explains_them_alone(monkeypatch):
+def test_jumps_and_a_gauss_markov_give_way_to_the_walk_that_explains_them_alone():
     """The scorecard's accelerometer triple misalignment + clip + walk (seed 3026 of ``--pairs 7
     --triples 30``): with the misalignment still missing, every process's innovations followed
     its cross input and was set aside, so three jumps were named, then the misalignment, then a
@@ -953,7 +947,7 @@ def test_jumps_and_a_gauss_markov_give_way_to_the_walk_that_explains_them_alone(
     jumps and the GM costs 45.9 in −2 ln L for 7 parameters fewer — within their BIC and the size
     gate (76): ``unjumped`` names the walk. Three real jumps beside a real GM (the triple
     asymmetry + jump + GM, seed 3009 of ``--pairs 7``) beat every process alone by far more."""
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer", ("misalignment", "saturation", "rate_random_walk"),
+    rec, truth = _scorecard_record("accelerometer", ("misalignment", "saturation", "rate_random_walk"),
                                    3026)
     jumps = {"size_1": -5.63e-6, "time_1_s": 169.82, "size_2": -3.73e-6, "time_2_s": 1780.64,
              "size_3": -7.01e-6, "time_3_s": 2527.5}
@@ -968,12 +962,12 @@ def test_jumps_and_a_gauss_markov_give_way_to_the_walk_that_explains_them_alone(
     # a process of the starting model (not named by the discovery) stays, known, beside the one fitted
     kept = unjumped(model, rec, named=frozenset({"saturation", "bias_jump", "misalignment"}))
     assert kept is not None and kept[2] == ("bias_jump",) and "gauss_markov" in kept[0].effect_ids
-    rec2, truth2 = _scorecard_record(monkeypatch, "accelerometer",
+    rec2, truth2 = _scorecard_record("accelerometer",
                                      ("scale_factor_asymmetry", "bias_jump", "gauss_markov"), 3009)
     assert unjumped(calibrate(truth2, rec2), rec2) is None
 
 
-def test_a_walk_behind_a_coarse_quantizer_is_judged_where_it_moved_the_signal(monkeypatch):
+def test_a_walk_behind_a_coarse_quantizer_is_judged_where_it_moved_the_signal():
     """The scorecard's gyro triple quantizer (steps of 6 noise sd) + g-sensitivity + walk (seed
     3004 of ``--pairs 4 --triples 30``): the walk moves the signal about a step along the lattice
     in 300 s, and the readings flip only while it sits near a threshold. The innovation profile
@@ -981,18 +975,18 @@ def test_a_walk_behind_a_coarse_quantizer_is_judged_where_it_moved_the_signal(mo
     1.26× the floor under every process — all three were set aside and three jumps and a
     Gauss–Markov were named. Judged where the processes' one-step prediction places the signal
     (``innovations_profile(residual=…)``), a process's signature holds and a process is named."""
-    naming = _named_at_step(monkeypatch, "gyro", ("quantization", "g_sensitivity", "rate_random_walk"), 3004, 2)
+    naming = _named_at_step("gyro", ("quantization", "g_sensitivity", "rate_random_walk"), 3004, 2)
     assert naming.set_aside == ()
     assert naming.best is not None and naming.best.stochastic
 
 
-def test_jumps_scored_below_a_term_that_lost_to_a_walk_still_have_their_turn(monkeypatch):
+def test_jumps_scored_below_a_term_that_lost_to_a_walk_still_have_their_turn():
     """The scorecard's accelerometer triple temperature rate + two jumps + K2 (seed 3007 of
     ``--pairs 8 --triples 30``): once the temperature rate and K2 were named, a temperature bias
     scored 0.47, the jumps (fitted to a second) 0.46 and a walk 0.57; the temperature bias lost to
     the walk and the walk was named at once — the jumps were never tested against it. Localized
     explanations are tested first: the jumps are named."""
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer",
+    rec, truth = _scorecard_record("accelerometer",
                                    ("temperature_rate", "bias_jump", "k2_nonlinearity"), 3007)
     model = calibrate(Model(truth.base, (truth.effects[0], truth.effects[2])), rec)
     naming = name_effect(model, rec, seed=3007 + 2)
@@ -1000,13 +994,13 @@ def test_jumps_scored_below_a_term_that_lost_to_a_walk_still_have_their_turn(mon
     assert abs(naming.best.params["time_1_s"] - 1592.2) < 2 and abs(naming.best.params["time_2_s"] - 2305.3) < 2
 
 
-def test_jumps_that_explain_more_than_a_walk_are_named_though_a_real_process_stays_beside(monkeypatch):
+def test_jumps_that_explain_more_than_a_walk_are_named_though_a_real_process_stays_beside():
     """The scorecard's accelerometer triple three jumps + dead zone + Gauss–Markov (seed 3019 of
     ``--pairs 2 --triples 30``): beside the dead zone the jumps gain 2805 on the Whittle likelihood,
     a walk alone 2781; the walk refitted beside the jumps stayed significant (the GM is real), and
     that was read as the jumps being the walk's wander — the walk was named. Jumps that explain
     more are named; the process beside them is named at the next step."""
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer", ("bias_jump", "dead_zone", "gauss_markov"), 3019)
+    rec, truth = _scorecard_record("accelerometer", ("bias_jump", "dead_zone", "gauss_markov"), 3019)
     model = calibrate(Model(truth.base, (truth.effects[1],)), rec)
     naming = name_effect(model, rec, seed=3019 + 1)
     assert naming.best is not None and naming.best.id == "bias_jump", naming.best
@@ -1015,14 +1009,14 @@ def test_jumps_that_explain_more_than_a_walk_are_named_though_a_real_process_sta
     assert naming.best is not None and naming.best.id == "gauss_markov", naming.best
 
 
-def test_a_walk_named_for_jumps_while_a_thermal_term_was_missing_gives_way_to_them(monkeypatch):
+def test_a_walk_named_for_jumps_while_a_thermal_term_was_missing_gives_way_to_them():
     """The scorecard's accelerometer triple hysteresis + temperature scale factor + two jumps
     (seed 3025 of ``--pairs 5`` and ``--pairs 8``): before the hysteresis was named, a walk
     explained the jumps and the hysteresis loop together better than the jumps (Whittle 1699 vs
     1442) and was named; the hysteresis came next. Once the names are in, jumps in the walk's
     place beat it by 126 in −2 ln L for 5 parameters more and 3 searched times (gate 83.6), and
     the walk refitted beside them is not significant: ``jumped``."""
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer",
+    rec, truth = _scorecard_record("accelerometer",
                                    ("thermal_hysteresis", "temperature_scale_factor", "bias_jump"), 3025)
     walk = Model(truth.base, truth.effects[:2] + (("rate_random_walk", {"k_per_rs": 1e-7}),))
     model, _ = refit_processes(calibrate(walk, rec), rec)
@@ -1039,20 +1033,20 @@ def test_a_walk_named_for_jumps_while_a_thermal_term_was_missing_gives_way_to_th
     assert jumped(model, rec, named=frozenset({"thermal_hysteresis"})) is None  # the walk was the user's
     # a weak real walk whose largest step one jump takes stays (accelerometer K3 + hysteresis + walk,
     # seed 3006 of --pairs 12: 34.2 better, the gate 39.6 with the jump's time counted twice)
-    rec2, truth2 = _scorecard_record(monkeypatch, "accelerometer",
+    rec2, truth2 = _scorecard_record("accelerometer",
                                      ("k3_nonlinearity", "thermal_hysteresis", "rate_random_walk"), 3006)
     walk2, _ = refit_processes(calibrate(truth2, rec2), rec2)
     assert jumped(walk2, rec2) is None
 
 
-def test_a_walk_named_as_a_drift_and_a_gauss_markov_gives_way_to_the_walk_alone(monkeypatch):
+def test_a_walk_named_as_a_drift_and_a_gauss_markov_gives_way_to_the_walk_alone():
     """The scorecard's gyro triple asymmetry + K3 + walk (seed 3008 of ``--pairs 5``): once K3
     and the asymmetry were in, a drift (held-out 0.240) scored above the walk (0.228) and a
     Gauss–Markov of τ 8.6 s took the rest. The walk alone in their place costs 33.8 in −2 ln L for
     2 parameters fewer, within their BIC and the size gate (39.6): ``unjumped`` names the walk.
     A real drift beside a real Gauss–Markov (gyro drift + delay + GM, seed 3004 of ``--pairs 2``)
     is kept."""
-    rec, truth = _scorecard_record(monkeypatch, "gyro", ("scale_factor_asymmetry", "k3_nonlinearity",
+    rec, truth = _scorecard_record("gyro", ("scale_factor_asymmetry", "k3_nonlinearity",
                                                          "rate_random_walk"), 3008)
     model = calibrate(Model(truth.base, truth.effects[:2] + (("linear_drift", {"slope_per_s": 1.97e-5}),
                                                              ("gauss_markov", {"sigma": 5.49e-4, "tau_s": 8.57}))),
@@ -1061,18 +1055,18 @@ def test_a_walk_named_as_a_drift_and_a_gauss_markov_gives_way_to_the_walk_alone(
     assert out is not None
     _, into, gone, why = out
     assert into == "rate_random_walk" and set(gone) == {"linear_drift", "gauss_markov"}, why
-    rec2, truth2 = _scorecard_record(monkeypatch, "gyro", ("linear_drift", "time_delay", "gauss_markov"), 3004)
+    rec2, truth2 = _scorecard_record("gyro", ("linear_drift", "time_delay", "gauss_markov"), 3004)
     assert unjumped(calibrate(truth2, rec2), rec2) is None
 
 
-def test_a_two_node_named_for_a_warmup_beside_a_term_fitted_to_the_warming_gives_way_to_it(monkeypatch):
+def test_a_two_node_named_for_a_warmup_beside_a_term_fitted_to_the_warming_gives_way_to_it():
     """The scorecard's gyro triple temperature scale factor + warm-up (τ 23.3 s) + g-sensitivity
     (seed 3003 of ``--pairs 8``): a candidate's fit keeps the effects named before it fixed, and
     beside a temperature scale factor fitted to the warming the warm-up's went to τ 38 s; a
     two-node (6.5 s and 54 s) scored above it and was named. With no random process the residual
     is white: the warm-up fitted in its place and the whole model calibrated costs 3.2 in −2 ln L
     for 2 parameters fewer (ln(n/2) = 7.3 each) — ``unnested`` names it, at τ ≈ 23 s."""
-    rec, truth = _scorecard_record(monkeypatch, "gyro",
+    rec, truth = _scorecard_record("gyro",
                                    ("temperature_scale_factor", "warmup_exponential", "g_sensitivity"), 3003)
     two = {"amplitude": -0.03867, "fraction_slow": 0.5383, "tau_fast_s": 6.479, "tau_slow_s": 53.77}
     model = calibrate(Model(truth.base, (truth.effects[0], truth.effects[2], ("thermal_two_node", two))), rec)
@@ -1084,11 +1078,11 @@ def test_a_two_node_named_for_a_warmup_beside_a_term_fitted_to_the_warming_gives
     # of --pairs 2; gyro drift + two-node + vibration rectification, seed 3007 of --pairs 2)
     for kind, hidden, seed in (("mhd", ("thermal_hysteresis", "scale_factor_asymmetry", "thermal_two_node"), 3000),
                                ("gyro", ("linear_drift", "thermal_two_node", "vibration_rectification"), 3007)):
-        rec2, truth2 = _scorecard_record(monkeypatch, kind, hidden, seed)
+        rec2, truth2 = _scorecard_record(kind, hidden, seed)
         assert unnested(calibrate(truth2, rec2), rec2) is None
 
 
-def test_a_warmup_and_a_walk_named_for_a_two_node_transient_give_way_to_it(monkeypatch):
+def test_a_warmup_and_a_walk_named_for_a_two_node_transient_give_way_to_it():
     """The scorecard's gyro triple two jumps + misalignment + two-node transient (seed 3000 of
     ``--pairs 2``): with the jumps at 48 and 170 s still in the residual the two-node's fit was
     off and a warm-up was named (the simpler shape, within a standard error), and once the jumps
@@ -1096,7 +1090,7 @@ def test_a_warmup_and_a_walk_named_for_a_two_node_transient_give_way_to_it(monke
     process beats them by far more than its extra parameters and the size gate: ``grown``.
     A real warm-up beside a real walk (gyro asymmetry + warm-up + walk, seed 3012 of
     ``--pairs 3``) is kept."""
-    rec, truth = _scorecard_record(monkeypatch, "gyro", ("bias_jump", "misalignment", "thermal_two_node"), 3000)
+    rec, truth = _scorecard_record("gyro", ("bias_jump", "misalignment", "thermal_two_node"), 3000)
     model = calibrate(Model(truth.base, (("warmup_exponential", {"amplitude": 0.19, "tau_s": 7.9}), truth.effects[0],
                                          truth.effects[1], ("rate_random_walk", {"k_per_rs": 1e-3}))), rec)
     model, _ = refit_processes(model, rec)
@@ -1107,12 +1101,12 @@ def test_a_warmup_and_a_walk_named_for_a_two_node_transient_give_way_to_it(monke
     assert alt.stochastic_effects() == []
     assert grown(model, rec, exclude=frozenset({"thermal_two_node"})) is None
     assert grown(model, rec, named=frozenset({"warmup_exponential", "bias_jump", "misalignment"})) is None
-    rec2, truth2 = _scorecard_record(monkeypatch, "gyro", ("scale_factor_asymmetry", "warmup_exponential",
+    rec2, truth2 = _scorecard_record("gyro", ("scale_factor_asymmetry", "warmup_exponential",
                                                            "rate_random_walk"), 3012)
     assert grown(calibrate(truth2, rec2), rec2) is None
 
 
-def test_a_sine_beside_a_clip_starts_its_fold_fits_at_its_line_not_a_sideband(monkeypatch):
+def test_a_sine_beside_a_clip_starts_its_fold_fits_at_its_line_not_a_sideband():
     """The scorecard's gyro triple temperature bias + sine of 0.1163 Hz + clip (17 % of the
     samples; seed 3022 of ``--pairs 2``): on a fold's training blocks (6.25 s, shorter than the
     sine's period) the periodogram ranked the line's sidebands by the fold pattern (0.0367 and
@@ -1120,7 +1114,7 @@ def test_a_sine_beside_a_clip_starts_its_fold_fits_at_its_line_not_a_sideband(mo
     fit nailed it). Ranked by what each line explains of the rows beside the clip, the line
     starts both folds: the sine is named at the third step."""
     hidden = ("temperature_bias", "sinusoidal_interference", "saturation")
-    rec, truth = _scorecard_record(monkeypatch, "gyro", hidden, 3022)
+    rec, truth = _scorecard_record("gyro", hidden, 3022)
     effects = dict(truth.effects)
     model = calibrate(Model(truth.base, (("saturation", effects["saturation"]),
                                          ("temperature_bias", effects["temperature_bias"]))), rec)
@@ -1136,7 +1130,7 @@ def test_a_sine_beside_a_clip_starts_its_fold_fits_at_its_line_not_a_sideband(mo
     assert naming.best is not None and naming.best.id == "sinusoidal_interference"
 
 
-def test_two_shapes_close_beside_a_clearly_worse_third_keep_the_spectrums_order(monkeypatch):
+def test_two_shapes_close_beside_a_clearly_worse_third_keep_the_spectrums_order():
     """A close call of shape goes to the exact likelihood only when every named process is in it.
     An independent-generator flicker record (accelerometer, seed 1 of the singles): flicker 732.5
     and Gauss–Markov 730.7 on the Whittle likelihood, the walk 29 below — its band resolves the
@@ -1145,42 +1139,34 @@ def test_two_shapes_close_beside_a_clearly_worse_third_keep_the_spectrums_order(
     1271.0 — flicker outside the tie, the exact likelihood named the GM. Both keep the Whittle
     order now; three shapes within the tie are still the exact likelihood's
     (``test_a_close_call_between_process_shapes_is_the_exact_likelihoods``)."""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    scorecard = importlib.import_module("discovery_scorecard")
-    rec, truth, _, _ = scorecard.hidden_case("accelerometer", ("flicker_noise",), 1, 3000, None, "independent")
+    rec, truth, _, _ = hidden_case("accelerometer", ("flicker_noise",), 1, 3000, None, "independent")
     naming = name_effect(calibrate(Model(truth.base), rec), rec, seed=1)
     assert naming.best is not None and naming.best.id == "flicker_noise"
     hidden = ("thermal_hysteresis", "k3_nonlinearity", "rate_random_walk")
-    rec, truth, _, _ = scorecard.hidden_case("gyro", hidden, 3022, 3000)
+    rec, truth, _, _ = hidden_case("gyro", hidden, 3022, 3000)
     naming = name_effect(calibrate(Model(truth.base, truth.effects[:2]), rec), rec, seed=3024)
     assert naming.best is not None and naming.best.id == "rate_random_walk"
 
 
-def test_a_sine_slower_than_the_fold_blocks_without_a_clip_keeps_the_periodograms_starts(monkeypatch):
+def test_a_sine_slower_than_the_fold_blocks_without_a_clip_keeps_the_periodograms_starts():
     """The scorecard's accelerometer triple asymmetry + temperature scale factor + a sine of
     0.0122 Hz (82 s, 74 σ; seed 3015 of ``--pairs 14``): ranking a fold's lines by what they
     explain of blocks of 62.5 s, each less its mean, put lines that fit the asymmetry's structure
     above the sine and nothing was named on the record. Without a clip the periodogram's order
     stands (the ranking is for a fold beside a clip, above): the sine is named first."""
     hidden = ("scale_factor_asymmetry", "temperature_scale_factor", "sinusoidal_interference")
-    rec, truth = _scorecard_record(monkeypatch, "accelerometer", hidden, 3015)
+    rec, truth = _scorecard_record("accelerometer", hidden, 3015)
     naming = name_effect(calibrate(Model(truth.base), rec), rec, seed=3015)
     assert naming.best is not None and naming.best.id == "sinusoidal_interference"
 
 
-def test_the_shape_call_script_reads_the_rules_it_compares(monkeypatch):
-    """``benchmarks/discovery_shape_calls.py``: the exact likelihood decides a close call under
-    ``exact-any`` whenever two shapes are in it, under ``exact-all`` (``naming.shape_ranked``) only
-    when every named shape is; the report counts a record only when the truth was named."""
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    calls = importlib.import_module("discovery_shape_calls")
-    two_close = [{"id": "flicker_noise", "bic": 732.5, "shape": 69737.3},
-                 {"id": "gauss_markov", "bic": 730.7, "shape": 69740.4},
-                 {"id": "rate_random_walk", "bic": 703.4, "shape": math.nan}]
-    assert calls.RULES["exact-any"](two_close) == "gauss_markov"
-    assert calls.RULES["exact-all"](two_close) == calls.RULES["whittle"](two_close) == "flicker_noise"
-    all_close = [dict(t, shape=69730.0) if t["id"] == "rate_random_walk" else t for t in two_close]
-    all_close[2]["bic"] = 730.0
-    assert calls.RULES["exact-all"](all_close) == calls.RULES["exact-any"](all_close) == "gauss_markov"
-    jobs = calls.jobs_for([0], 0)
-    assert jobs and all(len(j[1]) == 3 and set(j[1]) & set(calls.SHAPES) for j in jobs)
+def test_the_shape_call_script_reads_the_rules_it_compares():
+    """``benchmarks/discovery_shape_calls.py --check``: the exact likelihood decides a close call
+    under ``exact-any`` whenever two shapes are in it, under ``exact-all``
+    (``naming.shape_ranked``) only when every named shape is; its jobs are the scorecard's
+    triples holding a random process."""
+    done = subprocess.run([sys.executable, str(BENCHMARKS / "discovery_shape_calls.py"), "--check"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    lines = done.stdout.splitlines()
+    assert len(lines) == 4 and all(line.startswith("ok ") for line in lines), done.stdout

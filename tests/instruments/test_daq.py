@@ -10,10 +10,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from bench.core.clock import SimulatedClock
+from bench.testing import FakeResource
 from instruments.base import InstrumentError, open_resource
 from instruments.daq import KeysightDAQ970A, parse_scan_block
 from sim.station import SimStationConfig, SimulatedStation
-from tests.instruments.test_driver_base import FakeResource
 
 
 def test_configure_scan_writes_the_scan_and_checks_the_error_queue_once():

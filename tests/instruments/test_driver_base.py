@@ -1,26 +1,21 @@
 """SCPI base machinery: declarative settings, error queue, groups, wire helpers.
 
-Also home of the test doubles the other driver tests import: ``FakeResource`` (records
-every message on the wire, answers from a table, and reads binary blocks through
-pyvisa's own block reader) and ``pack_real64_block`` (packs readings the way the
-instrument does, written independently of the driver and of pyvisa's encoder).
+The driver tests' doubles (``FakeResource``, ``expected_protocol``, ``pack_real64_block``) are
+in ``bench.testing.visa``, beside ``assert_conforms`` in ``bench.testing.conformance``.
 """
 
 from __future__ import annotations
 
-import inspect
 import math
-import struct
 from collections import deque
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from pyvisa.resources import MessageBasedResource
 
+from bench.testing import SIM_YAML_DIR, FakeResource, pack_real64_block
 from instruments.base import (
     Identity,
     InstrumentError,
@@ -41,107 +36,6 @@ from instruments.base import (
     quote_string,
     unquote_string,
 )
-
-YAML_DIR = Path(__file__).resolve().parents[2] / "sim" / "visa_yaml"
-NO_ERROR = '+0,"No error"'
-
-
-class FakeResource:
-    """Stand-in for a pyvisa MessageBasedResource.
-
-    ``written`` records every message in order.  Queries are answered from ``replies``
-    (str, bytes, or a callable ``message -> str | bytes``); ``SYST:ERR?`` pops
-    ``error_queue`` and answers ``+0,"No error"`` when it is empty; an unknown query
-    fails the test.  Binary reads use pyvisa's own ``read_binary_values``: ``_read_raw``
-    stops at the first ``\\n`` byte like a VISA read with the termchar enabled, so
-    payloads containing 0x0A exercise pyvisa's "read the rest of the block" path.
-    """
-
-    resource_name = "FAKE0::INSTR"
-    _read_termination = "\n"
-    read_termination = "\n"
-    query_delay = 0.0
-    read_binary_values = MessageBasedResource.read_binary_values
-    query_binary_values = MessageBasedResource.query_binary_values
-
-    def __init__(self, replies: dict[str, Any] | None = None, errors: tuple[str, ...] = ()):
-        self.replies: dict[str, Any] = dict(replies or {})
-        self.error_queue: deque[str] = deque(errors)
-        self.written: list[str] = []
-        self.chunk_size = 20 * 1024
-        self.closed = False
-        self._output = bytearray()
-
-    def write(self, message: str) -> int:
-        self.written.append(message)
-        reply = self._answer(message)
-        if reply is not None:
-            self._output += (reply.encode() if isinstance(reply, str) else bytes(reply)) + b"\n"
-        return len(message) + 1
-
-    def _answer(self, message: str) -> str | bytes | None:
-        if message == "SYST:ERR?":
-            return self.error_queue.popleft() if self.error_queue else NO_ERROR
-        if message in self.replies:
-            reply = self.replies[message]
-            return reply(message) if callable(reply) else reply
-        if message.split(" ")[0].endswith("?"):
-            raise AssertionError(f"unexpected query {message!r}")
-        return None
-
-    def read(self) -> str:
-        end = self._output.index(b"\n")
-        text = bytes(self._output[:end]).decode()
-        del self._output[: end + 1]
-        return text
-
-    def query(self, message: str) -> str:
-        self.write(message)
-        return self.read()
-
-    def _read_raw(self, size: int | None = None, monitoring_interface: Any = None) -> bytearray:
-        end = self._output.find(b"\n")
-        take = len(self._output) if end < 0 else end + 1
-        chunk = bytearray(self._output[:take])
-        del self._output[:take]
-        return chunk
-
-    def read_bytes(self, count: int, chunk_size: int | None = None,
-                   break_on_termchar: bool = False, monitoring_interface: Any = None) -> bytes:
-        assert count <= len(self._output), "driver read past the end of the reply"
-        chunk = bytes(self._output[:count])
-        del self._output[:count]
-        return chunk
-
-    def close(self) -> None:
-        self.closed = True
-
-
-def pack_real64_block(values: Any) -> bytes:
-    """A definite-length block of little-endian float64, as the meter sends with
-    ``FORM REAL,64`` and ``FORM:BORD SWAP``: ``#<n digits><length><payload>``."""
-    payload = b"".join(struct.pack("<d", float(v)) for v in values)
-    length = str(len(payload))
-    return b"#" + str(len(length)).encode() + length.encode() + payload
-
-
-def assert_conforms(instance: Any, protocol: type) -> None:
-    """Every member a Protocol declares, itself or through the Protocols it extends
-    (``SafeInstrument``: ``make_safe`` ...), exists on ``instance`` (looked up statically, so
-    no property is read over the wire) and methods accept the Protocol's parameters."""
-    declared: dict[str, Any] = {}
-    for cls in reversed([c for c in protocol.__mro__ if c is not object and c.__module__ != "typing"]):
-        declared |= dict.fromkeys(getattr(cls, "__annotations__", {}))
-        declared |= {n: v for n, v in vars(cls).items()
-                     if not n.startswith("_") and (callable(v) or isinstance(v, property))}
-    for name in sorted(declared):
-        member = inspect.getattr_static(instance, name)  # AttributeError if missing
-        wanted = declared[name]
-        if callable(wanted) and not isinstance(wanted, property):
-            have = inspect.signature(member).parameters
-            for param in list(inspect.signature(wanted).parameters)[1:]:
-                assert param in have, f"{name}() lacks parameter {param!r}"
-
 
 # --- a small instrument to exercise the machinery ------------------------------------
 
@@ -356,7 +250,7 @@ def test_real64_block_decodes_exactly(values: list[float]) -> None:
 
 def test_open_resource_sets_terminations_and_chunk() -> None:
     resource = open_resource("TCPIP0::127.0.0.1::5025::SOCKET",
-                             backend=f"{YAML_DIR / 'keysight_34465a.yaml'}@sim", timeout_ms=1234)
+                             backend=f"{SIM_YAML_DIR / 'keysight_34465a.yaml'}@sim", timeout_ms=1234)
     try:
         assert resource.read_termination == "\n" and resource.write_termination == "\n"
         assert resource.timeout == 1234
@@ -369,7 +263,7 @@ def test_open_resource_sets_terminations_and_chunk() -> None:
 def test_open_resource_uses_a_given_resource_manager() -> None:
     import pyvisa
 
-    manager = pyvisa.ResourceManager(f"{YAML_DIR / 'turntable.yaml'}@sim")
+    manager = pyvisa.ResourceManager(f"{SIM_YAML_DIR / 'turntable.yaml'}@sim")
     resource = open_resource("TCPIP0::127.0.0.1::5027::SOCKET", backend="@unused",
                              resource_manager=manager)
     try:

@@ -12,10 +12,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench.testing import SIM_YAML_DIR, FakeResource, assert_conforms, pack_real64_block
 from instruments import InstrumentError, InstrumentReplyError, Keysight34465A, TimedTraceMultimeter
 from instruments.base import UnsupportedInstrumentError, open_resource
 from instruments.multimeter import NPLC_DIG, NPLC_STANDARD, SAMPLE_OVERHEAD_S
-from tests.instruments.test_driver_base import YAML_DIR, FakeResource, assert_conforms, pack_real64_block
 
 IDN = "Keysight Technologies,34465A,MY60000001,A.03.02"
 FORMAT_COMMANDS = ["FORM REAL,64", "FORM:BORD SWAP", "SYST:ERR?"]
@@ -383,7 +383,7 @@ def test_driver_fits_the_timed_trace_multimeter_protocol() -> None:
 @pytest.fixture()
 def sim_dmm() -> Any:
     resource = open_resource("TCPIP0::127.0.0.1::5025::SOCKET",
-                             backend=f"{YAML_DIR / 'keysight_34465a.yaml'}@sim")
+                             backend=f"{SIM_YAML_DIR / 'keysight_34465a.yaml'}@sim")
     yield Keysight34465A(resource)
     resource.close()
 

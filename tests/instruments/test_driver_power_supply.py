@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench.testing import SIM_YAML_DIR, FakeResource, assert_conforms
 from instruments import (
     CHANNEL_RATINGS,
     InstrumentError,
@@ -18,7 +19,6 @@ from instruments import (
     SupplyChannel,
 )
 from instruments.base import UnsupportedInstrumentError, open_resource
-from tests.instruments.test_driver_base import YAML_DIR, FakeResource, assert_conforms
 
 
 def make_supply(model: str = "E36312A", **replies: Any) -> tuple[KeysightE36312A, FakeResource]:
@@ -167,7 +167,7 @@ def test_driver_fits_the_power_supply_protocols() -> None:
 @pytest.fixture()
 def sim_supply() -> Any:
     resource = open_resource("TCPIP0::127.0.0.1::5026::SOCKET",
-                             backend=f"{YAML_DIR / 'keysight_e36312a.yaml'}@sim")
+                             backend=f"{SIM_YAML_DIR / 'keysight_e36312a.yaml'}@sim")
     yield KeysightE36312A(resource)
     resource.close()
 

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench.testing import SIM_YAML_DIR, FakeResource, assert_conforms
 from instruments import (
     AxisFaultError,
     AxisLimits,
@@ -19,7 +20,6 @@ from instruments import (
     RateTableAxis,
 )
 from instruments.base import open_resource
-from tests.instruments.test_driver_base import YAML_DIR, FakeResource, assert_conforms
 
 
 def make_table(**replies: Any) -> tuple[DualAxisTurntable, FakeResource]:
@@ -199,7 +199,7 @@ def test_driver_fits_the_table_protocols() -> None:
 @pytest.fixture()
 def sim_table() -> Any:
     resource = open_resource("TCPIP0::127.0.0.1::5027::SOCKET",
-                             backend=f"{YAML_DIR / 'turntable.yaml'}@sim")
+                             backend=f"{SIM_YAML_DIR / 'turntable.yaml'}@sim")
     yield DualAxisTurntable(resource)
     resource.close()
 

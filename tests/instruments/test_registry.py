@@ -7,6 +7,7 @@ import inspect
 
 import pytest
 
+from bench.testing import assert_conforms
 from instruments.angular_table import AngularVibrationTable
 from instruments.chamber import WatlowF4TChamber
 from instruments.daq import KeysightDAQ970A
@@ -28,7 +29,6 @@ from instruments.protocols import (
 from instruments.registry import DRIVERS, TRANSPORTS, Driver, Option
 from instruments.shaker import VibrationTable
 from instruments.turntable import DualAxisTurntable
-from tests.instruments.test_driver_base import assert_conforms
 
 # Checked by the type checker (mypy runs on tests/): each driver is structurally its Protocol.
 STATIC: tuple[type[TimedTraceMultimeter], type[PowerSupply], type[PositionRateTable], type[FrameGyro],

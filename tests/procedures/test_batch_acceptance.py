@@ -14,55 +14,9 @@ from bench.app.batch import check_socket, parse_sockets, run_batch, spec_for_soc
 from bench.app.cli import main
 from bench.app.station import builtin_sim_config
 from bench.core.store import RunStore
+from bench.testing.specs import SHORT_ACCEPTANCE_SPEC
 from sim.station_fixture import Fixture
 
-SHORT_SPEC = """
-[unit]
-model = "QA-2000-SIM"
-kind = "accelerometer"
-serial_pattern = "QA-SIM-*"
-
-[procedures.turn_on]
-duration_s = 120.0
-rate_hz = 2.0
-off_wait_s = 10.0
-smooth_s = 10.0
-settled_window_s = 30.0
-
-[procedures.tumble]
-positions = 4
-planes = 1
-warmup_s = 30.0
-settle_s = 1.0
-average_s = 2.0
-nplc = 1.0
-
-[procedures.accelerometer_noise]
-duration_s = 120.0
-rate_hz = 10.0
-warmup_s = 0.0
-chunk_s = 30.0
-
-[[measurements]]
-name = "k0"
-procedure = "tumble"
-unit = "mg"
-low = -4.0
-high = 4.0
-
-[[measurements]]
-name = "k1"
-procedure = "tumble"
-unit = "mA/g"
-low = 1.20
-high = 1.46
-
-[[measurements]]
-name = "noise_density"
-procedure = "accelerometer_noise"
-unit = "ug/rtHz"
-high = 2.2
-"""
 SOCKETS = {1: "QA-SIM-0003", 2: "QA-SIM-0002", 3: "QA-SIM-0004", 4: "QA-SIM-0001"}
 
 
@@ -70,7 +24,7 @@ SOCKETS = {1: "QA-SIM-0003", 2: "QA-SIM-0002", 3: "QA-SIM-0004", 4: "QA-SIM-0001
 def batch(tmp_path_factory):
     folder = tmp_path_factory.mktemp("batch")
     spec_file = folder / "short.toml"
-    spec_file.write_text(SHORT_SPEC)
+    spec_file.write_text(SHORT_ACCEPTANCE_SPEC)
     config = builtin_sim_config()
     config.simulation = {"fixture_units": {"2": {"k0_g": 6e-3}}, "fixture_open": [3]}
     store = RunStore(folder / "bench.sqlite")
@@ -149,7 +103,7 @@ def test_a_fixture_wired_from_another_channel_is_read_there(tmp_path):
     """``[wiring] fixture_first_channel``: the procedures read socket n on first + n − 1, and
     the simulated harness is wired there too (one setting, both sides)."""
     spec_file = tmp_path / "short.toml"
-    spec_file.write_text(SHORT_SPEC)
+    spec_file.write_text(SHORT_ACCEPTANCE_SPEC)
     config = builtin_sim_config()
     config.wiring = {**config.wiring, "fixture_first_channel": 113}
     held: dict = {}

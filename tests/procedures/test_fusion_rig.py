@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import bench.analysis.fusion._sequential as fu
 from bench.analysis.fusion import FusionModel, SensorModel, tune_fusion
-from bench.analysis.fusion import _sequential as fu
 from bench.analysis.fusion._metrics import nis_check
 from instruments.angular_table import AngularLimits
 from procedures.fusion import tone_demand

@@ -7,7 +7,7 @@
     command error (-1xx, -113 for an undefined header) and sets CME, leaves the settings
     unchanged, and ``*ESR?``/``SYST:ERR?`` read exactly what the model expects (FIFO,
     -350 on overflow).  ``process()`` never raises.
-(b) Over real TCP (tests/sim/fuzz_wire.py): random bytes, over-long lines, huge declared
+(b) Over real TCP (bench/testing/fuzz_wire.py): random bytes, over-long lines, huge declared
     blocks, unterminated strings and binary junk into every server including the gyro's
     serial line; after each burst the server answers a valid ``*IDN?`` (``$ID?``), and a
     second client on another instrument is served while the first misbehaves.
@@ -26,6 +26,7 @@ from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule
 
+from bench.testing.fuzz_wire import GyroFuzzClient, ScpiFuzzClient, Tally, gyro_line, scpi_message
 from sim.devices.dmm import Multimeter
 from sim.devices.shaker import ShakerController
 from sim.devices.sim_control import SimControl
@@ -37,7 +38,6 @@ from sim.scpi import ScpiDevice
 from sim.scpi.errors import ERROR_MESSAGES, esr_bit_for
 from sim.station import SimulatedStation
 from sim.world import World
-from tests.sim.fuzz_wire import GyroFuzzClient, ScpiFuzzClient, Tally, gyro_line, scpi_message
 
 
 def _dmm(world):

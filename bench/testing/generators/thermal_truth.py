@@ -1,4 +1,4 @@
-"""The tests' own thermal physics: an independent generator for the thermal analysis.
+"""An independent thermal physics: the generator the thermal analysis is graded on.
 
 Written apart from ``bench.analysis.thermal_*`` (house rule 7): none of its code is imported
 here, and the physics is integrated differently (RK4 on a fine step, not the analysis's

@@ -1,5 +1,5 @@
-"""Byte-level fuzzing of the simulated servers over real TCP (used by
-tests/sim/test_fuzz_servers.py and benchmarks/bench_fuzz.py).
+"""Byte-level fuzzing of a SCPI server or the FOG line over real TCP: clients that know each
+message's fate, and generators of messages (valid, invalid, oversize, junk).
 
 A :class:`ScpiFuzzClient` sends one fuzz message followed by the probe
 ``SYST:ERR?;*CLS`` and reads the probe's answer: the first error the message queued (or

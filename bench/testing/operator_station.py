@@ -1,4 +1,9 @@
-"""An operator station served on a free loopback port for the browser tests and the benchmark."""
+"""An operator station (its page, API and live stream) served on a free loopback port.
+
+:func:`serve` runs the simulated station's operator page in a thread for the length of a
+``with`` block; the browser tests and the operator-page benchmark drive it with Playwright and
+Debian's chromium (:data:`CHROMIUM`, ``make chromium``).
+"""
 
 from __future__ import annotations
 
@@ -16,11 +21,12 @@ from bench.app.operator.auth import Users
 from bench.app.operator.server import OperatorStation, create_app
 from bench.app.station import builtin_sim_config
 
+#: Debian's chromium, which Playwright drives (it cannot download a browser of its own here)
 CHROMIUM = Path("/usr/bin/chromium")
-ARTIFACTS = Path(__file__).resolve().parents[2] / "bench-data" / "test-artifacts" / "operator"
 
 
 def free_port() -> int:
+    """A TCP port free on loopback now (the OS picks it)."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
