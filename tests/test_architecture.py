@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("bench", "instruments", "procedures", "sim")
 TREES = (*PACKAGES, "tests", "benchmarks")
 #: the layers as drawn in docs/ARCHITECTURE.md, finest first where one contains another
-LAYERS = ("bench.analysis", "bench.discovery", "bench.core", "bench.app", "instruments", "procedures", "sim")
+LAYERS = ("bench.values", "bench.analysis", "bench.discovery", "bench.core", "bench.app", "bench.testing",
+          "instruments", "procedures", "sim")
 
 
 def _sources(trees: tuple[str, ...]) -> list[Path]:
@@ -138,3 +139,71 @@ def test_every_suppression_names_its_rule_and_its_reason(tree):
             if match and not REASONED.match(match.group("rest").strip()):
                 offenders.append(f"{path.relative_to(ROOT)}:{token.start[0]}: {token.string.strip()}")
     assert not offenders, "suppressions without a rule and a reason:\n" + "\n".join(offenders)
+
+
+def module_graph() -> dict[str, set[str]]:
+    """Module → the project modules it imports (function-level and TYPE_CHECKING imports
+    included: an import hidden in a function or behind a type check that closes a loop is a
+    cycle all the same). ``from package import name`` is an edge to ``package.name`` when
+    that is a module, else to the package; ``import a.b.c`` is an edge to ``a.b.c`` alone."""
+    modules = {_module_name(p): p for p in _sources(PACKAGES)}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        edges: set[str] = set()
+        for _, target, names in _imported_modules(path):
+            if target.split(".")[0] not in PACKAGES:
+                continue
+            subs = [f"{target}.{n}" for n in names if f"{target}.{n}" in modules]
+            edges.update(subs or ([target] if target in modules else []))
+            if names and len(subs) < len(names) and target in modules:
+                edges.add(target)  # names that are not modules come from the package itself
+        edges.discard(name)
+        graph[name] = edges
+    return graph
+
+
+def strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Tarjan's strongly connected components with more than one module (the cycles)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_import_cycle_between_modules():
+    """Not only the layers: no two modules of the project import each other, directly or
+    through others — the code a cycle needs belongs in a module of its own or in the layer below."""
+    cycles = strongly_connected(module_graph())
+    assert not cycles, "import cycles between modules:\n" + "\n".join(" <-> ".join(c) for c in cycles)
+
+
+def test_the_cycle_check_finds_a_cycle():
+    assert strongly_connected({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert strongly_connected({"a": {"b"}, "b": set()}) == []

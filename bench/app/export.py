@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
 from bench.core.store import AttachmentInfo, Event, RunInfo, StreamInfo
@@ -182,6 +181,9 @@ def export_hdf5(
     module docstring).  ``compression``: None or an h5py filter name such as "gzip"."""
     if compression not in (None, "gzip", "lzf"):
         raise ValueError(f"compression={compression!r}; allowed: None, 'gzip', 'lzf'")
+    # lazy: h5py (~80 ms) only for HDF5; `bench runs list` and `show` import this module
+    import h5py  # noqa: PLC0415 — lazy, see above
+
     snap = _snapshot(store, run_id)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -222,6 +224,9 @@ def export_hdf5(
 
 def read_hdf5_export(path: str | os.PathLike[str]) -> ExportedRun:
     """Read back what ``export_hdf5`` wrote."""
+    # lazy: h5py only for HDF5 (as in export_hdf5)
+    import h5py  # noqa: PLC0415 — lazy, see above
+
     with h5py.File(path, "r") as f:
         if f.attrs.get("format") != FORMAT or f.attrs.get("format_version") != FORMAT_VERSION:
             raise ValueError(f"{path} is not a version-{FORMAT_VERSION} {FORMAT!r} HDF5 file")

@@ -26,9 +26,15 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from distributed import Client, LocalCluster, as_completed
 
 from bench.analysis.quality import DecisionRisk, Proportion, decision_risk, inside, overall_risk, wilson_interval
+from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
 from bench.core.spec import UnitSpec, convert, load_spec
+from bench.core.store import RunStore
+from procedures.acceptance import AcceptanceTest
+from procedures.catalogue import CATALOGUE
 
 #: spec kind → measurement → (key of the station's truth dict, unit of that value)
 TRUTH: dict[str, dict[str, tuple[str, str]]] = {
@@ -79,12 +85,6 @@ def truth_key(kind: str, name: str) -> tuple[str, str] | None:
 def run_unit(spec_path: str, index: int, root_seed: int, store_path: str) -> dict[str, Any]:
     """Draw unit ``index``, run the acceptance procedure on its own simulated station, store
     the run; return its verdict, measurements and true values (spec units).  A Dask task."""
-    from bench.app.station import Station, builtin_sim_config
-    from bench.core.procedure import execute
-    from bench.core.store import RunStore
-    from procedures.acceptance import AcceptanceTest
-    from procedures.catalogue import CATALOGUE
-
     spec = load_spec(spec_path, CATALOGUE)
     world_seed, tag = unit_seeds(root_seed, index)
     serial = (spec.serial_pattern or "UNIT-*").replace("*", tag)
@@ -172,8 +172,6 @@ def run_on_dask(spec_path: str, units: int, root_seed: int, store_path: str, *,
                 on_done: Callable[[int, int], None] | None = None) -> list[dict[str, Any]]:
     """Every unit as a Dask task on a new ``LocalCluster`` of ``workers`` single-threaded
     processes, or on the cluster whose scheduler is at ``scheduler``; results in any order."""
-    from distributed import Client, LocalCluster, as_completed
-
     if scheduler is not None:
         client = Client(scheduler, timeout="30s")
         cluster = None

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import socket
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -30,6 +29,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bench.app import labels as run_labels
+from bench.app.labels import world_seed
 from bench.app.station import Station, StationConfig, resolve_station
 from bench.core.operator import Operator
 from bench.core.procedure import RunOutcome, execute
@@ -72,11 +73,7 @@ def station_config(station: str | os.PathLike[str] | StationConfig = "sim") -> S
 def station_seed(config: StationConfig, seed: int | None = None) -> int | None:
     """The seed of the simulated world: ``seed``, else the station file's ``[simulation] seed``
     (0 when it names none); None on a real station."""
-    if seed is not None and not 0 <= seed < 2**63:
-        raise ValueError(f"seed {seed} not in 0..2**63-1")
-    if seed is not None:
-        return seed
-    return (config.simulation or {}).get("seed", 0) if config.simulation is not None else None
+    return world_seed(config.simulation, seed)
 
 
 def station_unit(config: StationConfig, kind: str, unit: str | None = None) -> str | None:
@@ -92,13 +89,7 @@ def station_labels(config: StationConfig, *, station_id: str | None = None, sock
                    lot: str | None = None) -> dict[str, str]:
     """A run's labels: the station id (given, else ``$BENCH_STATION_ID``, else ``host:station``),
     and the test socket and production lot when given."""
-    labels = {"station_id": station_id or os.environ.get("BENCH_STATION_ID")
-              or f"{socket.gethostname()}:{config.name}"}
-    if socket_name:
-        labels["socket"] = str(socket_name)
-    if lot:
-        labels["lot"] = str(lot)
-    return labels
+    return run_labels.station_labels(config.name, station_id=station_id, socket_name=socket_name, lot=lot)
 
 
 @contextmanager
@@ -162,7 +153,7 @@ def choose_spec(spec: str | os.PathLike[str] | None, unit: str | None) -> UnitSp
     """The unit spec of an acceptance: the file ``spec``, else the built-in spec whose serial
     pattern matches ``unit`` (ValueError naming the patterns when none does)."""
     if spec is not None:
-        return load_spec(spec, CATALOGUE)
+        return load_spec(os.fspath(spec), CATALOGUE)
     specs = [load_spec(p, CATALOGUE) for p in builtin_specs()]
     if unit is None:
         raise ValueError("give a spec file or a unit serial (built-in specs match serials: "
@@ -254,7 +245,7 @@ class StoredRun:
     def frame(self, stream: str) -> pandas.DataFrame:
         """A stream as a pandas DataFrame, one column per stored column."""
         # lazy: pandas (~0.3 s of imports) only for the caller who asks for a DataFrame
-        import pandas  # noqa: PLC0415
+        import pandas  # noqa: PLC0415 — lazy, see above
 
         return pandas.DataFrame(self.arrays(stream))
 

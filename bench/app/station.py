@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pyvisa
+import serial
 
 from bench.core.clock import Clock, SimulatedClock, WallClock
 from bench.core.site import DEFAULT_SITE
@@ -237,14 +238,13 @@ def _open_visa(inst: InstrumentConfig, options: dict[str, Any], manager: Callabl
 
 def _open_serial(inst: InstrumentConfig, options: dict[str, Any], manager: Callable[[str], Any]) -> Any:
     """A pyserial port for ``socket://host:port`` or a device path."""
-    import serial  # imported here so `bench --help` stays fast
-
     return serial.serial_for_url(inst.address, timeout=inst.timeout_ms / 1000.0, **options)
 
 
 def _open_modbus(inst: InstrumentConfig, options: dict[str, Any], manager: Callable[[str], Any]) -> Any:
     """A connected pymodbus ``ModbusTcpClient`` for ``modbus://host[:port]`` (port 502 by default)."""
-    from pymodbus.client import ModbusTcpClient  # imported here so `bench --help` stays fast
+    # lazy: pymodbus (~30 ms) only for a station with a Modbus TCP instrument (the thermal chamber)
+    from pymodbus.client import ModbusTcpClient  # noqa: PLC0415 — lazy, see above
 
     host, port = parse_modbus_address(inst.address)
     # retries=0: the driver re-sends what may be re-sent itself (instruments/chamber.py)
@@ -269,8 +269,9 @@ OPENERS: dict[str, Opener] = {VISA: _open_visa, SERIAL: _open_serial, MODBUS: _o
 
 def check_simulation(options: dict, source: str = "<station>") -> None:
     """Validate a [simulation] table now, before any run is created."""
-    from sim.physics.accelerometer import AccelerometerParams
-    from sim.station import SimStationConfig
+    # lazy: the simulator (~1 s of imports) only for a station file with a [simulation] table
+    from sim.physics.accelerometer import AccelerometerParams  # noqa: PLC0415 — lazy, see above
+    from sim.station import SimStationConfig  # noqa: PLC0415 — lazy: the simulator, as above
 
     try:
         SimStationConfig(**options).validate()
@@ -355,7 +356,8 @@ class Station:
     def start_simulation(self, cfg: StationConfig) -> StationConfig:
         """Start ``cfg``'s embedded simulated station (stopped when this station closes);
         return the station config with its instruments and clock at the served addresses."""
-        from sim.station import INSTRUMENTS, SimStationConfig, SimulatedStation
+        # lazy: the simulator (~1 s of imports) only when a station simulates (not a real one)
+        from sim.station import INSTRUMENTS, SimStationConfig, SimulatedStation  # noqa: PLC0415 — lazy, see above
 
         sim_opts = dict(cfg.simulation or {})
         if self.seed is not None:

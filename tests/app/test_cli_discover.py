@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from bench.app.cli import main
+from bench.app.files import read_model, write_model
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import DEFAULT_NOISE_SD
 from bench.discovery.experiments import make_experiment
-from bench.discovery.model import BaseModel, Model, read_model, write_model
+from bench.discovery.model import BaseModel, Model
 
 
 def _csv(path, rec, y):

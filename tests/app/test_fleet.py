@@ -11,7 +11,7 @@ import pytest
 from statsmodels.stats.proportion import proportion_confint
 
 from bench.app.cli import main
-from bench.app.commands.sync import forward_after_run
+from bench.app.commands.common import forward_after_run
 from bench.core.store import RunStore
 
 SPEC = {"model": "QA-T", "kind": "accelerometer", "source": "x.toml", "measurements": []}

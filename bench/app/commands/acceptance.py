@@ -17,6 +17,7 @@ from bench.app.commands.common import (
     FollowUpResult,
     attach_folder,
     conclude,
+    forward_after_run,
     label_options,
     labels_of,
     open_store,
@@ -25,7 +26,6 @@ from bench.app.commands.common import (
     progress_bar,
     seed_of,
 )
-from bench.app.commands.sync import forward_after_run
 from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
 from procedures.acceptance import AcceptanceTest
 
@@ -65,9 +65,10 @@ def run_acceptance(args) -> int:
         report_root.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"--report {args.report!r} cannot be created: {exc.strerror}") from None
+    seed = seed_of(args, config)  # --seed named in the error, before the unit is touched
     store = open_store(args)
     with progress_bar(not args.no_progress and not args.json) as progress:
-        outcome = session.run_acceptance(unit, spec=spec, station=config, seed=args.seed, store=store,
+        outcome = session.run_acceptance(unit, spec=spec, station=config, seed=seed, store=store,
                                          labels=labels_of(args, config), operator=operator_of(args),
                                          progress=progress)
     folder = report_root / outcome.run_id

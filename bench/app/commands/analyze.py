@@ -13,11 +13,16 @@ import importlib
 import json
 import pkgutil
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from bench.analysis.timeseries import _fit as ts
+import bench.app.commands
+from bench.analysis.startup import analyze_startup
+from bench.analysis.timeseries import AR_METHODS
+from bench.app.commands.common import attach_folder, require_store, resolve_run_id
+from bench.core.store import DEFAULT_PATH, RunStore
 
 RUN_STREAM, RUN_TIME_COL, RUN_VALUE_COL = "output", "t_s", "voltage_v"
 ATTACHED = "analysis/startup/"  # where a stored run's start-up model and report are attached
@@ -25,9 +30,7 @@ ATTACHED = "analysis/startup/"  # where a stored run's start-up model and report
 
 def _analysis_modules() -> list[str]:
     """``bench.app.commands.analyze_<kind>`` modules; each adds ``bench analyze <kind>``."""
-    import bench.app.commands as pkg
-
-    return sorted(f"bench.app.commands.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)
+    return sorted(f"bench.app.commands.{m.name}" for m in pkgutil.iter_modules(bench.app.commands.__path__)
                   if m.name.startswith("analyze_"))
 
 
@@ -67,7 +70,7 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="series the trend is fitted to: raw (unbiased) or denoised (Document A's literal "
                         "order; τ biased by the soft threshold) [raw]")
     p.add_argument("--criterion", choices=("bic", "aic"), default="bic", help="order criterion [bic]")
-    p.add_argument("--ar-method", choices=ts.AR_METHODS, default="ulrych-clayton", help="AR estimator [ulrych-clayton]")
+    p.add_argument("--ar-method", choices=AR_METHODS, default="ulrych-clayton", help="AR estimator [ulrych-clayton]")
     p.add_argument("--max-ar-order", type=int, default=None, help="largest AR order in the grid [10]")
     p.add_argument("--max-arma-order", type=int, default=None, help="largest p and q in MA/ARMA grids [2]")
     p.add_argument("--outlier-z", type=float, default=3.0,
@@ -131,12 +134,11 @@ def _fail(message: str) -> int:
 
 
 def _analyse_and_print(t: np.ndarray, y: np.ndarray, args, report_dir: Path | None, label: str) -> int:
-    from bench.analysis.startup import analyze_startup
-
     analysis = analyze_startup(t, y, **_options(args))
     report = None
     if report_dir is not None:
-        from bench.app.reports.startup_report import write_startup_report
+        # lazy: matplotlib only when a report is drawn (every `bench analyze` imports this module)
+        from bench.app.reports.startup_report import write_startup_report  # noqa: PLC0415 — lazy, see above
 
         report = write_startup_report(analysis, report_dir)
     if args.json:
@@ -198,12 +200,8 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
     to the run under ``analysis/startup/``.  Returns ``(analysis, report_html_path)``; the
     report lives in ``report_root/<run_id>/`` (a temporary folder when ``report_root`` is None,
     in which case only the attached copy remains)."""
-    import tempfile
-
-    from bench.analysis.startup import analyze_startup
-    from bench.app.commands.common import attach_folder, require_store, resolve_run_id
-    from bench.app.reports.startup_report import write_startup_report
-    from bench.core.store import RunStore
+    # lazy: matplotlib only when a report is drawn (every `bench analyze` imports this module)
+    from bench.app.reports.startup_report import write_startup_report  # noqa: PLC0415 — lazy, see above
 
     require_store(store_path)
     with RunStore(store_path) as store, tempfile.TemporaryDirectory() as tmp:
@@ -230,8 +228,6 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
 def analyze_stored_run(args) -> int:
     """Handler of ``bench analyze run``: the samples from power-on (t ≥ 0) of a stored run."""
     try:
-        from bench.core.store import DEFAULT_PATH
-
         run_id, analysis, report = analyse_run(
             getattr(args, "store", DEFAULT_PATH), args.run_id,
             None if args.report is None else Path(args.report), stream=args.stream,

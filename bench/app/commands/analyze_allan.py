@@ -15,13 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.analysis.allan import ONE_SIGMA, TERMS, overlapping_adev
+from bench.app.commands.analyze import read_csv_columns
+
 SAMPLING_TOLERANCE = 0.01
 
 
 def register_analysis(kinds) -> None:
     """Add ``allan`` to the ``bench analyze`` subparsers."""
-    from bench.analysis.allan import ONE_SIGMA, TERMS
-
     p = kinds.add_parser("allan", help="overlapping Allan deviation and IEEE 952 noise terms of a static record")
     p.add_argument("--input", required=True, metavar="FILE.csv", help="CSV with a header row; time in s")
     p.add_argument("--time-col", default="t", help="time column (s) [t]")
@@ -90,9 +91,6 @@ def _table(result) -> str:
 
 def analyze_allan_csv(args) -> int:
     """Handler of ``bench analyze allan``."""
-    from bench.analysis.allan import overlapping_adev
-    from bench.app.commands.analyze import read_csv_columns
-
     t, y = read_csv_columns(args.input, args.time_col, args.value_col)
     rate = sample_rate_hz(t)
     unit = None if args.unit.lower() == "none" else args.unit
@@ -102,7 +100,8 @@ def analyze_allan_csv(args) -> int:
                               confidence=args.confidence, terms=terms)
     report = None
     if args.report is not None:
-        from bench.app.reports.allan_plot import write_allan_report
+        # lazy: matplotlib only when --report asks for a report (every `bench analyze` imports this module)
+        from bench.app.reports.allan_plot import write_allan_report  # noqa: PLC0415 — lazy, see above
 
         report = write_allan_report(result, Path(args.report), {"input": args.input, "column": args.value_col})
     if args.json:

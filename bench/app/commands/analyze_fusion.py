@@ -13,15 +13,18 @@ input raises ``ValueError``; ``bench`` prints it as one line ``bench: error: …
 from __future__ import annotations
 
 import csv
+import inspect
 import json
 from pathlib import Path
 
 import numpy as np
 
+from bench.analysis.fusion import METHODS, SensorModel, analyze_fusion
 from bench.app.commands.analyze import read_csv_table
 
 SAMPLING_TOLERANCE = 0.01
-TUNE_FRACTION = 0.4  # bench.analysis.fusion._analysis.TUNE_FRACTION (not imported: `bench --help` stays light)
+#: the part of a record with a reference that tunes every method: analyze_fusion's own default
+TUNE_FRACTION = inspect.signature(analyze_fusion).parameters["tune_fraction"].default
 
 
 def register_analysis(kinds) -> None:
@@ -67,8 +70,6 @@ def _floats(text: str | None, what: str):
 
 def analyze_fusion_csv(args) -> int:
     """Handler of ``bench analyze fusion``."""
-    from bench.analysis.fusion import METHODS, SensorModel, analyze_fusion
-
     data = read_csv_table(args.input, ("t", "hf", "lf"), ("ref",))
     _check_time(data["t"], args.rate_hz)
     hf_model = None if args.hf_corner_hz is None else SensorModel("highpass", 1, args.hf_corner_hz)

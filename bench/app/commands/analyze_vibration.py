@@ -12,7 +12,16 @@ one line ``bench: error: …`` and exits 2.
 from __future__ import annotations
 
 import json
+import tempfile
 from pathlib import Path
+
+import numpy as np
+
+from bench.analysis.emd import STOP_RULES
+from bench.analysis.vibration import analyze_vibration
+from bench.app.commands.analyze import analysis_document, read_csv_columns
+from bench.app.commands.common import attach_folder
+from bench.core.store import RunStore
 
 DOCUMENT_C = {"ar": (7.3677e-6, 0.0041), "ar_kalman": (3.9332e-6, 0.0018)}  # °/s, published table
 ATTACHED = "analysis/vibration/"  # where a stored run's vibration model and report are attached
@@ -20,8 +29,6 @@ ATTACHED = "analysis/vibration/"  # where a stored run's vibration model and rep
 
 def register_analysis(kinds) -> None:
     """Add ``vibration`` to the ``bench analyze`` subparsers."""
-    from bench.analysis.emd import STOP_RULES
-
     p = kinds.add_parser("vibration", help="EMD → AR → AR-Kalman random-vibration error model (Document C)")
     p.add_argument("--input", required=True, metavar="FILE.csv", help="CSV with a header row; time in s")
     p.add_argument("--time-col", default="t", help="time column (s) [t]")
@@ -66,16 +73,14 @@ def summary(a, label: str) -> str:
 
 def analyze_vibration_csv(args) -> int:
     """Handler of ``bench analyze vibration``."""
-    from bench.analysis.vibration import analyze_vibration
-    from bench.app.commands.analyze import analysis_document, read_csv_columns
-
     t, y = read_csv_columns(args.input, args.time_col, args.value_col)
     analysis = analyze_vibration(t, y, stop=args.stop, max_imfs=args.max_imfs, max_sifts=args.max_sifts,
                                  p_max=args.p_max, criterion=args.criterion, r_ratio=args.r_ratio,
                                  min_cycles=args.min_cycles)
     report = None
     if args.report is not None:
-        from bench.app.reports.vibration_report import write_vibration_report
+        # lazy: matplotlib only when --report asks for a report (every `bench analyze` imports this module)
+        from bench.app.reports.vibration_report import write_vibration_report  # noqa: PLC0415 — lazy, see above
 
         report = write_vibration_report(analysis, Path(args.report),
                                         {"input": args.input, "column": args.value_col})
@@ -92,14 +97,8 @@ def analyse_vibration_run(store_path, run_id: str, report_root: Path | None):
     """Document C's model of a stored vibration run's steady vibration segment; the report is
     attached to the run under ``analysis/vibration/``.  Returns ``(analysis, report path or
     None)``; the report is also written to ``report_root/<run id>/`` when one is given."""
-    import tempfile
-
-    import numpy as np
-
-    from bench.analysis.vibration import analyze_vibration
-    from bench.app.commands.common import attach_folder
-    from bench.app.reports.vibration_report import write_vibration_report
-    from bench.core.store import RunStore
+    # lazy: matplotlib only when a report is drawn (every `bench analyze` imports this module)
+    from bench.app.reports.vibration_report import write_vibration_report  # noqa: PLC0415 — lazy, see above
 
     with RunStore(store_path) as store, tempfile.TemporaryDirectory() as tmp:
         frames = store.load(run_id, "gyro_frames")

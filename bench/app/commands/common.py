@@ -1,5 +1,10 @@
 """Helpers shared by CLI commands: the store, the unit and seed, progress display, and the one
-ending of every command that runs something (:func:`conclude`: table or JSON, exit code)."""
+ending of every command that runs something (:func:`conclude`: table or JSON, exit code, and
+with ``BENCH_CENTRAL`` set the store's queue forwarded to the central store,
+:func:`forward_after_run`).
+
+Every command imports this module (``bench runs list`` too): what only one path needs (psycopg,
+rich) is imported by that path."""
 
 from __future__ import annotations
 
@@ -13,6 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.app.labels import station_labels, world_seed
+from bench.core.operator import Unattended
 from bench.core.procedure import RunOutcome
 from bench.core.store import RunStore
 from bench.core.store.reader import RunReader, is_central_url, masked
@@ -39,7 +46,8 @@ def open_reader(args) -> RunReader:
     """A store to read runs from: the station's SQLite file or the central store
     (``--store postgresql://…``)."""
     if is_central_url(args.store):
-        from bench.core.store.central import CentralStore  # psycopg: only when a URL is given
+        # lazy: psycopg only when a central store URL is given
+        from bench.core.store.central import CentralStore  # noqa: PLC0415 — lazy, see above
 
         return CentralStore(args.store)
     return open_store(args, create=False)
@@ -65,38 +73,14 @@ def label_options(p) -> None:
 
 def labels_of(args, config) -> dict[str, str]:
     """The run's labels from :func:`label_options` (station id always; socket and lot if given)."""
-    import socket
-
-    station_id = (getattr(args, "station_id", None) or os.environ.get("BENCH_STATION_ID")
-                  or f"{socket.gethostname()}:{config.name}")
-    labels = {"station_id": station_id}
-    for key in ("socket", "lot"):
-        if getattr(args, key, None):
-            labels[key] = str(getattr(args, key))
-    return labels
-
-
-#: the simulated unit a procedure gets when neither --unit nor the station file names one
-SIM_DEFAULT_UNIT = {"accelerometer": ("unit_serial", "QA-SIM-0001"),
-                    "gyro": ("gyro_serial", "FOG-SIM-0001"),
-                    "angular": ("mhd_serial", "MHD-SIM-0001")}
+    return station_labels(config.name, station_id=getattr(args, "station_id", None),
+                          socket_name=getattr(args, "socket", None), lot=getattr(args, "lot", None))
 
 
 def seed_of(args, config) -> int | None:
     """``--seed``, else the station file's ``[simulation] seed`` (0 if it has none); None for
     a real station."""
-    if args.seed is not None and not 0 <= args.seed < 2**63:
-        raise ValueError(f"--seed {args.seed} not in 0..2**63-1")
-    if args.seed is not None:
-        return args.seed
-    return (config.simulation or {}).get("seed", 0) if config.simulation is not None else None
-
-
-def unit_of(args, config, kind: str) -> str | None:
-    """``--unit``, else the station file's simulated unit of that kind, else the simulated
-    default serial (None on a real station: the caller decides whether that is allowed)."""
-    key, default = SIM_DEFAULT_UNIT[kind]
-    return args.unit or (config.simulation or {}).get(key) or (default if config.simulated else None)
+    return world_seed(config.simulation, args.seed, name="--seed")
 
 
 class TerminalOperator:
@@ -123,8 +107,6 @@ def operator_options(p) -> None:
 def operator_of(args):
     """Who answers a run's prompts: the console when there is one and ``--unattended`` is not
     given, else nobody (every prompt continues; the record says unattended)."""
-    from bench.core.operator import Unattended
-
     if getattr(args, "unattended", False) or getattr(args, "json", False) or not sys.stdin.isatty():
         return Unattended()
     return TerminalOperator()
@@ -132,27 +114,33 @@ def operator_of(args):
 
 @contextlib.contextmanager
 def progress_bar(enabled: bool):
-    """A rich progress bar on stderr; yields a ``progress(done, total, message)`` callable."""
+    """A rich progress bar on stderr; yields a ``progress(done, total, message)`` callable.
+
+    The bar appears at the first report of progress, so an error raised before the work
+    starts (a bad seed, a station that does not open) is the only line on stderr."""
     if not enabled:
         yield lambda done, total, message="": None
         return
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    # lazy: rich (~40 ms) only when a bar is drawn; reading commands (runs list) import this module
+    from rich.console import Console  # noqa: PLC0415 — lazy, see above
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn  # noqa: PLC0415 — lazy: rich, as above
 
-    with Progress(TextColumn("{task.description}"), BarColumn(),
-                  TextColumn("{task.percentage:>5.1f} %"), TimeElapsedColumn(),
-                  console=_stderr_console(), transient=False) as bar:
-        task = bar.add_task("starting", total=1.0)
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f} %"),
+                   TimeElapsedColumn(), console=Console(file=sys.stderr), transient=False)
+    task = None
 
-        def update(done: float, total: float, message: str = "") -> None:
-            bar.update(task, completed=done, total=total, description=message or "working")
+    def update(done: float, total: float, message: str = "") -> None:
+        nonlocal task
+        if task is None:
+            bar.start()
+            task = bar.add_task("starting", total=1.0)
+        bar.update(task, completed=done, total=total, description=message or "working")
 
+    try:
         yield update
-
-
-def _stderr_console():
-    from rich.console import Console
-
-    return Console(file=sys.stderr)
+    finally:
+        if task is not None:
+            bar.stop()
 
 
 #: exit code of a finished run: 0 passed, 1 failed (a measurement outside its limits), 2 aborted
@@ -219,7 +207,37 @@ def conclude(outcome: RunOutcome, *, as_json: bool, document: dict[str, Any] | N
                 print(line)
     for error in errors:
         print(f"bench: error: {error}", file=sys.stderr)
-    from bench.app.commands.sync import forward_after_run
-
     forward_after_run(outcome.store_path)  # with $BENCH_CENTRAL: the queue goes to the central store
     return 2 if errors else EXIT_CODES.get(outcome.status, 2)
+
+
+#: the environment variable naming the central store (``bench sync --central``'s default)
+CENTRAL_ENV = "BENCH_CENTRAL"
+
+
+def forward_after_run(store_path: str) -> None:
+    """With ``BENCH_CENTRAL`` set: forward the queue of the store at ``store_path`` once (a
+    server that cannot be reached leaves it queued); one line on stderr either way.  The
+    run's outcome and exit code do not depend on it.  Every command that stores runs ends
+    with it (:func:`conclude` does)."""
+    url = os.environ.get(CENTRAL_ENV)
+    if not url:
+        return
+    if not is_central_url(url):
+        print(f"bench: warning: {CENTRAL_ENV}={url!r} is not a postgresql:// URL; runs stay "
+              "queued", file=sys.stderr)
+        return
+    # lazy: psycopg only when $BENCH_CENTRAL names a central store
+    from bench.core.store.forward import sync  # noqa: PLC0415 — lazy, see above
+
+    try:
+        with RunStore(store_path) as store:
+            report = sync(store, url, connect_timeout_s=5.0)
+    except Exception as exc:  # forwarding never turns a stored run into an error
+        print(f"bench: warning: runs stay queued for the central store: {exc}", file=sys.stderr)
+        return
+    if report.complete:
+        print(f"forwarded {len(report.stored)} run(s) to {report.central}", file=sys.stderr)
+    else:
+        print(f"bench: warning: {len(report.pending) + len(report.conflicts)} run(s) stay queued "
+              f"for {report.central} ({report.error}); `bench sync` sends them", file=sys.stderr)

@@ -29,10 +29,18 @@ from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from rich.console import Console
+from rich.markup import escape
 
 from bench.app.blas import blas_threads, set_blas_threads
+from bench.app.commands.analyze import read_csv_table
 from bench.app.commands.discover_runs import read_run
+from bench.app.files import read_model, write_model
+from bench.app.reports.discovery_report import write_discovery_report
 from bench.discovery.data import CSV_COLUMNS, Record
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.model import Model, base_model
+from bench.discovery.workflow import discover
 
 SENSORS = ("accelerometer", "gyro", "mhd")
 DEFAULT_OUT = "bench-data/discover"
@@ -65,8 +73,6 @@ def read_measured(path: str) -> Record:
     """A CSV with a header into a Record (ValueError naming the file and the fault). Header
     names are matched case-insensitively after stripping blanks; a repeated or unknown name
     is refused."""
-    from bench.app.commands.analyze import read_csv_table
-
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             raw = next(csv.reader(fh), [])
@@ -93,11 +99,6 @@ def read_measured(path: str) -> Record:
 
 
 def discover_command(args) -> int:
-    from bench.app.reports.discovery_report import write_discovery_report
-    from bench.discovery.effects import CATALOGUE
-    from bench.discovery.model import Model, base_model, read_model, write_model
-    from bench.discovery.workflow import discover
-
     if args.run is not None:
         rec, run_kind, label = read_run(args.store, args.run, args.stream)
     else:
@@ -192,9 +193,6 @@ def status_line(enabled: bool):
     if not enabled:
         yield lambda _msg: None
         return
-    from rich.console import Console
-    from rich.markup import escape
-
     console = Console(file=sys.stderr)
     with console.status("discover: starting") as status:
         def say(msg: str) -> None:

@@ -40,6 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.app.commands.common import require_store, resolve_run_id
+from bench.core.store import RunStore
 from bench.discovery.data import Record
 
 STATUS_READY = 0x01  # docs/FOG_SERIAL.md: powered and booted, the output is valid
@@ -177,9 +179,6 @@ def record_of(store, run_id: str, m: StreamMap, streams: dict) -> tuple[Record, 
 def read_run(store_path, run_id: str, stream: str | None = None) -> tuple[Record, str, str]:
     """(record, sensor kind, label) of a stored run: ``stream`` names which of its mappable
     streams (default: the first in :data:`STREAM_MAPS` order)."""
-    from bench.app.commands.common import require_store, resolve_run_id
-    from bench.core.store import RunStore
-
     require_store(store_path)
     with RunStore(store_path) as store:
         run_id = resolve_run_id(store, run_id)

@@ -17,6 +17,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from bench.analysis.quality import RULES, individuals_chart, wilson_interval, xbar_r_charts
+from bench.app.reports.fleet_report import spc_page, trace_page, yield_page
+from bench.core.store.central import CentralStore
+from bench.core.store.fleet import measurement_names, measurement_series, unit_runs, yield_counts
+from bench.core.store.reader import is_central_url
+
 
 def configure(fleet: argparse.ArgumentParser) -> None:
     cmds = fleet.add_subparsers(dest="fleet_command", metavar="VIEW")
@@ -43,9 +51,6 @@ def configure(fleet: argparse.ArgumentParser) -> None:
 
 
 def _central(args):
-    from bench.core.store.central import CentralStore
-    from bench.core.store.reader import is_central_url
-
     url = args.central or (args.store if is_central_url(args.store) else None)
     if not url:
         raise ValueError("no central store: give --central postgresql://… or set BENCH_CENTRAL")
@@ -70,10 +75,6 @@ def _emit(args, doc: dict[str, Any], lines: list[str], page) -> int:
 
 
 def fleet_yield(args) -> int:
-    from bench.analysis.quality import wilson_interval
-    from bench.app.reports.fleet_report import yield_page
-    from bench.core.store.fleet import yield_counts
-
     with _central(args) as central:
         counts = yield_counts(central, args.by, model=args.model)
     rows: list[dict[str, Any]] = []
@@ -92,12 +93,6 @@ def fleet_yield(args) -> int:
 
 
 def fleet_spc(args) -> int:
-    import numpy as np
-
-    from bench.analysis.quality import RULES, individuals_chart, xbar_r_charts
-    from bench.app.reports.fleet_report import spc_page
-    from bench.core.store.fleet import measurement_names, measurement_series
-
     if not 2 <= args.subgroup <= 10:
         raise ValueError(f"--subgroup {args.subgroup} not in 2..10")
     with _central(args) as central:
@@ -151,9 +146,6 @@ def fleet_spc(args) -> int:
 
 
 def fleet_trace(args) -> int:
-    from bench.app.reports.fleet_report import trace_page
-    from bench.core.store.fleet import unit_runs
-
     with _central(args) as central:
         runs = unit_runs(central, args.serial)
     if not runs:

@@ -22,8 +22,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from bench.app.commands.analyze import analyse_run, analysis_document, analysis_lines
+from bench.app.commands.analyze_vibration import ATTACHED, analyse_vibration_run, summary
 from bench.app.commands.common import FollowUpResult, attach_folder
 from bench.core.step import FollowUp
+from bench.core.store import RunStore
 
 
 @dataclass(frozen=True)
@@ -37,8 +42,6 @@ class StoredRunAnalysis:
 
 
 def _startup_model(store_path: Path, run_id: str, report_root: Path | None) -> FollowUpResult:
-    from bench.app.commands.analyze import analyse_run, analysis_document, analysis_lines
-
     _, analysis, report = analyse_run(store_path, run_id, report_root)
     label = f"run {run_id}"
     return FollowUpResult("analysis", analysis_document(analysis, label, report, run_id),
@@ -46,9 +49,6 @@ def _startup_model(store_path: Path, run_id: str, report_root: Path | None) -> F
 
 
 def _vibration_model(store_path: Path, run_id: str, report_root: Path | None) -> FollowUpResult:
-    from bench.app.commands.analyze import analysis_document
-    from bench.app.commands.analyze_vibration import ATTACHED, analyse_vibration_run, summary
-
     analysis, report = analyse_vibration_run(store_path, run_id, report_root)
     doc = analysis_document(analysis, f"run {run_id}", report)
     doc["attached"] = ATTACHED
@@ -63,10 +63,8 @@ ANGULAR_ATTACHED = "analysis/angular/"
 def attach_angular_report(store_path: Path, run_id: str, report_root: Path | None) -> Path | None:
     """The angular rig's report built from the run's stored results and attached to the run;
     also written to ``report_root/<run id>/`` when one is given (its path returned)."""
-    import numpy as np
-
-    from bench.app.reports.angular_report import write_angular_report
-    from bench.core.store import RunStore
+    # lazy: matplotlib only when the report is drawn (`bench run` imports this module for every step)
+    from bench.app.reports.angular_report import write_angular_report  # noqa: PLC0415 — lazy, see above
 
     with RunStore(store_path) as store, tempfile.TemporaryDirectory() as tmp:
         results = store.results(run_id)

@@ -13,8 +13,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
+from pathlib import Path
+
+from bench.app.commands.common import forward_after_run, open_store, progress_bar
+from bench.app.risk import assess, run_on_dask
+from bench.core.spec import load_spec
+from procedures.catalogue import CATALOGUE
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -35,14 +42,6 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run_risk(args) -> int:
-    import os
-    from pathlib import Path
-
-    from bench.app.commands.common import open_store, progress_bar
-    from bench.app.risk import assess, run_on_dask
-    from bench.core.spec import load_spec
-    from procedures.catalogue import CATALOGUE
-
     if not 2 <= args.units <= 1_000_000:
         raise ValueError(f"--units {args.units} not in 2..1000000")
     if args.workers is not None and not 1 <= args.workers <= 256:
@@ -75,8 +74,6 @@ def run_risk(args) -> int:
         for line in risk_lines(report):
             print(line)
         print(f"runs stored in {store_path}; wall time {wall_s:.1f} s")
-    from bench.app.commands.sync import forward_after_run
-
     forward_after_run(store_path)
     return 0
 

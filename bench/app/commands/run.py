@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.app import session
-from bench.app.commands.common import conclude, label_options, labels_of, open_store, progress_bar
+from bench.app.commands.common import conclude, label_options, labels_of, open_store, progress_bar, seed_of
 from bench.app.commands.follow_ups import ANALYSES, follow_up
 from bench.core.step import Step
 from procedures.catalogue import CATALOGUE
@@ -111,9 +111,10 @@ def run_step(args: argparse.Namespace) -> int:
     step = step_from_args(args)  # validated before any instrument is touched
     report_root = _report_root(args, step)
     config = session.station_config(args.station)
+    seed = seed_of(args, config)  # --seed named in the error, before any instrument is touched
     store = open_store(args)
     with progress_bar(not args.no_progress and not args.json) as progress:
-        outcome = session.run_step(step, station=config, unit=args.unit, seed=args.seed, store=store,
+        outcome = session.run_step(step, station=config, unit=args.unit, seed=seed, store=store,
                                    labels=labels_of(args, config), progress=progress)
     declared, follow_ups = step.follow_up, []
     if declared is not None and (not declared.on_request or args.analyze) and outcome.status == "passed":

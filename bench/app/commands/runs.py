@@ -10,6 +10,8 @@ from dataclasses import asdict
 from pathlib import Path
 
 from bench.app.commands.common import open_reader, resolve_run_id
+from bench.app.export import export_csv, export_hdf5
+from bench.app.verdict import measurements_of, verdict_of
 from bench.core.store.reader import is_central_url
 
 
@@ -64,11 +66,9 @@ def show_run(args) -> int:
     info = store.get_run(args.run_id)
     streams = store.streams(args.run_id)
     events = store.events(args.run_id)
-    measurements = [v for k, v in (info.results or {}).items() if k.startswith("measurement.")]
+    measurements = measurements_of(info.results or {})
     verdict = None
     if info.procedure == "acceptance" and info.status != "running":
-        from bench.app.reports.acceptance_report import verdict_of
-
         verdict = verdict_of(info.status, measurements)
     if args.json:
         doc = _info(info)
@@ -115,8 +115,6 @@ def show_run(args) -> int:
 
 
 def export_run(args) -> int:
-    from bench.app.export import export_csv, export_hdf5
-
     store = open_reader(args)
     args.run_id = resolve_run_id(store, args.run_id)
     if args.format == "csv":

@@ -13,6 +13,9 @@ import signal
 import sys
 import threading
 
+from bench.app.station import load_station
+from sim.station import INSTRUMENTS, SimStationConfig, SimulatedStation
+
 
 def configure(sim: argparse.ArgumentParser) -> None:
     cmds = sim.add_subparsers(dest="sim_command", metavar="SUBCOMMAND")
@@ -31,9 +34,6 @@ def configure(sim: argparse.ArgumentParser) -> None:
 
 
 def serve_sim(args: argparse.Namespace) -> int:
-    from bench.app.station import load_station
-    from sim.station import INSTRUMENTS, SimStationConfig, SimulatedStation
-
     options = {}
     if args.station:
         options = dict(load_station(args.station).simulation or {})

@@ -14,6 +14,9 @@ import getpass
 import ipaddress
 import sys
 
+from bench.app.operator.auth import Users, add_user
+from bench.app.station import resolve_station
+
 LOOPBACK_HOSTS = ("127.0.0.1", "::1", "localhost")
 
 
@@ -59,11 +62,11 @@ def check_host(host: str, users: str | None) -> str:
 
 
 def serve(args) -> int:
-    import uvicorn
+    # lazy: uvicorn only for `station serve` (`station user` stays a quick prompt)
+    import uvicorn  # noqa: PLC0415 — lazy, see above
 
-    from bench.app.operator.auth import Users
-    from bench.app.operator.server import OperatorStation, create_app
-    from bench.app.station import resolve_station
+    # lazy: starlette and the batch, procedures and reports behind the page: `station serve` only
+    from bench.app.operator.server import OperatorStation, create_app  # noqa: PLC0415 — lazy, see above
 
     host = check_host(args.host, args.users)
     if not 0 <= args.port <= 65535:
@@ -85,8 +88,6 @@ def serve(args) -> int:
 
 
 def add_user_command(args) -> int:
-    from bench.app.operator.auth import add_user
-
     if args.password_stdin:
         password = sys.stdin.readline().rstrip("\n")
     else:

@@ -3,8 +3,9 @@
 The station's SQLite store is the queue (``bench.core.store.forward``): each run goes in one
 transaction under its UUID, so a sync interrupted anywhere, repeated, or run by two processes
 at once stores every run once.  With ``BENCH_CENTRAL`` set, every ``bench run`` / ``bench
-acceptance`` forwards what is queued when it ends (:func:`forward_after_run`); a central
-store that cannot be reached then leaves the runs queued for the next run or ``bench sync``.
+acceptance`` forwards what is queued when it ends
+(:func:`bench.app.commands.common.forward_after_run`); a central store that cannot be reached
+then leaves the runs queued for the next run or ``bench sync``.
 
     bench sync --central postgresql://bench@db-host/bench --retry-for 600
     bench sync --follow          # keep forwarding as runs finish (a station's service)
@@ -15,10 +16,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import time
 
-CENTRAL_ENV = "BENCH_CENTRAL"
+from bench.app.commands.common import CENTRAL_ENV, open_store
+from bench.core.store.forward import sync
+from bench.core.store.reader import is_central_url
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -38,8 +40,6 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def _central_url(args) -> str:
-    from bench.core.store.reader import is_central_url
-
     if not args.central:
         raise ValueError(f"no central store: give --central postgresql://… or set {CENTRAL_ENV}")
     if not is_central_url(args.central):
@@ -48,9 +48,6 @@ def _central_url(args) -> str:
 
 
 def run_sync(args) -> int:
-    from bench.app.commands.common import open_store
-    from bench.core.store.forward import sync
-
     url = _central_url(args)
     if args.retry_for < 0 or args.interval <= 0:
         raise ValueError(f"--retry-for {args.retry_for} must be ≥ 0 s and --interval "
@@ -85,30 +82,3 @@ def _summary(report) -> str:
         text += f" — {report.error}"
     return text
 
-
-def forward_after_run(store_path: str) -> None:
-    """With ``BENCH_CENTRAL`` set: forward the queue of the store at ``store_path`` once (a
-    server that cannot be reached leaves it queued); one line on stderr either way.  The
-    run's outcome and exit code do not depend on it."""
-    url = os.environ.get(CENTRAL_ENV)
-    if not url:
-        return
-    from bench.core.store import RunStore
-    from bench.core.store.forward import sync
-    from bench.core.store.reader import is_central_url
-
-    if not is_central_url(url):
-        print(f"bench: warning: {CENTRAL_ENV}={url!r} is not a postgresql:// URL; runs stay "
-              "queued", file=sys.stderr)
-        return
-    try:
-        with RunStore(store_path) as store:
-            report = sync(store, url, connect_timeout_s=5.0)
-    except Exception as exc:  # forwarding never turns a stored run into an error
-        print(f"bench: warning: runs stay queued for the central store: {exc}", file=sys.stderr)
-        return
-    if report.complete:
-        print(f"forwarded {len(report.stored)} run(s) to {report.central}", file=sys.stderr)
-    else:
-        print(f"bench: warning: {len(report.pending) + len(report.conflicts)} run(s) stay queued "
-              f"for {report.central} ({report.error}); `bench sync` sends them", file=sys.stderr)

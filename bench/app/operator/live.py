@@ -213,23 +213,45 @@ class LiveBatch:
 
 
 class TappedWriter(RunWriter):
-    """A run writer that hands what it stored to the live state (plot samples, measurements)."""
+    """A socket's run writer (the one ``RunStore.create_run`` made) that also hands what it
+    stored to the live state (plot samples, measurements).  Everything is written by that
+    writer; this one only listens (as ``bench.core.batch.SharedRun`` stands for its units)."""
 
-    def __init__(self, store: RunStore, run_id: str, live: LiveBatch, socket: int) -> None:
-        super().__init__(store, run_id)
-        self.live, self.socket = live, socket
+    def __init__(self, writer: RunWriter, live: LiveBatch, socket: int) -> None:  # no record of its own
+        self.writer, self.live, self.socket = writer, live, socket
+        self.id, self.store = writer.id, writer.store
+
+    @property
+    def last_sample_t_s(self) -> float | None:  # type: ignore[override]  # read from the writer
+        return self.writer.last_sample_t_s
+
+    @property
+    def finished_status(self) -> str | None:  # type: ignore[override]  # read from the writer
+        return self.writer.finished_status
+
+    def add_stream(self, *args: Any, **kwargs: Any) -> None:
+        self.writer.add_stream(*args, **kwargs)
 
     def append(self, stream: str, /, **columns: Any) -> None:
-        super().append(stream, **columns)
+        self.writer.append(stream, **columns)
         column = PLOTTED.get(stream, (None,))[0]
         if column in columns and "t_s" in columns:
             self.live.samples(self.socket, stream, np.asarray(columns["t_s"], float),
                               np.asarray(columns[column], float))
 
+    def event(self, t_s: float, kind: str, message: str = "", **data: Any) -> None:
+        self.writer.event(t_s, kind, message, **data)
+
+    def attach(self, name: str, data: bytes, mime: str) -> None:
+        self.writer.attach(name, data, mime)
+
     def set_result(self, key: str, value: Any) -> None:
-        super().set_result(key, value)
+        self.writer.set_result(key, value)
         if key.startswith("measurement.") and isinstance(value, dict):
             self.live.measured(self.socket, value)
+
+    def finish(self, status: str, reason: str | None = None) -> None:
+        self.writer.finish(status, reason)
 
 
 class LiveStore(RunStore):
@@ -245,7 +267,7 @@ class LiveStore(RunStore):
         if socket is None:
             return writer
         self.live.run_created(int(socket), writer.id)
-        return TappedWriter(self, writer.id, self.live, int(socket))
+        return TappedWriter(writer, self.live, int(socket))
 
 
 class AbortableClock:

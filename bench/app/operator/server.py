@@ -34,11 +34,14 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from bench.app.batch import MAX_SOCKETS, check_socket, run_batch, spec_for_sockets
+from bench.app.health import diagnose
 from bench.app.operator.auth import LoginRequired, Users
 from bench.app.operator.live import AbortableClock, LiveBatch, LiveStore
 from bench.app.reports.acceptance_report import acceptance_document
 from bench.app.reports.parallel import start_report_server
+from bench.app.verdict import measurements_of, verdict_of
 from bench.core.operator import OperatorAbort
+from procedures.batch_acceptance import BatchAcceptance
 
 STATIC = Path(__file__).resolve().parent / "static"
 PUSH_INTERVAL_S = 0.25
@@ -87,8 +90,6 @@ class OperatorStation:
         return operator, sockets, spec_for_sockets(sockets, self.spec_path)
 
     def start(self, operator: str, sockets: dict[int, str], spec: Any) -> None:
-        from procedures.batch_acceptance import BatchAcceptance
-
         steps = [(s.name, s.duration_s()) for s in BatchAcceptance(spec).steps]
         self.live.begin(operator, spec.model, sockets, steps)
         self.thread = threading.Thread(target=self._run, args=(sockets, spec), daemon=True,
@@ -140,15 +141,13 @@ class OperatorStation:
 
     # -- history and health ----------------------------------------------------------------
     def history(self, serial: str = "", verdict: str = "", date: str = "") -> list[dict[str, Any]]:
-        from bench.app.reports.acceptance_report import verdict_of
-
         rows = []
         for info in self.store.list_runs(limit=500):
             if serial and serial.lower() not in (info.unit_serial or "").lower():
                 continue
             if date and not info.started_utc.startswith(date):
                 continue
-            measurements = [v for k, v in info.results.items() if k.startswith("measurement.")]
+            measurements = measurements_of(info.results)
             judged = verdict_of(info.status, measurements) if info.status != "running" else "RUNNING"
             if verdict and not judged.upper().startswith(verdict.upper()):
                 continue
@@ -160,8 +159,6 @@ class OperatorStation:
         return rows
 
     def doctor(self) -> list[dict[str, Any]]:
-        from bench.app.commands.doctor import diagnose
-
         return [asdict(h) for h in diagnose(self.config)]
 
 

@@ -1,5 +1,4 @@
-"""Reports built from analysis results (HTML + PNG); never computed inside the analysis."""
+"""Reports built from analysis results (HTML + PNG); never computed inside the analysis.
 
-from bench.app.reports.startup_report import write_startup_report
-
-__all__ = ["write_startup_report"]
+Each report is its own module (``bench.app.reports.startup_report`` …): importing one
+imports only its own plotting and analysis."""

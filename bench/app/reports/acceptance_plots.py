@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from bench.analysis.allan import overlapping_adev
+from bench.app.reports.allan_plot import plot_allan
 from bench.app.reports.common import save_figure as _save
 from bench.app.reports.thermal_plots import (
     gyro_thermal_ramp_section,
@@ -136,9 +138,6 @@ def ratetable_section(store, run_id: str, results: dict[str, Any], out: Path) ->
 
 def _allan_section(title: str, png: str, record, rate_hz: float, unit: str,
                    out: Path) -> tuple[str, str]:
-    from bench.analysis.allan import overlapping_adev
-    from bench.app.reports.allan_plot import plot_allan
-
     result = overlapping_adev(record, rate_hz, "octave", unit=unit)  # the same reduction as the step
     fig = Figure(figsize=(8, 5))
     plot_allan(fig.add_subplot(), result, title=title)

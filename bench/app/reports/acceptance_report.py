@@ -13,23 +13,9 @@ from pathlib import Path
 from typing import Any
 
 from bench.app.reports.acceptance_plots import SECTIONS
+from bench.app.verdict import measurements_of, verdict_of
 
 _COLOURS = {"pass": "#d8f0d8", "marginal": "#fff2c0", "fail": "#f8d0d0"}
-
-
-def measurements_of(results: dict[str, Any]) -> list[dict[str, Any]]:
-    return [v for k, v in results.items() if k.startswith("measurement.")]
-
-
-def verdict_of(status: str, measurements: list[dict[str, Any]]) -> str:
-    """PASS / PASS (marginal) / FAIL / ABORTED for a finished run."""
-    if status == "aborted":
-        return "ABORTED"
-    if status == "failed" or any(m["outcome"] == "fail" for m in measurements):
-        return "FAIL"
-    if any(m["outcome"] == "marginal" for m in measurements):
-        return "PASS (marginal)"
-    return "PASS"
 
 
 def _num(x: Any) -> str:

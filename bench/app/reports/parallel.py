@@ -19,7 +19,6 @@ What a report holds does not depend on where it was written: the folder is the s
 
 from __future__ import annotations
 
-import importlib
 import io
 import multiprocessing
 import os
@@ -29,6 +28,9 @@ from multiprocessing import forkserver
 from pathlib import Path
 from typing import Any
 
+from matplotlib.figure import Figure
+
+from bench.app.reports.acceptance_report import write_acceptance_report
 from bench.core.store import RunStore
 
 #: imported once by the forkserver, inherited by every worker it forks
@@ -39,9 +41,6 @@ def _warm() -> None:
     """A first task, run while the batch still runs: the worker has its imports, and its
     fonts and renderer loaded (a small figure drawn and thrown away: ~0.5 s a worker that the
     first report would otherwise pay)."""
-    importlib.import_module("bench.app.reports.acceptance_report")
-    from matplotlib.figure import Figure
-
     fig = Figure(figsize=(2, 1.5))
     ax = fig.add_subplot()
     ax.loglog([1, 10, 100], [3, 2, 1], "o-", label="warm")
@@ -52,8 +51,6 @@ def _warm() -> None:
 
 
 def _write(store_path: str, run_id: str, folder: str) -> str:
-    from bench.app.reports.acceptance_report import write_acceptance_report
-
     store = RunStore(store_path)
     try:
         return str(write_acceptance_report(store, run_id, folder))

@@ -1,0 +1,24 @@
+"""The verdict of a finished run from its stored measurements: PASS, PASS (marginal), FAIL or
+ABORTED — what ``bench runs show``, the operator page's history and the acceptance report say.
+
+Plain data in, a word out: no plotting, so a reading command gets it without matplotlib."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def measurements_of(results: dict[str, Any]) -> list[dict[str, Any]]:
+    """A run's measurements (its ``measurement.<name>`` results), in stored order."""
+    return [v for k, v in results.items() if k.startswith("measurement.")]
+
+
+def verdict_of(status: str, measurements: list[dict[str, Any]]) -> str:
+    """PASS / PASS (marginal) / FAIL / ABORTED for a finished run."""
+    if status == "aborted":
+        return "ABORTED"
+    if status == "failed" or any(m["outcome"] == "fail" for m in measurements):
+        return "FAIL"
+    if any(m["outcome"] == "marginal" for m in measurements):
+        return "PASS (marginal)"
+    return "PASS"
