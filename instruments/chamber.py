@@ -207,7 +207,7 @@ class WatlowF4TChamber:
     # -- identity and settings ------------------------------------------------------------
     def identify(self) -> ChamberIdentity:
         raw = self._read(PART_NUMBER, PART_NUMBER_WORDS)
-        part = b"".join(w.to_bytes(2, "big") for w in raw).rstrip(b"\0").decode("ascii", "replace")
+        part = "".join(chr(w) for w in raw if 0 < w < 0x110000)  # one character per register (F4T map)
         return ChamberIdentity("F4T", part, words_to_int32(self._read(SERIAL_NUMBER, 2)),
                                words_to_int32(self._read(HARDWARE_ID, 2)),
                                words_to_int32(self._read(SOFTWARE_RELEASE, 2)))

@@ -1,10 +1,11 @@
 """A simulated Watlow F4T temperature-chamber controller, served over Modbus TCP.
 
-One control loop (the chamber air), its ramp-to-set-point, two alarms and a separate
-over-temperature limit controller, as registers (``sim.devices.chamber_map``; the table is
-docs/CHAMBER.md).  The plant is ``sim.physics.thermal_chamber.ChamberAir``, a view of the
-World: the controller's loop runs (conditioning on) while its control mode is Auto, the limit
-is not tripped and it has power; otherwise the air drifts to the lab's ambient.
+One control loop (the chamber air), its ramp-to-set-point, six alarms, a separate
+over-temperature limit controller and a real-time clock, as registers
+(``sim.devices.chamber_map``; the table is docs/CHAMBER.md).  The plant is
+``sim.physics.thermal_chamber.ChamberAir``, a view of the World: the controller's loop runs
+(conditioning on) while its control mode is Auto, the limit is not tripped and it has power;
+otherwise the air drifts to the lab's ambient.
 
 * Control mode (2730): Auto (10) runs the chamber, Off (62) is standby; Manual (54, open-loop
   power) is not simulated and refused with exception 03.
@@ -16,8 +17,16 @@ is not tripped and it has power; otherwise the air drifts to the lab's ambient.
 * Alarm 1 is a deviation alarm (from the working set point, ±3 °C by default, non-latching),
   blocked while the demand ramps and for two loop periods after it arrives (the F4T's
   blocking of a deviation alarm until the process first settles).  Alarm 2 is a process alarm
-  (−75 / +185 °C, latching).  A latched alarm clears on Clear (129) to its clear register once
-  its condition is gone.  States are evaluated when read.
+  (−75 / +185 °C, latching).  Alarms 3–6 have the same registers (block n at 1330 + 100·(n − 1))
+  and the F4T's defaults: Off, 0 / 148.9 °C, non-latching.  A latched alarm clears on Clear (129)
+  to its clear register once its condition is gone.  States are evaluated when read.
+* Loop power (2808, read-only): the loop's output, −100 % (full cooling) … +100 % (full heat),
+  0 while not conditioning.  Manual power (2784) is kept, −100 … 100 %, and drives nothing
+  (Manual mode is not simulated).
+* Clock (14664 hour … 14674 year): a calendar that runs with the World's clock from
+  ``CLOCK_AT_WORLD_START``; writing a field sets it (a day past the month's end: 03; a month or
+  year write moves a day past the new month's end back to its last day).  Battery-backed: a
+  power loss does not stop it.
 * The limit controller watches the air with its own sensor: crossing its high or low set
   point trips it (found in closed form on the air's segment and scheduled on the World), which
   cuts heating and cooling until Clear (129) is written to 11256 with the air back inside the
@@ -33,6 +42,8 @@ is not tripped and it has power; otherwise the air drifts to the lab's ambient.
 
 from __future__ import annotations
 
+import calendar
+import datetime
 import math
 from collections.abc import Callable
 from typing import Any, cast
@@ -50,7 +61,16 @@ LIMIT_CLEAR_MARGIN_C = 2.0
 FUNCTIONS = (3, 4, 6, 16)
 #: the identity the controller reports (hardware id as the F4T guide's table gives it)
 HARDWARE_ID, SOFTWARE_RELEASE = 124, 7
-PART_NUMBER = "F4T1L0AA1A1AAA1"
+#: digit 7 'A': no profiles, six alarms; digit 12 '1': one control loop, no cascade — as ESPEC's
+#: ChamberConnectLibrary decodes the part number (``process_controller``)
+PART_NUMBER = "F4T1L0AA1A11AA1"
+#: the clock's reading at the World's t = 0 (assumed: the World keeps no calendar)
+CLOCK_AT_WORLD_START = datetime.datetime(2025, 1, 1, 0, 0, 0)
+#: the clock's fields (registers ``clock_<field>``) and the values a write may set (the year's: assumed)
+CLOCK_FIELDS = {"hour": (0, 23), "minute": (0, 59), "second": (0, 59), "month": (1, 12),
+                "day": (1, 31), "year": (2000, 2099)}
+#: manual power, %: −100 full cooling … +100 full heating (F4T function reference, PWR)
+POWER_RANGE_PCT = (-100.0, 100.0)
 _FLOAT_RANGE = 99_999.0
 
 
@@ -74,6 +94,10 @@ class WatlowF4T:
         self._ramping = False
         self.alarms = [_Alarm(cm.ALARM_DEVIATION, -3.0, 3.0, cm.NON_LATCHING),
                        _Alarm(cm.ALARM_PROCESS, -75.0, 185.0, cm.LATCHING)]
+        # alarms 3..n at the F4T guide's defaults: Off, low 0.0 °C, high 148.9 °C, non-latching
+        self.alarms += [_Alarm(cm.ALARM_OFF, 0.0, 148.9, cm.NON_LATCHING) for _ in range(cm.ALARMS - 2)]
+        self.manual_power_pct = 0.0
+        self._clock_offset_s = 0  # what clock writes have moved the calendar by, whole seconds
         self.limit_low_c, self.limit_high_c = p.min_c - 10.0, p.max_c + 10.0
         self.limit_tripped = cm.LIMIT_NONE
         self._limit_event: Any = None
@@ -91,7 +115,10 @@ class WatlowF4T:
             "limit_low_c": lambda: self.limit_low_c, "limit_high_c": lambda: self.limit_high_c,
             "limit_status": lambda: cm.DEVICE_OK if self.limit_tripped == cm.LIMIT_NONE else cm.DEVICE_FAIL,
             "limit_error": lambda: cm.ALARM_NONE, "limit_clear": lambda: cm.IGNORE,
+            "manual_power_pct": lambda: self.manual_power_pct, "loop_power_pct": self.loop_power_pct,
         }
+        for field in CLOCK_FIELDS:
+            self._getters[f"clock_{field}"] = self._clock_getter(field)
         for n, alarm in enumerate(self.alarms, start=1):
             self._getters.update(self._alarm_getters(n, alarm))
 
@@ -114,6 +141,48 @@ class WatlowF4T:
         if self.conditioning and self._ramping and self.world.now < self.air.ramp_end_s:
             return self.air.reference_c(self.world.now)
         return self.set_point_c
+
+    def loop_power_pct(self) -> float:
+        """The loop's output now, % (−100 full cooling … +100 full heating; 0 while not
+        conditioning).  The plant has no heater model: the output is the heat flow the air needs —
+        its rate of change plus its loss to the lab (the standby time constant) — as a share of
+        the plant's heating (cooling) rate, so a hold at the lab's temperature needs 0 %, a hold
+        at 180 °C about 87 % and a full-rate ramp 100 %."""
+        if not self.conditioning:
+            return 0.0
+        p = self.air.params
+        t = self.world.now
+        need_c_per_s = (float(self.air.air_rate_c_per_s(t)[0])
+                        + (self.process_value_c() - p.lab_ambient_c) / p.standby_tau_s)
+        capacity_c_per_s = (p.heat_rate_c_per_min if need_c_per_s >= 0 else p.cool_rate_c_per_min) / 60.0
+        return max(-100.0, min(100.0, 100.0 * need_c_per_s / capacity_c_per_s))
+
+    def clock(self) -> datetime.datetime:
+        """The controller's calendar now (whole seconds)."""
+        return CLOCK_AT_WORLD_START + datetime.timedelta(
+            seconds=math.floor(self.world.now) + self._clock_offset_s)
+
+    def _set_clock(self, field: str, value: int) -> bool | None:
+        lo, hi = CLOCK_FIELDS[field]
+        if not lo <= value <= hi:
+            return False
+        now = self.clock()
+        parts = {"year": now.year, "month": now.month, "day": now.day,
+                 "hour": now.hour, "minute": now.minute, "second": now.second, field: value}
+        last_day = calendar.monthrange(parts["year"], parts["month"])[1]
+        if field == "day" and value > last_day:
+            return False
+        parts["day"] = min(parts["day"], last_day)  # a month or year write: into the new month
+        new = datetime.datetime(parts["year"], parts["month"], parts["day"],
+                                parts["hour"], parts["minute"], parts["second"])
+        self._clock_offset_s += int((new - now).total_seconds())
+        return None
+
+    def _clock_getter(self, field: str) -> Callable[[], float | int | str]:
+        return lambda: int(getattr(self.clock(), field))
+
+    def _clock_setter(self, field: str) -> Callable[[Any], bool | None]:
+        return lambda v: self._set_clock(field, int(v))
 
     def _ramp_c_per_min(self, for_set_point: bool) -> float | None:
         applies = self.ramp_action in ((cm.RAMP_SET_POINT, cm.RAMP_BOTH) if for_set_point
@@ -283,6 +352,13 @@ class WatlowF4T:
                 return None
             return set_
 
+        def manual_power(v: float) -> bool | None:
+            lo, hi = POWER_RANGE_PCT
+            if not lo <= v <= hi:
+                return False
+            self.manual_power_pct = float(v)
+            return None
+
         def clear_limit(v: int) -> bool | None:
             if v not in (cm.CLEAR, cm.IGNORE):
                 return False
@@ -298,7 +374,10 @@ class WatlowF4T:
             "ramp_scale": choice("ramp_scale", (cm.PER_MINUTE, cm.PER_HOUR)),
             "ramp_rate": ramp_rate, "limit_low_c": limit("limit_low_c"), "limit_high_c": limit("limit_high_c"),
             "limit_clear": clear_limit,
+            "manual_power_pct": manual_power,
         }
+        for field in CLOCK_FIELDS:
+            out[f"clock_{field}"] = self._clock_setter(field)
         for n, alarm in enumerate(self.alarms, start=1):
             out.update({
                 f"alarm{n}_type": _alarm_setter(alarm, "kind", (cm.ALARM_OFF, cm.ALARM_PROCESS, cm.ALARM_DEVIATION)),
@@ -325,6 +404,7 @@ class WatlowF4T:
         """The register block pymodbus serves, every access passed to :meth:`_access`."""
         data = [SimData(r.address, count=r.words, datatype=DataType.REGISTERS, readonly=r.access == "R")
                 for r in cm.REGISTERS]
+        data += [SimData(a, count=1, datatype=DataType.REGISTERS, readonly=True) for a in cm.CLOCK_PADDING]
         return SimDevice(0, simdata=data, action=self._access)
 
     async def _access(self, function_code: int, start_address: int, address: int, count: int,

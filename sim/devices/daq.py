@@ -27,6 +27,12 @@ queues ``-230`` and sends nothing, as the real unit leaves the client to time ou
 Each channel reads its own input signal (wired by the station) through its own noise
 generator (``world.rng("<name>:ch<n>")``), so a channel's bytes do not depend on the others
 or on how the advance was split.
+
+Besides the scan: ``MEAS?`` (``CONF`` then ``READ?``), ``DATA:LAST?`` (each channel's last
+1000 scan readings, kept apart from the reading memory so ``R?`` does not empty them) and the
+Monitor mode (``ROUT:MON``, ``ROUT:MON:STAT``, ``ROUT:MON:DATA?``: one reading of the monitored
+channel, idle, through its own noise stream ``world.rng("<name>:monitor")``, so monitoring
+never shifts a channel's scan bytes).
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ from sim.devices.dmm_model import (
     DmmFrontEnd,
     ForcedInput,
     LinePickup,
+    noise_ppm,
     round_up_nplc,
 )
 from sim.devices.lifecycle import scpi_power_on
@@ -59,12 +66,21 @@ MEMORY_DEPTH = 1_000_000          # readings with time and channel (assumed)
 MAX_SWEEPS = 50_000_000           # TRIG:COUN 1..5e7 | INF
 MAX_TIMER_S = 359_999.0           # TRIG:TIM 0..359999 s (99:59:59)
 MAX_DELAY_S = 60.0                # ROUT:CHAN:DEL 0..60 s
+LAST_READINGS = 1000              # DATA:LAST? <num_rdgs> 1..1000 (DAQ970A guide, p. 109)
 SWEEP_BATCH = 20_000              # sweeps generated per step, bounds memory per advance
 INFINITE = 9.9e37
 OVERLOAD = 9.9e37
+NOT_A_NUMBER = 9.91e37            # ROUT:MON:DATA? with the Monitor mode off or no reading (guide p. 211)
 
 
 READING_FORMAT = "%+.8E"         # a reading as the DAQ970A sends it: +1.23456789E+00
+
+
+def channel_list_block(channels: list[int]) -> bytes:
+    """A channel list as ``ROUT:SCAN?`` and ``ROUT:MON?`` answer it: a definite-length block,
+    ``#214(@101,102,103)``, empty ``#13(@)`` (34970A user's guide, ROUTe:SCAN? and ROUTe:MONitor?;
+    the DAQ970A keeps the 34970A's scan commands, programming guide pp. 214-215)."""
+    return format_block(("(@" + ",".join(map(str, channels)) + ")").encode("ascii"))
 
 
 class _ScanMemory:
@@ -153,6 +169,8 @@ class ScanningDaq(ScpiDevice):
         self.converters = {ch: DmmConverter(world.rng(f"{name}:ch{ch}"),
                                             noise_scale=0.0 if ideal else 1.0)
                            for ch in SLOT_CHANNELS}
+        # the Monitor's readings come from a stream of their own: monitoring shifts no scan byte
+        self.monitor_converter = DmmConverter(world.rng(f"{name}:monitor"), noise_scale=0.0 if ideal else 1.0)
         self.memory = _ScanMemory(MEMORY_DEPTH)
         self.forced = ForcedInput()  # the overload fault's windows
         self._defaults()
@@ -170,6 +188,9 @@ class ScanningDaq(ScpiDevice):
         self._sweep_starts: list[float] = []  # BUS: the sweeps triggered, not yet taken
         self._next_sweep = 0           # index of the next sweep to take
         self._prev_v = 0.0             # input of the channel scanned last (settling residue)
+        self.last_readings: dict[int, np.ndarray] = {}  # DATA:LAST?: per channel, (n, 3) rows
+        self.monitor_channel: int | None = None
+        self.monitor_on = False
 
     def reset(self) -> None:
         self.abort()
@@ -180,6 +201,7 @@ class ScanningDaq(ScpiDevice):
     def power_off(self) -> None:
         self.abort()
         self.memory.clear()
+        self.last_readings.clear()
 
     def power_on(self) -> None:
         scpi_power_on(self)
@@ -234,6 +256,7 @@ class ScanningDaq(ScpiDevice):
         if not self.scan_list:
             raise ScpiError(-221, "INIT with an empty scan list (ROUT:SCAN or CONF first)")
         self.memory.clear()
+        self.last_readings.clear()  # a new scan: DATA:LAST? has nothing of the previous one
         self._t0 = self.world.now
         self._sweep_starts, self._next_sweep, self._prev_v = [], 0, 0.0
         self.closed.clear()
@@ -258,7 +281,8 @@ class ScanningDaq(ScpiDevice):
             self._run_until(t)
         except Exception as exc:  # a model failure must not wedge the world's clock
             self.abort()
-            self.push_error(-240, f"measurement failed: {type(exc).__name__}: {exc}")
+            # the instrument's own failure, whichever session's message let time run: every session
+            self.instrument_error(-240, f"measurement failed: {type(exc).__name__}: {exc}")
 
     def _due_sweeps(self, t: float) -> int:
         """Sweeps ending by ``t`` in all (taken or not)."""
@@ -317,6 +341,10 @@ class ScanningDaq(ScpiDevice):
             offset += c.busy_s
         self._prev_v = float(inputs[-1][-1])
         self.memory.push(out.reshape(-1, 3))
+        for j, ch in enumerate(self.scan_list):
+            held = self.last_readings.get(ch)
+            recent = out[-LAST_READINGS:, j, :].copy()  # a copy: the batch's array is not kept alive
+            self.last_readings[ch] = recent if held is None else np.concatenate((held, recent))[-LAST_READINGS:]
 
     def _input(self, ch: int, t_start: np.ndarray, aperture_s: float) -> np.ndarray:
         source = self.inputs.get(ch)
@@ -337,6 +365,23 @@ class ScanningDaq(ScpiDevice):
             if start is None:
                 raise ScpiError(-230, f"waiting for {n} readings: a bus trigger is pending")
             self.world.advance_to(max(self.world.now, start + self.sweep_s))
+
+    def monitor_reading(self) -> float:
+        """``ROUT:MON:DATA?``: the monitored channel's reading now — 9.91E37 with the Monitor mode
+        off or no channel chosen (DAQ970A guide, p. 211).  A scan has priority over the Monitor
+        (guide, p. 212): while one runs, the channel's latest scan reading (9.91E37 before it has
+        one); idle, one reading over the aperture that has just ended (no time passes)."""
+        ch = self.monitor_channel
+        if not self.monitor_on or ch is None:
+            return NOT_A_NUMBER
+        if self.state != "IDLE":
+            held = self.last_readings.get(ch)
+            return NOT_A_NUMBER if held is None else float(held[-1, 0])
+        fe = self.channels[ch].fe
+        ap = fe.aperture_s
+        t_start = np.array([max(self.world.now - ap, 0.0)])
+        mean = self._input(ch, t_start, ap) + self.pickup.averaged(t_start, ap)
+        return float(self.monitor_converter.convert(mean, fe)[0])
 
     # -- replies -------------------------------------------------------------------------
     def _format(self, rows: np.ndarray) -> str:
@@ -429,8 +474,46 @@ class ScanningDaq(ScpiDevice):
                 return
             self.scan_list = sorted(set(self._channels(args, 0)))
 
-        def scan_q(args: Args) -> str:
-            return "(@" + ",".join(map(str, self.scan_list)) + ")"
+        def scan_q(args: Args) -> bytes:
+            args.require_count(0)
+            return channel_list_block(self.scan_list)
+
+        def conf_q(args: Args) -> str:
+            # CONF? (@list): one quoted "VOLT <range>,<resolution>" per channel, the form the
+            # 34465A answers CONF? in; the resolution is the rms noise of the channel's NPLC
+            chans, _ = self._last_channels(args)
+            return ",".join(f'"VOLT {format_number(c.fe.range_v)},'
+                            f'{format_number(noise_ppm(c.fe) * 1e-6 * c.fe.range_v)}"'
+                            for c in (self.channels[ch] for ch in chans))
+
+        def meas_q(args: Args) -> str:
+            # the guide: MEAS? configures the channels, makes them the scan list, then READ?
+            conf_volt(args)
+            return read_q(args)
+
+        def last_q(args: Args) -> str:
+            chans, n = self._last_channels(args)
+            if len(chans) != 1:
+                raise ScpiError(-222, f"DATA:LAST? takes a single channel, got {len(chans)}")
+            if n > 1:
+                raise ScpiError(-108, "DATA:LAST? [<num_rdgs>,](@<channel>)")
+            count = args.integer(0, min=1, max=LAST_READINGS, default=1) if n else 1
+            held = self.last_readings.get(chans[0], np.empty((0, 3)))
+            if held.shape[0] < count:  # the guide: more than are stored, or none, is an error
+                raise ScpiError(-222, f"{count} readings of channel {chans[0]} requested, "
+                                      f"{held.shape[0]} stored")
+            return self._format(held[-count:])
+
+        def set_monitor(args: Args) -> None:
+            args.require_count(1)
+            chans = self._channels(args, 0)
+            if len(chans) != 1:
+                raise ScpiError(-222, f"ROUT:MON takes a single channel, got {len(chans)}")
+            self.monitor_channel = chans[0]
+
+        def monitor_q(args: Args) -> bytes:
+            args.require_count(0)
+            return channel_list_block([] if self.monitor_channel is None else [self.monitor_channel])
 
         def set_delay(args: Args) -> None:
             idle()
@@ -526,6 +609,14 @@ class ScanningDaq(ScpiDevice):
         c("[SENSe:]ZERO:AUTO", set=set_zero,
           query=per_channel_query(lambda ch: "1" if ch.fe.autozero == "ON" else "0"))
         c("ROUTe:SCAN", set=set_scan, query=scan_q)
+        c("CONFigure", query=conf_q)
+        c("MEASure[:VOLTage][:DC]", query=meas_q)
+        c("[SENSe:]FUNCtion", query=per_channel_query(lambda ch: '"VOLT"'))
+        c("DATA:LAST", query=last_q)
+        c("ROUTe:MONitor[:CHANnel]", set=set_monitor, query=monitor_q)
+        c("ROUTe:MONitor:STATe", set=lambda a: setattr(self, "monitor_on", a.boolean(0)),
+          query=lambda a: "1" if self.monitor_on else "0")
+        c("ROUTe:MONitor:DATA", query=lambda a: format_number(self.monitor_reading()))
         c("ROUTe:SCAN:SIZE", query=lambda a: format_int(len(self.scan_list)))
         c("ROUTe:CHANnel:DELay", set=set_delay,
           query=per_channel_query(lambda ch: format_number(ch.delay_s)))
@@ -555,4 +646,4 @@ class ScanningDaq(ScpiDevice):
 
 
 __all__ = ["ScanningDaq", "InputSignal", "SLOT_CHANNELS", "RELAY_CLOSE_S", "AUTO_DELAY_S",
-           "READING_OVERHEAD_S", "MEMORY_DEPTH"]
+           "READING_OVERHEAD_S", "MEMORY_DEPTH", "LAST_READINGS", "channel_list_block"]

@@ -305,7 +305,8 @@ class Multimeter(Keysight34465AVocabulary):
             self._run_until(t)
         except Exception as exc:  # a model failure must not wedge the world's clock
             self.abort()
-            self.push_error(-240, f"measurement failed: {type(exc).__name__}: {exc}")
+            # the instrument's own failure, whichever session's message let time run: every session
+            self.instrument_error(-240, f"measurement failed: {type(exc).__name__}: {exc}")
 
     def _take(self, t_start: np.ndarray) -> np.ndarray:
         """Readings whose apertures start at ``t_start`` (increasing, in time order)."""

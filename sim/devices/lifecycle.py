@@ -85,10 +85,11 @@ class AlarmingDevice(SimDevice, Protocol):
 
 def scpi_power_on(device: ScpiDevice) -> None:
     """The power-on state of an IEEE 488.2 instrument: ``*RST`` settings, an empty error
-    queue, and only PON in the event status register."""
+    queue, and only PON in the event status register — in every I/O session, and PON for
+    the next session to open (``ScpiDevice.power_on_status``)."""
     device.reset()
-    device.clear_status()
-    device.esr = ESR_POWER_ON
+    device.clear_status()  # the device's own status hook (shared event registers)
+    device.power_on_status()
 
 
 __all__ = ["ESR_POWER_ON", "AlarmingDevice", "InterlockedDevice", "LimitDevice", "OverloadableDevice",

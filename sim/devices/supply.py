@@ -6,6 +6,12 @@ when the load wants more than the current limit the channel goes into constant-c
 and its terminal voltage collapses to ``limit × load resistance``.  Every change of an
 output's terminal voltage is announced to listeners at ``world.now`` — the accelerometer
 uses that to know when it was powered (t = 0 of a start-up test).
+
+Status (SCPI ``STATus`` subsystem): the Operation and Questionable condition registers
+summarise the three outputs (a bit is set while any output has the condition); their event
+registers latch a condition bit when it rises (the preset transition filters: positive on,
+negative off), sampled at every change of a setpoint or an output and whenever the status is
+read; an enabled event sets the Status Byte's OPER (bit 7) or QUES (bit 3) summary.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from sim.devices.lifecycle import scpi_power_on
-from sim.scpi import Args, ScpiDevice, ScpiError, format_number
+from sim.scpi import Args, ScpiDevice, ScpiError, format_int, format_number
 from sim.world import World
 
 RATINGS = {  # channel: (max volts, max amps) — E36312A
@@ -22,6 +28,17 @@ RATINGS = {  # channel: (max volts, max amps) — E36312A
     2: (25.0, 1.0),
     3: (25.0, 1.0),
 }
+
+
+#: Operation status bits: CV 8, CC 10 (the E36100-series programming guide's "Operation Status
+#: Register" table; the E36300 guide's status chapter uses the same register model — assumed the
+#: same bits).  CAL (0) and WTG (5) never occur here: no calibration, no triggered setpoints.
+OPER_CV, OPER_CC = 1 << 8, 1 << 10
+#: Questionable status bits: OV 0, OC 1, OT 4, UNR 10 (same table).  Protection, temperature and
+#: regulation faults are not simulated, so none of them is ever set.
+QUES_OV, QUES_OC, QUES_OT, QUES_UNR = 1 << 0, 1 << 1, 1 << 4, 1 << 10
+#: STATus:...:ENABle accepts 0..32767 (bit 15 is never used, SCPI-1999 Vol. 1 §9.2)
+STATUS_ENABLE_MAX = 32767
 
 
 #: output names accepted by APPL / INST:SEL (E36312A: P6V, P25V, N25V are aliases of CH1..3)
@@ -70,6 +87,9 @@ class PowerSupply(ScpiDevice):
         self.channels = {n: Channel(n, v, i, current_limit_a=i) for n, (v, i) in RATINGS.items()}
         self.listeners: list[Callable[[float, int, float], None]] = []
         self._selected = 1
+        # the SCPI Operation / Questionable registers: event, enable, the condition last sampled
+        self.oper_event = self.oper_enable = self._oper_seen = 0
+        self.ques_event = self.ques_enable = self._ques_seen = 0
         self._register()
 
     # -- physics ----------------------------------------------------------------------
@@ -95,6 +115,37 @@ class PowerSupply(ScpiDevice):
             volts = self.read(n).voltage_v
             for listener in self.listeners:
                 listener(self.world.now, n, volts)
+        self._sample_status()
+
+    # -- status registers -----------------------------------------------------------------
+    def operation_condition(self) -> int:
+        """``STAT:OPER:COND?`` now: CV (256) while an output is on in constant voltage, CC (1024)
+        while one is in constant current."""
+        modes = {self.read(n).mode for n in self.channels}
+        return (OPER_CV if "CV" in modes else 0) | (OPER_CC if "CC" in modes else 0)
+
+    def questionable_condition(self) -> int:
+        """``STAT:QUES:COND?`` now: 0 — no over-voltage, over-current or over-temperature
+        protection is simulated and an output is always regulated (CV or CC)."""
+        return 0
+
+    def _sample_status(self) -> None:
+        """Latch the condition bits that have risen since the last look into the event registers."""
+        oper, ques = self.operation_condition(), self.questionable_condition()
+        self.oper_event |= oper & ~self._oper_seen
+        self.ques_event |= ques & ~self._ques_seen
+        self._oper_seen, self._ques_seen = oper, ques
+
+    def device_status_bits(self) -> int:
+        """Status Byte QUES (bit 3) and OPER (bit 7): an enabled event is latched."""
+        self._sample_status()
+        return (0x08 if self.ques_event & self.ques_enable else 0) | \
+               (0x80 if self.oper_event & self.oper_enable else 0)
+
+    def clear_status(self) -> None:
+        """``*CLS`` also clears the Operation and Questionable event registers (not the enables)."""
+        super().clear_status()
+        self.oper_event = self.ques_event = 0
 
     def reset(self) -> None:
         for ch in self.channels.values():
@@ -111,6 +162,7 @@ class PowerSupply(ScpiDevice):
 
     def power_on(self) -> None:
         scpi_power_on(self)
+        self.oper_enable = self.ques_enable = 0  # the enables come back cleared at power-on
 
     # -- SCPI vocabulary --------------------------------------------------------------
     def _channels_from(self, args: Args, index: int) -> list[int]:
@@ -205,5 +257,45 @@ class PowerSupply(ScpiDevice):
         self.command("INSTrument[:SELect]", set=inst_sel, query=lambda a: f"CH{self._selected}")
         self.command("STATus:OPERation:INSTrument:ISUMmary#:CONDition", query=isum_condition,
                      max_suffix=len(self.channels))
+
+        def read_event(register: str) -> Callable[[Args], str]:
+            def query(args: Args) -> str:  # reading an event register clears it
+                args.require_count(0)
+                self._sample_status()
+                value = getattr(self, register)
+                setattr(self, register, 0)
+                return format_int(value)
+            return query
+
+        def enable(register: str) -> tuple[Callable[[Args], None], Callable[[Args], str]]:
+            def set_(args: Args) -> None:
+                args.require_count(1)
+                setattr(self, register, args.integer(0, min=0, max=STATUS_ENABLE_MAX))
+
+            def query(args: Args) -> str:
+                args.require_count(0)
+                return format_int(getattr(self, register))
+            return set_, query
+
+        def condition(read: Callable[[], int]) -> Callable[[Args], str]:
+            def query(args: Args) -> str:
+                args.require_count(0)
+                self._sample_status()
+                return format_int(read())
+            return query
+
+        def preset(args: Args) -> None:  # STAT:PRES: the enables cleared (E36100 guide)
+            args.require_count(0)
+            self.oper_enable = self.ques_enable = 0
+
+        self.command("STATus:OPERation[:EVENt]", query=read_event("oper_event"))
+        self.command("STATus:OPERation:CONDition", query=condition(self.operation_condition))
+        oper_enable_set, oper_enable_query = enable("oper_enable")
+        ques_enable_set, ques_enable_query = enable("ques_enable")
+        self.command("STATus:OPERation:ENABle", set=oper_enable_set, query=oper_enable_query)
+        self.command("STATus:QUEStionable[:EVENt]", query=read_event("ques_event"))
+        self.command("STATus:QUEStionable:CONDition", query=condition(self.questionable_condition))
+        self.command("STATus:QUEStionable:ENABle", set=ques_enable_set, query=ques_enable_query)
+        self.command("STATus:PRESet", set=preset)
         self.command("SYSTem:REMote", set=lambda a: None)
         self.command("SYSTem:LOCal", set=lambda a: None)

@@ -17,9 +17,10 @@ from .errors import ERROR_MESSAGES, ScpiError, error_text, format_error_entry
 from .formatting import format_block, format_bool, format_int, format_number, format_numbers, format_string
 from .framing import MessageFramer, Oversize
 from .params import Args
+from .session import Session
 
 __all__ = [
-    "ScpiDevice", "ScpiError", "Args", "MessageFramer", "Oversize",
+    "ScpiDevice", "Session", "ScpiError", "Args", "MessageFramer", "Oversize",
     "ERROR_MESSAGES", "error_text", "format_error_entry",
     "format_block", "format_number", "format_numbers", "format_int", "format_bool",
     "format_string",

@@ -10,17 +10,19 @@ Responses follow Keysight practice: registers as signed NR1 (``*ESR?`` -> ``+32`
 :meth:`wait_complete` returns (operations are synchronous in the simulation), ``*SRE``
 ignores bit 6 (IEEE 488.2 §11.3.2.3), ``*ESR?`` clears the ESR it reports.
 ``SYSTem:ERRor:ALL?`` (SCPI-1999 §21.8.5) returns and clears every entry.
+The error queue, ESR, ESE and SRE these commands read and write are those of the session
+whose message is being processed (``session``; see :mod:`sim.scpi.engine`).
 """
 
 from __future__ import annotations
 
 from abc import abstractmethod
-from collections import deque
 from collections.abc import Callable
 
 from .errors import ScpiError, format_error_entry
 from .formatting import format_int
 from .params import Args
+from .session import Session
 
 __all__ = ["CommonCommands"]
 
@@ -30,7 +32,7 @@ class CommonCommands:
     ``SYSTem:ERRor[:NEXT]? / :COUNt? / :ALL?``, ``SYSTem:VERSion?``.
 
     Expects the host class to provide ``command``, ``idn``, ``options``, ``esr``,
-    ``ese``, ``sre``, ``stb``, ``errors``, ``_errors`` and ``pop_error`` (declared below).
+    ``ese``, ``sre``, ``stb``, ``errors``, ``session`` and ``pop_error`` (declared below).
     """
 
     idn: tuple[str, ...]
@@ -38,7 +40,6 @@ class CommonCommands:
     esr: int
     ese: int
     sre: int
-    _errors: deque[tuple[int, str | None]]
 
     @abstractmethod
     def command(self, pattern: str, *, set: Callable[[Args], None] | None = None,
@@ -60,6 +61,11 @@ class CommonCommands:
     def errors(self) -> list[str]:
         """Queued error entries, oldest first."""
 
+    @property
+    @abstractmethod
+    def session(self) -> Session:
+        """The session whose message is being processed (else the default one)."""
+
     def _register_builtins(self) -> None:
         c = self.command
         c("*IDN", query=self._q_idn)
@@ -75,7 +81,7 @@ class CommonCommands:
         c("*TST", query=self._q_tst)
         c("*OPT", query=self._q_opt)
         c("SYSTem:ERRor[:NEXT]", query=self._q_err)
-        c("SYSTem:ERRor:COUNt", query=lambda a: self._q_reg(a, len(self._errors)))
+        c("SYSTem:ERRor:COUNt", query=lambda a: self._q_reg(a, self.session.count))
         c("SYSTem:ERRor:ALL", query=self._q_err_all)
         c("SYSTem:VERSion", query=self._q_version)
 
@@ -99,9 +105,9 @@ class CommonCommands:
         return 0
 
     def clear_status(self) -> None:
-        """``*CLS``: clear the error queue and the event status register."""
-        self._errors.clear()
-        self.esr = 0
+        """``*CLS``: clear this session's error queue and event status register (a device
+        with shared event registers, e.g. SCPI QUES/OPER, clears those too)."""
+        self.session.clear_status()
 
     # -- built-in handlers ---------------------------------------------------------------
     def _q_idn(self, a: Args) -> str:
@@ -166,7 +172,7 @@ class CommonCommands:
     def _q_err_all(self, a: Args) -> str:
         a.require_count(0)
         entries = self.errors or [format_error_entry(0)]
-        self._errors.clear()
+        self.session.clear_errors()
         return ",".join(entries)
 
     def _q_version(self, a: Args) -> str:

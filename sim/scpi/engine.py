@@ -2,7 +2,8 @@
 
 A server owns one :class:`ScpiDevice` (or a subclass), registers its command tree with
 :meth:`ScpiDevice.command`, and either feeds raw socket bytes to :meth:`ScpiDevice.feed`
-or frames them itself and calls :meth:`ScpiDevice.process` once per program message.
+or frames them itself and calls :meth:`ScpiDevice.process` once per program message,
+each connection in its own session (see "Sessions" below).
 ``process`` never raises (any ``Exception`` ends up in the error queue) and never
 blocks except inside a device's own :meth:`ScpiDevice.wait_complete`.
 
@@ -48,19 +49,59 @@ Status model (IEEE 488.2 §11)
     same reason as MAV: every response is sent immediately.
     The error queue is FIFO with ``error_queue_size`` entries; on overflow the newest
     entry is replaced by -350 "Queue overflow" (SCPI-1999 Vol. 2 §21.8.1).
+
+Sessions (one per client connection)
+    Keysight's programming guides of its recent LAN instruments (34465A/34460A Truevolt,
+    E36300 series, DAQ970A; ``SYSTem:ERRor?``) describe an error queue per remote I/O
+    session: an error appears in the queue of the session whose message caused it.  (The
+    guides' own text was not in our reference corpus; this follows their description as
+    the task cited it, and what goes beyond it is marked as an assumption in
+    docs/vocabulary/README.md, "Sessions".)  Per :class:`~sim.scpi.session.Session`: the
+    error queue, the ESR (its error bits summarise that queue; ``*OPC`` sets its bit 0),
+    ESE and SRE (assumption: the enables go with the ESR they summarise) and the byte-stream
+    framer.  Shared on the device: settings, measurements, reading memory, the trigger
+    system, ``*RST``, ``*TRG``, and the STB's instrument-wide bits 0, 1, 3, 7
+    (:meth:`ScpiDevice.device_status_bits`, e.g. QUES/OPER summaries); EAV, ESB and MSS
+    are each session's view.
+
+    A transport (``sim.server.ScpiOverTcp``, a HiSLIP server) does, per connection::
+
+        session = device.open_session()           # on connect
+        reply = device.process(message, session)  # per program message (None: no reply)
+        device.push_error(-223, "...", session=session)  # an error the transport detects
+        with device.in_session(session): ...      # other code queueing errors for it (fault hooks)
+        device.close_session(session)             # on disconnect (idempotent)
+
+    ``session.framer`` splits a LF-terminated byte stream (``device.feed(data, session)``
+    uses it); a transport with its own message boundaries (HiSLIP's DataEND) ignores it,
+    and a device clear resets it (``session.framer.reset()``; the status is kept).
+    Every method takes the device's lock, so a transport may call from any thread.
+
+    ``session=None`` everywhere means the device's *default session*: what direct callers
+    (tests, fixtures, ``feed``/``ask``/``process`` without a session) use, so they see one
+    queue exactly as before sessions existed.  ``esr``, ``ese``, ``sre``, ``stb``,
+    ``errors`` and ``pop_error`` act on the session being processed, else on the default one.
+
+    An error queued while no message is being processed, or by
+    :meth:`ScpiDevice.instrument_error` (a measurement failing as simulated time passes),
+    was caused by no session: it goes to the default session and every open session; with
+    none open, to the next session that opens, which also takes the power-on PON bit
+    (assumption: what the instrument raised while nobody was connected is reported to the
+    next client).
 """
 
 from __future__ import annotations
 
 import threading
-from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 from .common import CommonCommands
-from .errors import ScpiError, esr_bit_for, format_error_entry
-from .framing import MessageFramer, Oversize
+from .errors import ScpiError, format_error_entry
+from .framing import Oversize
 from .lexer import lex_message, parse_unit
 from .params import Args
+from .session import Session
 from .tree import Node, compile_pattern, registered_patterns, resolve
 
 __all__ = ["ScpiDevice"]
@@ -68,6 +109,8 @@ __all__ = ["ScpiDevice"]
 _CACHE_LIMIT = 4096
 #: IEEE 488.2 §7.6.1.2: a program mnemonic has at most 12 characters (suffix excluded)
 MAX_MNEMONIC_CHARS = 12
+#: ESR bit 7, power on (IEEE 488.2 §11.5.1.1)
+_PON = 0x80
 
 
 class ScpiDevice(CommonCommands):
@@ -77,7 +120,7 @@ class ScpiDevice(CommonCommands):
         idn: manufacturer, model, serial number, firmware (the ``*IDN?`` fields; no
             commas, semicolons or line breaks).
         options: the ``*OPT?`` response.
-        error_queue_size: capacity of the error queue (>= 1).
+        error_queue_size: capacity of each session's error queue (>= 1).
         max_message_bytes: largest program message accepted; larger ones give -223.
     """
 
@@ -104,15 +147,17 @@ class ScpiDevice(CommonCommands):
         self.options = options
         self.error_queue_size = error_queue_size
         self.max_message_bytes = max_message_bytes
-        self.esr = 0x80  # PON: the device has just been powered on
-        self.ese = 0
-        self.sre = 0
-        self._errors: deque[tuple[int, str | None]] = deque()  # (code, detail)
+        self._default = Session(error_queue_size, max_message_bytes, "default")
+        self._sessions: list[Session] = []  # open sessions, in the order they opened
+        # events no open session saw (PON, instrument errors): the next session to open takes them
+        self._unclaimed = Session(error_queue_size, max_message_bytes, "unclaimed")
+        self._current: Session | None = None  # the session whose message is being processed
+        self._opened = 0
+        self._default.esr = self._unclaimed.esr = _PON  # the device has just been powered on
         self._root = Node(None)
         self._commons: dict[str, Node] = {}
         self._cache: dict[tuple[Node, str], tuple] = {}
         self._lock = threading.RLock()
-        self._framer = MessageFramer(max_message_bytes)
         self._register_builtins()
 
     # -- registration --------------------------------------------------------------
@@ -153,60 +198,158 @@ class ScpiDevice(CommonCommands):
             entry = None if node is None else (node.query_entry if query else node.set_entry)
         return None if entry is None else entry.pattern.strip().removesuffix("?")
 
-    # -- status and errors --------------------------------------------------------------
+    # -- sessions -----------------------------------------------------------------------
+    def open_session(self) -> Session:
+        """A new remote I/O session (a client connected): an empty error queue and ESR,
+        enables 0, a fresh framer — plus the events no session has seen yet (PON, the
+        instrument's own errors raised while no session was open)."""
+        with self._lock:
+            self._opened += 1
+            session = Session(self.error_queue_size, self.max_message_bytes, f"session {self._opened}")
+            session.take_from(self._unclaimed)
+            self._sessions.append(session)
+            return session
+
+    def close_session(self, session: Session) -> None:
+        """The client of ``session`` disconnected: its queue and status are discarded.
+        Closing a closed session (or the default one) does nothing."""
+        with self._lock:
+            if session in self._sessions:
+                self._sessions.remove(session)
+
+    @property
+    def sessions(self) -> tuple[Session, ...]:
+        """The open sessions, oldest first (the default session is not among them)."""
+        with self._lock:
+            return tuple(self._sessions)
+
+    @property
+    def default_session(self) -> Session:
+        """The session of direct callers (``process``/``feed``/``ask`` without a session)."""
+        return self._default
+
+    @property
+    def session(self) -> Session:
+        """The session status commands act on now: the one being processed, else the default."""
+        return self._default if self._current is None else self._current
+
+    @contextmanager
+    def in_session(self, session: Session | None) -> Iterator[Session]:
+        """Within the block, errors and status act on ``session`` (None: the default one),
+        as while one of its messages is processed; e.g. a transport's fault hook."""
+        with self._lock:
+            outer, self._current = self._current, self._default if session is None else session
+            try:
+                yield self._current
+            finally:
+                self._current = outer
+
+    def power_on_status(self) -> None:
+        """Status at power-on: every session's queue empty and its ESR only PON (bit 7), and
+        PON waiting for the next session to open; enables kept (IEEE 488.2 §11.5.1.1)."""
+        with self._lock:
+            for session in (self._default, self._unclaimed, *self._sessions):
+                session.clear_status()
+                session.esr = _PON
+
+    # -- status and errors (of the current session) --------------------------------------
+    @property
+    def esr(self) -> int:
+        """The current session's event status register."""
+        return self.session.esr
+
+    @esr.setter
+    def esr(self, value: int) -> None:
+        self.session.esr = value
+
+    @property
+    def ese(self) -> int:
+        """The current session's event status enable register."""
+        return self.session.ese
+
+    @ese.setter
+    def ese(self, value: int) -> None:
+        self.session.ese = value
+
+    @property
+    def sre(self) -> int:
+        """The current session's service request enable register."""
+        return self.session.sre
+
+    @sre.setter
+    def sre(self, value: int) -> None:
+        self.session.sre = value
+
     @property
     def stb(self) -> int:
-        """Status byte: EAV (bit 2), ESB (bit 5), MSS (bit 6), device bits 0/1/3/7."""
+        """Status byte as the current session sees it: EAV (bit 2, its queue), ESB (bit 5,
+        its ESR & ESE), MSS (bit 6, with its SRE); the device's shared bits 0/1/3/7."""
+        session = self.session
         stb = self.device_status_bits() & 0x8B
-        if self._errors:
+        if session.count:
             stb |= 0x04
-        if self.esr & self.ese:
+        if session.esr & session.ese:
             stb |= 0x20
-        if stb & self.sre & ~0x40:
+        if stb & session.sre & ~0x40:
             stb |= 0x40
         return stb
 
     @property
     def errors(self) -> list[str]:
-        """Queued error entries, oldest first (not consumed)."""
-        return [format_error_entry(code, detail, self.error_texts) for code, detail in self._errors]
+        """The current session's queued error entries, oldest first (not consumed)."""
+        return [format_error_entry(code, detail, self.error_texts) for code, detail in self.session.entries]
 
-    def push_error(self, code: int, detail: str | None = None) -> None:
-        """Queue an error and set its ESR bit; code 0 is ignored."""
-        if not isinstance(code, int) or isinstance(code, bool):
-            raise TypeError(f"SCPI error code must be an int, got {code!r}")
+    def push_error(self, code: int, detail: str | None = None, *, session: Session | None = None) -> None:
+        """Queue an error and set its ESR bit in ``session``, else in the session being
+        processed; with neither, it is the instrument's own (:meth:`instrument_error`).
+        Code 0 is ignored."""
+        detail = self._checked(code, detail)
         if code == 0:
             return
-        if -200 < code <= -100 and not self.detailed_command_errors:
-            detail = None
         with self._lock:
-            self.esr |= esr_bit_for(code)
-            if len(self._errors) < self.error_queue_size:
-                self._errors.append((code, detail))  # formatted when read: cheap floods
+            target = self._current if session is None else session
+            if target is None:
+                self._broadcast(code, detail)
             else:
-                self.esr |= esr_bit_for(-350)
-                self._errors[-1] = (-350, None)
+                target.queue_error(code, detail)  # formatted when read: cheap floods
+
+    def instrument_error(self, code: int, detail: str | None = None) -> None:
+        """An error no session's message caused (a measurement failing in the instrument):
+        queued in the default session and every open one; with none open, in the next to
+        open.  Code 0 is ignored."""
+        detail = self._checked(code, detail)
+        if code != 0:
+            with self._lock:
+                self._broadcast(code, detail)
+
+    def _checked(self, code: int, detail: str | None) -> str | None:
+        """``detail`` as queued with ``code`` (bare text for -1xx unless detailed); a bad code raises."""
+        if not isinstance(code, int) or isinstance(code, bool):
+            raise TypeError(f"SCPI error code must be an int, got {code!r}")
+        return None if -200 < code <= -100 and not self.detailed_command_errors else detail
+
+    def _broadcast(self, code: int, detail: str | None) -> None:
+        for session in (self._default, *(self._sessions or [self._unclaimed])):
+            session.queue_error(code, detail)
 
     def pop_error(self) -> str:
-        """Oldest error entry, removed from the queue; ``+0,"No error"`` when empty."""
+        """The current session's oldest error entry, removed; ``+0,"No error"`` when empty."""
         with self._lock:
-            if self._errors:
-                code, detail = self._errors.popleft()
-                return format_error_entry(code, detail, self.error_texts)
-            return format_error_entry(0)
+            entry = self.session.pop_error()
+            return format_error_entry(0) if entry is None else format_error_entry(*entry, self.error_texts)
 
     # -- message handling -----------------------------------------------------------------
-    def feed(self, data: bytes) -> bytes:
-        """Frame raw stream bytes, process each complete message, return all responses.
+    def feed(self, data: bytes, session: Session | None = None) -> bytes:
+        """Frame raw stream bytes with ``session``'s framer (None: the default session's),
+        process each complete message in that session, return all responses.
 
-        The device keeps one framer for this method, so it suits one byte stream (one
-        connection); a server with several clients keeps a :class:`MessageFramer` per
-        connection and calls :meth:`process` itself. Oversize messages queue -223.
+        One framer per session, so each session suits one byte stream (one connection).
+        Oversize messages queue -223.
         """
         out = []
-        with self._lock:
+        with self._lock, self.in_session(session) as current:
             try:
-                items = self._framer.feed(data)
+                items = current.framer.feed(data)
             except Exception as exc:  # defensive: the framer is total over bytes
                 self.push_error(-310, f"framer: {exc}")
                 return b""
@@ -214,30 +357,31 @@ class ScpiDevice(CommonCommands):
                 if isinstance(item, Oversize):
                     self.push_error(-223, f"message longer than {item.limit} bytes")
                     continue
-                response = self.process(item)
+                response = self.process(item, current)
                 if response is not None:
                     out.append(response)
         return b"".join(out)
 
-    def ask(self, message: str) -> str | None:
+    def ask(self, message: str, session: Session | None = None) -> str | None:
         """Convenience for tests: process ``message`` and return the decoded response."""
-        response = self.process(message.encode("ascii", "replace"))
+        response = self.process(message.encode("ascii", "replace"), session)
         return None if response is None else response.decode("latin-1").rstrip("\n")
 
-    def process(self, message: bytes) -> bytes | None:
-        """Execute one program message (terminator already removed).
+    def process(self, message: bytes, session: Session | None = None) -> bytes | None:
+        """Execute one program message (terminator already removed) in ``session`` (None:
+        the default session): its errors and status commands act on that session only.
 
         Returns the response message (query responses joined by ``;`` and ended by
         LF) or ``None`` when no query produced a response. Never raises ``Exception``.
         """
         try:
-            with self._lock:
-                return self._process(message)
-        except Exception as exc:  # last-resort guard: the engine itself failed
-            try:
-                self.push_error(-310, f"{type(exc).__name__}: {exc}")
-            except Exception:
-                pass
+            with self._lock, self.in_session(session):
+                try:
+                    return self._process(message)
+                except Exception as exc:  # last-resort guard: the engine itself failed
+                    self.push_error(-310, f"{type(exc).__name__}: {exc}")
+                    return None
+        except Exception:  # the guard itself failed: still never raise
             return None
 
     def _process(self, message) -> bytes | None:

@@ -75,6 +75,7 @@ def test_station_addresses():
 # ---- against the simulated controller ---------------------------------------------------------
 def test_run_to_a_set_point_and_settle_on_the_bench_clock(sim, chamber):
     assert chamber.identify().model == "F4T" and chamber.identify().hardware_id == 124
+    assert chamber.identify().part_number == "F4T1L0AA1A11AA1"  # one character per register, as read
     assert chamber.set_point_range_c == (-70.0, 180.0)
     assert not chamber.running and chamber.process_value_c == pytest.approx(23.0)
     chamber.set_ramp(2.0)

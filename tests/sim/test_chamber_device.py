@@ -91,7 +91,7 @@ def test_plain_client_reads_and_writes_the_loop(sim, client):
     assert not pv.isError() and f32(pv.registers) == pytest.approx(23.0)
     assert client.read_holding_registers(27586, count=2).registers == pv.registers
     ident = client.read_holding_registers(16, count=15).registers
-    assert b"".join(w.to_bytes(2, "big") for w in ident).rstrip(b"\0").startswith(b"F4T")
+    assert "".join(chr(w) for w in ident if w).startswith("F4T")  # one character per register
     assert not client.write_registers(2782, words(55.5)).isError()
     assert f32(client.read_holding_registers(2782, count=2).registers) == 55.5
     assert not client.write_register(2730, 10).isError()   # Auto: run
