@@ -16,6 +16,15 @@ the same loop, ``modbus://host:port``.
 Robustness: every message goes through the device's ``process()``, which never raises;
 a misbehaving client is disconnected on a socket error and never takes the server down.
 
+Paced time (``sim.world``): when the served World follows the wall (``World.pace``), the
+server's :class:`WallPacer` runs it up to the paced clock before each message (every
+transport hands its messages over through :func:`deliver`) and every :data:`PACE_TICK_S`, so
+readings, ramps and frame streams progress for a client that only sleeps.  A message is
+handled in a greenlet on the server thread: where it waits ahead of the paced clock
+(``FETC?``, ``*OPC?``, ``SIM:TIME:ADV``) it is suspended until the wall catches up, and the
+loop serves everyone else meanwhile — still one thread, so the World needs no locks.  Messages
+to one instrument are handled one at a time, as by an instrument's one parser.
+
 Faults (``sim.faults``): when ``faults`` is set, each instrument's gate (a
 :class:`ConnectionGate`) decides whether a client is admitted, whether a message reaches the
 device (stall, power loss, injected errors), how a reply leaves (garbled, delayed) and what
@@ -31,17 +40,23 @@ import threading
 import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, cast
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Protocol, TypeVar, cast
 
+from greenlet import getcurrent, greenlet
 from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import SimDevice
 
-from sim.scpi import MessageFramer, Oversize, ScpiDevice
+from sim.scpi import Oversize, ScpiDevice, Session
+from sim.world import World
 
 log = logging.getLogger(__name__)
 LOOPBACK = ("127.0.0.1", "::1", "localhost")
+#: how often (wall s) the loop runs a paced world on by itself: a frame stream leaves, and a
+#: ramp or an acquisition shows, within this of its simulated time for a client that only waits
+PACE_TICK_S = 0.005
+_T = TypeVar("_T")
 
 
 class ConnectionGate(Protocol):
@@ -117,6 +132,95 @@ class ByteStreamDevice(Protocol):
         """The client closed the line."""
 
 
+class _Message(greenlet):
+    """One message's handling on the server thread, suspended where it waits for the paced clock."""
+
+
+class WallPacer:
+    """Paced time on the server loop: runs ``world`` (paced, ``world.pace``) along the wall."""
+
+    def __init__(self, world: World) -> None:
+        if world.pace is None:
+            raise ValueError("WallPacer needs a paced world (World(seed, pace=N))")
+        self.world = world
+        self._busy: dict[int, asyncio.Lock] = {}  # by id(device): one message at a time per instrument
+
+    def start(self) -> None:
+        """On the server thread, as it starts serving: the paced clock runs on from now, and
+        a wait ahead of it suspends its message (:meth:`_suspend`)."""
+        self.world.anchor_pace()
+        self.world.wait_for_wall = self._suspend
+
+    def catch_up(self) -> None:
+        """The world up to the paced clock now (never raises)."""
+        try:
+            self.world.catch_up()
+        except Exception:  # an event's failure must neither stop the clock nor drop a client
+            log.exception("paced world failed to catch up")
+
+    async def tick(self) -> None:
+        """The loop's own task: keep the world up to the paced clock."""
+        while True:
+            self.catch_up()
+            await asyncio.sleep(PACE_TICK_S)
+
+    async def deliver(self, device: object | None, handle: Callable[..., Any], *args: Any) -> Any:
+        """``handle(*args)`` once the world has caught up, suspended wherever it waits ahead of
+        the paced clock; messages to ``device`` (when given) one at a time."""
+        if device is None:
+            return await self._run_message(handle, *args)
+        async with self._busy.setdefault(id(device), asyncio.Lock()):
+            return await self._run_message(handle, *args)
+
+    async def _run_message(self, handle: Callable[..., Any], *args: Any) -> Any:
+        self.catch_up()
+        message = _Message(handle)
+        result = message.switch(*args)  # back here when it ends, or waits: then `result` is the time
+        try:
+            while not message.dead:
+                while (delay_s := self.world.wall_delay(result)) > 0:
+                    await asyncio.sleep(delay_s)
+                result = message.switch()
+        except BaseException:  # cancelled (server stopping): unwind the message's stack
+            if not message.dead:
+                message.throw()
+            raise
+        return result
+
+    def _suspend(self, t_s: float) -> None:
+        """``world.wait_for_wall``: a message hands ``t_s`` to its :meth:`deliver` and sleeps;
+        anything else (an in-process caller on another greenlet) sleeps its thread."""
+        current = getcurrent()
+        if isinstance(current, _Message):
+            current.parent.switch(t_s)
+        else:
+            self.world.sleep_until(t_s)
+
+
+class _ServingThread(threading.local):
+    #: the pacer of the server whose loop runs on this thread (None: its world is event-driven)
+    pacer: WallPacer | None = None
+
+
+_serving = _ServingThread()
+
+
+async def deliver(device: object | None, handle: Callable[..., _T], *args: Any) -> _T:
+    """Hand one message to ``device``: ``handle(*args)`` (e.g. ``device.process``), on the
+    server thread.  Event-driven, at once; paced, through the server's :class:`WallPacer`.
+    Every transport passes its messages through here."""
+    pacer = _serving.pacer
+    if pacer is None:
+        return handle(*args)
+    return cast(_T, await pacer.deliver(device, handle, *args))
+
+
+def _catch_up() -> None:
+    """A paced world up to the wall now (for a transport whose messages arrive in a callback)."""
+    if _serving.pacer is not None:
+        _serving.pacer.catch_up()
+
+
 class Transport(ABC):
     """How a simulated instrument is served on loopback: its listener and connection loop,
     the address a client opens, and the faults its wire carries.
@@ -170,22 +274,28 @@ class ScpiOverTcp(Transport):
 
     async def serve(self, device: ScpiDevice, reader: asyncio.StreamReader,
                     writer: asyncio.StreamWriter, gate: ConnectionGate | None) -> None:
-        framer = MessageFramer(max_message_bytes=device.max_message_bytes)
+        """One client connection is one I/O session of the device (its own error queue and
+        status, ``sim.scpi.engine``), opened once admitted and closed when the connection ends."""
+        session: Session | None = None
         try:
             if gate is not None and not gate.admit(writer):
                 return  # reconnects refused for now: close at once
+            session = device.open_session()
             while True:
                 data = await reader.read(1 << 16)
                 if not data:
                     break
-                for message in framer.feed(data):
+                for message in session.framer.feed(data):
                     if isinstance(message, Oversize):
                         device.push_error(-223, "message longer than "
-                                                f"{device.max_message_bytes} bytes discarded")
+                                                f"{device.max_message_bytes} bytes discarded", session=session)
                         continue
-                    if gate is not None and gate.intercept(device, message):
-                        continue
-                    reply = device.process(message)
+                    if gate is not None:
+                        with device.in_session(session):  # an injected error belongs to this client
+                            refused = gate.intercept(device, message)
+                        if refused:
+                            continue
+                    reply = await deliver(device, device.process, message, session)
                     if reply:
                         if gate is not None:
                             reply, delay_s = gate.outgoing(reply)
@@ -198,6 +308,8 @@ class ScpiOverTcp(Transport):
         except Exception:  # never let one client take the server down
             log.exception("client handler failed")
         finally:
+            if session is not None:
+                device.close_session(session)
             _close(writer, gate)
 
 
@@ -227,7 +339,7 @@ class SerialOverTcp(Transport):
                     if not data:
                         break
                     if gate is None or not gate.silent():
-                        device.receive(link, data)
+                        await deliver(device, device.receive, link, data)
             finally:
                 device.disconnect(link)
         except (ConnectionError, asyncio.IncompleteReadError, asyncio.CancelledError):
@@ -268,6 +380,7 @@ class _GatedModbusHandler(ServerRequestHandler):
         if self._gate is not None and self._gate.silent():
             return len(data)  # stalled or unpowered: the request is lost, no reply
         try:
+            _catch_up()
             return super().callback_data(data, addr)
         except Exception:  # never let one client take the server down
             log.exception("modbus client handler failed")
@@ -331,6 +444,9 @@ class Endpoint:
     host: str
     port: int
     transport: Transport = SCPI
+    #: the same instrument on its other wires, by transport name (a LAN SCPI instrument's
+    #: HiSLIP port beside its raw socket): same device, its own port
+    also: dict[str, Endpoint] = field(default_factory=dict)
 
     @property
     def resource(self) -> str:
@@ -347,7 +463,9 @@ class FaultGates(Protocol):
 class InstrumentServer:
     """Serves a set of devices, each on its own TCP port and transport, from a background thread."""
 
-    def __init__(self, host: str = "127.0.0.1") -> None:
+    def __init__(self, host: str = "127.0.0.1", world: World | None = None) -> None:
+        """``world``: the World the served devices view; when it is paced (``world.pace``),
+        the server's loop runs it along the wall (:class:`WallPacer`)."""
         if host not in LOOPBACK:
             warnings.warn(f"simulated instruments will listen on {host}, reachable from the network",
                           stacklevel=2)
@@ -357,16 +475,24 @@ class InstrumentServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._servers: list[Listener] = []
+        self._also: dict[str, tuple[Transport, ...]] = {}  # an instrument's further wires
+        self._also_servers: list[Listener] = []  # their listeners; _servers has one per endpoint
         self._ready = threading.Event()
         self._error: BaseException | None = None
         #: a ``sim.faults.FaultInjector`` (or None): per-instrument gates, see the module doc
         self.faults: FaultGates | None = None
+        #: paced time on this server's loop (None: event-driven), see the module doc
+        self.pacer = WallPacer(world) if world is not None and world.pace is not None else None
 
-    def add(self, name: str, kind: str, device: Any, transport: Transport = SCPI, port: int = 0) -> None:
-        """Serve ``device`` as instrument ``name`` over ``transport`` (port 0: any free port)."""
+    def add(self, name: str, kind: str, device: Any, transport: Transport = SCPI, port: int = 0,
+            also: tuple[Transport, ...] = ()) -> None:
+        """Serve ``device`` as instrument ``name`` over ``transport`` (port 0: any free port),
+        and over each of ``also`` on a free port of its own (``Endpoint.also``)."""
         if self._thread is not None:
             raise RuntimeError("add devices before start()")
         self._devices.append((name, kind, device, transport, port))
+        if also:
+            self._also[name] = also
 
     # -- lifecycle -------------------------------------------------------------------------
     def start(self) -> list[Endpoint]:
@@ -381,16 +507,20 @@ class InstrumentServer:
         loop = asyncio.new_event_loop()
         self._loop = loop
         asyncio.set_event_loop(loop)
+        _serving.pacer = self.pacer
         try:
             loop.run_until_complete(self._open_all())
         except BaseException as exc:  # port in use, bad host: report to start()
             self._error = exc
             self._ready.set()
             return
+        if self.pacer is not None:  # the paced clock starts as the addresses are handed out
+            self.pacer.start()
+            loop.create_task(self.pacer.tick())
         self._ready.set()
         loop.run_forever()
         # Orderly shutdown: stop listening, cancel client handlers, let them close sockets.
-        for server in self._servers:
+        for server in self._servers + self._also_servers:
             server.close()
         tasks = [t for t in asyncio.all_tasks(loop) if not t.done()]
         for task in tasks:
@@ -402,7 +532,12 @@ class InstrumentServer:
         for name, kind, device, transport, port in self._devices:
             listener, bound = await transport.listen(device, self.host, port, self._gate_of(name))
             self._servers.append(listener)
-            self.endpoints.append(Endpoint(name, kind, self.host, bound, transport))
+            endpoint = Endpoint(name, kind, self.host, bound, transport)
+            for other in self._also.get(name, ()):
+                listener, bound = await other.listen(device, self.host, 0, self._gate_of(name))
+                self._also_servers.append(listener)
+                endpoint.also[other.name] = Endpoint(name, kind, self.host, bound, other)
+            self.endpoints.append(endpoint)
 
     def stop(self) -> None:
         if self._loop is not None and self._loop.is_running():
@@ -419,7 +554,7 @@ class InstrumentServer:
 
     @staticmethod
     async def _call(fn: Callable[..., Any], *args: Any) -> Any:
-        return fn(*args)
+        return await deliver(None, fn, *args)
 
     def _gate_of(self, name: str) -> Callable[[], ConnectionGate | None]:
         """``name``'s fault gate when asked (the injector may be attached after ``add``)."""

@@ -46,6 +46,7 @@ from sim.devices.sim_control import SimControl
 from sim.devices.supply import PowerSupply
 from sim.devices.turntable import TurntableController
 from sim.faults import FaultInjector
+from sim.hislip import HISLIP
 from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
 from sim.physics.gravity import STANDARD_GRAVITY_MPS2, local_gravity_mps2
 from sim.physics.motion import DualAxisTable
@@ -55,7 +56,7 @@ from sim.server import MODBUS, SCPI, SERIAL, Endpoint, InstrumentServer, Transpo
 from sim.station_angular import AngularRig, draw_rig
 from sim.station_fixture import Fixture, check_fixture
 from sim.station_gyro import StationGyro, check_gyro_serial, station_gyro_params
-from sim.world import World
+from sim.world import World, check_pace
 
 
 @dataclass
@@ -99,6 +100,10 @@ class SimStationConfig:
     fixture_settling_tau_s: float = 1e-4                # the fixture's input filter, s
     fixture_first_channel: int = 101                    # socket n on DAQ channel first + n − 1
     host: str = "127.0.0.1"
+    #: simulated time: None = event-driven (moves only when a client waits; same seed, same
+    #: bytes); a number = it also follows the wall clock at that many simulated seconds per
+    #: wall second (``sim.world.MIN_PACE..MAX_PACE``; 1 = realtime)
+    pace: float | None = None
 
     def validate(self) -> None:
         for name in ("latitude_deg", "height_m", "sampling_resistor_ohm", "temp_resistor_ohm",
@@ -140,6 +145,7 @@ class SimStationConfig:
         ppm = self.dmm_timebase_ppm
         if isinstance(ppm, bool) or not isinstance(ppm, (int, float)) or not abs(ppm) <= 1000:
             raise ValueError(f"dmm_timebase_ppm = {ppm!r} not in -1000..1000 ppm")
+        check_pace(self.pace)
         self.chamber_params()
 
     def chamber_params(self) -> ChamberParams:
@@ -162,7 +168,7 @@ class SimulatedStation:
         cfg = config or SimStationConfig()
         cfg.validate()
         self.config = cfg
-        self.world = World(cfg.seed)
+        self.world = World(cfg.seed, pace=cfg.pace)
         self.g_mps2 = cfg.g_mps2 or local_gravity_mps2(cfg.latitude_deg, cfg.height_m)
         self.table = DualAxisTable()
         #: the chamber air around the table and both units (at the lab's ambient while stopped)
@@ -205,7 +211,7 @@ class SimulatedStation:
             ambient=self.chamber_air, first_channel=cfg.fixture_first_channel)
         #: every instrument's device, by name, in table order (``INSTRUMENTS``)
         self.devices: dict[str, SimDevice] = {row.name: row.device(self) for row in INSTRUMENTS}
-        self.server = InstrumentServer(cfg.host)
+        self.server = InstrumentServer(cfg.host, world=self.world)
         #: fault injection (``sim.faults``): ``station.faults.inject("stall", "dmm", at_s=...)``
         self.faults = FaultInjector(
             self.world, {row.name: (self.devices[row.name], row.transport) for row in INSTRUMENTS},
@@ -219,8 +225,9 @@ class SimulatedStation:
                              f"allowed: {', '.join(self.devices)}")
         for row in INSTRUMENTS:
             if only is None or row.name in only:
-                self.server.add(row.name, row.kind, self.devices[row.name], row.transport)
-        self.server.add("sim", "sim_control", self.sim_control, SCPI)
+                self.server.add(row.name, row.kind, self.devices[row.name], row.transport,
+                                also=ALSO_SERVED.get(row.transport, ()))
+        self.server.add("sim", "sim_control", self.sim_control, SCPI, also=ALSO_SERVED[SCPI])
         self.endpoints: list[Endpoint] = []
 
     # -- wiring ----------------------------------------------------------------------------
@@ -283,8 +290,15 @@ class SimulatedStation:
     def __exit__(self, *exc) -> None:
         self.stop()
 
-    def resources(self) -> dict[str, str]:
-        return {e.name: e.resource for e in self.endpoints}
+    def resources(self, transport: str | None = None) -> dict[str, str]:
+        """Each served instrument's address by name: the one of its table wire (raw socket,
+        ``socket://``, ``modbus://``), or with ``transport`` (``"hislip"``, ``"scpi"``, ...)
+        its address on that wire, for the instruments that have one."""
+        if transport is None:
+            return {e.name: e.resource for e in self.endpoints}
+        on = ({e.name: e for e in self.endpoints if e.transport.name == transport}
+              | {e.name: e.also[transport] for e in self.endpoints if transport in e.also})
+        return {name: e.resource for name, e in on.items()}
 
     def truth(self) -> dict:
         """The simulated unit's true parameters (for recovery tests, never for procedures)."""
@@ -327,6 +341,10 @@ class StationInstrument:
     #: table order, after the world and its models are wired; may build the device or find it
     device: Callable[[SimulatedStation], SimDevice]
 
+
+#: the wires an instrument answers on beside its table wire: a LAN SCPI instrument (a Keysight
+#: meter, supply or DAQ) offers HiSLIP (``TCPIP::host::hislip0::INSTR``) as well as its raw socket
+ALSO_SERVED: dict[Transport, tuple[Transport, ...]] = {SCPI: (HISLIP,)}
 
 #: the simulated station's instruments, in the order they are served and listed
 INSTRUMENTS: tuple[StationInstrument, ...] = (

@@ -22,8 +22,10 @@ class SimControl(ScpiDevice):
             self.world.advance(args.number(0, min=0.0, max=MAX_ADVANCE_S))
 
         def until(args: Args) -> None:
-            self.world.advance_to(args.number(0, min=self.world.now,
-                                              max=self.world.now + MAX_ADVANCE_S))
+            # paced, the clock runs on by itself: a time it has passed is nothing left to wait for
+            earliest = self.world.now if self.world.pace is None else 0.0
+            t_s = args.number(0, min=earliest, max=self.world.now + MAX_ADVANCE_S)
+            self.world.advance_to(max(t_s, self.world.now))
 
         self.command("SIMulation:TIME", query=lambda a: f"{self.world.now:.9f}")
         self.command("SIMulation:TIME:ADVance", set=advance)
