@@ -1,49 +1,44 @@
 """The simulated station as a user meets it: `bench sim serve` in its own process, reached
-only through the addresses it prints (one JSON line per instrument)."""
+only through the addresses it prints (one JSON line per address: every instrument's raw socket,
+then its HiSLIP address).  The drivers' fixtures take ``addresses`` and so run once per address
+form; ``raw`` sets the scene around them over the sockets."""
 
 from __future__ import annotations
-
-import json
-import os
-import subprocess
-import sys
 
 import pytest
 import pyvisa
 
-SEED = 7
-#: what a user who wants a meter and a supply for their own scripts starts
-ONLY = "dmm,supply"
+from tests.compat.serving import PYVISA_OPTIONS, TRANSPORT_IDS, TRANSPORTS, serve
 
 
 @pytest.fixture(scope="session")
 def served():
-    """``{name: VISA resource}`` of ``bench sim serve --only dmm,supply`` (plus ``sim``): one
-    server for the session (per worker); every test starts from ``*RST``."""
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "bench.app.cli", "sim", "serve", "--seed", str(SEED),
-                             "--only", ONLY], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env)
-    try:
-        resources = {}
-        for _ in range(len(ONLY.split(",")) + 1):  # the instruments, then the sim-control endpoint
-            line = proc.stdout.readline()
-            if not line:
-                raise RuntimeError(f"bench sim serve ended: {proc.stderr.read()}")
-            entry = json.loads(line)
-            resources[entry["name"]] = entry["resource"]
+    """``{(name, transport): VISA resource}`` of ``bench sim serve --only dmm,supply`` (plus
+    ``sim``), both address forms: one server for the session (per worker); every test starts
+    from ``*RST``."""
+    with serve() as resources:
         yield resources
-    finally:
-        proc.terminate()
-        proc.wait(10)
+
+
+@pytest.fixture(scope="module", params=TRANSPORTS, ids=TRANSPORT_IDS)
+def transport(request) -> str:
+    """The address form a module's drivers use: each runs over the raw socket, then HiSLIP."""
+    return request.param
+
+
+@pytest.fixture(scope="module")
+def addresses(served, transport) -> dict[str, str]:
+    """``{name: VISA resource}`` in the address form under test."""
+    return {name: resource for (name, form), resource in served.items() if form == transport}
 
 
 @pytest.fixture(scope="session")
 def raw(served):
-    """Plain pyvisa sessions by instrument name, for setting the scene around a driver."""
+    """Plain pyvisa sessions over the raw sockets by instrument name, for setting the scene
+    around a driver."""
     rm = pyvisa.ResourceManager("@py")
-    sessions = {name: rm.open_resource(res, read_termination="\n", write_termination="\n",
-                                       timeout=10_000) for name, res in served.items()}
+    sessions = {name: rm.open_resource(res, **PYVISA_OPTIONS["scpi"])
+                for (name, form), res in served.items() if form == "scpi"}
     yield sessions
     for s in sessions.values():
         s.close()

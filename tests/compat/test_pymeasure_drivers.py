@@ -2,7 +2,9 @@
 the Keysight E36312A supply driver, and the 34465A's predecessors whose language it speaks
 (Agilent 34410A, HP 34401A).  Every property is either read (and, if settable, set and read
 back) or, where the driver asks for something a DC-volts 34465A lacks, refused with the
-standard error — never answered wrongly."""
+standard error — never answered wrongly.  Every test that opens a driver runs twice: over the
+raw socket (``...::SOCKET``, LF terminations set, as a user sets them) and over HiSLIP
+(``...::hislip0,PORT::INSTR``, the drivers' default terminations)."""
 
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ from pymeasure.instruments.agilent import Agilent34410A
 from pymeasure.instruments.hp import HP34401A
 from pymeasure.instruments.keysight import KeysightE36312A
 
-VISA = dict(visa_library="@py", read_termination="\n", write_termination="\n", timeout=10_000)
+from tests.compat.serving import pymeasure_options
+
 RATED = {1: (6.0, 5.0), 2: (25.0, 1.0), 3: (25.0, 1.0)}  # E36312A: volts, amps per output
 
 
@@ -29,8 +32,14 @@ def _refused(instrument, command: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def supply(served):
-    psu = KeysightE36312A(served["supply"], **VISA)
+def visa(transport):
+    """PyMeasure's adapter options for the address form under test."""
+    return pymeasure_options(transport)
+
+
+@pytest.fixture(scope="module")
+def supply(addresses, visa):
+    psu = KeysightE36312A(addresses["supply"], **visa)
     yield psu
     psu.adapter.close()
 
@@ -73,14 +82,14 @@ def test_e36312a_powers_the_accelerometer_and_measures_its_draw(fresh_supply):
     fresh_supply.ch_2.output_enabled = False
 
 
-def test_scpi_mixin_properties_of_every_driver(fresh_supply, served):
+def test_scpi_mixin_properties_of_every_driver(fresh_supply, addresses, visa):
     assert fresh_supply.id.startswith("Keysight Technologies,E36312A,")
     assert fresh_supply.complete == "1"
     assert fresh_supply.status == "+0" and fresh_supply.options == "0"
     assert fresh_supply.next_error[0] == 0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)  # HP34401A: SCPI support "unknown"
-        meters = [Agilent34410A(served["dmm"], **VISA), HP34401A(served["dmm"], **VISA)]
+        meters = [Agilent34410A(addresses["dmm"], **visa), HP34401A(addresses["dmm"], **visa)]
     for meter in meters:
         meter.reset()
         meter.clear()
@@ -91,10 +100,10 @@ def test_scpi_mixin_properties_of_every_driver(fresh_supply, served):
 
 
 @pytest.fixture(scope="module")
-def hp34401a(served):
+def hp34401a(addresses, visa):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
-        dmm = HP34401A(served["dmm"], **VISA)
+        dmm = HP34401A(addresses["dmm"], **visa)
     yield dmm
     dmm.adapter.close()
 
@@ -184,10 +193,10 @@ def test_hp34401a_other_functions_are_refused_not_faked(fresh_hp):
     assert fresh_hp.function_ == "DCV"
 
 
-def test_agilent34410a_reads_dc_volts_and_refuses_the_rest(served, powered):
+def test_agilent34410a_reads_dc_volts_and_refuses_the_rest(addresses, visa, powered):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
-        dmm = Agilent34410A(served["dmm"], **VISA)
+        dmm = Agilent34410A(addresses["dmm"], **visa)
     try:
         assert dmm.voltage_dc == pytest.approx(6.6, rel=0.05)
         assert _properties(Agilent34410A) - INHERITED == {

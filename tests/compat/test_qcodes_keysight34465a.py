@@ -1,6 +1,7 @@
 """QCoDeS's ``Keysight34465A`` driver, unchanged, against the simulated meter served by
 ``bench sim serve``: every parameter read, every settable parameter set and read back, a
-full snapshot, ``volt`` and a 10⁴-point time trace at 1 ms."""
+full snapshot, ``volt`` and a 10⁴-point time trace at 1 ms — over the raw socket and over
+HiSLIP, the driver's own settings either way (it sets LF terminations itself)."""
 
 from __future__ import annotations
 
@@ -63,8 +64,8 @@ def _parameters(instrument):
 
 
 @pytest.fixture(scope="module")
-def dmm(served):
-    meter = Keysight34465A("compat_dmm", served["dmm"], visalib="@py", timeout=10)
+def dmm(addresses, transport):
+    meter = Keysight34465A(f"compat_dmm_{transport}", addresses["dmm"], visalib="@py", timeout=10)
     yield meter
     meter.close()
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from bench.app.cli import main
@@ -9,7 +11,17 @@ from sim.station import SimulatedStation
 
 
 def test_only_the_named_instruments_and_the_sim_endpoint_are_served(served):
-    assert set(served) == {"dmm", "supply", "sim"}
+    assert {name for name, _ in served} == {"dmm", "supply", "sim"}
+
+
+def test_each_is_served_on_a_raw_socket_and_on_hislip(served):
+    assert set(served) == {(name, form) for name in ("dmm", "supply", "sim") for form in ("scpi", "hislip")}
+    for (name, form), resource in served.items():
+        if form == "scpi":
+            assert re.fullmatch(r"TCPIP::127\.0\.0\.1::\d+::SOCKET", resource), name
+        else:
+            assert re.fullmatch(r"TCPIP::127\.0\.0\.1::hislip0,\d+::INSTR", resource), name
+    assert len(set(served.values())) == 6  # a port of its own each
 
 
 def test_an_unknown_name_is_one_line_naming_the_allowed_ones(capsys):
