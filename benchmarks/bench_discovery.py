@@ -41,8 +41,12 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.app.commands.discover import candidate_map, default_jobs, realisation_map
+from bench.app.commands.discover_runs import read_run
 from bench.discovery import lattice as lat
 from bench.discovery import significance as sig
+from bench.discovery.model import Model, base_model
+from bench.discovery.workflow import discover
 from bench.testing.references import discovery as ref
 
 
@@ -118,11 +122,6 @@ def _tree_cpu_s() -> float:
 def startup_run(jobs: int) -> int:
     """Time ``discover`` on a fresh 30-min start-up run of the simulated station, the candidates
     fitted by ``jobs`` worker processes (as ``bench discover --jobs``)."""
-    from bench.app.commands.discover import candidate_map, realisation_map
-    from bench.app.commands.discover_runs import read_run
-    from bench.discovery.model import Model, base_model
-    from bench.discovery.workflow import discover
-
     with tempfile.TemporaryDirectory() as tmp:
         store = str(Path(tmp) / "bench.sqlite")
         bench = Path(sys.executable).with_name("bench")
@@ -164,8 +163,6 @@ def main(argv=None) -> int:
                     help="with --startup: worker processes fitting the candidates [as bench discover: the cores]")
     a = ap.parse_args(argv)
     if a.startup:
-        from bench.app.commands.discover import default_jobs
-
         return startup_run(default_jobs() if a.jobs is None else a.jobs)
     new = workload(a.n, a.reps)
     with old_code():

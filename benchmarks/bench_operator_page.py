@@ -22,13 +22,13 @@ import time
 import urllib.request
 from pathlib import Path
 
+from bench.testing.operator_station import CHROMIUM, serve
+
 SERIALS = {1: "QA-SIM-0003", 2: "QA-SIM-0002", 3: "QA-SIM-0004", 4: "QA-SIM-0001"}
 
 
 def main() -> None:
-    from playwright.sync_api import sync_playwright  # the test extra: imported when the benchmark runs
-
-    from bench.testing.operator_station import CHROMIUM, serve
+    from playwright.sync_api import sync_playwright  # noqa: PLC0415 — the browser driver (test extra) only when the benchmark runs
 
     with tempfile.TemporaryDirectory() as tmp, serve(Path(tmp)) as (url, _), sync_playwright() as p:
         browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])

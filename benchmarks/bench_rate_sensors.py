@@ -18,7 +18,9 @@ import time
 import numpy as np
 from scipy import signal
 
+from sim.physics.angular_demand import Sweep
 from sim.physics.angular_piece import MotionPiece, at_rest
+from sim.physics.angular_table import AngularMotion
 from sim.physics.rate_sensors import lf_sensor, mhd_sensor
 
 
@@ -45,9 +47,6 @@ def sweep(n=10_000, duration_s=100.0) -> list[MotionPiece]:
 
 def table_sweep() -> list[MotionPiece]:
     """The angular table's own 100-s LOG sweep 0.5 Hz – 1 kHz (10-ms pieces, 2nd/3rd harmonics)."""
-    from sim.physics.angular_demand import Sweep
-    from sim.physics.angular_table import AngularMotion
-
     table = AngularMotion()
     table.start_sweep(0.0, Sweep(0.5, 1000.0, 100.0, 0.01))
     return table.pieces(-1.0, 1e9)

@@ -33,6 +33,8 @@ import time
 import warnings
 
 import numpy as np
+from scipy import stats
+from scipy.optimize import curve_fit
 from scipy.signal import lfilter
 
 import bench.analysis.startup._trend as trend_mod
@@ -70,8 +72,7 @@ def _ljung_box_p(resid: np.ndarray, order: tuple[int, int]) -> float:
 
     ``acorr_ljungbox`` computes the ACF without FFT (O(n²): hours at 10^6 samples).
     """
-    from scipy import stats
-    from statsmodels.tsa.stattools import acf, q_stat
+    from statsmodels.tsa.stattools import acf, q_stat  # noqa: PLC0415 — the peer only when the benchmark runs
 
     resid = np.asarray(resid)
     lags = min(max(20, sum(order) + 10), resid.size // 5)
@@ -82,9 +83,8 @@ def _ljung_box_p(resid: np.ndarray, order: tuple[int, int]) -> float:
 def run_statsmodels(t_s: np.ndarray, y: np.ndarray, cells: list[tuple[int, int]], final: tuple[int, int],
                     grid_samples: int, final_samples: int, method: str) -> dict:
     """The pipeline's steps with statsmodels (and scipy for the nonlinear trend); returns times and estimates."""
-    from scipy.optimize import curve_fit
-    from statsmodels.tsa.arima.model import ARIMA
-    from statsmodels.tsa.stattools import acf, acovf, levinson_durbin
+    from statsmodels.tsa.arima.model import ARIMA  # noqa: PLC0415 — the peer only when the benchmark runs
+    from statsmodels.tsa.stattools import acf, acovf, levinson_durbin  # noqa: PLC0415 — the peer only when the benchmark runs
 
     out: dict = {"steps": {}, "samples": {}}  # step name -> seconds / samples it ran on
     clock = time.perf_counter()
@@ -120,7 +120,7 @@ def run_statsmodels(t_s: np.ndarray, y: np.ndarray, cells: list[tuple[int, int]]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         if final[1] == 0 and all(q == 0 for _, q in cells):  # an AR table: statsmodels' AR tools, all samples
-            from statsmodels.tsa.ar_model import AutoReg
+            from statsmodels.tsa.ar_model import AutoReg  # noqa: PLC0415 — the peer only when the benchmark runs
 
             # ar_select_order(trend="n") builds an n×n matrix for p = 0 (statsmodels bug), so
             # the same table by hand: AutoReg on a common hold-back, p = 0 as white noise

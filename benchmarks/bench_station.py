@@ -26,6 +26,7 @@ from pyvisa.resources import MessageBasedResource
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
+from instruments.base import SCPIInstrument
 from procedures.running import alone
 from procedures.startup import StartupAcquisition, StartupParameters
 from sim.station import SimStationConfig, SimulatedStation
@@ -56,8 +57,6 @@ def speedup(duration_s: float) -> None:
 
 
 def dmm_throughput(points: int, repeats: int = 5) -> None:
-    from instruments.base import SCPIInstrument
-
     with SimulatedStation(SimStationConfig(seed=2)) as station:
         rm = pyvisa.ResourceManager("@py")
         dmm = rm.open_resource(station.resources()["dmm"], read_termination="\n",

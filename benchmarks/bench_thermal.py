@@ -24,10 +24,24 @@ each, a soak, then back to the lab (≈ 20 h of chamber time, which a real chamb
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
+
+from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
+from bench.core.spec import load_spec
+from bench.core.store import RunStore
+from procedures.acceptance import AcceptanceTest
+from procedures.catalogue import CATALOGUE
+from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
+from sim.physics.gyro import FiberOpticGyro, draw_gyro
+from sim.physics.thermal_chamber import ChamberAir
+from sim.physics.thermal_unit import TwoNodeBody
+from sim.world import World
 
 SET_POINTS_C = (-40.0, -20.0, 0.0, 23.0, 40.0, 55.0, 70.0)
 RAMP_C_PER_MIN = 2.0
@@ -46,12 +60,6 @@ def profile(hours: float) -> list[tuple[float, float]]:
 
 
 def physics(hours: float) -> None:
-    from sim.physics.accelerometer import QuartzAccelerometer, draw_accelerometer
-    from sim.physics.gyro import FiberOpticGyro, draw_gyro
-    from sim.physics.thermal_chamber import ChamberAir
-    from sim.physics.thermal_unit import TwoNodeBody
-    from sim.world import World
-
     world = World(1)
     air = ChamberAir(world)
     acc = QuartzAccelerometer(draw_accelerometer("QA-SIM-0005"), world.rng("acc"), ambient=air)
@@ -139,8 +147,6 @@ def physics(hours: float) -> None:
 
 
 def wire(hours: float) -> None:
-    from bench.app.station import Station, builtin_sim_config
-
     steps = profile(hours)
     t0 = time.perf_counter()
     with Station(builtin_sim_config(), seed=1, unit_serial="QA-SIM-0005") as st:
@@ -178,16 +184,6 @@ def wire(hours: float) -> None:
 
 
 def calibration() -> None:
-    import tempfile
-    from pathlib import Path
-
-    from bench.app.station import Station, builtin_sim_config
-    from bench.core.procedure import execute
-    from bench.core.spec import load_spec
-    from bench.core.store import RunStore
-    from procedures.acceptance import AcceptanceTest
-    from procedures.catalogue import CATALOGUE
-
     root = Path(__file__).resolve().parents[1] / "bench" / "specs"
     with tempfile.TemporaryDirectory() as tmp:
         store = RunStore(Path(tmp) / "bench.sqlite")

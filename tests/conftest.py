@@ -31,6 +31,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import psycopg
 import pytest
 from hypothesis import HealthCheck, settings
 
@@ -125,8 +126,6 @@ def pg_server() -> Iterator[PgServer]:
 @pytest.fixture
 def central_url(pg_server: PgServer) -> str:
     """A fresh, empty database on the session's server: its URL."""
-    import psycopg
-
     name = f"t_{uuid.uuid4().hex[:12]}"
     with psycopg.connect(pg_server.url("postgres"), autocommit=True) as conn:
         conn.execute(f"CREATE DATABASE {name}")

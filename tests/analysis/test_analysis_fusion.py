@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.integrate import quad_vec
+from scipy.linalg import expm
 from scipy.signal import cont2discrete
 
 import bench.analysis.fusion._sequential as fu
@@ -154,8 +156,6 @@ def test_van_loan_q_matches_the_integral():
     ts = 2e-3
     a, b, _, _ = model.continuous()
     _, q = model.discretize(ts, "zoh")
-    from scipy.integrate import quad_vec
-    from scipy.linalg import expm
 
     integral, _ = quad_vec(lambda s: expm(a * s) @ (3.0 * b @ b.T) @ expm(a * s).T, 0, ts)
     np.testing.assert_allclose(q, integral, rtol=1e-6, atol=1e-14)

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from scipy.signal import lfilter
 
 from bench.analysis.startup import StartupModel, analyze_startup, validate_trace
+from bench.values import Estimate
 
 DT_S = 0.5
 
@@ -98,8 +99,6 @@ def test_model_simulates_traces_that_reanalyse_to_the_same_model():
 
 
 def _e(v):
-    from bench.values import Estimate
-
     return Estimate(v, 0.0)
 
 
@@ -174,16 +173,12 @@ def _trace(n=3000, dt=0.1):
     (lambda t: 1 + 0.5 * np.exp(-t / 20) + 1e-4 * t, "no noise left after the trend"),
 ])
 def test_degenerate_traces_are_refused_with_the_reason(y, fragment):
-    from bench.analysis.startup import analyze_startup
-
     t = _trace()
     with pytest.raises(ValueError, match=fragment):
         analyze_startup(t, y(t))
 
 
 def test_a_trace_without_a_transient_says_so():
-    from bench.analysis.startup import analyze_startup
-
     t = _trace()
     y = 1 + 1e-3 * t + np.random.default_rng(4).normal(0, 0.01, t.size)
     notes = " ".join(analyze_startup(t, y).notes)
@@ -191,8 +186,6 @@ def test_a_trace_without_a_transient_says_so():
 
 
 def test_too_many_arma_parameters_for_the_samples_is_refused():
-    from bench.analysis.startup import analyze_startup
-
     t = _trace(100)
     y = 1 + np.random.default_rng(1).normal(0, 0.01, t.size)
     with pytest.raises(ValueError, match="10 samples per parameter"):

@@ -11,6 +11,7 @@ import pytest
 import pyvisa
 
 from bench.app.cli import main
+from bench.core.store import RunStore
 
 
 def test_run_startup_json_then_runs_list_show_export(tmp_path, capsys):
@@ -140,7 +141,6 @@ def test_run_startup_analyze_attaches_the_start_up_model(tmp_path, capsys):
     assert model["kind"] in ("AR", "MA", "ARMA") and model["p"] + model["q"] >= 1
     assert set(doc["analysis"]["trend"]) >= {"offset", "exp_amplitude", "exp_tau_s",
                                              "linear_slope_per_s"}
-    from bench.core.store import RunStore
 
     with RunStore(store) as s:
         names = {a.name for a in s.attachments(doc["run_id"])}

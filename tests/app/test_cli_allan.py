@@ -7,8 +7,11 @@ import math
 
 import numpy as np
 import pytest
+from matplotlib.figure import Figure
 
+from bench.analysis.allan import overlapping_adev
 from bench.app.cli import main
+from bench.app.reports.allan_plot import plot_allan
 
 FS_HZ = 100.0
 N_DEG_PER_SQRT_S = 0.01
@@ -109,11 +112,6 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, argv_extra, csv_kwarg
 
 
 def test_plot_allan_draws_curve_slope_lines_and_read_offs():
-    from matplotlib.figure import Figure
-
-    from bench.analysis.allan import overlapping_adev
-    from bench.app.reports.allan_plot import plot_allan
-
     rng = np.random.default_rng(2)
     y = 0.01 * math.sqrt(FS_HZ) * rng.normal(size=2**17) + np.cumsum(1e-4 / math.sqrt(FS_HZ) * rng.normal(size=2**17))
     result = overlapping_adev(y, FS_HZ)

@@ -10,6 +10,7 @@ import pytest
 from scipy.signal import lfilter
 
 from bench.app.commands.analyze import configure
+from bench.core.store import RunStore
 
 
 def run(argv: list[str]) -> int:
@@ -92,8 +93,6 @@ def test_missing_file_exits_2(tmp_path, capsys):
 
 
 def test_analyze_stored_run_uses_samples_from_power_on(tmp_path, capsys):
-    from bench.core.store import RunStore
-
     store_path = str(tmp_path / "b.sqlite")
     rng = np.random.default_rng(1)
     t = -1.0 + np.arange(2200) * 0.5  # the record starts 1 s before power-on

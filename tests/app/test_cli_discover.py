@@ -8,11 +8,18 @@ import numpy as np
 import pytest
 
 from bench.app.cli import main
+from bench.app.commands.discover import candidate_map, read_measured, realisation_map
 from bench.app.files import read_model, write_model
+from bench.app.station import Station, builtin_sim_config
+from bench.core.procedure import execute
+from bench.core.store import RunStore
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import DEFAULT_NOISE_SD
 from bench.discovery.experiments import make_experiment
-from bench.discovery.model import BaseModel, Model
+from bench.discovery.model import BaseModel, Model, base_model
+from bench.discovery.workflow import discover
+from procedures.running import alone
+from procedures.startup import StartupAcquisition, StartupParameters
 
 
 def _csv(path, rec, y):
@@ -86,8 +93,6 @@ def test_bad_csv_is_one_line_exit_2(tmp_path, capsys, content, needle):
 
 
 def test_header_names_are_matched_whatever_their_case(tmp_path):
-    from bench.app.commands.discover import read_measured
-
     f = tmp_path / "case.csv"
     f.write_text(" T , Y ,Temp\n" + "".join(f"{i},{0.001 * i},{20 + 0.01 * i}\n" for i in range(80)))
     rec = read_measured(str(f))
@@ -114,12 +119,6 @@ def test_missing_file_store_and_contradicting_sensor_exit_2(tmp_path, capsys, hi
 
 
 def test_discover_a_stored_startup_run(tmp_path, capsys):
-    from bench.app.station import Station, builtin_sim_config
-    from bench.core.procedure import execute
-    from bench.core.store import RunStore
-    from procedures.running import alone
-    from procedures.startup import StartupAcquisition, StartupParameters
-
     store_path = tmp_path / "bench.sqlite"
     params = StartupParameters(duration_s=240.0, rate_hz=4.0, off_wait_s=10.0, chunk_s=60.0)
     config = builtin_sim_config()
@@ -156,10 +155,6 @@ def test_candidates_fitted_in_worker_processes_give_the_same_discovery():
     # first step weighs a deterministic candidate against a null holding a process, the later
     # ones' nulls are the model's noise — the fits in worker processes, the nulls' realisations
     # filled by two threads
-    from bench.app.commands.discover import candidate_map, realisation_map
-    from bench.discovery.model import base_model
-    from bench.discovery.workflow import discover
-
     rng = np.random.default_rng(5)
     rec = make_experiment("accelerometer", rng, n=3000)
     truth = (Model(base_model("accelerometer")).with_effect("warmup_exponential", {"amplitude": 6e-5, "tau_s": 300.0})

@@ -8,6 +8,7 @@ import json
 import pytest
 
 from bench.app.cli import main
+from bench.app.commands.follow_ups import ANALYSES
 from procedures.catalogue import CATALOGUE
 
 
@@ -49,8 +50,6 @@ def _help(argv: list[str], capsys, monkeypatch) -> str:
 
 @pytest.mark.parametrize("name", list(CATALOGUE))
 def test_every_step_is_a_command_with_an_option_per_parameter_each_with_help(name, capsys, monkeypatch):
-    from bench.app.commands.follow_ups import ANALYSES
-
     step = CATALOGUE.step(name)
     assert f"{name} {' '.join(step.summary().split())}" in _help(["run"], capsys, monkeypatch)  # listed, with its help
     text = _help(["run", name], capsys, monkeypatch)

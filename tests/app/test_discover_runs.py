@@ -14,7 +14,11 @@ from bench.app.commands.discover_runs import longest_stretch, power_on_time, rea
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
+from procedures.noise import AccelerometerNoise, GyroNoise
 from procedures.running import alone
+from procedures.thermal_ramp import GyroThermalRamp, ThermalRamp
+from procedures.turn_on import GyroTurnOnTest
+from procedures.vibration import VibrationTest
 
 GYRO = {"unit": "FOG-SIM-0003", "kind": "gyro"}
 ACCEL = {"unit": "QA-SIM-0003", "kind": "accelerometer"}
@@ -33,11 +37,6 @@ def _run(path, step, who, seed=3):
 def store(tmp_path_factory):
     """One store with a gyro start-up, a gyro static record (after a warm-up), a short vibration
     test and an accelerometer static record."""
-    from procedures.noise import AccelerometerNoise, GyroNoise
-    from procedures.thermal_ramp import GyroThermalRamp, ThermalRamp
-    from procedures.turn_on import GyroTurnOnTest
-    from procedures.vibration import VibrationTest
-
     path = tmp_path_factory.mktemp("runs") / "b.sqlite"
     runs = {
         "gyro_startup": _run(path, GyroTurnOnTest(duration_s=180.0, off_wait_s=10.0, frame_rate_hz=20,

@@ -14,6 +14,8 @@ import urllib.request
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from playwright.sync_api import Error as PlaywrightError
+from playwright.sync_api import sync_playwright
 
 from bench.app.cli import main
 from bench.app.operator.auth import Users, add_user, hash_password, verify_password
@@ -128,9 +130,6 @@ def test_every_route_needs_a_login_and_the_health_check_an_engineer(tmp_path, us
 
 
 def test_the_page_logs_in_and_shows_the_login_as_the_operator(tmp_path, users):
-    from playwright.sync_api import Error as PlaywrightError
-    from playwright.sync_api import sync_playwright
-
     assert CHROMIUM.exists(), f"{CHROMIUM} missing: run `make chromium` (Debian's chromium package)"
     with serve(tmp_path, users=users) as (url, _), sync_playwright() as p:
         browser = p.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])

@@ -11,7 +11,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import expect
+from playwright.sync_api import expect, sync_playwright
 
 from bench.testing.operator_station import CHROMIUM, serve
 from bench.testing.specs import SHORT_ACCEPTANCE_SPEC
@@ -28,8 +28,6 @@ text = "{COVER}"
 
 @pytest.fixture(scope="module")
 def browser():
-    from playwright.sync_api import sync_playwright
-
     # a real part never skips: `make test` installs Debian's chromium first (`make chromium`)
     assert CHROMIUM.exists(), f"{CHROMIUM} missing: run `make chromium` (Debian's chromium package)"
     ARTIFACTS.mkdir(parents=True, exist_ok=True)

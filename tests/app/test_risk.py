@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from distributed import Client
 
 from bench.app.cli import main
 from bench.app.risk import assess, run_unit, unit_seeds
@@ -64,7 +65,6 @@ def cluster():
                                  "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host",
                                  "127.0.0.1"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                 env=env) for _ in range(2)]
-    from distributed import Client
 
     with Client(address, timeout="60s") as client:
         client.wait_for_workers(2, timeout=60)

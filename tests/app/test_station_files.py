@@ -6,11 +6,15 @@ from pathlib import Path
 
 import pytest
 
-from bench.app.station import Station, builtin_sim_config, load_station
+from bench.app.station import OPENERS, Station, StationError, builtin_sim_config, load_station, parse_station
 from bench.core.procedure import execute
 from bench.core.store import RunStore
+from instruments.registry import DRIVERS, MODBUS, SERIAL, TRANSPORTS, VISA
+from procedures.catalogue import CATALOGUE
 from procedures.running import alone
 from procedures.startup import StartupAcquisition, StartupParameters
+from sim import server
+from sim.station import INSTRUMENTS
 
 STATIONS = Path(__file__).resolve().parents[2] / "stations"
 
@@ -24,8 +28,6 @@ def test_the_real_rig_template_names_every_instrument_the_startup_procedure_need
 
 
 def test_the_acceptance_rig_template_has_what_every_step_and_the_vibration_test_need():
-    from procedures.catalogue import CATALOGUE
-
     cfg = load_station(STATIONS / "lab-acceptance-rig.toml")
     assert not cfg.simulated
     needed = {r for step in CATALOGUE.steps.values() if set(step.kinds) & {"accelerometer", "gyro"}
@@ -51,8 +53,6 @@ def test_a_simulated_station_file_sets_the_world(tmp_path):
 
 
 def test_site_table_is_validated_and_defaults_to_the_simulated_world(tmp_path):
-    from bench.app.station import StationError, parse_station
-
     assert parse_station({"site": {"latitude_deg": 45.0, "local_g_mps2": 9.8}}).site == {
         "latitude_deg": 45.0, "height_m": 10.0, "local_g_mps2": 9.8}
     assert parse_station({"simulation": {"latitude_deg": 39.9, "height_m": 44.0}}).site == {
@@ -64,11 +64,6 @@ def test_site_table_is_validated_and_defaults_to_the_simulated_world(tmp_path):
 
 
 def test_the_embedded_station_is_the_sim_table_joined_with_the_driver_registry():
-    from bench.app.station import OPENERS
-    from instruments.registry import DRIVERS, MODBUS, SERIAL, TRANSPORTS, VISA
-    from sim import server
-    from sim.station import INSTRUMENTS
-
     assert set(OPENERS) == set(TRANSPORTS)  # every kind of connection a driver needs can be opened
     driven_over = {server.SCPI.name: VISA, server.SERIAL.name: SERIAL, server.MODBUS.name: MODBUS}
     for row in INSTRUMENTS:
@@ -81,8 +76,6 @@ def test_the_embedded_station_is_the_sim_table_joined_with_the_driver_registry()
 
 
 def test_driver_options_are_checked_from_the_registry():
-    from bench.app.station import StationError, parse_station
-
     table = {"instruments": {"gyro": {"driver": "fog_serial", "address": "/dev/ttyUSB0", "polarity": 2}}}
     with pytest.raises(StationError, match=r"\[instruments.gyro\]: polarity = 2 not in 1\|-1"):
         parse_station(table)

@@ -11,6 +11,7 @@ import sys
 import threading
 from typing import Any
 
+import h5py
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -520,7 +521,6 @@ def test_hdf5_export_round_trips(exported_run, tmp_path, compression):
     store, run_id = exported_run
     path = export_hdf5(store, run_id, tmp_path / "h5" / "run.h5", compression=compression)
     _assert_same_run(store, run_id, read_hdf5_export(path), exact_nan_bits=True)
-    import h5py
 
     with h5py.File(path) as f:
         assert f["streams/dmm/voltage_v"].attrs["unit"] == "V"

@@ -10,11 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal
 
+from bench.discovery import significance as sig
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import DRAW_SNR_FACTOR, KINDS, MIN_SNR
 from bench.discovery.effects_transforms import expected_quantized
 from bench.discovery.experiments import make_experiment
+from bench.discovery.fitting import CandidateFitter
+from bench.discovery.model import BaseModel, Model
 
 ISSUE_IDS = ["warmup_exponential", "linear_drift", "temperature_bias", "temperature_scale_factor",
              "k2_nonlinearity", "k3_nonlinearity", "scale_factor_asymmetry", "misalignment", "g_sensitivity",
@@ -254,9 +257,6 @@ def test_a_sines_fold_starts_skip_the_fold_patterns_lines_beside_a_random_walk(s
     the fold pattern, makes false lines at the pattern's odd harmonics; a sine fitted there is
     sign-flipped on the held-out blocks. The true line is the first start and no later start
     sits on a pattern line; the fold fit from them finds the true line."""
-    from bench.discovery import significance as sig
-    from bench.discovery.fitting import CandidateFitter
-    from bench.discovery.model import BaseModel, Model
     n, rate = 3000, 10.0
     rec = _rec(n, rate)
     sine = {"amplitude": 1.7e-3, "freq_hz": 0.157, "phase_rad": 0.1}

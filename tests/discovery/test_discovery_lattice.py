@@ -8,6 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench.discovery.calibration import calibrate
+from bench.discovery.effects_base import DEFAULT_NOISE_SD
+from bench.discovery.experiments import make_experiment
 from bench.discovery.lattice import fit_lattice, refine_step
 from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.workflow import discover
@@ -38,9 +41,6 @@ def test_a_sub_multiple_is_raised_to_the_fundamental_and_noise_is_left_alone():
 
 @pytest.mark.parametrize("kind,step_over_sd", [("accelerometer", 19.0), ("gyro", 4.0)])
 def test_a_coarse_quantizer_is_named_alone_with_its_step_and_noise(kind, step_over_sd):
-    from bench.discovery.effects_base import DEFAULT_NOISE_SD
-    from bench.discovery.experiments import make_experiment
-
     rng = np.random.default_rng(7)
     rec = make_experiment(kind, rng, n=3000)
     sd = DEFAULT_NOISE_SD[kind]
@@ -92,9 +92,6 @@ def test_a_coarse_step_on_a_dwelling_input_lies_inside_the_scan():
 
 
 def _coarse_step_behind_a_clip(seed, step, limit):
-    from bench.discovery.calibration import calibrate
-    from bench.discovery.experiments import make_experiment
-
     rng = np.random.default_rng(seed)
     rec = make_experiment("accelerometer", rng, n=3000)
     truth = (Model(BaseModel("accelerometer", -7.846e-4, 1.00047889, 5e-6))

@@ -11,8 +11,11 @@ from hypothesis import strategies as st
 from scipy import stats
 
 from bench.discovery import localize as loc
+from bench.discovery.calibration import calibrate
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
+from bench.discovery.evidence import process_evidence
+from bench.discovery.experiments import make_experiment
 from bench.discovery.model import Model, base_model
 from bench.discovery.significance import welch_nperseg, white_floor
 from bench.discovery.whiten import exact_nll, innovations
@@ -309,9 +312,6 @@ def test_a_scale_factor_fitted_beside_a_walk_is_not_an_input_correlation(kind, k
     with input" (6 of 20 records of a walk alone, each kind) and the walk's own signature failed
     on it (3–5 of 20). The scale factor is refitted under the process (its whitened column
     projected out, as the named waveforms' are): a walk alone is a walk."""
-    from bench.discovery.calibration import calibrate
-    from bench.discovery.evidence import process_evidence
-    from bench.discovery.experiments import make_experiment
     reported = failed = 0
     for seed in range(12):
         rng = np.random.default_rng(seed)

@@ -13,6 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal
+from statsmodels.stats.diagnostic import acorr_ljungbox
+from statsmodels.stats.multitest import multipletests
 
 from bench.discovery import significance as sig
 from bench.discovery.calibration import calibrate, white_floor_sd
@@ -81,8 +83,6 @@ def test_localize_finds_line_drift_and_input_square():
 @settings(max_examples=20, deadline=None)
 @given(st.lists(st.floats(0, 1), min_size=1, max_size=30), st.floats(0.01, 0.2))
 def test_benjamini_hochberg_matches_statsmodels(p, alpha):
-    from statsmodels.stats.multitest import multipletests
-
     rej, adj = sig.benjamini_hochberg(p, alpha)
     ref_rej, ref_adj, *_ = multipletests(p, alpha=alpha, method="fdr_bh")
     assert np.array_equal(rej, ref_rej)
@@ -196,8 +196,6 @@ def test_a_decision_below_a_level_stops_early_and_decides_as_the_full_run(observ
 
 
 def test_gap_metrics_white_is_at_floor_and_ljung_box_matches_statsmodels():
-    from statsmodels.stats.diagnostic import acorr_ljungbox
-
     r = np.random.default_rng(2).normal(0, 2.0, 4000)
     g = sig.gap_metrics(r, 2.0, 10.0)
     assert g.rms_ratio == pytest.approx(1.0, abs=0.05)

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import pyvisa
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -261,8 +262,6 @@ def test_open_resource_sets_terminations_and_chunk() -> None:
 
 
 def test_open_resource_uses_a_given_resource_manager() -> None:
-    import pyvisa
-
     manager = pyvisa.ResourceManager(f"{SIM_YAML_DIR / 'turntable.yaml'}@sim")
     resource = open_resource("TCPIP0::127.0.0.1::5027::SOCKET", backend="@unused",
                              resource_manager=manager)

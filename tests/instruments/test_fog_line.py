@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import math
 import time
+import tomllib
 
 import numpy as np
 import pytest
 import pyvisa
 import serial
 
+from bench.app.station import Station, StationError, builtin_sim_config, parse_station
 from instruments.base import open_resource
 from instruments.fog import GyroCommandError, GyroTimeoutError, SerialGyro
 from instruments.fog_decode import FrameDecoder
@@ -284,20 +286,12 @@ def test_power_loss_ends_the_stream_without_a_stop_reply():
     ("[simulation]\ngyro_supply_channel = 3\n", "gyro_supply_channel = 3 is an accelerometer rail"),
 ])
 def test_station_files_validate_the_gyro(text, fragment):
-    import tomllib
-
-    from bench.app.station import StationError, parse_station
-
     with pytest.raises(StationError, match=fragment.replace("[", r"\[").replace("]", r"\]")
                        .replace("|", r"\|").replace("(", r"\(").replace("+", r"\+")):
         parse_station(tomllib.loads(text), "rig.toml")
 
 
 def test_a_serial_gyro_in_a_station_file_parses_with_its_options():
-    import tomllib
-
-    from bench.app.station import parse_station
-
     cfg = parse_station(tomllib.loads(
         '[instruments.gyro]\ndriver = "fog_serial"\naddress = "socket://10.0.0.5:4001"\n'
         'baudrate = 460800\npolarity = -1\n[wiring]\ngyro_supply_voltage_v = 5.0\n'), "rig.toml")
@@ -306,8 +300,6 @@ def test_a_serial_gyro_in_a_station_file_parses_with_its_options():
 
 
 def test_the_embedded_simulated_station_serves_the_gyro_with_its_driver():
-    from bench.app.station import Station, builtin_sim_config
-
     with Station(builtin_sim_config(), seed=4) as station:
         gyro = station.instruments["gyro"]
         assert isinstance(gyro, SerialGyro) and gyro.port.baudrate == 921600

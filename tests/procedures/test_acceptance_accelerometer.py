@@ -16,6 +16,8 @@ from bench.core.spec import parse_spec
 from bench.core.store import RunStore
 from procedures.acceptance import AcceptanceTest
 from procedures.catalogue import CATALOGUE
+from procedures.running import alone
+from procedures.tumble import TumbleCalibration
 
 SHORT_SPEC = """
 [unit]
@@ -160,9 +162,6 @@ def test_tumble_recovers_drawn_units_and_judges_them(tmp_path_factory, k0, k1, k
 def test_noiseless_unit_on_ideal_meters_calibrates_exactly_through_the_whole_station(tmp_path):
     """Issue 6: K0, K1, K2, K3 and δ to 1e-9 relative — here end to end (table geometry,
     local gravity, mount, sampling resistor, DMM, wire, fit), not only in the estimator."""
-    from procedures.running import alone
-    from procedures.tumble import TumbleCalibration
-
     quiet = {"white_density_g_per_rthz": 0.0, "gm_sigma_g": (), "gm_tau_s": (),
              "warmup_amplitude_g": 0.0, "drift_g_per_s": 0.0, "bias_tc_g_per_c": 0.0,
              "k3_g_per_g3": 3e-6, "kip_g_per_g2": 4e-6, "kio_g_per_g2": -6e-6,

@@ -4,6 +4,7 @@ over the serial line, whole revolutions per rate, IEEE 952 figures against the t
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -18,6 +19,8 @@ from bench.core.spec import parse_spec
 from bench.core.store import RunStore
 from procedures.acceptance import AcceptanceTest
 from procedures.catalogue import CATALOGUE
+from procedures.running import alone
+from procedures.turn_on import GyroTurnOnTest
 from sim.physics.gyro import indicated_rate_dps
 
 RATETABLE = {"rates_per_sign": 4, "min_record_s": 10.0, "warmup_s": 300.0, "frame_rate_hz": 500}
@@ -104,11 +107,6 @@ def test_a_gyro_spec_refuses_accelerometer_steps():
 def test_gyro_start_up_turn_on_time_and_warm_up_drift(tmp_path):
     """A unit with a clear warm-up: turn-on time = boot + the exponential's time into the band
     (+ about half the averaging window); the drift is the warm-up's change over the record."""
-    import math
-
-    from procedures.running import alone
-    from procedures.turn_on import GyroTurnOnTest
-
     amp, tau, band, smooth = 20.0, 200.0, 3.0, 120.0  # band ≫ the 120-s noise (ARW, flicker)
     config = builtin_sim_config()
     # slow terms quiet (flicker, RRW, thermal bias), so the warm-up is what the test sees

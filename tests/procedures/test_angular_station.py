@@ -11,10 +11,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench.analysis.fusion import SensorModel
 from bench.app.cli import main
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
+from instruments.angular_table import AngularLimits
 from procedures.frf import FrfParameters, FrfTest, safe_amplitude_dps
 from procedures.fusion import FusionParameters, FusionTest, tone_demand
 from procedures.running import alone
@@ -61,8 +63,6 @@ def test_frf_recovers_the_drawn_sensors(frf_run):
 
 
 def test_frf_points_carry_uncertainties_that_cover_the_true_response(frf_run):
-    from bench.analysis.fusion import SensorModel
-
     outcome, truth, store = frf_run
     points = store.results(outcome.run_id)["frf.points"]
     lf = truth["lf"]
@@ -178,8 +178,6 @@ def test_bad_rig_options_are_refused_naming_the_value(kwargs, fragment):
 
 
 def test_demands_respect_the_table_limits():
-    from instruments.angular_table import AngularLimits
-
     lim = AngularLimits()
     for f in (0.1, 1.0, 100.0, 1000.0):
         a = safe_amplitude_dps(lim, f, 1e6)

@@ -5,10 +5,13 @@ help and whose defaults are valid, the instruments it needs, the sensor kinds it
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import inspect
+import pkgutil
 
 import pytest
 
+import procedures
 from bench.core.step import Step
 from procedures.catalogue import CATALOGUE
 
@@ -16,11 +19,6 @@ STEPS = list(CATALOGUE.steps.values())
 
 
 def test_the_catalogue_holds_every_step_of_the_procedures_package() -> None:
-    import importlib
-    import pkgutil
-
-    import procedures
-
     defined = set()
     for module in pkgutil.iter_modules(procedures.__path__):
         for _, cls in inspect.getmembers(importlib.import_module(f"procedures.{module.name}"), inspect.isclass):

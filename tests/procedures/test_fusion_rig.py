@@ -12,8 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import bench.analysis.fusion._sequential as fu
+from bench.analysis.frf import aperture_compensate
 from bench.analysis.fusion import FusionModel, SensorModel, tune_fusion
-from bench.analysis.fusion._metrics import nis_check
+from bench.analysis.fusion._metrics import nis_check, sine_phasors, tone_noise_std, tone_residual
 from instruments.angular_table import AngularLimits
 from procedures.fusion import tone_demand
 from sim.physics.angular_table import AngularMotion, Tone
@@ -104,9 +105,6 @@ def test_tuning_rejects_bad_input(kwargs, fragment):
 @settings(max_examples=30, deadline=None)
 @given(st.floats(1.0, 1500.0), st.floats(0.2, 1.0), st.floats(0, 2 * math.pi))
 def test_aperture_compensation_restores_the_amplitude_of_aperture_means(f_hz, duty, phase):
-    from bench.analysis.frf import aperture_compensate
-    from bench.analysis.fusion._metrics import sine_phasors
-
     ts, ap = 1e-4, duty * 1e-4
     t = np.arange(20000) * ts
     w = 2 * np.pi * f_hz
@@ -119,8 +117,6 @@ def test_aperture_compensation_restores_the_amplitude_of_aperture_means(f_hz, du
 
 
 def test_tone_noise_std_matches_the_spread_of_phasor_estimates():
-    from bench.analysis.fusion._metrics import sine_phasors, tone_noise_std, tone_residual
-
     rng = np.random.default_rng(4)
     t = np.arange(20000) / 1000.0
     tones = np.array([3.0, 37.0])
@@ -134,5 +130,4 @@ def test_tone_noise_std_matches_the_spread_of_phasor_estimates():
     spread = np.std(np.real(np.array(est)), axis=0)
     assert np.allclose(np.mean(pred, axis=0), spread, rtol=0.2)
     with pytest.raises(ValueError, match="aperture_s"):
-        from bench.analysis.frf import aperture_compensate
         aperture_compensate(np.ones(5), 2e-4, 1e-4)

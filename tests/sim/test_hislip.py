@@ -185,7 +185,7 @@ def test_sim_serve_lists_the_hislip_addresses_after_the_sockets(rm: pyvisa.Resou
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
-        lines = [json.loads(proc.stdout.readline()) for _ in range(4)]  # type: ignore[union-attr]
+        lines = [json.loads(proc.stdout.readline()) for _ in range(4)]  # type: ignore[union-attr]  # stdout=PIPE: never None
         assert [(d["name"], d["transport"]) for d in lines] == [
             ("dmm", "scpi"), ("sim", "scpi"), ("dmm", "hislip"), ("sim", "hislip")]
         assert lines[2]["kind"] == "multimeter" and lines[2]["driver"] == "keysight_34465a"

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.integrate import quad
 
 from sim.physics.gyro import (
     LIMITS,
@@ -174,7 +175,6 @@ def test_warm_up_and_temperature_bias_are_integrated_exactly():
     k = 3600.0 * p.scale_factor_pulses_per_arcsec
     warm_deg = 36.0 / 3600 * 50.0 * (1 - math.exp(-span / 50.0))
     # the coil of the two-node model (sim/physics/thermal_unit.py), integrated independently
-    from scipy.integrate import quad
     rise_c_s, _ = quad(lambda t: g.body_temperature_c(t) - 23.0, 3.0, 403.0, epsabs=1e-10, limit=200)
     temp_deg = 9.0 / 3600 * rise_c_s
     assert counts.sum() == pytest.approx((warm_deg + temp_deg) * k, abs=1.0)

@@ -174,8 +174,6 @@ def test_random_walk_variance_and_chunking():
 def test_gauss_markov_gap_then_uniform_run_matches_the_exact_recursion():
     """A new acquisition (a gap, then a uniform grid) takes the lfilter path; it must equal
     the per-step exact recursion with the same draws."""
-    from sim.physics.noise import GaussMarkov
-
     t = np.concatenate(([0.0, 0.01, 0.02], 7.3 + 0.004 * np.arange(5000)))
     fast = GaussMarkov(2.0, 3.0, np.random.default_rng(1))
     got = np.concatenate([fast.sample(t[:3]), fast.sample(t[3:])])

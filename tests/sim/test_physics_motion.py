@@ -310,8 +310,6 @@ def test_any_command_sequence_keeps_motion_continuous_and_limited(steps, limited
 def test_static_fast_path_equals_the_full_evaluation():
     """After a move has rung out, the specific force is evaluated once and repeated; it must
     equal the element-wise evaluation exactly."""
-    from sim.physics.motion import DualAxisTable
-
     table = DualAxisTable()
     table.outer.command_position(0.0, 37.0)
     table.inner.command_position(0.0, -20.0)

@@ -13,7 +13,9 @@ from scipy.integrate import solve_ivp
 from bench.analysis.fusion import SensorModel
 from sim.devices import fog_frames as ff
 from sim.devices.fog_serial import FogSerialDevice, GyroInputs
+from sim.physics.angular_demand import Tone
 from sim.physics.angular_piece import MotionPiece, at_rest
+from sim.physics.angular_table import AngularMotion
 from sim.physics.rate_sensor_lti import LinearRateSensor, Section
 from sim.physics.rate_sensors import (
     LF_PRESET,
@@ -360,9 +362,6 @@ def test_bad_parameters_raise_naming_the_range(make, match):
 
 
 def test_sensors_on_the_angular_table_follow_their_frequency_response():
-    from sim.physics.angular_demand import Tone
-    from sim.physics.angular_table import AngularMotion
-
     table = AngularMotion(distortion=(0.0, 0.0))
     table.start_tones(0.0, [Tone(0.5, 80.0)])  # rate 0.5 sin(2π·80 t) once the 1-s ramp is over
     mhd = mhd_sensor(table.pieces, None, noise=False, t_origin_s=-0.5)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import pytest
+import pyvisa
 
 from sim.faults import PARAMETERS
 from sim.server import MODBUS, SCPI, SERIAL, ByteStreamDevice
@@ -89,7 +90,6 @@ def test_server_sim_control_and_listing_follow_the_table(sim_station):
         e = endpoints[row.name]
         assert (e.kind, e.transport) == (row.kind, row.transport)
         assert e.resource == row.transport.resource(e.host, e.port)
-    import pyvisa
 
     rm = pyvisa.ResourceManager("@py")
     try:
