@@ -14,7 +14,7 @@ the record, judges them on the rest and recommends one that is no worse than the
 What a user calls::
 
     analyze_fusion, FusionAnalysis, METHODS, BASELINES, excess_over_best
-    complementary_kalman
+    complementary_kalman, ComplementaryNoise, ComplementaryRun, fit_complementary_noise
     SensorModel, FusionModel, TransferFit, fit_transfer_function
     sequential_fusion, sequential_kalman, fixed_r_kalman, complementary_filter, FusionParams, AdaptiveNoise, FilterRun
     tune_fusion, FusionTuning
@@ -23,7 +23,12 @@ The modules behind it are private: import from ``bench.analysis.fusion``.
 """
 
 from bench.analysis.fusion._analysis import BASELINES, METHODS, FusionAnalysis, analyze_fusion, excess_over_best
-from bench.analysis.fusion._complementary import complementary_kalman
+from bench.analysis.fusion._complementary import (
+    ComplementaryNoise,
+    ComplementaryRun,
+    complementary_kalman,
+    fit_complementary_noise,
+)
 from bench.analysis.fusion._models import FusionModel, SensorModel, TransferFit, fit_transfer_function
 from bench.analysis.fusion._sequential import (
     AdaptiveNoise,
@@ -39,6 +44,8 @@ from bench.analysis.fusion._tuning import FusionTuning, tune_fusion
 __all__ = [
     "AdaptiveNoise",
     "BASELINES",
+    "ComplementaryNoise",
+    "ComplementaryRun",
     "FilterRun",
     "FusionAnalysis",
     "FusionModel",
@@ -51,6 +58,7 @@ __all__ = [
     "complementary_filter",
     "complementary_kalman",
     "excess_over_best",
+    "fit_complementary_noise",
     "fit_transfer_function",
     "fixed_r_kalman",
     "sequential_fusion",

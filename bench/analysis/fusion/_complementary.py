@@ -101,9 +101,12 @@ RATIO_SPAN = 12.0  # the ML search keeps each log variance ratio within ±RATIO_
 
 @dataclass(frozen=True)
 class ComplementaryNoise:
-    """The sensors' error model: white-noise variances of the HF reading (``hf_var``, HF unit²)
-    and of the LF reading (``lf_var``, LF unit²), and the HF offset's random-walk intensity
-    (``offset_rw``, HF unit²/s).
+    """The sensors' error model of the complementary Kalman filter: HF and LF noise, HF offset drift.
+
+    White-noise variances of the HF reading (``hf_var``, HF unit²) and of the LF reading
+    (``lf_var``, LF unit²), and the HF offset's random-walk intensity (``offset_rw``, HF
+    unit²/s). Given to :func:`complementary_kalman`; estimated from the records by
+    :func:`fit_complementary_noise`.
 
     Parameters
     ----------
@@ -309,10 +312,11 @@ def initial_state(hf_model: SensorModel, lf_model: SensorModel, hf: np.ndarray, 
 
 @dataclass
 class ComplementaryRun:
-    """Output of :func:`complementary_kalman`: the filtered rate, the smoothed rate (``None``
-    unless asked), the LF update's normalised innovation ``ν²/S``, the R used and the interval
-    of Document B's rule (``-1`` for a fixed R) per sample, the final covariance and the first
-    sample at the steady-state gain.
+    """Output of :func:`complementary_kalman`: filtered and smoothed rate, innovations, R used.
+
+    The filtered rate, the smoothed rate (``None`` unless asked), the LF update's normalised
+    innovation ``ν²/S``, the R used and the interval of Document B's rule (``-1`` for a fixed R)
+    per sample, the final covariance and the first sample at the steady-state gain.
 
     Attributes
     ----------
@@ -404,7 +408,7 @@ def complementary_kalman(hf, lf, ts_s: float, hf_model: SensorModel, lf_model: S
     ...     return round(float(np.sqrt(np.mean((x - rate)[1000:] ** 2))), 3)
     >>> rms(hf / hf_model.gain), rms(lf / lf_model.gain)  # each sensor alone loses one tone
     (0.687, 0.678)
-    >>> from bench.analysis.fusion._complementary import ComplementaryNoise  # not exported by the package
+    >>> from bench.analysis.fusion import ComplementaryNoise
     >>> run = complementary_kalman(hf, lf, 1 / fs, hf_model, lf_model, ComplementaryNoise(4e-4, 1e-4, 1e-6),
     ...                            smooth=True)
     >>> rms(run.rate), rms(run.smoothed)
@@ -482,7 +486,9 @@ def decimate_pair(hf: np.ndarray, lf: np.ndarray, factor: int) -> tuple[np.ndarr
 def fit_complementary_noise(hf, lf, ts_s: float, hf_model: SensorModel, lf_model: SensorModel, *,
                             start: ComplementaryNoise | None = None, factor: int | None = None,
                             tones_hz=None, t_s=None) -> NoiseFit:
-    """Maximum-likelihood estimate of :class:`ComplementaryNoise` from the records themselves
+    """Estimate the sensors' noise (:class:`ComplementaryNoise`) by maximum likelihood from the records.
+
+    Maximum-likelihood estimate of :class:`ComplementaryNoise` from the records themselves
     (no reference needed): the filter's innovations ``ν_k`` with variances ``S_k`` give
     ``−2 log L = Σ (log 2πS_k + ν_k²/S_k)``.  Scaling all three variances (and the prior) by λ
     scales every ``S_k`` by λ and leaves ``ν_k`` alone, so λ is concentrated out in closed form
@@ -503,7 +509,68 @@ def fit_complementary_noise(hf, lf, ts_s: float, hf_model: SensorModel, lf_model
     **Known tones** (``tones_hz``, e.g. the table's profile): their least-squares fit (at the
     samples' instants ``t_s``, default ``k·ts_s``: a clock-corrected record's are not) is taken
     out of both records first, so that what the likelihood sees is the sensors' noise and not
-    the tones through the slight mismatch of any discrete model (which it would call noise)."""
+    the tones through the slight mismatch of any discrete model (which it would call noise).
+
+    Parameters
+    ----------
+    hf : array_like, shape (n,)
+        HF sensor readings, its output unit; finite, n ≥ 2.
+    lf : array_like, shape (n,)
+        LF sensor readings on the same time grid, its output unit; finite.
+    ts_s : float
+        Sample interval, in s; finite and > 0.
+    hf_model : SensorModel
+        The HF sensor's model, a high-pass.
+    lf_model : SensorModel
+        The LF sensor's model, a low-pass.
+    start : ComplementaryNoise, optional
+        Where the search starts (HF unit², LF unit², HF unit²/s); default each record's
+        second-difference white-noise variance and an offset drift of 10⁻³ of the HF noise per s.
+    factor : int, optional
+        Decimation before the likelihood, a power of two ≥ 1; default
+        :func:`likelihood_decimation` (to 20× the LF corner).
+    tones_hz : array_like, optional
+        Frequencies of known tones in the records, in Hz, fitted out of both first; default none.
+    t_s : array_like, shape (n,), optional
+        The samples' instants for the tone fit, in s; default ``k·ts_s``.
+
+    Returns
+    -------
+    NoiseFit
+        ``noise``, the estimated :class:`ComplementaryNoise` as white noise at the full rate
+        (HF unit², LF unit², HF unit²/s); ``neg2_loglik_per_sample`` (−2 log L per sample) and
+        ``n_samples`` of the likelihood; ``start``; ``evaluations``; ``converged`` (the optimiser
+        met its tolerance); ``at_bound`` (a ratio ended at its search limit); ``decimation``.
+
+    Raises
+    ------
+    ValueError
+        If the series differ in length, hold fewer than 2 samples or a non-finite value,
+        ``t_s`` and ``hf`` differ in length, ``factor`` > 1 is not a power of two, or the HF model
+        is not a high-pass or the LF model not a low-pass.
+
+    Examples
+    --------
+    Two tones (0.5 and 100 Hz, 1 dps each) read at 1 kHz by a 2 Hz high-pass with white noise of
+    0.02 and a 30 Hz low-pass with 0.01 (standard deviations):
+
+    >>> import numpy as np
+    >>> from bench.analysis.fusion import SensorModel, fit_complementary_noise
+    >>> hf_model, lf_model = SensorModel("highpass", 1, 2.0), SensorModel("lowpass", 1, 30.0)
+    >>> fs, f = 1000.0, np.array([0.5, 100.0])
+    >>> t = np.arange(8000) / fs
+    >>> rng = np.random.default_rng(0)
+    >>> def read(model, sd):  # the sensor's steady-state reading of the tones, plus white noise
+    ...     g = model.response(f)
+    ...     y = np.sum(np.abs(g) * np.sin(2 * np.pi * np.outer(t, f) + np.angle(g)), axis=1)
+    ...     return y + sd * rng.standard_normal(t.size)
+    >>> hf, lf = read(hf_model, 0.02), read(lf_model, 0.01)
+    >>> fit = fit_complementary_noise(hf, lf, 1 / fs, hf_model, lf_model, tones_hz=f)
+    >>> round(float(np.sqrt(fit.noise.hf_var)), 3), round(float(np.sqrt(fit.noise.lf_var)), 3)
+    (0.021, 0.01)
+    >>> fit.converged, fit.at_bound
+    (True, False)
+    """
     hf, lf = check_series(hf, lf)
     if tones_hz is not None and len(tones_hz):
         t = np.arange(hf.size) * ts_s if t_s is None else np.asarray(t_s, dtype=float)

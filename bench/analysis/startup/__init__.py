@@ -13,18 +13,26 @@ and :func:`json_safe` are the input check and JSON helper the pipeline (and
 What a user calls::
 
     wavelet_denoise, DenoiseResult
-    analyze_startup, StartupAnalysis, StartupModel, validate_trace, json_safe
+    analyze_startup, StartupAnalysis, StartupModel, Outliers, validate_trace, json_safe
     fit_trend, TrendFit
 
 The modules behind it are private: import from ``bench.analysis.startup``.
 """
 
 from bench.analysis.startup._denoise import DenoiseResult, wavelet_denoise
-from bench.analysis.startup._pipeline import StartupAnalysis, StartupModel, analyze_startup, json_safe, validate_trace
+from bench.analysis.startup._pipeline import (
+    Outliers,
+    StartupAnalysis,
+    StartupModel,
+    analyze_startup,
+    json_safe,
+    validate_trace,
+)
 from bench.analysis.startup._trend import TrendFit, fit_trend
 
 __all__ = [
     "DenoiseResult",
+    "Outliers",
     "StartupAnalysis",
     "StartupModel",
     "TrendFit",

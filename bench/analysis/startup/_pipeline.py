@@ -172,7 +172,24 @@ def validate_trace(t_s: np.ndarray, y: np.ndarray, sampling_tolerance: float = 0
 
 @dataclass(frozen=True)
 class Outliers:
-    """Samples with ``|z| > threshold_z``, replaced by interpolation (module docstring)."""
+    """Outliers of a start-up trace: samples with ``|z| > threshold_z``, replaced by interpolation.
+
+    The ``outliers`` of a :class:`StartupAnalysis`: the samples of the standardised series
+    beyond the threshold, which were replaced, not dropped (step 5 of the module docstring).
+
+    Attributes
+    ----------
+    count : int
+        Number of samples replaced.
+    indices : tuple of int
+        Their indices in the trace.
+    times_s : tuple of float
+        Their times, in s.
+    threshold_z : float
+        The threshold on ``|z|`` (dimensionless: standard deviations of the detrended series).
+    handling : str
+        How they were handled, in words.
+    """
 
     count: int
     indices: tuple[int, ...]

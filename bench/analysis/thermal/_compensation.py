@@ -57,9 +57,13 @@ def _check_range(key: str, value) -> tuple[float, float]:
 
 @dataclass(frozen=True, eq=False)
 class QuantityCompensation:
-    """One quantity of the model: polynomial ``coefficients`` about the model's reference
+    """One quantity of a compensation model: its polynomial of temperature, covariance and fit figures.
+
+    One quantity of the model: polynomial ``coefficients`` about the model's reference
     temperature (unit per °C^k), their ``covariance``, and the fit's figures (module
-    docstring). ``key`` is the TOML path used in error messages.
+    docstring). ``key`` is the TOML path used in error messages. A :class:`CompensationModel`
+    built in code is given one per quantity; the values are checked on construction
+    (``ValueError``).
 
     Attributes
     ----------
@@ -364,7 +368,9 @@ def compensation_model(calibration: ThermalCalibration, *, unit_serial: str, uni
 
 @dataclass(frozen=True, eq=False)
 class CompensatedOutput:
-    """Compensated input estimate x̂ (``input_unit``) per sample; ``applied`` names the
+    """Output of :func:`compensate`: the compensated input estimate per sample and what was applied.
+
+    Compensated input estimate x̂ (``input_unit``) per sample; ``applied`` names the
     quantities used, ``not_applied`` the cross-axis ones whose input was not given (reason);
     ``in_range`` marks the samples whose temperature lies in the model's valid range.
 

@@ -37,8 +37,10 @@ _PPM = 1e6
 
 @dataclass(frozen=True, eq=False)
 class QuantityVerification:
-    """One quantity's errors over the verification temperatures, in ``error_unit`` ("ppm"
-    for a scale factor, the quantity's unit otherwise).
+    """One quantity's errors over the verification temperatures, compensated and uncompensated.
+
+    An element of :attr:`CompensationVerification.quantities`. Errors are in ``error_unit``
+    ("ppm" for a scale factor, the quantity's unit otherwise).
 
     Attributes
     ----------

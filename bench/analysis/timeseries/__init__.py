@@ -14,7 +14,7 @@ What a user calls::
     correlogram, Correlogram, identify, Identification, sample_acf, sample_pacf
     ulrych_clayton, burg, yule_walker, AR_METHODS
     ljung_box, LjungBox, default_lb_lags
-    fit_ar, fit_arma_ml, fit_arma_css, ArmaFit, select_order, OrderSelection
+    fit_ar, fit_arma_ml, fit_arma_css, ArmaFit, select_order, OrderSelection, OrderCandidate
 
 The modules behind it are private: import from ``bench.analysis.timeseries``.
 """
@@ -22,7 +22,15 @@ The modules behind it are private: import from ``bench.analysis.timeseries``.
 from bench.analysis.timeseries._acf import Correlogram, Identification, correlogram, identify, sample_acf, sample_pacf
 from bench.analysis.timeseries._ar import AR_METHODS, burg, ulrych_clayton, yule_walker
 from bench.analysis.timeseries._diag import LjungBox, default_lb_lags, ljung_box
-from bench.analysis.timeseries._fit import ArmaFit, OrderSelection, fit_ar, fit_arma_css, fit_arma_ml, select_order
+from bench.analysis.timeseries._fit import (
+    ArmaFit,
+    OrderCandidate,
+    OrderSelection,
+    fit_ar,
+    fit_arma_css,
+    fit_arma_ml,
+    select_order,
+)
 
 __all__ = [
     "AR_METHODS",
@@ -30,6 +38,7 @@ __all__ = [
     "Correlogram",
     "Identification",
     "LjungBox",
+    "OrderCandidate",
     "OrderSelection",
     "burg",
     "correlogram",

@@ -447,6 +447,22 @@ def fit_arma_css(
 
 @dataclass(frozen=True)
 class OrderCandidate:
+    """One cell of an AIC/BIC order table: the orders ``(p, q)`` and both criteria there.
+
+    An element of :attr:`OrderSelection.candidates`, returned by :func:`select_order`.
+
+    Attributes
+    ----------
+    p : int
+        AR order.
+    q : int
+        MA order.
+    aic : float
+        Akaike information criterion of the ARMA(p, q) fit (dimensionless; smaller is better).
+    bic : float
+        Bayesian information criterion of the fit (dimensionless; smaller is better).
+    """
+
     p: int
     q: int
     aic: float

@@ -12,14 +12,24 @@ the error statistics of a fit.
 What a user calls::
 
     kalman_ar_fit, KalmanFit
-    model_imf, ImfModel
+    model_imf, ImfModel, StationarityTest, Whiteness
     analyze_vibration, VibrationAnalysis, FitError
 
 The modules behind it are private: import from ``bench.analysis.vibration``.
 """
 
 from bench.analysis.vibration._ar_kalman import KalmanFit, kalman_ar_fit
-from bench.analysis.vibration._ar_models import ImfModel, model_imf
+from bench.analysis.vibration._ar_models import ImfModel, StationarityTest, Whiteness, model_imf
 from bench.analysis.vibration._pipeline import FitError, VibrationAnalysis, analyze_vibration
 
-__all__ = ["FitError", "ImfModel", "KalmanFit", "VibrationAnalysis", "analyze_vibration", "kalman_ar_fit", "model_imf"]
+__all__ = [
+    "FitError",
+    "ImfModel",
+    "KalmanFit",
+    "StationarityTest",
+    "VibrationAnalysis",
+    "Whiteness",
+    "analyze_vibration",
+    "kalman_ar_fit",
+    "model_imf",
+]

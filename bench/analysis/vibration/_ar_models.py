@@ -43,6 +43,21 @@ KPSS_P = (0.10, 0.05, 0.025, 0.01)
 
 @dataclass(frozen=True)
 class StationarityTest:
+    """A stationarity test's result: its statistic, p-value and the lags it used.
+
+    The ``adf`` (augmented Dickey–Fuller, H0 unit root) and ``kpss`` (KPSS, H0
+    level-stationary; p-value clipped to [0.01, 0.10]) fields of an :class:`ImfModel`.
+
+    Attributes
+    ----------
+    statistic : float
+        The test statistic (dimensionless).
+    p_value : float
+        Its p-value under the test's null hypothesis.
+    lags : int
+        Lagged differences (ADF) or Newey–West lags (KPSS) used.
+    """
+
     statistic: float
     p_value: float
     lags: int
@@ -100,7 +115,22 @@ def adf_constant(x: np.ndarray, lags: int) -> StationarityTest:
 
 @dataclass(frozen=True)
 class Whiteness:
-    """Ljung–Box p-value and the autocorrelation criterion over ``lags`` lags."""
+    """Ljung–Box p-value and the autocorrelation criterion over ``lags`` lags.
+
+    The ``imf_white`` (the IMF itself) and ``residual_white`` (its AR residuals) fields of an
+    :class:`ImfModel` (module docstring).
+
+    Attributes
+    ----------
+    ljung_box_p : float
+        Ljung–Box p-value over ``lags`` lags (model degrees of freedom removed for residuals).
+    acf_outside : float
+        Share of the autocorrelations ``|r_k|``, k = 1..``lags``, outside ``±z/√N``, in [0, 1].
+    lags : int
+        Lags tested.
+    white : bool
+        The autocorrelation criterion: ``acf_outside`` is at most ``alpha``.
+    """
 
     ljung_box_p: float
     acf_outside: float  # share of |r_k| beyond z/√N
