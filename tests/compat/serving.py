@@ -61,3 +61,11 @@ def serve(*options: str) -> Iterator[dict[tuple[str, str], str]]:
         finally:
             proc.terminate()
             proc.wait(10)
+
+
+def qcodes_parameters(instrument) -> dict:
+    """Every parameter of a QCoDeS driver and its submodules (channels), by dotted name."""
+    found = dict(instrument.parameters)
+    for sub_name, sub in instrument.submodules.items():
+        found.update({f"{sub_name}.{n}": p for n, p in sub.parameters.items()})
+    return found

@@ -11,6 +11,8 @@ from __future__ import annotations
 import pytest
 from qcodes_contrib_drivers.drivers.Keysight.Keysight_E36313A import E36313A
 
+from tests.compat.serving import qcodes_parameters
+
 NO_ERROR = '+0,"No error"'
 #: the simulated E36312A's ratings: volts, amps per output (*RST: 0 V, the full current limit)
 RATED = {1: (6.0, 5.0), 2: (25.0, 1.0), 3: (25.0, 1.0)}
@@ -23,14 +25,6 @@ ROUND_TRIPS = {
     "enable": lambda v_max, i_max: ["on", "off"],
 }
 MEASURED = ("voltage", "current")  # per channel, read-only
-
-
-def _parameters(instrument):
-    """Every parameter of the driver and its channels, by dotted name."""
-    found = dict(instrument.parameters)
-    for sub_name, sub in instrument.submodules.items():
-        found.update({f"{sub_name}.{n}": p for n, p in sub.parameters.items()})
-    return found
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +50,7 @@ def test_the_driver_connects_to_the_e36312a_it_is_pointed_at(fresh):
 
 def test_every_parameter_is_covered(fresh):
     per_channel = {*ROUND_TRIPS, *MEASURED}
-    assert set(_parameters(fresh)) == {"IDN", "timeout", *(f"ch{n}.{p}" for n in RATED for p in per_channel)}
+    assert set(qcodes_parameters(fresh)) == {"IDN", "timeout", *(f"ch{n}.{p}" for n in RATED for p in per_channel)}
 
 
 def test_every_channel_parameter_reads_its_reset_state(fresh):

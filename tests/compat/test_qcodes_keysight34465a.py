@@ -12,6 +12,8 @@ import pytest
 from qcodes.instrument_drivers.Keysight import Keysight34465A
 from qcodes.parameters import Parameter
 
+from tests.compat.serving import qcodes_parameters
+
 #: the 34465A data sheet's resolution per NPLC (ppm of range), DIG option fitted
 RESOLUTION_PPM = (30, 15, 6, 3, 1.5, 0.7, 0.3, 0.1, 0.03)
 MEM_DEPTH = 2_000_000  # MEM option
@@ -55,14 +57,6 @@ ROUND_TRIPS: dict[str, list] = {
 NOT_SIMULATED = ("curr", "ac_volt", "ac_curr", "res", "four_wire_res")
 
 
-def _parameters(instrument):
-    """Every parameter of the driver and its submodules, by dotted name."""
-    found = dict(instrument.parameters)
-    for sub_name, sub in instrument.submodules.items():
-        found.update({f"{sub_name}.{n}": p for n, p in sub.parameters.items()})
-    return found
-
-
 @pytest.fixture(scope="module")
 def dmm(addresses, transport):
     meter = Keysight34465A(f"compat_dmm_{transport}", addresses["dmm"], visalib="@py", timeout=10)
@@ -86,7 +80,7 @@ def test_the_driver_connects_and_sees_a_34465a_with_dig_and_mem(fresh):
 
 def test_every_parameter_reads_back_without_error_or_timeout(fresh):
     values = {}
-    for name, param in _parameters(fresh).items():
+    for name, param in qcodes_parameters(fresh).items():
         if name in ("timetrace", "time_axis", *NOT_SIMULATED):  # their own tests below
             continue
         values[name] = param.get()
@@ -102,7 +96,7 @@ def test_a_full_snapshot_comes_back_with_every_value(fresh):
     assert fresh.error() == (0, "No error")
     sections = [snap["parameters"], *(s["parameters"] for s in snap["submodules"].values())]
     read = {name: entry for section in sections for name, entry in section.items()}
-    for name, param in _parameters(fresh).items():
+    for name, param in qcodes_parameters(fresh).items():
         entry = read[param.short_name]
         if param._snapshot_get and param._snapshot_value and param.gettable:
             assert "value" in entry and entry["ts"] is not None, name
@@ -110,7 +104,7 @@ def test_a_full_snapshot_comes_back_with_every_value(fresh):
 
 
 def test_every_settable_parameter_round_trips(fresh):
-    params = _parameters(fresh)
+    params = qcodes_parameters(fresh)
     settable = {n for n, p in params.items() if p.settable and p.gettable}
     assert settable == set(ROUND_TRIPS), "a parameter the table does not cover, or one it lists in vain"
     for name, cases in ROUND_TRIPS.items():
