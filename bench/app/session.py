@@ -120,10 +120,13 @@ def make_step(name: str, **parameters: Any) -> Step[Any]:
     return step(step.Parameters(**parameters))
 
 
+def _store_path(store: str | os.PathLike[str] | None) -> Path:
+    """The named store, else ``$BENCH_STORE``, else the default (the CLI's rule)."""
+    return Path(os.fspath(store) if store is not None else os.environ.get("BENCH_STORE") or DEFAULT_STORE)
+
+
 def _store(store: str | os.PathLike[str] | RunStore | None) -> RunStore:
-    if isinstance(store, RunStore):
-        return store
-    return RunStore(os.fspath(store) if store is not None else os.environ.get("BENCH_STORE", DEFAULT_STORE))
+    return store if isinstance(store, RunStore) else RunStore(_store_path(store))
 
 
 def run_step(step: str | Step[Any], *, station: str | os.PathLike[str] | StationConfig = "sim",
@@ -251,12 +254,11 @@ class StoredRun:
 
 
 def read_run(run_id: str = "latest", *, store: str | os.PathLike[str] | RunStore | None = None) -> StoredRun:
-    """A stored run by id (``"latest"``: the newest) from the station's store."""
-    path = store if isinstance(store, RunStore) else Path(
-        os.fspath(store) if store is not None else os.environ.get("BENCH_STORE", DEFAULT_STORE))
-    if not isinstance(path, RunStore) and not path.is_file():
-        raise LookupError(f"no run store at {path}")
-    run_store = _store(path)
+    """A stored run by id (``"latest"``: the newest) from the station's store (never created
+    here: a missing store is a LookupError naming it)."""
+    if not isinstance(store, RunStore) and not _store_path(store).is_file():
+        raise LookupError(f"no run store at {_store_path(store)}")
+    run_store = _store(store)
     if run_id == "latest":
         runs = run_store.list_runs(limit=1)
         if not runs:
