@@ -5,11 +5,10 @@ the IANA port 4880): each SCPI instrument of the station answers here as well as
 socket, with the same device, so settings and readings are shared; each HiSLIP session is one
 I/O session of the device (its own error queue and status, ``sim.scpi.engine``).
 
-The wire (IVI-6.1 §2.3): every message is a 16-byte header — prologue ``HS``, message type,
-control code, a 32-bit message parameter and a 64-bit payload length, big-endian — and its
-payload.  A session is two TCP connections to the one port (§4.1): the *synchronous* channel
-opened with ``Initialize`` (sub-address ``hislip0`` or empty; the answer carries the session
-id) and the *asynchronous* one opened with ``AsyncInitialize`` naming that id.
+The wire, headers and message types, is ``sim.hislip_wire``.  A session is two TCP connections
+to the one port (§4.1): the *synchronous* channel opened with ``Initialize`` (sub-address
+``hislip0`` or empty; the answer carries the session id) and the *asynchronous* one opened with
+``AsyncInitialize`` naming that id.
 
 Synchronous channel: ``Data``/``DataEnd`` carry program messages; DataEnd is the END of
 IEEE 488.2, and a LF inside still ends a message, so the bytes go through the session's
@@ -68,18 +67,25 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import struct
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from enum import IntEnum
 
+from sim.hislip_wire import (
+    HEADER,
+    VENDOR_DEFINED,
+    Channel,
+    ErrorCode,
+    FatalCode,
+    Header,
+    LockResponse,
+    Message,
+    PoorlyFormedHeaderError,
+)
 from sim.scpi import Oversize, ScpiDevice, Session
 from sim.server import ConnectionGate, Listener, ScpiOverTcp, Transport, deliver
 
 log = logging.getLogger(__name__)
 
-HEADER = struct.Struct(">2sBBIQ")  # prologue, type, control code, parameter, payload length
-PROLOGUE = b"HS"
 #: HiSLIP protocol version offered (upper byte major, lower minor): the 1.0 message set
 PROTOCOL_VERSION = 0x0100
 #: the server's vendor id, two ASCII letters (VPP-9 assigns them; none is registered here)
@@ -103,70 +109,6 @@ MAV = 0x10   # IEEE 488.2 status byte bit 4, message available
 MSS = 0x40   # bit 6, master summary status
 SYNCHRONIZED = 0  # feature bit 0 clear: synchronized mode (the only one served)
 
-
-class Message(IntEnum):
-    """HiSLIP message types (IVI-6.1 Table 4); 128..255 are vendor-defined."""
-
-    INITIALIZE = 0
-    INITIALIZE_RESPONSE = 1
-    FATAL_ERROR = 2
-    ERROR = 3
-    ASYNC_LOCK = 4
-    ASYNC_LOCK_RESPONSE = 5
-    DATA = 6
-    DATA_END = 7
-    DEVICE_CLEAR_COMPLETE = 8
-    DEVICE_CLEAR_ACKNOWLEDGE = 9
-    ASYNC_REMOTE_LOCAL_CONTROL = 10
-    ASYNC_REMOTE_LOCAL_RESPONSE = 11
-    TRIGGER = 12
-    INTERRUPTED = 13
-    ASYNC_INTERRUPTED = 14
-    ASYNC_MAXIMUM_MESSAGE_SIZE = 15
-    ASYNC_MAXIMUM_MESSAGE_SIZE_RESPONSE = 16
-    ASYNC_INITIALIZE = 17
-    ASYNC_INITIALIZE_RESPONSE = 18
-    ASYNC_DEVICE_CLEAR = 19
-    ASYNC_SERVICE_REQUEST = 20
-    ASYNC_STATUS_QUERY = 21
-    ASYNC_STATUS_RESPONSE = 22
-    ASYNC_DEVICE_CLEAR_ACKNOWLEDGE = 23
-    ASYNC_LOCK_INFO = 24
-    ASYNC_LOCK_INFO_RESPONSE = 25
-
-
-VENDOR_DEFINED = 128
-
-
-class FatalCode(IntEnum):
-    """FatalError codes (Table 7): the session is closed after it."""
-
-    UNIDENTIFIED = 0
-    POORLY_FORMED_HEADER = 1
-    CHANNELS_NOT_ESTABLISHED = 2
-    INVALID_INITIALIZATION = 3
-    TOO_MANY_CLIENTS = 4
-
-
-class ErrorCode(IntEnum):
-    """Error codes (Table 9): the message is skipped, the session goes on."""
-
-    UNIDENTIFIED = 0
-    UNRECOGNIZED_MESSAGE_TYPE = 1
-    UNRECOGNIZED_CONTROL_CODE = 2
-    UNRECOGNIZED_VENDOR_MESSAGE = 3
-    MESSAGE_TOO_LARGE = 4
-
-
-class LockResponse(IntEnum):
-    """AsyncLockResponse control codes (Table 14)."""
-
-    FAILURE = 0
-    SUCCESS = 1          # a lock granted, or an exclusive lock released
-    SUCCESS_SHARED = 2   # a shared lock released
-    ERROR = 3            # a redundant request, or a release of a lock not held
-
-
 #: AsyncRemoteLocalControl request → (RemoteEnable, LocalLockout, Remote); None: unchanged (Table 18)
 REMOTE_LOCAL: dict[int, tuple[bool | None, bool | None, bool | None]] = {
     0: (False, False, False),   # disable remote
@@ -180,104 +122,13 @@ REMOTE_LOCAL: dict[int, tuple[bool | None, bool | None, bool | None]] = {
 _DATA_TYPES = (Message.DATA, Message.DATA_END, Message.TRIGGER)
 
 
-@dataclass(frozen=True, slots=True)
-class Header:
-    """A HiSLIP message header (the prologue checked when it was read)."""
-
-    type: int
-    control: int
-    parameter: int
-    length: int
-
-
-class PoorlyFormedHeaderError(Exception):
-    """A header without the ``HS`` prologue: the stream cannot be resynchronised."""
-
-
-class _Channel:
-    """One TCP connection of a session: whole messages in, through a buffer of its own so
-    the server can see what input is already waiting (§3.1.1 rule 1); messages out."""
-
-    def __init__(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        self.reader, self.writer = reader, writer
-        self._buf = bytearray()
-        self._start = 0  # bytes of _buf already consumed
-
-    @property
-    def _available(self) -> int:
-        return len(self._buf) - self._start
-
-    async def _fill(self, n: int) -> None:
-        while self._available < n:
-            data = await self.reader.read(1 << 16)
-            if not data:
-                raise EOFError
-            if self._start and self._start * 2 >= len(self._buf):
-                del self._buf[:self._start]  # compact: consumed bytes never accumulate
-                self._start = 0
-            self._buf += data
-
-    def _take(self, n: int) -> bytes:
-        out = bytes(self._buf[self._start:self._start + n])
-        self._start += n
-        return out
-
-    async def header(self) -> Header:
-        await self._fill(HEADER.size)
-        prologue, kind, control, parameter, length = HEADER.unpack(self._take(HEADER.size))
-        if prologue != PROLOGUE:
-            raise PoorlyFormedHeaderError(f"prologue {prologue!r}, not {PROLOGUE!r}")
-        return Header(kind, control, parameter, length)
-
-    async def payload(self, n: int) -> bytes:
-        await self._fill(n)
-        return self._take(n)
-
-    async def skip(self, n: int) -> None:
-        """Consume ``n`` payload bytes without keeping them (any length, any pace)."""
-        k = min(n, self._available)
-        self._start += k
-        n -= k
-        while n > 0:
-            data = await self.reader.read(min(n, 1 << 16))
-            if not data:
-                raise EOFError
-            n -= len(data)
-
-    def waiting(self) -> Header | None:
-        """The next message's header if it is already here whole, else None."""
-        if self._available < HEADER.size:
-            return None
-        prologue, kind, control, parameter, length = HEADER.unpack_from(self._buf, self._start)
-        return Header(kind, control, parameter, length) if prologue == PROLOGUE else None
-
-    def send(self, kind: int, control: int = 0, parameter: int = 0, payload: bytes | memoryview = b"") -> None:
-        if not self.writer.is_closing():
-            self.writer.write(HEADER.pack(PROLOGUE, kind, control, parameter, len(payload)))
-            if payload:
-                self.writer.write(payload)
-
-    def send_error(self, code: int, text: str, fatal: bool = False) -> None:
-        self.send(Message.FATAL_ERROR if fatal else Message.ERROR, code, 0, text.encode("ascii", "replace"))
-
-    async def drain(self) -> None:
-        if not self.writer.is_closing():
-            await self.writer.drain()
-
-    def close(self) -> None:
-        try:
-            self.writer.close()
-        except Exception:
-            pass
-
-
 class _Client:
     """One HiSLIP session: its two channels, its I/O session of the device and its
     synchronized-mode state."""
 
-    def __init__(self, ident: int, sync: _Channel, io: Session, gate: ConnectionGate | None) -> None:
+    def __init__(self, ident: int, sync: Channel, io: Session, gate: ConnectionGate | None) -> None:
         self.ident, self.sync, self.io, self.gate = ident, sync, io, gate
-        self.asynchronous: _Channel | None = None
+        self.asynchronous: Channel | None = None
         self.max_payload: int | None = None    # the client's maximum message size less a header
         self.last_id = NO_MESSAGE_ID           # last Data/DataEnd/Trigger MessageID received
         self.rmt_expected = False
@@ -287,7 +138,7 @@ class _Client:
         self.lock_wait: asyncio.Task[None] | None = None
         self.closed = False
 
-    def channels(self) -> list[_Channel]:
+    def channels(self) -> list[Channel]:
         return [self.sync] if self.asynchronous is None else [self.sync, self.asynchronous]
 
 
@@ -392,7 +243,7 @@ class HislipServer:
     async def connection(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         """One TCP connection, either channel of a session (never raises; closes the writer)."""
         gate = self._gate_of()
-        channel = _Channel(reader, writer)
+        channel = Channel(reader, writer)
         client: _Client | None = None
         try:
             if gate is not None and not gate.admit(writer):
@@ -423,7 +274,7 @@ class HislipServer:
                 gate.release(writer)
             channel.close()
 
-    async def _initialize(self, channel: _Channel, header: Header,
+    async def _initialize(self, channel: Channel, header: Header,
                           gate: ConnectionGate | None) -> _Client | None:
         """Initialize → InitializeResponse (§4.1): a new session, synchronized mode preferred."""
         if header.length > MAX_SUB_ADDRESS:
@@ -451,7 +302,7 @@ class HislipServer:
         self._next_id = self._next_id % 0xFFFF + 1
         return ident
 
-    async def _attach(self, channel: _Channel, header: Header) -> _Client | None:
+    async def _attach(self, channel: Channel, header: Header) -> _Client | None:
         """AsyncInitialize → AsyncInitializeResponse: the session's second channel."""
         client = self.clients.get(header.parameter)
         if client is None or client.asynchronous is not None or header.length > MAX_ASYNC_PAYLOAD:
@@ -481,7 +332,7 @@ class HislipServer:
         for ch in client.channels():
             ch.send_error(code, text, fatal=True)
 
-    async def _unusable(self, channel: _Channel, header: Header, which: str) -> None:
+    async def _unusable(self, channel: Channel, header: Header, which: str) -> None:
         """A well-formed message this channel does not take: Error, payload skipped (§4.3)."""
         await channel.skip(header.length)
         if header.type >= VENDOR_DEFINED:
@@ -648,7 +499,7 @@ class HislipServer:
         client.last_id = NO_MESSAGE_ID
         client.sync.send(Message.DEVICE_CLEAR_ACKNOWLEDGE, SYNCHRONIZED)
 
-    async def _client_error(self, channel: _Channel, header: Header) -> None:
+    async def _client_error(self, channel: Channel, header: Header) -> None:
         text = await channel.payload(header.length) if header.length <= MAX_ASYNC_PAYLOAD else b""
         if header.length > MAX_ASYNC_PAYLOAD:
             await channel.skip(header.length)

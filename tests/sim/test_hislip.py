@@ -1,10 +1,10 @@
 """HiSLIP (IVI-6.1) beside the raw socket: every SCPI instrument of the simulated station
 answers at ``TCPIP::127.0.0.1::hislip0,PORT::INSTR`` with the same device.
 
-The clients are independent of ``sim.hislip``'s codec: pyvisa with the ``@py`` backend (and
-its protocol client ``pyvisa_py.protocols.hislip`` where pyvisa-py 0.8 offers no VISA call:
-locks, trigger), and a raw client below that packs headers itself, for the byte-exact and the
-malformed cases.
+The clients are independent of the server's codec (``sim.hislip_wire``): pyvisa with the
+``@py`` backend (and its protocol client ``pyvisa_py.protocols.hislip`` where pyvisa-py 0.8
+offers no VISA call: locks, trigger), and a raw client below that packs headers itself, for
+the byte-exact and the malformed cases.
 """
 
 from __future__ import annotations

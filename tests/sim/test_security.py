@@ -30,9 +30,13 @@ def station(served_station):
 
 # -- listening address ---------------------------------------------------------------------
 def test_every_simulated_server_listens_on_loopback_only(station):
-    assert station.endpoints and all(e.host == "127.0.0.1" for e in station.endpoints)
-    bound = [s.getsockname()[0] for server in station.server._servers for s in server.sockets]
-    assert len(bound) == len(station.endpoints) and set(bound) == {"127.0.0.1"}
+    """Every listener: each instrument's own port and its further wires (HiSLIP, ``Endpoint.also``)."""
+    endpoints = [*station.endpoints, *(other for e in station.endpoints for other in e.also.values())]
+    assert len(endpoints) > len(station.endpoints)  # the HiSLIP listeners are counted too
+    assert all(e.host == "127.0.0.1" for e in endpoints)
+    listeners = station.server._servers + station.server._also_servers
+    bound = [s.getsockname()[0] for server in listeners for s in server.sockets]
+    assert len(bound) == len(endpoints) and set(bound) == {"127.0.0.1"}
 
 
 @pytest.mark.parametrize("host", ["0.0.0.0", "192.168.1.20", "::"])
