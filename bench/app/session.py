@@ -144,12 +144,10 @@ def run_step(step: str | Step[Any], *, station: str | os.PathLike[str] | Station
     if parameters and not isinstance(step, str):
         raise ValueError("give the parameters to make_step, not beside a built step")
     config = station_config(station)
-    kind = built.kinds[0]
-    serial, world_seed = station_unit(config, kind, unit), station_seed(config, seed)
     run_store = _store(store)
-    with Station(config, seed=world_seed, unit_serial=serial, unit_kind=kind) as opened:
-        return execute(alone(built), opened, run_store, unit_serial=serial, seed=world_seed, progress=progress,
-                       labels=dict(labels) if labels is not None else station_labels(config))
+    with open_station(config, seed=seed, unit=unit, kind=built.kinds[0]) as opened:
+        return execute(alone(built), opened, run_store, unit_serial=opened.unit_serial, seed=opened.seed,
+                       progress=progress, labels=dict(labels) if labels is not None else station_labels(config))
 
 
 def choose_spec(spec: str | os.PathLike[str] | None, unit: str | None) -> UnitSpec:
@@ -193,11 +191,10 @@ def run_acceptance(unit: str | None = None, *, spec: str | os.PathLike[str] | Un
     procedure = AcceptanceTest(unit_spec)
     config = station_config(station)
     serial = acceptance_unit(unit_spec, config, unit)
-    world_seed = station_seed(config, seed)
     run_store = _store(store)
-    with Station(config, seed=world_seed, unit_serial=serial, unit_kind=unit_spec.kind) as opened:
-        return execute(procedure, opened, run_store, unit_serial=serial, seed=world_seed, progress=progress,
-                       labels=dict(labels) if labels is not None else station_labels(config),
+    with open_station(config, seed=seed, unit=serial, kind=unit_spec.kind) as opened:
+        return execute(procedure, opened, run_store, unit_serial=opened.unit_serial, seed=opened.seed,
+                       progress=progress, labels=dict(labels) if labels is not None else station_labels(config),
                        operator=operator)
 
 

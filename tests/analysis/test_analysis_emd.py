@@ -7,6 +7,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import PyEMD  # the reference (EMD-signal, in the test extra)
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -15,8 +16,6 @@ from scipy.signal import lfilter
 
 from bench.analysis.emd._emd import count_zero_crossings, emd, find_extrema, nonrandom_terms
 from bench.analysis.emd._kernel import Spline, envelope_knots, not_a_knot_slopes, sift
-
-PyEMD = pytest.importorskip("PyEMD")
 
 
 def _pyemd(x: np.ndarray, **kw) -> tuple[np.ndarray, np.ndarray]:
