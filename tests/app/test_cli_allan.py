@@ -127,3 +127,27 @@ def test_plot_allan_draws_curve_slope_lines_and_read_offs():
     assert marker.get_ydata()[0] == pytest.approx(result.coefficients["N"].read_off_input)
     flat = plot_allan(Figure().add_subplot(), overlapping_adev(np.zeros(64), 1.0))
     assert "constant record" in flat.texts[0].get_text()
+
+
+def test_robust_flag_and_checks_in_json_table_and_report(tmp_path, capsys):
+    """`--robust` on a record with 8 % spikes: JSON says robust, the flagged fraction and each
+    term's check; the table and the report show both."""
+    rng = np.random.default_rng(5)
+    y = N_DEG_PER_SQRT_S * math.sqrt(FS_HZ) * rng.normal(size=20_000)
+    y += (rng.random(y.size) < 0.08) * rng.choice([-3.0, 3.0], y.size)
+    csv_path = write_csv(tmp_path / "spiky.csv", value=y)
+    assert main(["analyze", "allan", "--input", csv_path, "--json", "--robust"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["robust"] is True and doc["outliers"]["fraction"] == pytest.approx(0.08, abs=0.01)
+    assert doc["outliers"]["false_alarm"] == 0.01 and doc["notes"][0].endswith("robust estimate used")
+    assert doc["checks"]["N"]["status"] == "agrees"
+    assert doc["coefficients"]["N"]["value"] == pytest.approx(0.6, rel=0.05)
+    assert main(["analyze", "allan", "--input", csv_path, "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert plain["robust"] is False and plain["coefficients"]["N"]["value"] > 3.0
+    out = tmp_path / "report"
+    assert main(["analyze", "allan", "--input", csv_path, "--robust", "--report", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "robust: outliers replaced" in text and "| agrees (slope -0.4" in text
+    page = (out / "allan_report.html").read_text(encoding="utf-8")
+    assert "Checks against the curve" in page and "robust estimate" in page

@@ -29,11 +29,40 @@ from typing import Literal
 import numpy as np
 
 import bench.analysis.allan._core as core
-from bench.analysis.allan._noise import READ_TAU_S, SLOPE, TERMS, design_matrix, fit_noise_terms, read_off
-from bench.analysis.allan._stats import ONE_SIGMA, adev_interval
+from bench.analysis.allan._checks import (
+    CHECK_CONFIDENCE,
+    REGION_NAMES,
+    SLOPE_TEXT,
+    TermCheck,
+    compare_read_off,
+    correlation_is_significant,
+    lag1_correlation,
+    nearest_term,
+    shown_slope,
+)
+from bench.analysis.allan._noise import (
+    READ_TAU_S,
+    SLOPE,
+    TERMS,
+    NoiseFit,
+    ReadOff,
+    design_matrix,
+    fit_noise_terms,
+    read_off,
+)
+from bench.analysis.allan._robust import DEFAULT_FALSE_ALARM, OutlierScreen, screen_outliers
+from bench.analysis.allan._stats import ONE_SIGMA, adev_interval, upper_normal_quantile
 from bench.analysis.allan._units import check_unit, rate_unit_name, term_units
 
 MIN_SAMPLES = 8
+#: a first-order low-pass of larger lag-1 correlation is not a "short" correlation time
+MAX_LAG1 = 0.95
+#: an outlier fraction (plain estimate) worth a note: what 1 % false alarms per record never reach
+OUTLIER_NOTE_FRACTION = 1e-3
+#: the outer terms and the noise beside them: Q and R are named only where the curve's slope
+#: is told apart from N's or K's at CHECK_CONFIDENCE
+EDGE_TERMS = {"Q": "N", "R": "K"}
+Shown = tuple[tuple[float, float], float, float]  # region (τ first, last) in s, slope, its sd
 MAX_POINTS_PER_DECADE = 100
 DataType = Literal["rate", "phase"]
 
@@ -198,6 +227,19 @@ class AllanResult:
         Fixed-point iterations of fit, noise types and EDF.
     notes : tuple of str
         Warnings about the record or the fit a user should read.
+    checks : dict of str to TermCheck
+        Each term checked against the curve by name (:class:`TermCheck`).
+    robust : bool
+        Whether flagged outliers were replaced before the Allan variance.
+    outliers : OutlierScreen or None
+        The outlier screen of the rate samples (flagged samples, threshold); None for a
+        record too short to screen.
+    lag1 : float
+        Lag-1 autocorrelation of the rate samples (``1 + 2·r`` of the differences).
+    lag1_se : float
+        Its standard error under white noise, ``√(2/n)``.
+    lag1_model : float
+        The lag-1 correlation the N term of the fit carries (0: plain white N).
     units : dict of str to str
         Property: unit of every reported quantity (``"tau"``, ``"adev"`` and each term).
 
@@ -229,6 +271,12 @@ class AllanResult:
     fit_reduced_chi2: float | None
     fit_iterations: int
     notes: tuple[str, ...] = field(default=())
+    checks: dict[str, TermCheck] = field(default_factory=dict)
+    robust: bool = False
+    outliers: OutlierScreen | None = None
+    lag1: float = 0.0
+    lag1_se: float = math.inf
+    lag1_model: float = 0.0
 
     @property
     def units(self) -> dict[str, str]:
@@ -240,7 +288,8 @@ class AllanResult:
         """ADEV of the fitted model (or of some of its terms) at ``tau_s``, in the record's unit."""
         names = tuple(self.fit_terms if terms is None else terms)
         coef = np.array([self.coefficients[n].fit_input or 0.0 for n in names])
-        return np.sqrt(design_matrix(np.asarray(tau_s, dtype=float), names) @ coef ** 2)
+        return np.sqrt(design_matrix(np.asarray(tau_s, dtype=float), names, self.lag1_model,
+                                     1.0 / self.sample_rate_hz) @ coef ** 2)
 
     def to_dict(self) -> dict:
         """JSON-safe dict (no NaN: missing values are None)."""
@@ -259,7 +308,12 @@ class AllanResult:
             "units": self.units,
             "coefficients": {name: c.to_dict() for name, c in self.coefficients.items()},
             "fit": {"terms": list(self.fit_terms), "reduced_chi2": _num(self.fit_reduced_chi2),
-                    "iterations": self.fit_iterations, "method": "weighted NNLS of the Allan variance model"},
+                    "iterations": self.fit_iterations, "method": "weighted NNLS of the Allan variance model",
+                    "lag1_model": self.lag1_model},
+            "checks": {name: c.to_dict(self.coefficients[name].factor) for name, c in self.checks.items()},
+            "robust": self.robust,
+            "outliers": None if self.outliers is None else self.outliers.to_dict(),
+            "lag1": {"value": _num(self.lag1), "se": _num(self.lag1_se)},
             "notes": list(self.notes),
         }
 
@@ -355,7 +409,8 @@ def _sums(y: np.ndarray, ms: np.ndarray) -> np.ndarray:
 
 def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = "rate",
                      points_per_decade: int = 10, unit: str | None = "dps",
-                     confidence: float = ONE_SIGMA, terms: tuple[str, ...] = TERMS) -> AllanResult:
+                     confidence: float = ONE_SIGMA, terms: tuple[str, ...] = TERMS, robust: bool = False,
+                     false_alarm: float = DEFAULT_FALSE_ALARM) -> AllanResult:
     """Overlapping Allan deviation of a uniformly sampled record, with CI and noise terms.
 
     ``y``: rate samples in ``unit`` (``data_type="rate"``) or their integral in ``unit``·s
@@ -389,6 +444,11 @@ def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = 
         Confidence level of the interval, in (0, 1); default 0.6827 (one sigma).
     terms : tuple of str, default TERMS
         Distinct names from ``("Q", "N", "B", "K", "R")`` the least-squares fit may use.
+    robust : bool, default False
+        Replace isolated outliers of the rate samples (:func:`screen_outliers`) before the
+        Allan variance; the result says how many were flagged (``outliers``, ``notes``).
+    false_alarm : float, default 0.01
+        Probability, in (0, 1), that the outlier screen flags a clean Gaussian record at all.
 
     Returns
     -------
@@ -400,7 +460,7 @@ def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = 
     ------
     ValueError
         If ``rate_hz`` is not a finite number > 0, ``unit`` is not one of the codes above,
-        ``confidence`` is outside (0, 1), ``terms`` are not distinct names from
+        ``confidence`` or ``false_alarm`` is outside (0, 1), ``terms`` are not distinct names from
         :data:`TERMS`, ``data_type`` is not ``"rate"``/``"phase"``, the record is not 1-D,
         has fewer than 8 rate samples or a non-finite value, or a τ is out of range
         (:func:`averaging_factors`).
@@ -427,6 +487,21 @@ def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = 
     >>> lo, hi = r.adev_ci[i]
     >>> bool(lo < r.adev[i] < hi), round(float(r.edf[i]))  # ±1σ ≈ ±1/√(2·edf) relative
     (True, 232)
+    >>> r.checks["N"].status  # the fitted N against the curve's slope −1/2 region
+    'agrees'
+
+    With 8 % spikes of ±3 deg/s the plain estimate is dominated by them; ``robust=True``
+    replaces them first:
+
+    >>> rng = np.random.default_rng(3)
+    >>> hit = rng.random(y.size) < 0.08
+    >>> spiky = y + hit * rng.choice([-3.0, 3.0], y.size)
+    >>> plain = overlapping_adev(spiky, 100.0)
+    >>> robust = overlapping_adev(spiky, 100.0, robust=True)
+    >>> round(plain.coefficients["N"].fit, 1), round(robust.coefficients["N"].fit, 2)
+    (5.2, 0.58)
+    >>> robust.notes[0][:48]
+    '8.4% of samples are outliers (1675 of 20000, |y '
     """
     if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float, np.integer, np.floating)) \
             or not math.isfinite(rate_hz) or rate_hz <= 0:
@@ -438,7 +513,11 @@ def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = 
     terms = tuple(terms)
     if not terms or len(set(terms)) != len(terms) or not set(terms) <= set(TERMS):
         raise ValueError(f"terms = {terms!r} must be distinct names from {TERMS}")
-    rate = _checked_record(y, data_type, rate_hz)
+    if isinstance(false_alarm, bool) or not isinstance(false_alarm, (int, float)) or not 0.0 < false_alarm < 1.0:
+        raise ValueError(f"false_alarm = {false_alarm!r} must lie in (0, 1)")
+    raw = _checked_record(y, data_type, rate_hz)
+    screen = screen_outliers(raw, false_alarm)
+    rate = screen.cleaned if robust else raw
     n = rate.size
     ms = averaging_factors(n, rate_hz, taus, points_per_decade)
     n_terms = n + 1 - 2 * ms
@@ -446,11 +525,51 @@ def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = 
     tau = ms / rate_hz
     adev = np.sqrt(avar)
     ordered = tuple(t for t in TERMS if t in terms)
-    fit = fit_noise_terms(tau, avar, ms, n + 1, ordered)
-    ci = adev_interval(adev, fit.edf, confidence)
-
     notes: list[str] = []
-    coefficients = {}
+    if robust:
+        notes.append(screen.summary())
+    elif screen.fraction >= OUTLIER_NOTE_FRACTION:
+        notes.append(f"{screen.fraction:.1%} of samples are isolated outliers ({screen.n_flagged} of {n}, "
+                     f"false-alarm probability {false_alarm:g} per record): they enter every τ; "
+                     "robust=True (--robust) replaces them")
+    rho, rho_se = lag1_correlation(rate)
+    lag1_model = 0.0
+    if correlation_is_significant(rho, rho_se):
+        if 0 < rho <= MAX_LAG1 and "N" in ordered and _white_leads(tau, avar, ms, n + 1, ordered):
+            lag1_model = rho
+            notes.append(f"the output is correlated sample to sample (lag-1 autocorrelation {rho:.3f} ± "
+                         f"{rho_se:.1g}): ADEV at τ = {1 / rate_hz:.6g} s is {1 - math.sqrt(1 - rho):.1%} below "
+                         "white noise, so N is fitted as white noise through a first-order low-pass "
+                         "(N is its long-τ level)")
+        else:
+            notes.append(f"the output is correlated sample to sample (lag-1 autocorrelation {rho:.3f} ± "
+                         f"{rho_se:.1g}): the first points of the curve are not white noise alone")
+
+    fit_set = ordered
+    dropped: dict[str, Shown | bool] = {}
+    z_check = upper_normal_quantile((1.0 - CHECK_CONFIDENCE) / 2.0)
+    while True:
+        fit = fit_noise_terms(tau, avar, ms, n + 1, fit_set, lag1_model)
+        shown = _shown_slopes(fit, tau, avar, rate_hz, lag1_model)
+        # a term whose region shows another allowed term's slope is dropped and the curve refitted;
+        # so are Q and R where their slope cannot be told from N's or K's (the noise explains it)
+        wrong = [(abs(sl - SLOPE[t]) / sd, t) for t, (_, sl, sd) in shown.items()
+                 if len(fit_set) > 1 and ((nearest_term(sl) != t and nearest_term(sl) in ordered
+                                           and abs(sl - SLOPE[t]) > z_check * sd)
+                                          or (t in EDGE_TERMS and EDGE_TERMS[t] in fit_set
+                                              and abs(sl - SLOPE[EDGE_TERMS[t]]) < z_check * sd))]
+        wrong += [(0.0, t) for t in fit_set if t in EDGE_TERMS and fit.values[t] > 0 and t not in shown
+                  and len(fit_set) > 1]  # a Q or R that makes the model nowhere: the curve does not show it
+        if not wrong:
+            break
+        name = max(wrong)[1]
+        dropped[name] = shown.get(name, True)
+        fit_set = tuple(t for t in fit_set if t != name)
+    ci = adev_interval(adev, fit.edf, confidence)
+    model = np.sqrt(np.maximum(design_matrix(tau, fit_set, lag1_model, 1.0 / rate_hz)
+                               @ np.array([fit.values[t] ** 2 for t in fit_set]), 0.0))
+
+    coefficients, checks = {}, {}
     for name in TERMS:
         u = term_units(unit, name)
         ro = read_off(tau, adev, name, fit.edf)
@@ -460,18 +579,110 @@ def overlapping_adev(y, rate_hz: float, taus="octave", *, data_type: DataType = 
             fit_input=fit.values.get(name), fit_std_input=fit.stds.get(name),
             read_off_input=None if ro is None else ro.value,
             read_off_tau_s=None if ro is None else ro.tau_s, read_at_tau_s=READ_TAU_S.get(name))
+        checks[name] = _check(coefficients[name], ro, shown.get(name), dropped.get(name), tau, adev, fit.edf,
+                              model, lag1_model, rate_hz)
+        message = checks[name].message
+        if message:
+            notes.append(message)
         if name == "B" and ro is not None and ro.at_edge and tau.size > 1:
             notes.append(f"the ADEV minimum is at an end of the readable τ range ({ro.tau_s:.6g} s): the curve "
                          "has no flat bottom there, so the B read-off is only an upper bound")
-    if tau.size < len(ordered) + 1:
-        notes.append(f"{tau.size} τ points for {len(ordered)} noise terms: the fit is underdetermined")
+    if tau.size < len(fit_set) + 1:
+        notes.append(f"{tau.size} τ points for {len(fit_set)} noise terms: the fit is underdetermined")
     if fit.reduced_chi2 is not None and fit.reduced_chi2 > 4.0:
-        notes.append(f"the noise model fits the curve poorly (reduced χ² = {fit.reduced_chi2:.3g}): "
-                     "a term outside Q, N, B, K, R (e.g. a periodic or Gauss–Markov term) is present")
+        named = [n for n, c in checks.items() if c.status in ("disagrees", "other slope")]
+        notes.append(f"the noise model fits the curve poorly (reduced χ² = {fit.reduced_chi2:.3g})"
+                     + (f"; see the checks of {', '.join(named)}" if named else
+                        ": a term outside Q, N, B, K, R (e.g. a periodic or Gauss–Markov term) is present"))
     if not np.any(adev > 0):
         notes.append("the record is constant: every ADEV is zero")
     return AllanResult(tau_s=tau, adev=adev, adev_ci=ci, edf=fit.edf, noise_alpha=fit.alpha,
                        n_terms=n_terms, averaging_factor=ms, confidence=float(confidence),
                        sample_rate_hz=rate_hz, n_samples=n, data_type=data_type, unit=unit,
-                       coefficients=coefficients, fit_terms=ordered, fit_reduced_chi2=fit.reduced_chi2,
-                       fit_iterations=fit.iterations, notes=tuple(notes))
+                       coefficients=coefficients, fit_terms=fit_set, fit_reduced_chi2=fit.reduced_chi2,
+                       fit_iterations=fit.iterations, notes=tuple(notes), checks=checks, robust=bool(robust),
+                       outliers=screen, lag1=rho, lag1_se=rho_se, lag1_model=lag1_model)
+
+
+def _white_leads(tau: np.ndarray, avar: np.ndarray, ms: np.ndarray, n_phase: int, terms: tuple[str, ...]) -> bool:
+    """True when N makes most of the plain fit at the first τ: the lag-1 correlation is then N's."""
+    if not np.any(avar > 0):
+        return False
+    fit = fit_noise_terms(tau, avar, ms, n_phase, terms)
+    parts = design_matrix(tau[:1], terms)[0] * np.array([fit.values[t] ** 2 for t in terms])
+    return bool(terms[int(np.argmax(parts))] == "N" and parts.max() > 0.5 * parts.sum())
+
+
+def _shown_slopes(fit: NoiseFit, tau: np.ndarray, avar: np.ndarray, rate_hz: float,
+                  lag1: float) -> dict[str, Shown]:
+    """Per fitted term (value > 0): its region, the slope the curve shows there and its sd."""
+    design = design_matrix(tau, fit.terms, lag1, 1.0 / rate_hz)
+    coef2 = np.array([fit.values[t] ** 2 for t in fit.terms])
+    out = {}
+    for k, name in enumerate(fit.terms):
+        if coef2[k] > 0:
+            found = shown_slope(k, design, coef2, avar, tau, fit.edf)
+            if found is not None:
+                out[name] = found
+    return out
+
+
+def _check(c: NoiseCoefficient, ro: ReadOff | None, shown: Shown | None, dropped: Shown | None | bool,
+           tau: np.ndarray, adev: np.ndarray, edf: np.ndarray, model: np.ndarray, lag1: float,
+           rate_hz: float) -> TermCheck:
+    """The check of one term (module docstring of :mod:`._checks`), with its message in ``c.unit``.
+
+    ``dropped``: the term's region and slope when the fit left it out for them, True when it
+    was left out for making the model nowhere, None when it was kept."""
+    def g(v: float) -> str:
+        return f"{v * c.factor:.3g}"
+
+    z_check = upper_normal_quantile((1.0 - CHECK_CONFIDENCE) / 2.0)
+    region_slope = dropped if isinstance(dropped, tuple) else shown
+    status, message = "unchecked", None
+    fit_iv: tuple[float, float] | None = None
+    read_iv: tuple[float, float] | None = None
+    if dropped is True:
+        status = "dropped"
+        message = (f"{c.name} ({c.label}) left out of the fit: it made the fitted model nowhere on the curve, "
+                   f"which does not show its slope ({SLOPE_TEXT[c.name]}); refitted without {c.name}")
+    elif isinstance(dropped, tuple):
+        (t_lo, t_hi), slope, sd = dropped
+        status = "dropped"
+        other = nearest_term(slope) if nearest_term(slope) != c.name else EDGE_TERMS[c.name]
+        message = (f"{c.name} ({c.label}) left out of the fit: where it made the model (τ {t_lo:.3g}–{t_hi:.3g} s) "
+                   f"the curve has slope {slope:+.2f} ± {sd:.2f}, which is {other} ({SLOPE_TEXT[other]}) "
+                   f"as much as {c.name} ({SLOPE_TEXT[c.name]}); refitted without {c.name}")
+    elif shown is not None:
+        (t_lo, t_hi), slope, sd = shown
+        other = nearest_term(slope)
+        if other != c.name and abs(slope - SLOPE[c.name]) > z_check * sd:
+            status = "other slope"
+            message = (f"{c.name} fitted {g(c.fit_input or 0.0)} {c.unit}, but where it makes the model "
+                       f"(τ {t_lo:.3g}–{t_hi:.3g} s) the curve has slope {slope:+.2f} ± {sd:.2f}: that is "
+                       f"{other} ({SLOPE_TEXT[other]}), not {c.name} ({SLOPE_TEXT[c.name]})")
+    if ro is not None and not dropped:
+        i = int(np.argmin(np.abs(tau - ro.tau_s)))
+        column = np.zeros(tau.size)
+        column[i] = design_matrix(tau[i:i + 1], (c.name,), lag1, 1.0 / rate_hz)[0, 0]
+        verdict, fit_iv, read_iv = compare_read_off(c.name, c.fit_input or 0.0, c.fit_std_input, column,
+                                                    model, i, adev, edf, ro.value)
+        if status == "unchecked":
+            status = verdict
+        if verdict == "disagrees" and message is None:
+            fitted = "not fitted" if not c.fit_input else f"fitted {g(c.fit_input)} {c.unit}"
+            message = (f"{c.name} {fitted} but the curve's {REGION_NAMES[c.name]} reads {g(ro.value)} {c.unit} "
+                       f"[{g(read_iv[0])}, {g(read_iv[1])}] ({CHECK_CONFIDENCE:.0%}, τ = {ro.tau_s:.3g} s): "
+                       "the fit does not describe the curve there")
+    elif c.fit_input and status == "unchecked" and shown is not None:
+        status = "agrees"
+    if c.fit_input is not None and fit_iv is None:
+        spread = z_check * (c.fit_std_input or 0.0)
+        fit_iv = (max(c.fit_input - spread, 0.0), c.fit_input + spread)
+    return TermCheck(name=c.name, status=status, fit_interval_input=fit_iv,
+                     read_off_input=None if ro is None else ro.value, read_off_interval_input=read_iv,
+                     read_off_tau_s=None if ro is None else ro.tau_s,
+                     region_tau_s=None if region_slope is None else region_slope[0],
+                     curve_slope=None if region_slope is None else region_slope[1],
+                     curve_slope_sd=None if region_slope is None else region_slope[2],
+                     shows=None if region_slope is None else nearest_term(region_slope[1]), message=message)

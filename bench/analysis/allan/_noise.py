@@ -64,10 +64,30 @@ MODEL_FLOOR = 0.02  # relative uncertainty of σ² granted to the 5-term model i
 _MAX_ITER = 8
 
 
-def design_matrix(tau_s: np.ndarray, terms: tuple[str, ...] = TERMS) -> np.ndarray:
-    """Columns ``∂σ²/∂(coef²)`` of the model for each term, rows per τ."""
+def white_through_lowpass(tau_s: np.ndarray, lag1: float, tau0_s: float) -> np.ndarray:
+    """Allan variance per N² of white rate noise through a first-order low-pass, sampled every
+    ``tau0_s``: an AR(1) record of lag-1 correlation ``φ`` whose long-τ level is ``N²/τ``.
+
+    With ``m = τ/τ0``: ``σ²(τ)/N² = (1/τ)·[1 − φ(1 − φᵐ)(3 − φᵐ) / (m(1 + φ)(1 − φ))]``
+    (the window sums of ``γ_k ∝ φ^|k|``); ``1/τ`` at φ = 0, ``(1 − φ)²/((1 + φ)·τ0)`` … at m = 1.
+    """
     tau = np.asarray(tau_s, dtype=float)
-    cols = {"Q": 3.0 / tau ** 2, "N": 1.0 / tau, "B": np.full_like(tau, B_FACTOR ** 2),
+    if lag1 == 0.0:
+        return 1.0 / tau
+    phi, m = float(lag1), tau / tau0_s
+    pm = phi ** m
+    return (1.0 - phi * (1.0 - pm) * (3.0 - pm) / (m * (1.0 + phi) * (1.0 - phi))) / tau
+
+
+def design_matrix(tau_s: np.ndarray, terms: tuple[str, ...] = TERMS, lag1: float = 0.0,
+                  tau0_s: float = 1.0) -> np.ndarray:
+    """Columns ``∂σ²/∂(coef²)`` of the model for each term, rows per τ.
+
+    ``lag1`` ≠ 0: the N column is white noise through a first-order low-pass of that lag-1
+    correlation at sample interval ``tau0_s`` (:func:`white_through_lowpass`).
+    """
+    tau = np.asarray(tau_s, dtype=float)
+    cols = {"Q": 3.0 / tau ** 2, "N": white_through_lowpass(tau, lag1, tau0_s), "B": np.full_like(tau, B_FACTOR ** 2),
             "K": tau / 3.0, "R": tau ** 2 / 2.0}
     return np.column_stack([cols[t] for t in terms])
 
@@ -195,7 +215,7 @@ def _weights(avar: np.ndarray, edf: np.ndarray) -> np.ndarray:
 
 
 def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase: int,
-                    terms: tuple[str, ...] = TERMS) -> NoiseFit:
+                    terms: tuple[str, ...] = TERMS, lag1: float = 0.0) -> NoiseFit:
     """Fit the IEEE 952 model to Allan variances ``avar`` at ``tau_s`` (module docstring).
 
     Weighted non-negative least squares of
@@ -216,6 +236,9 @@ def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase:
         Phase points of the record (rate samples + 1), for the EDF.
     terms : tuple of str, default TERMS
         Terms the model may use, in Q, N, B, K, R order.
+    lag1 : float, default 0.0
+        Lag-1 autocorrelation of the rate samples, in (−1, 1): when ≠ 0 the N term is white
+        noise through a first-order low-pass (N its long-τ level, ``N²/τ`` for τ ≫ τ0).
 
     Returns
     -------
@@ -242,7 +265,8 @@ def fit_noise_terms(tau_s: np.ndarray, avar: np.ndarray, m: np.ndarray, n_phase:
     >>> fit.alpha.tolist()  # white FM (N) at short τ, random-walk FM (K) at long τ
     [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, -2, -2, -2]
     """
-    a = design_matrix(tau_s, terms)
+    tau0 = float(tau_s[0] / m[0]) if len(tau_s) else 1.0
+    a = design_matrix(tau_s, terms, lag1, tau0)
     if not np.any(avar > 0):  # a constant record: nothing to fit
         zero_alpha = np.zeros(len(tau_s), dtype=int)
         return NoiseFit(terms, dict.fromkeys(terms, 0.0), dict.fromkeys(terms), zero_alpha,

@@ -157,6 +157,18 @@ def _normal_ppf(p: float) -> float:
     return z
 
 
+def upper_normal_quantile(p: float) -> float:
+    """``z`` with ``P(Z > z) = p`` for a standard normal ``Z``, ``0 < p < 1/2`` (Newton on ``erfc``)."""
+    z = math.sqrt(-2.0 * math.log(p))  # a start above the root
+    for _ in range(100):
+        tail = 0.5 * math.erfc(z / math.sqrt(2.0))
+        step = (tail - p) / (math.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi))  # d tail/dz = −φ(z)
+        z += step
+        if abs(step) < 1e-13 * max(1.0, z):
+            break
+    return z
+
+
 def _gamma_p(a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Regularised lower incomplete gamma ``P(a, x)`` by its power series, in logs (x > 0)."""
     n_terms = int(np.clip(np.max(x - a + 30.0 * np.sqrt(x + 1.0) + 50.0), 50, 200_000))

@@ -4,7 +4,9 @@ Reads a time column (s) and a value column from a CSV with a header row.  The sa
 rate comes from the time column, which must be uniform (every interval within 1 % of
 the mean interval — a dropped sample or a restart is refused, not bridged).  Prints a
 table (or ``--json``: ``AllanResult.to_dict()`` plus ``source``) and with ``--report DIR``
-writes the HTML report there.  Bad input raises ``ValueError``; ``bench`` prints it as
+writes the HTML report there.  ``--robust`` replaces isolated outliers first (at
+``--false-alarm`` per record); the table, JSON and report show each term's check against
+the curve and whether the estimate is robust.  Bad input raises ``ValueError``; ``bench`` prints it as
 one line ``bench: error: …`` and exits 2.
 """
 
@@ -15,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.analysis.allan import ONE_SIGMA, TERMS, overlapping_adev
+from bench.analysis.allan import DEFAULT_FALSE_ALARM, ONE_SIGMA, TERMS, overlapping_adev
 from bench.app.commands.analyze import read_csv_columns
 
 SAMPLING_TOLERANCE = 0.01
@@ -35,6 +37,10 @@ def register_analysis(kinds) -> None:
     p.add_argument("--points-per-decade", type=int, default=10, help="τ per decade for --taus log [10]")
     p.add_argument("--confidence", type=float, default=ONE_SIGMA, help="interval confidence [0.683]")
     p.add_argument("--terms", default=",".join(TERMS), help="noise terms the fit may use [Q,N,B,K,R]")
+    p.add_argument("--robust", action="store_true",
+                   help="replace isolated outliers (spikes) before the Allan variance; says how many")
+    p.add_argument("--false-alarm", type=float, default=DEFAULT_FALSE_ALARM,
+                   help="probability that the outlier screen flags a clean record at all [0.01]")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     p.add_argument("--report", metavar="DIR", default=None, help="write the HTML report into DIR")
     p.set_defaults(func=analyze_allan_csv)
@@ -81,11 +87,18 @@ def _table(result) -> str:
              f"{result.confidence:.1%})"]
     for t, a, (lo, hi), e in zip(result.tau_s, result.adev, result.adev_ci, result.edf):
         lines.append(f"{t:12.6g} {a:12.5g} {lo:12.5g} {hi:12.5g} {e:10.4g}")
-    lines.append("noise terms: fit ± 1σ | slope-line read-off")
+    lines.append("noise terms: fit ± 1σ | slope-line read-off | check against the curve (slope shown there)")
     for name, c in result.coefficients.items():
         fit = "not fitted" if c.fit is None else f"{c.fit:.4g} ± {'—' if c.fit_std is None else f'{c.fit_std:.2g}'}"
         ro = "—" if c.read_off is None else f"{c.read_off:.4g}"
-        lines.append(f"  {name} {c.label:<26} {fit:>22} | {ro:>10}  {c.unit}")
+        check = result.checks[name]
+        shown = "" if check.curve_slope is None else f" (slope {check.curve_slope:+.2f} ± {check.curve_slope_sd:.2f})"
+        lines.append(f"  {name} {c.label:<26} {fit:>22} | {ro:>10}  {c.unit:<14} | {check.status}{shown}")
+    screen = result.outliers
+    if screen is not None:
+        state = "robust: outliers replaced" if result.robust else "plain estimate (--robust replaces outliers)"
+        lines.append(f"{state}; {screen.n_flagged} samples ({screen.fraction:.2%}) flagged at false-alarm "
+                     f"probability {screen.false_alarm:g} per record")
     return "\n".join(lines)
 
 
@@ -97,7 +110,8 @@ def analyze_allan_csv(args) -> int:
     terms = tuple(s.strip() for s in args.terms.split(",") if s.strip())
     result = overlapping_adev(y, rate, _taus(args.taus), data_type=args.data_type,
                               points_per_decade=args.points_per_decade, unit=unit,
-                              confidence=args.confidence, terms=terms)
+                              confidence=args.confidence, terms=terms, robust=args.robust,
+                              false_alarm=args.false_alarm)
     report = None
     if args.report is not None:
         # lazy: matplotlib only when --report asks for a report (every `bench analyze` imports this module)

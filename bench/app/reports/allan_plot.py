@@ -21,7 +21,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from bench.analysis.allan import B_FACTOR, AllanResult, term_adev
+from bench.analysis.allan import B_FACTOR, CHECK_CONFIDENCE, AllanResult, term_adev
 from bench.app.reports.common import html_table as _table
 
 _COLOURS = {"Q": "C4", "N": "C2", "B": "C1", "K": "C5", "R": "C6"}
@@ -106,6 +106,21 @@ def write_allan_report(result: AllanResult, directory: str | Path, context: dict
     curve_rows = [[_g(t, 6), _g(a), _g(lo), _g(hi), f"{e:.1f}", int(al), int(nt)]
                   for t, a, (lo, hi), e, al, nt in zip(result.tau_s, result.adev, result.adev_ci, result.edf,
                                                         result.noise_alpha, result.n_terms)]
+    check_rows = []
+    for name, ch in result.checks.items():
+        f = result.coefficients[name].factor
+        iv = ch.read_off_interval_input
+        check_rows.append([name, ch.status, "—" if ch.curve_slope is None else
+                           f"{ch.curve_slope:+.2f} ± {ch.curve_slope_sd:.2f} ({ch.shows})",
+                           "—" if ch.read_off_input is None or iv is None else
+                           f"{_g(ch.read_off_input * f)} [{_g(iv[0] * f)}, {_g(iv[1] * f)}]",
+                           ch.message or ""])
+    screen = result.outliers
+    robust_text = ("robust estimate: flagged outliers replaced by their neighbour median" if result.robust
+                   else "plain estimate (no outlier replacement)")
+    if screen is not None:
+        robust_text += (f"; {screen.n_flagged} samples ({screen.fraction:.2%}) flagged at false-alarm probability "
+                        f"{screen.false_alarm:g} per record")
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in result.notes) or "<li>none</li>"
     duration = result.n_samples / result.sample_rate_hz
     chi2 = result.fit_reduced_chi2
@@ -124,6 +139,10 @@ intervals at {result.confidence:.1%} from Greenhall's EDF and chi-squared.</p>
 terms {html.escape(", ".join(result.fit_terms))}; reduced χ² = {_g(chi2, 3)}, {result.fit_iterations} iterations.
 Read-off: slope lines through the curve (B: minimum / 0.664).</p>
 {_table(["term", "", "fit ± 1σ", "read-off", "unit", "alternative (fit / read-off)", "read from τ (s)"], coef_rows)}
+<h2>Checks against the curve</h2>
+<p>{html.escape(robust_text)}. Each term: the slope the curve shows where the term makes the model, and the
+read-off with its interval ({CHECK_CONFIDENCE:.0%}) against the fit.</p>
+{_table(["term", "check", "slope shown (term)", "read-off [interval]", "finding"], check_rows)}
 <h2>Notes</h2><ul>{notes}</ul>
 <h2>Allan deviation</h2>
 {_table(["τ (s)", f"ADEV ({result.units['adev']})", "CI low", "CI high", "EDF", "noise α", "differences"], curve_rows)}
