@@ -1,9 +1,10 @@
 """The effect catalogue (issue 7): composable physical effects with stable ids.
 
 ``CATALOGUE`` is the one registry of effects: an immutable, ordered mapping id -> Effect built
-from the list of effect classes below (the issue's order; a new effect is its class and one line
-here). Every effect states its physical description, parametric form (``form``), the logged
-inputs it needs (``inputs``), its residual signature, the sensor kinds it applies to (``kinds``)
+from the list of effect classes below (the issues' order, later additions appended: an
+effect's place seeds the scorecard's draws; a new effect is its class and one line here).
+Every effect states its physical description, parametric form (``form``), the logged inputs it
+needs (``inputs``), its residual signature, the sensor kinds it applies to (``kinds``)
 and per-kind physical parameter ranges (``params_for(kind)``; ``params`` is the envelope over
 kinds). Conventions (units, stages, the detectability rule behind ``min_effect`` and ``draw``,
 the hooks) are in ``bench.discovery.effects_base``.
@@ -14,7 +15,8 @@ Which effects apply to which kind:
   ``highpass_rolloff`` (the accelerometer senses DC).
 * gyro (tactical FOG, DC): all but ``highpass_rolloff``.
 * mhd (AC-coupled angular rate sensor): all but ``g_sensitivity``, ``dead_zone``,
-  ``rate_random_walk`` (no DC path for a slow walk) and ``vibration_rectification``.
+  ``rate_random_walk`` (no DC path for a slow walk), ``vibration_rectification`` and
+  ``thermal_lag`` (its minute-long records cannot tell an element lag from ``temperature_bias``).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from bench.discovery.effects_terms import (
     VibrationRectification,
     WarmupExponential,
 )
-from bench.discovery.effects_thermal import TemperatureRate, ThermalHysteresis, ThermalTwoNode
+from bench.discovery.effects_thermal import TemperatureRate, ThermalHysteresis, ThermalLag, ThermalTwoNode
 from bench.discovery.effects_transforms import (
     DeadZone,
     HighpassRolloff,
@@ -129,4 +131,6 @@ CATALOGUE = Catalogue((
     HighpassRolloff, VibrationRectification,
     # issue 15
     FlickerNoise, BiasJump, AngleQuantization, ThermalTwoNode, TemperatureRate, ThermalHysteresis,
+    # the element's temperature behind the logged (case) one
+    ThermalLag,
 ))

@@ -69,7 +69,11 @@ class Param:
 
     ``log``: positive and drawn/gridded on a log scale; ``linear``: the effect's output is
     linear in it (a least-squares parameter); ``floor``: smallest physically meaningful
-    magnitude (a coefficient below it is indistinguishable from zero for this sensor class)."""
+    magnitude (a coefficient below it is indistinguishable from zero for this sensor class).
+    ``[fit_low, fit_high]``: what a fit may return and a model may hold (default, and never
+    narrower than, ``[low, high]``) — wider where the fit range comes from the record for any
+    sensor grade (a random process, a quantizer: :meth:`Effect.fit_range`) while draws keep to
+    the physical envelope ``[low, high]`` of the grades the kind was set for."""
 
     name: str
     unit: str
@@ -78,10 +82,17 @@ class Param:
     log: bool = False
     linear: bool = False
     floor: float = 0.0
+    fit_low: float = math.nan
+    fit_high: float = math.nan
 
     def __post_init__(self) -> None:
         for name in ("low", "high", "floor"):
             object.__setattr__(self, name, float(getattr(self, name)))
+        # never narrower than the physical range: a drawn value is always one a model may hold
+        object.__setattr__(self, "fit_low", min(float(self.fit_low), self.low)
+                           if not math.isnan(self.fit_low) else self.low)
+        object.__setattr__(self, "fit_high", max(float(self.fit_high), self.high)
+                           if not math.isnan(self.fit_high) else self.high)
 
     @property
     def periodic(self) -> bool:
@@ -95,10 +106,50 @@ class Param:
             v = float(value)
         except (TypeError, ValueError):
             raise ValueError(f"{where} = {value!r} is not a number; "
-                             f"allowed: [{self.low}, {self.high}] {self.unit}") from None
-        if not (self.low <= v <= self.high):
-            raise ValueError(f"{where} = {v!r} outside the allowed range [{self.low}, {self.high}] {self.unit}")
+                             f"allowed: [{self.fit_low}, {self.fit_high}] {self.unit}") from None
+        if not (self.fit_low <= v <= self.fit_high and math.isfinite(v)):
+            raise ValueError(f"{where} = {v!r} outside the allowed range [{self.fit_low}, {self.fit_high}] "
+                             f"{self.unit}")
         return v
+
+    def edge(self, value: float) -> str:
+        """``"lower"`` or ``"upper"`` when ``value`` lies within :data:`EDGE_FRACTION` of this
+        range (of its log-range for a log parameter) of that bound, or beyond it; else ``""``.
+        Meant for a fit range (:meth:`Effect.fit_params`), where it says a fit stopped at a bound."""
+        v, lo, hi = float(value), self.low, self.high
+        if self.log and lo > 0 and v > 0:
+            v, lo, hi = math.log(v), math.log(lo), math.log(hi)
+        tol = EDGE_FRACTION * (hi - lo)
+        if not math.isfinite(tol):
+            return ""
+        if v <= lo + tol:
+            return "lower"
+        return "upper" if v >= hi - tol else ""
+
+
+#: A fitted value within this fraction of its fit range (of its log-range for a log parameter)
+#: of a bound is at that bound: the data-derived ranges span 4-12 decades, so 1 % is a factor
+#: 1.1-1.3 in the value — inside the spread of a fitted level or correlation time, so the bound,
+#: not the record, may have set it (an estimate that would leave the range is clipped there).
+EDGE_FRACTION = 0.01
+
+
+def at_edge(effect: Effect, params: Mapping[str, float], rec: Record, kind: str) -> tuple[str, ...]:
+    """Names of ``effect``'s parameters whose value in ``params`` lies at (within
+    :data:`EDGE_FRACTION` of) or beyond a bound of its fit range on rec (:meth:`Effect.fit_params`):
+    a report then says the range, not the record, stopped the fit."""
+    return tuple(q.name for q in effect.fit_params(rec, kind) if q.name in params and q.edge(params[q.name]))
+
+
+def edge_notes(effect_id: str, params: Mapping[str, float], bounds: Sequence[Param]) -> tuple[str, ...]:
+    """One line per parameter of ``params`` at a bound of its fit range ``bounds`` (Params of
+    :meth:`Effect.fit_params`): ``"gauss_markov.tau_s at its upper bound 3600 s"``."""
+    out = []
+    for q in bounds:
+        side = q.edge(params[q.name]) if q.name in params else ""
+        if side:
+            out.append(f"{effect_id}.{q.name} at its {side} bound {q.low if side == 'lower' else q.high:.4g} {q.unit}")
+    return tuple(out)
 
 
 def guess_kind(rec: Record) -> str:
@@ -229,7 +280,8 @@ class Effect:
             fl = min(q[i].floor for q in per)
             units = [q[i].unit for q in per]
             unit = units[0] if len(set(units)) == 1 else " | ".join(f"{u} ({k})" for u, k in zip(units, self.kinds))
-            out.append(replace(p, low=lo, high=hi, floor=fl, unit=unit))
+            out.append(replace(p, low=lo, high=hi, floor=fl, unit=unit, fit_low=min(q[i].fit_low for q in per),
+                               fit_high=max(q[i].fit_high for q in per)))
         return tuple(out)
 
     def params_for(self, kind: str) -> tuple[Param, ...]:
@@ -239,18 +291,22 @@ class Effect:
         return self.ranges[kind]
 
     def fit_params(self, rec: Record, kind: str) -> tuple[Param, ...]:
-        """The kind's parameters with ranges narrowed to what rec can resolve (bounds for a fit):
-        e.g. a warm-up tau longer than half the record is a linear drift on it, a line above the
-        Nyquist frequency an alias. Same names and order as ``params_for(kind)``."""
+        """The kind's parameters with the ranges a fit on rec uses (``fit_range``) as ``[low,
+        high]``, kept inside what a model may hold (``[fit_low, fit_high]``: the physical range
+        unless the effect's parameters reach beyond it): e.g. a warm-up tau longer than half the
+        record is a linear drift on it, a line above the Nyquist frequency an alias; a random
+        process's levels and times come from the record alone, for any sensor grade. Same names
+        and order as ``params_for(kind)``; a parameter whose range on rec is empty keeps its own."""
         out = []
         for q in self.params_for(kind):
             lo, hi = self.fit_range(q, rec, kind)
-            lo, hi = max(lo, q.low), min(hi, q.high)
+            lo, hi = max(lo, q.fit_low), min(hi, q.fit_high)
             out.append(replace(q, low=lo, high=hi) if lo < hi else q)
         return tuple(out)
 
     def fit_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
-        """Resolvable range of one parameter on rec (override per effect; default: physical)."""
+        """The range of one parameter a fit on rec uses (override per effect; default: the
+        physical range; :meth:`fit_params` keeps it within ``[q.fit_low, q.fit_high]``)."""
         return q.low, q.high
 
     def param(self, name: str, kind: str | None = None) -> Param:
@@ -690,6 +746,18 @@ class Effect:
         ln(n/2), and a BIC that weighs such a term against a random process charges each twice (as
         the modified BIC of change points does); 0 by default."""
         return 0
+
+    def prefixes(self, p: Mapping[str, float]) -> list[Params]:
+        """Smaller versions of the fitted ``p`` for the criterion to weigh too (a jump fit's
+        first j change points, j below its count); [] by default."""
+        return []
+
+    def search_cells(self, p: Mapping[str, float], rec: Record) -> float:
+        """How many distinct positions the fit of this effect at ``p`` chose among (the
+        criterion's multiplicity, :func:`.criterion.penalty`): 1 for a fit that searches no
+        location (default); a jump's time is one of the n samples per jump, a line's frequency
+        one of the n/2 Fourier bins."""
+        return float(rec.n) ** self.searched(p) if self.searched(p) else 1.0
 
     def reduced(self, p: Mapping[str, float], nested: str, kind: str) -> list[Params]:
         """Starts for the effect ``nested`` (one of :attr:`nests`) standing alone for this effect at

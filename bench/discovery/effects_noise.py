@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -36,6 +36,71 @@ from bench.discovery.whittle import periodogram
 
 #: Parametric-bootstrap replicates for the random walk's q (each one Whittle fit: FFT-cheap).
 N_BOOT_RW = 60
+
+#: The widest full scale of each kind (u: saturation's top limit): no process's sd, flicker
+#: level or quantizer step can exceed what the sensor reads — the most a model may hold of them.
+FULL_SCALE = {"accelerometer": 100.0, "gyro": 2000.0, "mhd": 2000.0}
+
+#: Factor between a random process's fit range and the record's own levels. Top: ten times the
+#: readings' sd — a Gauss–Markov at the longest correlation time the range allows (τ = T) shows
+#: about half its sd on the record (expected sample variance 1 − 2(τ/T)(1 − (τ/T)(1 − e^{−T/τ}))
+#: = 0.26 of σ²), and one realisation may wander less than that. Bottom: a tenth of the white
+#: noise averaged over the whole record (σw/√n) — a process whose own level over the record is
+#: below that leaves no trace on it (the record's mean already wanders by σw/√n).
+FIT_SPAN = 10.0
+
+#: Flicker's Allan deviation in units of B: √(2 ln 2/π) (IEEE Std 952), the same at every τ.
+FLICKER_ADEV = math.sqrt(2 * math.log(2) / math.pi)
+
+
+def reaching(ranges: Mapping[str, tuple[Param, ...]], levels: Sequence[str] = ()) -> dict[str, tuple[Param, ...]]:
+    """``ranges`` (kind → Params) with what a fit may return and a model hold opened beyond the
+    physical envelope, for records of any sensor grade (the fit range itself comes from the
+    record, :meth:`Effect.fit_range`): 0 up to the kind's :data:`FULL_SCALE` for the parameters
+    named in ``levels`` (sds, flicker levels, steps), 0 to ∞ for the others (times, walk and
+    angle-noise coefficients); the draws keep to ``[low, high]``."""
+    return {kind: tuple(replace(q, fit_low=0.0, fit_high=FULL_SCALE[kind] if q.name in levels else math.inf)
+                        for q in qs) for kind, qs in ranges.items()}
+
+
+@dataclass(frozen=True)
+class RecordLevels:
+    """What a random process's fit range reads of a record: sample interval and span (s), number
+    of samples, white-noise sd per sample from the first differences and the readings' sd (u)."""
+
+    dt_s: float
+    duration_s: float
+    n: int
+    white_sd: float
+    spread: float
+
+    @property
+    def floor(self) -> float:
+        """The smallest level of a process the record can hold a trace of (u): a tenth of the
+        white noise averaged over the record (:data:`FIT_SPAN`)."""
+        return self.white_sd / (FIT_SPAN * math.sqrt(self.n))
+
+    @property
+    def top(self) -> float:
+        """The largest level of a process a fit on the record may reach (u): :data:`FIT_SPAN`
+        times the readings' sd."""
+        return FIT_SPAN * self.spread
+
+
+def record_levels(rec: Record) -> RecordLevels:
+    """The levels of rec a random process's fit range reads (:class:`RecordLevels`). The white sd
+    is the MAD of the first differences / √2 (robust to an input's moves and to jumps), the rms
+    of the differences where the MAD is 0 (readings on a coarse lattice mostly repeat), the
+    readings' sd where both are 0; the smallest positive float for a constant record."""
+    y = np.asarray(rec.y, float)
+    d = np.diff(y)
+    spread = float(np.std(y))
+    white = float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+    if not white > 0:
+        white = float(np.sqrt(np.mean(d * d)) / math.sqrt(2.0))
+    tiny = float(np.finfo(float).tiny)
+    white = white if white > 0 else max(spread, tiny)
+    return RecordLevels(rec.dt_s, max(rec.duration_s, rec.dt_s), rec.n, white, max(spread, tiny))
 
 
 @dataclass(frozen=True, eq=False)
@@ -196,11 +261,13 @@ class GaussMarkov(StochasticEffect):
     separating = {"rate_random_walk": "a record much longer than the correlation time: Gauss–Markov levels off "
                                       "in the Allan curve, a random walk keeps rising"}
     n_coords = 2  # log σ², logit φ
-    ranges = {  # QA-2000 coloured noise µg over tens of s; FOG bias instability ~0.1-1 deg/h (3e-5-3e-4 deg/s)
+    # drawn: QA-2000 coloured noise µg over tens of s; FOG bias instability ~0.1-1 deg/h (3e-5-3e-4 deg/s);
+    # fitted: any grade (a MEMS part's mg and tenths of deg/s), the range from the record (fit_range)
+    ranges = reaching({
         "accelerometer": (Param("sigma", "g", 1e-8, 1e-3, log=True), Param("tau_s", "s", 0.1, 1e5, log=True)),
         "gyro": (Param("sigma", "deg/s", 1e-6, 0.1, log=True), Param("tau_s", "s", 0.1, 1e5, log=True)),
         "mhd": (Param("sigma", "deg/s", 1e-5, 1.0, log=True), Param("tau_s", "s", 1e-3, 1e4, log=True)),
-    }
+    }, levels=("sigma",))
 
     def noise(self, p: Params, rec: Record, rng: np.random.Generator) -> np.ndarray:
         w = rng.standard_normal(rec.n)
@@ -224,9 +291,15 @@ class GaussMarkov(StochasticEffect):
         return q.low, q.high
 
     def fit_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
-        if q.name == "tau_s":  # a correlation time beyond a fifth of the record looks like a walk or drift
-            return rec.dt_s, 0.2 * rec.duration_s
-        return q.low, q.high
+        """From the record alone: tau_s from half a sample (φ = e^{−dt/τ} ≤ e^{−2} ≈ 0.14 below
+        it: successive samples nearly independent, white at this rate) to the record's span
+        (beyond it the process does not decorrelate within the record: there it is a random
+        walk of K² = 2σ²/τ, the walk's to fit; ``identifiable`` asks for less than a fifth);
+        sigma between the record's floor and top (:class:`RecordLevels`)."""
+        lv = record_levels(rec)
+        if q.name == "tau_s":
+            return 0.5 * lv.dt_s, lv.duration_s
+        return lv.floor, lv.top
 
     def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
         """A correlation time beyond a fifth of the record is not identifiable on it (a walk or a
@@ -303,10 +376,19 @@ class RateRandomWalk(StochasticEffect):
     kinds = ("accelerometer", "gyro")
     n_coords = 1  # log q, q = K²·dt the per-sample variance of the steps
     nonstationary = True
-    ranges = {  # FOG RRW ~0.01-10 deg/h/√h (1 deg/h/√h = 4.6e-6 deg/s/√s); accelerometers µg/√s-class
+    # drawn: FOG RRW ~0.01-10 deg/h/√h (1 deg/h/√h = 4.6e-6 deg/s/√s), accelerometers µg/√s-class;
+    # fitted: any grade, the range from the record (fit_range)
+    ranges = reaching({
         "accelerometer": (Param("k_per_rs", "g/sqrt(s)", 1e-10, 1e-4, log=True),),
         "gyro": (Param("k_per_rs", "deg/s/sqrt(s)", 1e-8, 1e-2, log=True),),
-    }
+    })
+
+    def fit_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        """From the record alone: the walks whose spread over the record, K·√T, lies between
+        the record's floor and top (:class:`RecordLevels`)."""
+        lv = record_levels(rec)
+        root_t = math.sqrt(lv.duration_s)
+        return lv.floor / root_t, lv.top / root_t
 
     def noise(self, p: Params, rec: Record, rng: np.random.Generator) -> np.ndarray:
         w = rng.standard_normal(rec.n)
@@ -402,11 +484,24 @@ class FlickerNoise(StochasticEffect):
         "rate_random_walk": "the Allan slope over the longest τ: flicker flat (0), a random walk rising (+1/2)",
     }
     n_coords = 2  # log B² (per-sample level B²/ω), log ω_c (the band's corner, rad/sample)
-    ranges = {  # FOG bias instability 0.005-10 deg/h (1.4e-6 - 2.8e-3 deg/s); QA-2000-class µg flicker floors
+    # drawn: FOG bias instability 0.005-10 deg/h (1.4e-6 - 2.8e-3 deg/s), QA-2000-class µg flicker floors;
+    # fitted: any grade, the range from the record (fit_range)
+    ranges = reaching({
         "accelerometer": (Param("b", "g", 1e-9, 1e-3, log=True), Param("tau_min_s", "s", 1e-4, 1e5, log=True)),
         "gyro": (Param("b", "deg/s", 1e-7, 0.1, log=True), Param("tau_min_s", "s", 1e-4, 1e5, log=True)),
         "mhd": (Param("b", "deg/s", 1e-6, 1.0, log=True), Param("tau_min_s", "s", 1e-5, 1e4, log=True)),
-    }
+    }, levels=("b",))
+
+    def fit_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        """From the record alone: tau_min_s from a quarter sample (white at the Nyquist
+        frequency, :data:`FLICKER_TAU_MIN_SAMPLES`) to the record's span (a band starting beyond
+        it is no 1/f on the record); b where flicker's flat Allan deviation, 0.664·B, lies
+        between the record's floor and top (:class:`RecordLevels`; an Allan deviation is at most
+        √2 times the readings' sd)."""
+        lv = record_levels(rec)
+        if q.name == "tau_min_s":
+            return FLICKER_TAU_MIN_SAMPLES * lv.dt_s, lv.duration_s
+        return lv.floor / FLICKER_ADEV, lv.top / FLICKER_ADEV
 
     def _terms(self, p: Mapping[str, float], dt_s: float, n: int) -> tuple[np.ndarray, float]:
         taus = flicker_taus(float(p["tau_min_s"]), dt_s, n)
@@ -500,9 +595,17 @@ class AngleQuantization(StochasticEffect):
     separating = {"quantization": "a slow ramp of rate: reading quantization puts the readings on a lattice, "
                                   "angle quantization leaves their mean exact and anti-correlates neighbours"}
     n_coords = 1  # log c², c = Q/dt the rate noise per unit angle error
-    ranges = {  # FOG pulses 0.05-2″ (Q = pulse/√12 ≈ 4e-6 - 2e-4 deg); up to coarse read-outs
+    # drawn: FOG pulses 0.05-2″ (Q = pulse/√12 ≈ 4e-6 - 2e-4 deg) up to coarse read-outs;
+    # fitted: any grade, the range from the record (fit_range)
+    ranges = reaching({
         "gyro": (Param("q_angle", "deg", 1e-7, 0.1, log=True),),
-    }
+    })
+
+    def fit_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        """From the record alone: the angle noises whose rate sd √2·Q/dt lies between the
+        record's floor and top (:class:`RecordLevels`)."""
+        lv = record_levels(rec)
+        return lv.floor * lv.dt_s / math.sqrt(2.0), lv.top * lv.dt_s / math.sqrt(2.0)
 
     def noise(self, p: Params, rec: Record, rng: np.random.Generator) -> np.ndarray:
         """Angle errors uniform on ±√3·Q (a rounding error of a dithered angle), differenced and

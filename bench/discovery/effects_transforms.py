@@ -31,6 +31,7 @@ from bench.discovery.effects_base import (
     input_shape_basis,
     noise_sd_of,
 )
+from bench.discovery.effects_noise import reaching
 
 
 def expected_quantized(x: np.ndarray, step: float, noise_sd: float) -> np.ndarray:
@@ -380,6 +381,15 @@ class Saturation(Effect):
 ON_LATTICE_FRACTION = 0.05
 
 
+def step_top(y: np.ndarray) -> float:
+    """The largest quantizer step a fit on the readings ``y`` may reach (u): twice their full
+    spread (peak to peak) — readings on two levels span one step, and a step beyond twice the
+    spread leaves every reading on one level, no lattice to see."""
+    y = np.asarray(y, float)
+    y = y[np.isfinite(y)]
+    return 2.0 * float(np.ptp(y)) if y.size else 0.0
+
+
 class Quantization(HistogramEffect):
     id = "quantization"
     description = "output resolution: readings on a grid of step (ADC/DMM digits, FOG angle pulses per sample)"
@@ -390,11 +400,13 @@ class Quantization(HistogramEffect):
     stage = "output"
     mean_depends_on_noise = True  # a reading's mean is the dithered quantizer E[Q(x + n)]
     draw_span_main = 5.0  # steps of 3-17 noise sd: a visible lattice, not a staircase hiding the signal
-    ranges = {  # DMM 6½ digits on a 1 V range ≈ 1 µg; FOG 0.1″ pulse at 100 Hz ≈ 3e-3 deg/s
+    # drawn: DMM 6½ digits on a 1 V range ≈ 1 µg; FOG 0.1″ pulse at 100 Hz ≈ 3e-3 deg/s; fitted: any
+    # grade up to the kind's full scale (a MEMS accelerometer's 3.33 mg LSB), the range from the record
+    ranges = reaching({
         "accelerometer": (Param("step", "g", 1e-8, 1e-3, log=True),),
         "gyro": (Param("step", "deg/s", 1e-6, 0.1, log=True),),
         "mhd": (Param("step", "deg/s", 1e-5, 1.0, log=True),),
-    }
+    }, levels=("step",))
 
     def transform(self, p, rec, y):
         s = p["step"]
@@ -435,16 +447,23 @@ class Quantization(HistogramEffect):
         sd = float(np.std(np.diff(rec.y))) / math.sqrt(2) or q.low
         return max(q.low, sd), min(q.high, 30 * sd)
 
+    def fit_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
+        """The step from the kind's finest read-out (``q.low``; the lattice scan itself starts
+        at a quarter of the white sd) up to :func:`step_top` of the readings."""
+        return q.low, max(step_top(rec.y), q.low)
+
     def fit_histogram(self, y: np.ndarray, noise_sd: float, folds: np.ndarray, kind: str) -> HistogramFit:
         """Readings on a lattice (:mod:`bench.discovery.lattice`): the step by the lattice's
         visibility, its Rayleigh-tail p-value, and the held-out visibility excess as the score;
-        no lattice found: the smallest step, score 0, p = 1."""
+        no lattice found: the smallest step, score 0, p = 1. The scan's range is the fit range on
+        the readings (:meth:`fit_range`), within what a model may hold."""
         q = self.params_for(kind)[0]
-        fit = lattice.fit_lattice(y, noise_sd, q.low, q.high)
+        lo, hi = q.low, min(max(step_top(y), q.low), q.fit_high)
+        fit = lattice.fit_lattice(y, noise_sd, lo, hi)
         if not np.isfinite(fit.step):
-            return HistogramFit({q.name: q.low}, {q.name: float("nan")}, 0.0, 1.0)
-        score = lattice.heldout_score(y, noise_sd, folds, q.low, q.high)
-        return HistogramFit({q.name: float(np.clip(fit.step, q.low, q.high))}, {q.name: fit.step_std},
+            return HistogramFit({q.name: lo}, {q.name: float("nan")}, 0.0, 1.0)
+        score = lattice.heldout_score(y, noise_sd, folds, lo, hi)
+        return HistogramFit({q.name: float(np.clip(fit.step, lo, hi))}, {q.name: fit.step_std},
                             score, float(fit.p_value))
 
     def size_noise_sd(self, p: Params, reading_sd: float) -> float:

@@ -16,6 +16,10 @@ curve); which processes exist, and their spectra, are the effects' own hooks:
   model's own stochastic effects (``known``: every parameter free in the null and the
   alternative alike), so the test is calibrated on the current model's noise. p is floored
   at ``P_FLOOR`` (1e-300) instead of underflowing to 0.
+* ranges: a fit's range comes from the residual itself (:func:`fit_bounds`: its sample
+  interval, span, white level and spread, the effect's ``fit_range``), for any sensor grade; the
+  Whittle fit is unbounded in its log coordinates, the parameters a model takes are clipped to
+  that range, and a fit that stopped at a bound says so (``StochasticFit.edges``, ``notes``).
 * held-out score (comparable with the deterministic candidates'): the Kalman one-step predictor
   of the residual under the fitted process's own states (``state_space``); out-of-sample variance
   reduction ``1 − Σ_test e_k² / Σ_test r_k²`` on the held-out blocks of both folds (the
@@ -33,7 +37,8 @@ import numpy as np
 from scipy import optimize, stats
 
 from bench.discovery import whiten
-from bench.discovery.effects_base import Effect, Params
+from bench.discovery.data import Record
+from bench.discovery.effects_base import Effect, Param, Params, edge_notes
 from bench.discovery.effects_noise import Processes, StateBlock, StochasticEffect
 from bench.discovery.significance import P_FLOOR
 from bench.discovery.whittle import inv_hessian, minimize, nll, periodogram
@@ -54,10 +59,50 @@ class StochasticFit:
     lr: float
     p_value: float
     theta: tuple[float, ...] = ()
+    #: the fit range of each parameter on the residual (:func:`fit_bounds`); () unknown
+    bounds: tuple[Param, ...] = ()
 
     def params_for(self, kind: str) -> dict[str, float]:
-        """The fitted parameters clipped to ``kind``'s physical ranges: what a model may hold."""
-        return {q.name: float(np.clip(self.params[q.name], q.low, q.high)) for q in self.effect.params_for(kind)}
+        """The fitted parameters clipped to the fit range on the residual (``bounds``; without
+        them the kind's physical range) within what ``kind``'s model may hold."""
+        fit = {b.name: b for b in self.bounds}
+        out = {}
+        for q in self.effect.params_for(kind):
+            b = fit.get(q.name)
+            lo, hi = (max(b.low, q.fit_low), min(b.high, q.fit_high)) if b is not None else (q.low, q.high)
+            out[q.name] = float(np.clip(self.params[q.name], lo, hi))
+        return out
+
+    @property
+    def edges(self) -> tuple[str, ...]:
+        """Names of the parameters fitted at (within ``EDGE_FRACTION`` of) or beyond a bound of
+        their fit range: the range, not the record, stopped them."""
+        return tuple(b.name for b in self.bounds if b.edge(self.params[b.name]))
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """One line per parameter at a bound, for a report: ``"gauss_markov.tau_s at its upper
+        bound 3600 s"``."""
+        return edge_notes(self.effect.id, self.params, self.bounds)
+
+
+def fit_bounds(effect: Effect, r: np.ndarray, dt_s: float) -> tuple[Param, ...]:
+    """The fit range of each of ``effect``'s parameters on the residual ``r`` (sample interval
+    ``dt_s``; NaN: missing samples, set to the mean of the others): its ``fit_range`` on the
+    residual as a record, within the widest a model of any kind may hold. A random process's
+    range reads only the record (:class:`~bench.discovery.effects_noise.RecordLevels`), so the
+    kind passed to it is immaterial."""
+    r = np.asarray(r, float)
+    seen = np.isfinite(r)
+    y = np.where(seen, r, float(np.mean(r[seen])) if seen.any() else 0.0)
+    rec = Record(t_s=dt_s * np.arange(max(y.size, 2)), y=y if y.size >= 2 else np.zeros(2))
+    out = []
+    for q in effect.params:
+        lo, hi = effect.fit_range(q, rec, effect.kinds[0])
+        lo, hi = max(lo, q.fit_low), min(hi, q.fit_high)
+        unit = q.unit if "|" not in q.unit else "u"  # a level in the sensor's unit, whatever the kind
+        out.append(Param(q.name, unit, lo, hi, log=q.log, linear=q.linear) if lo < hi else q)
+    return tuple(out)
 
 
 def _known_coords(known: Processes, dt_s: float) -> tuple[tuple[StochasticEffect, ...], np.ndarray]:
@@ -143,11 +188,12 @@ def fit_stochastic(r: np.ndarray, dt_s: float, effect: Effect, start: np.ndarray
     white_sd = float(np.sqrt(np.exp(th[0])))
     own = slice(1, 1 + n_c)
     est = effect.estimate(r, th[own], cov[own, own], dt_s, alone=not known, bootstrap=bootstrap)
-    # the predictor's states at the fitted values, kept inside the effect's widest ranges (a
-    # correlation time the record cannot bound may come out beyond them)
-    states = effect.state_space({q.name: float(np.clip(est.params[q.name], q.low, q.high)) for q in effect.params},
+    # the predictor's states at the fitted values, kept inside the fit range on the residual (a
+    # correlation time the record cannot bound may come out beyond it)
+    bounds = fit_bounds(effect, r, dt_s)
+    states = effect.state_space({q.name: float(np.clip(est.params[q.name], q.low, q.high)) for q in bounds},
                                 dt_s, r.size)
-    return StochasticFit(effect, white_sd, est.params, est.params_std, states, lr, p, tuple(th[:1 + n_c]))
+    return StochasticFit(effect, white_sd, est.params, est.params_std, states, lr, p, tuple(th[:1 + n_c]), bounds)
 
 
 def exact_fit(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_sd: float,
@@ -156,15 +202,15 @@ def exact_fit(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_
     (``state_space``: what :meth:`StochasticEffect.noise` draws — for flicker the sum of
     Gauss–Markov states, not the idealised 1/f band the Whittle fit uses) and the model's
     ``known`` processes at their values, over the white level and the effect's parameters
-    (Nelder–Mead in log coordinates from ``params``/``white_sd``): (parameters, white sd, the
-    negative log-likelihood there)."""
+    (Nelder–Mead in log coordinates from ``params``/``white_sd``, the start kept inside the fit
+    range on ``r``, :func:`fit_bounds`): (parameters, white sd, the negative log-likelihood there)."""
     if not isinstance(effect, StochasticEffect):
         raise ValueError(f"effect {effect.id!r} is not a stochastic effect; allowed: a StochasticEffect")
     r = np.asarray(r, dtype=float)
-    names = [q.name for q in effect.params]
-    lows = {q.name: q.low for q in effect.params}
+    bounds = fit_bounds(effect, r, dt_s)
+    names = [q.name for q in bounds]
     x0 = np.r_[np.log(max(float(white_sd), 1e-300)),
-               [np.log(max(float(params[k]), lows[k], 1e-300)) for k in names]]
+               [np.log(max(float(np.clip(params[q.name], q.low, q.high)), 1e-300)) for q in bounds]]
     rate = 1.0 / float(dt_s)
     others = list(known)
 
@@ -186,12 +232,15 @@ def censored_params(r: np.ndarray, seen: np.ndarray, dt_s: float, effect: Effect
                     white_sd: float, kind: str, known: Processes = ()) -> Params:
     """``effect``'s parameters by the exact likelihood of ``r`` with the samples not ``seen``
     missing (:func:`exact_fit` from ``params``; the mean removed over the seen samples), clipped to
-    ``kind``'s ranges: where an output stage clips, the residual there holds no noise, and the
-    Whittle fit — which needs every sample — reads the clipped stretches' flat residual as part
-    of the process (a Gauss–Markov of 3.7e-6 / 58 s on a record 43 % clipped: Whittle 3.2e-6 /
-    17 s, exact 4.3e-6 / 68 s)."""
-    ml = exact_fit(whiten.seen_only(r, seen), dt_s, effect, params, white_sd, known)[0]
-    return {q.name: float(np.clip(ml[q.name], q.low, q.high)) for q in effect.params_for(kind)}
+    the fit range on ``r`` within what ``kind``'s model may hold: where an output stage clips,
+    the residual there holds no noise, and the Whittle fit — which needs every sample — reads
+    the clipped stretches' flat residual as part of the process (a Gauss–Markov of 3.7e-6 / 58 s
+    on a record 43 % clipped: Whittle 3.2e-6 / 17 s, exact 4.3e-6 / 68 s)."""
+    x = whiten.seen_only(r, seen)
+    ml = exact_fit(x, dt_s, effect, params, white_sd, known)[0]
+    fit = {b.name: b for b in fit_bounds(effect, x, dt_s)}
+    return {q.name: float(np.clip(ml[q.name], max(fit[q.name].low, q.fit_low), min(fit[q.name].high, q.fit_high)))
+            for q in effect.params_for(kind)}
 
 
 def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_sd: float,
