@@ -114,6 +114,19 @@ class BiasJump(Effect):
     def identity_params(self, p: Params) -> Params:
         return dict(p) | {f"size_{k}": 0.0 for k in range(1, MAX_JUMPS + 1)}
 
+    def prefixes(self, p: Mapping[str, float]) -> list[Params]:
+        """The j largest jumps of ``p`` (j = 1 … count − 1), in time order in the first slots:
+        the number of jumps is the criterion's to choose."""
+        used = [(p[f"size_{k}"], p[f"time_{k}_s"]) for k in range(1, MAX_JUMPS + 1) if p[f"size_{k}"] != 0.0]
+        by_size = sorted(used, key=lambda st: -abs(st[0]))
+        out = []
+        for j in range(1, len(used)):
+            q = dict(p) | {f"size_{k}": 0.0 for k in range(1, MAX_JUMPS + 1)}
+            for k, (size, time) in enumerate(sorted(by_size[:j], key=lambda st: st[1]), start=1):
+                q[f"size_{k}"], q[f"time_{k}_s"] = size, time
+            out.append(q)
+        return out
+
     def localized(self, rec: Record) -> bool:
         return True
 

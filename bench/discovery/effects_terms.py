@@ -385,6 +385,10 @@ class SinusoidalInterference(Effect):
              "freq_hz": lambda: a_cos * (2 * np.pi * tt)}
         return [d[k]() for k in names]
 
+    def search_cells(self, p, rec):
+        """The line's frequency was chosen among the record's n/2 Fourier bins."""
+        return max(rec.n / 2.0, 1.0)
+
     def drawable_range(self, q, rec, kind):
         if q.name == "freq_hz":  # at least 20 cycles in the record, below 0.4 × the sample rate
             return max(q.low, 20.0 / rec.duration_s), min(q.high, 0.4 * rec.rate_hz)

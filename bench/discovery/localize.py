@@ -40,6 +40,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import fft as sp_fft
 from scipy import signal, special, stats
+from scipy.stats import t as t_dist
 
 from bench.analysis.allan import averaging_factors, edf_greenhall
 from bench.discovery.data import Record
@@ -215,14 +216,17 @@ def _white_edf(n: int, ms: tuple[int, ...]) -> np.ndarray:
 
 def jumps(r: np.ndarray, t_s: np.ndarray, noise_sd: float, alpha: float = 0.01, *,
           floor_dof: float = np.inf, max_report: int = 4,
-          sample_moments: tuple[np.ndarray, np.ndarray, float] | None = None) -> tuple[Jump, ...]:
+          sample_moments: tuple[np.ndarray, np.ndarray, float] | None = None,
+          nu: float = math.inf) -> tuple[Jump, ...]:
     """Single samples beyond the Gaussian extreme of n white samples (Bonferroni over n), on the
     larger of ``noise_sd`` and the series' MAD sd: in Kalman innovations a step of the output
     shows as one such sample. ``sample_moments`` (:func:`time_segments`): each sample on its own
     sd, and where its fourth moment is well above a Gaussian's (kurtosis > 4: a coarse
     quantizer's reading that flips by a whole step once in a while) its tail is Markov's bound
     μ₄/x⁴ on the fourth power instead of the Gaussian one — exact for a rare flip, so a flip
-    of probability p is not a jump at p·n."""
+    of probability p is not a jump at p·n. ``nu``: the observation noise is Student-t with these
+    degrees of freedom (finite: heavy-tailed): a sample's tail is then the t's, on the t scale
+    that gives the series' MAD."""
     # the series' own overall scale (MAD), not the upper-half floor: a slightly mis-set filter
     # leaves low-frequency power in innovations, and extremes come from the whole spectrum
     mad_sd = 1.4826 * float(np.median(np.abs(r - np.median(r))))
@@ -239,6 +243,10 @@ def jumps(r: np.ndarray, t_s: np.ndarray, noise_sd: float, alpha: float = 0.01, 
         with np.errstate(divide="ignore"):
             markov = np.minimum(1.0, kurt / z ** 4)
         p = np.where(kurt > HEAVY_KURTOSIS, np.maximum(p, markov), p)
+    if math.isfinite(nu):
+        mad = float(np.median(np.abs(r - np.median(r))))
+        scale_t = mad / float(t_dist.ppf(0.75, nu)) if mad > 0 else scale
+        p = np.maximum(p, 2 * t_dist.sf(np.abs(r) / scale_t, nu))
     idx = np.flatnonzero(p * r.size < alpha)
     idx = idx[np.argsort(-np.abs(z[idx]))][:max_report]
     return tuple(Jump(float(t_s[i]), float(r[i]), float(z[i])) for i in sorted(idx))
@@ -305,7 +313,8 @@ def input_correlations(r: np.ndarray, rec: Record, alpha: float = 0.01, *,
 def localize(rec: Record, residual, noise_sd: float, *, alpha: float = 0.01,
              n_segments: int = 16, floor_dof: float = np.inf, transform=None,
              find_jumps: bool = False,
-             sample_moments: tuple[np.ndarray, np.ndarray, float] | None = None) -> Localization:
+             sample_moments: tuple[np.ndarray, np.ndarray, float] | None = None,
+             nu: float = math.inf) -> Localization:
     """Localize the departure of ``residual`` (= y − model prediction) from white noise of sd
     ``noise_sd``: time segments, spectral lines/bands, Allan τ ranges, input correlations (and,
     with ``find_jumps``, single outlying samples). Each of these families is tested at
@@ -325,7 +334,8 @@ def localize(rec: Record, residual, noise_sd: float, *, alpha: float = 0.01,
     taus, tau, adev, white = allan_taus(r, rate, noise_sd, alpha, floor_dof=floor_dof,
                                         sample_moments=sample_moments)
     corr = input_correlations(r, rec, alpha, transform=transform)
-    jmp = jumps(r, rec.t_s, noise_sd, alpha, floor_dof=floor_dof, sample_moments=sample_moments) if find_jumps else ()
+    jmp = (jumps(r, rec.t_s, noise_sd, alpha, floor_dof=floor_dof, sample_moments=sample_moments, nu=nu)
+           if find_jumps else ())
     return Localization(segs, cusum_p, bands, taus, corr, f, p, floor, tau, adev, white, alpha, jmp)
 
 
@@ -383,7 +393,7 @@ N_FAMILIES = 6
 
 
 def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
-                          alpha: float = 0.05) -> tuple[str, ...]:
+                          alpha: float = 0.05, nu: float = math.inf) -> tuple[str, ...]:
     """Where ``residual`` (= rec.y − model.predict(rec), sensor unit) departs from the model's
     noise: descriptions of time segments, jumps, spectral lines/bands, Allan τ ranges and input
     correlations; empty when there is none.
@@ -397,7 +407,8 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
     from the tested series itself (:func:`significance.white_floor`, dof ≈ 0.35·n), and every
     test allows for that (F / Student / averaged tails instead of χ² / normal); only excess
     structure counts; the six test families share ``alpha`` (Bonferroni), so on a series that
-    is white all of it is reported with probability ≤ ``alpha``."""
+    is white all of it is reported with probability ≤ ``alpha``. ``nu``: the observation noise's
+    Student-t degrees of freedom (finite: heavy-tailed; single samples are judged on its tail)."""
     r = np.asarray(residual, dtype=float)
     _check(r, rec, 1.0)
     if not 0 < alpha < 1:
@@ -443,5 +454,5 @@ def unexplained_structure(rec: Record, residual: np.ndarray, model: Model, *,
     if not (np.isfinite(sd) and sd > 0):
         return ()
     loc = localize(tested, x, sd, alpha=alpha / N_FAMILIES, floor_dof=dof, transform=transform,
-                   find_jumps=True, sample_moments=moments)
+                   find_jumps=True, sample_moments=moments, nu=nu)
     return tuple(prefix + d for d in loc.descriptions())

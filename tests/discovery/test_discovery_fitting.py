@@ -11,12 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.linalg import toeplitz
 
-from bench.discovery import naming
 from bench.discovery import significance as sig
-from bench.discovery.calibration import calibrate
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
-from bench.discovery.effects_linalg import base_regressors
 from bench.discovery.effects_thermal import NODE_SEEN
 from bench.discovery.experiments import make_experiment
 from bench.discovery.fitting import CandidateFitter, finite_difference_jacobian, hac_bandwidth, hac_covariance
@@ -148,27 +145,13 @@ def test_linear_drift_standard_error_covers_the_truth(gm):
     assert 0.55 <= ratio <= 1.5, ratio  # 40 seeds: the spread itself is known to ±12 %; white formula 0.25
 
 
-def test_a_folds_fit_of_a_two_node_transient_keeps_its_fast_node_where_the_rows_see_it():
-    """Fold 0 held out the first block (0–6.2 s of a 300-s gyro record): its training rows started
-    after the fast node (3.2 s) had mostly decayed, and what is left of it there fitted as well a
-    large amplitude at a shorter time constant, extrapolated into the held-out block (held-out
-    scores −4.3 and 0.23 on 2 of these 12 records before the bound, against 0.64–0.67 for one
-    exponential). With the fast node no faster than the first row's t_on / NODE_SEEN, the
-    two-node transient out-scores one exponential on every record."""
+def test_a_two_node_transient_keeps_its_fast_node_where_the_rows_see_it():
+    """A fit on rows that start after power-on cannot resolve a node faster than the first row's
+    t_on / NODE_SEEN: the fast node's range starts there; from power-on it is the physical one."""
     p = {"amplitude": -0.0375, "fraction_slow": 0.43, "tau_fast_s": 3.15, "tau_slow_s": 75.0}
-    two, one = CATALOGUE["thermal_two_node"], CATALOGUE["warmup_exponential"]
-    for seed in range(12):
-        rng = np.random.default_rng(seed)
-        rec = make_experiment("gyro", rng, n=3000)
-        truth = Model(BaseModel(kind="gyro", bias=0.03, scale_factor=1.0, noise_sd=3e-3)).with_effect(two.id, p)
-        rec = rec.replace(y=truth.simulate(rec, rng))
-        model = calibrate(Model(base_model("gyro")), rec)
-        r = rec.y - model.predict(rec)
-        folds = sig.block_folds(rec.n)
-        err_b = naming.base_errors(r, base_regressors(rec), folds)
-        s_two = naming.fit_waveform(model, rec, two, r, folds, err_b).score
-        s_one = naming.fit_waveform(model, rec, one, r, folds, err_b).score
-        assert s_two > s_one, (seed, s_two, s_one)
+    two = CATALOGUE["thermal_two_node"]
+    rec = make_experiment("gyro", np.random.default_rng(0), n=3000)
+    folds = sig.block_folds(rec.n)
     # the bound itself: only on rows that start after power-on (training rows without the first
     # block — the folds now cut that block into spans both see), never above a quarter of the range
     rows = rec.column("t_on") > 6.2

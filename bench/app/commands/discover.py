@@ -25,7 +25,7 @@ import multiprocessing
 import os
 import sys
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -59,11 +59,11 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", metavar="FILE.toml", default=None, help="starting model file")
     p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder [{DEFAULT_OUT}]")
     p.add_argument("--max-effects", type=int, default=4, help="most effects to add [4]")
-    p.add_argument("--alpha", type=float, default=0.05, help="false-discovery rate [0.05]")
-    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap null [0]")
+    p.add_argument("--alpha", type=float, default=0.05,
+                   help="false-name rate: the chance of naming an effect on a record that holds none [0.05]")
+    p.add_argument("--seed", type=int, default=0, help="seed of the model-noise realisations of the gap table [0]")
     p.add_argument("--jobs", type=int, default=default_jobs(),
-                   help=f"worker processes fitting the candidates, and threads filling the nulls, side by side "
-                        f"(same answer) [{default_jobs()}]")
+                   help=f"worker processes fitting the add moves side by side (same answer) [{default_jobs()}]")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
     p.set_defaults(func=discover_command)
@@ -117,11 +117,12 @@ def discover_command(args) -> int:
         raise ValueError(f"{label}: {rec.n} samples; discover needs at least 64")
     if not rec.is_uniform(rtol=0.05):
         raise ValueError(f"{label}: sample intervals vary by more than 5 %; discover needs a uniform record")
-    with (status_line(not args.no_progress and not args.json) as say, candidate_map(args.jobs) as map_fn,
-          realisation_map(args.jobs) as fill_map):
+    if not 0 < args.alpha < 1:
+        raise ValueError(f"--alpha {args.alpha}; allowed: a rate in (0, 1)")
+    with status_line(not args.no_progress, plain=args.json) as say, candidate_map(args.jobs) as map_fn:
         say(f"{label}: {rec.n} samples at {rec.rate_hz:.6g} Hz; calibrating the {model.base.kind} model")
         result = discover(rec, model, max_effects=args.max_effects, alpha=args.alpha, seed=args.seed,
-                          progress=say, map_fn=map_fn, fill_map=fill_map)
+                          progress=say, map_fn=map_fn)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model_file = out / "discovered_model.toml"
@@ -150,7 +151,7 @@ def check_jobs(jobs: int) -> None:
 
 @contextlib.contextmanager
 def candidate_map(jobs: int) -> Iterator:
-    """The ``map`` each naming step fits its candidates with (``workflow.discover``'s
+    """The ``map`` each round of the search fits its add moves with (``workflow.discover``'s
     ``map_fn``): the builtin one for ``jobs`` = 1, else that of ``jobs`` worker processes,
     forked from a server that has imported the discovery library (never from this process,
     whose status line runs a thread). The fits draw no random numbers: the same answer.
@@ -163,7 +164,7 @@ def candidate_map(jobs: int) -> Iterator:
             yield map
             return
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["bench.discovery.naming"])
+        context.set_forkserver_preload(["bench.discovery.search"])
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=set_blas_threads,
                                  initargs=(1,)) as pool:
             for _ in range(jobs):  # start the server and the workers now, while this process calibrates
@@ -172,31 +173,23 @@ def candidate_map(jobs: int) -> Iterator:
 
 
 @contextlib.contextmanager
-def realisation_map(jobs: int) -> Iterator:
-    """The ``map`` the nulls' noise realisations are filled with in this process (``workflow.discover``'s
-    ``fill_map``): the builtin one for ``jobs`` = 1, else that of ``jobs`` threads — each realisation
-    comes from its own pre-drawn root and numpy's normal draws and the compiled recursions release
-    the GIL, so they fill side by side with the same numbers (the flicker nulls 2.1× faster on two
-    cores; in worker processes their 1.4 MB each cost more to move than they saved)."""
-    check_jobs(jobs)
-    if jobs == 1:
-        yield map
-        return
-    with ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="null") as pool:
-        yield pool.map
-
-
-@contextlib.contextmanager
-def status_line(enabled: bool):
-    """A spinner with the workflow's current step on stderr (rich); each finished step's message
-    stays printed. Yields ``say(message)``."""
+def status_line(enabled: bool, plain: bool = False):
+    """A spinner with the search's current step on stderr (rich); each finished step's message
+    stays printed. ``plain`` (``--json``: stdout is the document): one line per message on
+    stderr instead, no spinner. Yields ``say(message)``."""
     if not enabled:
         yield lambda _msg: None
+        return
+    if plain:
+        def say_plain(msg: str) -> None:
+            print(f"discover: {msg}", file=sys.stderr, flush=True)
+
+        yield say_plain
         return
     console = Console(file=sys.stderr)
     with console.status("discover: starting") as status:
         def say(msg: str) -> None:
-            if ": named " in msg or "stopping" in msg or "unexplained" in msg:
+            if msg.startswith(("named ", "done", "unexplained")) or "outliers" in msg:
                 console.print(escape(msg))
             status.update(escape(f"discover — {msg}"))
 
@@ -222,13 +215,13 @@ def summary(result, label: str, model_file: Path, report: Path) -> str:
     lines = [f"discrepancy workflow on {label}: residual rms {result.rms_initial:.4g} → {result.rms_final:.4g} "
              f"(noise floor {result.noise_floor:.4g})"]
     if not result.steps:
-        lines.append("nothing named: no catalogue effect is significant")
+        lines.append("nothing named: no catalogue effect lowers the criterion")
     for i, s in enumerate(result.steps, 1):
         ps = ", ".join(f"{k} = {v:.4g} ± {s.params_std.get(k, float('nan')):.2g}" for k, v in s.params.items())
         pv = f"p ≤ {s.p_value:.0e}" if s.p_value <= 1e-300 else f"p = {s.p_value:.3g}"  # floored, no underflow
         lines.append(f"{i}. {s.effect_id} ({ps}); {pv}; rms {s.rms_before:.4g} → {s.rms_after:.4g}")
         for sep in s.naming.separating:
-            lines.append(f"   close competitor — {sep}")
+            lines.append(f"   look-alike within the criterion's noise — {sep}")
     for u in result.unexplained:
         lines.append(f"unexplained structure: {u}")
     lines += [f"note: {n}" for n in result.notes]

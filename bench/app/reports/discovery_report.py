@@ -1,10 +1,11 @@
-"""HTML report of the discrepancy workflow: the story step by step, with before/after plots.
+"""HTML report of discovery: the search's story step by step, with before/after plots.
 
-For each named effect: what the localization flagged, the candidates' table (held-out score,
-p, BH q, minimum effect), the best with parameters ± std, close competitors and the experiment
-that separates them, the gap table before/after and three plots (residual vs time, Welch PSD
-with the white floor, Allan deviation with the white expectation), before in grey, after in
-colour. Then what remains: "unexplained structure" (where) or "nothing significant".
+For each named effect: what the localization flagged, the candidates' table (deviance saved,
+the penalty it must beat, χ² p, that p times the criterion's multiplicity), the named one with
+parameters ± std, look-alikes within the criterion's noise and the experiment that separates
+them, the gap table before/after and three plots (residual vs time, Welch PSD with the white
+floor, Allan deviation with the white expectation), before in grey, after in colour. Then what
+remains: "unexplained structure" (where) or "nothing significant".
 """
 
 from __future__ import annotations
@@ -99,9 +100,9 @@ def _candidates_table(naming) -> str:
         if naming.best is not None and c.id == naming.best.id:
             bold.add(i)
         main = ", ".join(f"{k}={_fmt(v, 3)}" for k, v in c.params.items())
-        rows.append([c.id, _fmt(c.score, 3), _fmt(c.score_se, 2), _fmt(c.p_value, 3), _fmt(c.q_value, 3),
-                     _fmt(c.min_effect, 3), "yes" if c.big_enough else "no", "yes" if c.named else "", main])
-    return html_table(["candidate", "held-out score", "± se", "p", "BH q", "min effect", "big enough",
+        rows.append([c.id, _fmt(c.score, 3), _fmt(c.score_se, 3), _fmt(c.p_value, 3), _fmt(c.q_value, 3),
+                     "yes" if c.big_enough else "no", "yes" if c.named else "", main])
+    return html_table(["candidate", "deviance saved", "penalty", "p", "p × multiplicity", "lowers the criterion",
                        "named", "parameters"], rows, bold)
 
 
@@ -135,26 +136,26 @@ def write_discovery_report(result, rec, out_dir, label: str) -> Path:
                   "<h3>b. Where the residual departs from the floor</h3>",
                   "<ul>" + "".join(f"<li>{html.escape(d)}</li>" for d in s.localization.descriptions())
                   + "</ul>" if s.localization.descriptions() else "<p>no single test flags it on its own.</p>",
-                  "<h3>c. Candidates (held-out blocks; p from the block-bootstrap null; "
-                  "Benjamini–Hochberg q)</h3>", _candidates_table(s.naming),
+                  "<h3>c. Candidates (exact likelihood; named when the deviance saved beats the penalty "
+                  "χ²_k.isf(α / (C·M)))</h3>", _candidates_table(s.naming),
                   f"<p><b>Named: {html.escape(s.effect_id)}</b> — {ps}; p = {_fmt(s.p_value, 3)}.</p>"]
         if s.naming.competitors:
-            parts.append("<p>Close competitors (held-out score within two standard errors): "
+            parts.append("<p>Look-alikes within the criterion's noise (weight ≥ α of the named one's): "
                          + html.escape(", ".join(s.naming.competitors)) + ".</p><ul>"
                          + "".join(f"<li>{html.escape(x)}</li>" for x in s.naming.separating) + "</ul>")
         parts += ["<h3>d. Added, re-calibrated: the gap before and after</h3>",
                   _gap_table(s.gap_before, s.gap_after), f"<img src='{img}' alt='step {i} plots'>"]
     parts.append("<h2>e. What remains</h2>")
     if result.withdrawn:
-        parts.append("<p><b>Withdrawn</b> — named on the way, but the effect's own signature does not hold on the "
-                     "final model (a wrong name is worse than none):</p><ul>"
+        parts.append("<p><b>Withdrawn</b> — added on the way, then dropped or swapped out by a move that lowered "
+                     "the criterion:</p><ul>"
                      + "".join(f"<li>{html.escape(w)}</li>" for w in result.withdrawn) + "</ul>")
     if result.set_aside:
         parts.append("<p><b>Set aside</b> — catch-alls (random processes, a drift) that would have been chosen last, "
                      "but whose own signature does not hold:</p><ul>"
                      + "".join(f"<li>{html.escape(w)}</li>" for w in result.set_aside) + "</ul>")
     if result.unexplained:
-        parts.append("<p><b>Unexplained structure</b> (no catalogue effect is significant and big enough):</p><ul>"
+        parts.append("<p><b>Unexplained structure</b> (no catalogue effect lowers the criterion for it):</p><ul>"
                      + "".join(f"<li>{html.escape(u)}</li>" for u in result.unexplained) + "</ul>")
     elif not result.steps:
         parts.append("<p>Nothing significant: the residual is at the model's noise floor; nothing named.</p>")
