@@ -27,7 +27,9 @@ Estimators
     from the code they grade (fusion pairs, thermal units, discovery effects and shapes).
     :mod:`bench.testing.references` — the straightforward code a fast path replaced, its
     oracle. :mod:`bench.testing.discovery_cases` — records with hidden effects as the
-    discovery scorecard draws them.
+    discovery scorecard draws them. :mod:`bench.testing.discovery_nulls` — null records
+    (Gaussian or Student-t white noise), isolated spikes and the binomial allowance a count at
+    a stated rate is judged by.
 """
 
 from bench.testing.conformance import assert_conforms
