@@ -115,7 +115,6 @@ class Evaluator:
         #: resolve them; an effect the search adds must be resolvable (``Effect.identifiable``)
         self.given: frozenset[str] = frozenset()
         self._hist_p: dict[str, float] = {}
-        self.evaluations = 0
 
     # ---- the criterion ------------------------------------------------------------------
     def penalty(self, model: Model) -> float:
@@ -174,7 +173,6 @@ class Evaluator:
         key = frozenset(model.effect_ids)
         if key in self.cache:
             return self.cache[key]
-        self.evaluations += 1
         try:
             fitted = calibrate(model, self.rec)
             fitted, m2ll = self.fit_noise(fitted)

@@ -281,10 +281,10 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
     path = result.best.path()
     steps: list[Step] = []
     withdrawn: list[str] = []
-    g0, rms0, _, r0 = gap_of(start.model, work, seed)
-    gap_cur, rms_cur, floor, r_cur = g0, rms0, math.nan, r0
+    g0, rms0, floor, r0 = gap_of(start.model, work, seed)
+    gap_cur, rms_cur, r_cur = g0, rms0, r0  # and floor: the last model's on the path, the final one's
     for prev, cur in zip(path, path[1:]):
-        g_prev, rms_prev, _, r_prev = gap_cur, rms_cur, floor, r_cur
+        g_prev, rms_prev, r_prev = gap_cur, rms_cur, r_cur
         gap_cur, rms_cur, floor, r_cur = gap_of(cur.model, work, seed)
         gone = [e for e in prev.model.effect_ids if e not in cur.model.effect_ids]
         new = [e for e in cur.model.effect_ids if e not in prev.model.effect_ids]
@@ -316,7 +316,6 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
     if unexplained:
         say(f"unexplained structure: {len(unexplained)} finding(s)")
     say(f"done: {result.evaluations} models weighed in {result.rounds} rounds")
-    floor = gap_of(final, work, seed)[2]
     return Discovery(start.model, final, tuple(steps), unexplained, g0, gap_cur, rms0, rms_cur, floor,
                      _structure(final, work, r_cur), final_naming, r0, r_cur, tuple(notes), tuple(withdrawn), ())
 
