@@ -44,14 +44,14 @@ def _sf_free(rec: Record) -> bool:
     return rec.varies("input")
 
 
-def _slots(model: Model, rec: Record) -> list[_Slot]:
+def _slots(model: Model, rec: Record, frozen: frozenset[str] = frozenset()) -> list[_Slot]:
     """Every coordinate calibrate fits (it appends the noise slot for a model whose mean
-    reading depends on the noise)."""
+    reading depends on the noise); the effects in ``frozen`` keep their values."""
     slots = [_Slot("base", "bias")]
     if _sf_free(rec):
         slots.append(_Slot("base", "scale_factor"))
     for i, (eff, p) in enumerate(model.entries()):
-        if not eff.waveform:
+        if not eff.waveform or eff.id in frozen:
             continue
         for q in eff.free_params(p, model.base.kind, rec):
             slots.append(_Slot("effect", q.name, i, q))
@@ -135,14 +135,16 @@ def _check_base(model: Model, bias: float, sf: float) -> None:
                              f"{model.base.kind}: wrong unit or missing input column?")
 
 
-def calibrate(model: Model, rec: Record, *, noise: bool = True, max_nfev: int = 200) -> Model:
+def calibrate(model: Model, rec: Record, *, noise: bool = True, max_nfev: int = 200,
+              frozen: frozenset[str] = frozenset()) -> Model:
     """The model with ALL its parameters fitted to ``rec`` by bounded least squares (issue 7,
     step a: bias, scale factor when the input is logged and varies, and every parameter of the
     waveform effects already in it — time constants, frequencies, delays too, so a frozen
     shape misfit does not linger in the residual as colour), starting from the current values,
     each bounded by its range; with ``noise``, the white-noise sd is set to the residual's
     high-frequency floor. Random processes and histogram-judged effects keep their values (the
-    workflow re-estimates the processes on the new residual: ``workflow.refit_processes``).
+    workflow re-estimates the processes on the new residual); so do the effects named in
+    ``frozen`` (a long record's slow effects while its full-rate window is searched).
 
     Bias and scale factor are first solved linearly (unconstrained); outside the kind's range
     that is a ValueError naming the value (a wrong unit or a missing input column), never a clip."""
@@ -155,7 +157,7 @@ def calibrate(model: Model, rec: Record, *, noise: bool = True, max_nfev: int = 
     sf = float(coef[1]) if sf_free else float(model.base.scale_factor)
     _check_base(model, bias, sf)
     model = model.with_base(bias=bias, scale_factor=sf)
-    slots = _slots(model, rec)
+    slots = _slots(model, rec, frozen)
     # through a quantizer the prediction E[Q(x + n)] depends on the noise before it: that sd is
     # a parameter of the prediction, fitted with the rest (the conditional mean minimises the
     # squared error, so least squares finds it), starting from the measured floor's inversion

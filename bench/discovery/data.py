@@ -164,6 +164,21 @@ class Record:
             kw[f.name] = None if v is None else np.asarray(v)[idx]
         return Record(**kw)
 
+    def block_means(self, m: int) -> Record:
+        """Every column averaged over consecutive blocks of ``m`` rows (the last ``n mod m`` rows,
+        fewer than a block, left out): the record seen at 1/``m`` of its rate. ``t_on`` is
+        materialised first, so the means keep the time since power-on."""
+        if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= self.n // 2:
+            raise ValueError(f"block length m = {m!r}; allowed: an integer in [1, {self.n // 2}]")
+        k = self.n // m
+        kw: dict[str, Any] = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name == "t_on_s" and v is None:
+                v = self.t_s - self.t_s[0]
+            kw[f.name] = None if v is None else np.asarray(v)[:k * m].reshape(k, m).mean(axis=1)
+        return Record(**kw)
+
     def replace(self, **changes) -> Record:
         """A copy with some fields replaced (e.g. ``y=``), validated again."""
         kw = {f.name: getattr(self, f.name) for f in fields(self)}

@@ -249,6 +249,14 @@ class Effect:
     draw_span_main: float = DRAW_SPAN
     threshold_log_tol: float = 1e-3  # bisection width (log of the main parameter) of a threshold
     needs_uniform: bool = False  # a sampled filter: every interval within 0.1 % of the median
+
+    @property
+    def per_sample(self) -> bool:
+        """Judged on the record's own readings — an output stage acts on each reading (a
+        quantizer's lattice, a clip), which block means of them do not keep (the means of
+        readings on a lattice of step q lie on one of step q/m): a long record's block means are
+        not searched for it."""
+        return self.stage == "output"
     catch_all: bool = False  # absorbs any slow structure: named on the evidence of its signature only
     #: ids of effects this one holds as a special case (a two-node transient holds a one-node one):
     #: named over them when what it adds passes the size gate in-sample
@@ -329,6 +337,13 @@ class Effect:
         if missing:
             raise ValueError(f"effect {self.id!r}: missing parameter(s) {missing}; required: {list(names)}")
         return {q.name: q.check(p[q.name], self.id) for q in (self.params_for(kind) if kind else self.params)}
+
+    def time_shifted(self, p: Mapping[str, float], shift_s: float) -> Params:
+        """The parameters that give the same term on a record starting ``shift_s`` seconds
+        earlier (a term timed from the record's first sample — a line's phase — fitted on a
+        window of a longer record, moved to the whole record). Default: the same values (terms
+        on absolute time or on the time since power-on; a drift's level is the bias's)."""
+        return dict(p)
 
     def free_params(self, p: Mapping[str, float], kind: str, rec: Record,
                     rows: np.ndarray | None = None) -> tuple[Param, ...]:

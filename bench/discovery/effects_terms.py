@@ -377,6 +377,11 @@ class SinusoidalInterference(Effect):
     def term(self, p, rec):
         return p["amplitude"] * np.sin(2 * np.pi * p["freq_hz"] * (rec.t_s - rec.t_s[0]) + p["phase_rad"])
 
+    def time_shifted(self, p, shift_s):
+        """The phase at a start ``shift_s`` earlier: advanced by 2π·f·shift (wrapped to ±π)."""
+        ph = p["phase_rad"] + 2 * np.pi * p["freq_hz"] * float(shift_s)
+        return {**p, "phase_rad": float((ph + np.pi) % (2 * np.pi) - np.pi)}
+
     def term_gradient(self, p, rec, names):
         tt = rec.t_s - rec.t_s[0]
         ph = 2 * np.pi * p["freq_hz"] * tt + p["phase_rad"]

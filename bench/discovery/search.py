@@ -114,6 +114,9 @@ class Evaluator:
         #: the starting model's effects: the user's, kept as given even where the record cannot
         #: resolve them; an effect the search adds must be resolvable (``Effect.identifiable``)
         self.given: frozenset[str] = frozenset()
+        #: effects estimated on the whole record (a long record's block means) that a search on
+        #: a window of it keeps as they are: not refitted, not dropped or swapped
+        self.fixed: frozenset[str] = frozenset()
         self._hist_p: dict[str, float] = {}
 
     # ---- the criterion ------------------------------------------------------------------
@@ -138,7 +141,11 @@ class Evaluator:
             z = x[~np.isnan(x)][1:]  # the first innovation measures the level (below)
             return model, student_m2ll(z / math.sqrt(var), np.full(z.size, var))
         white = float(model.residual_sd()) or float(np.nanstd(x)) or 1e-300
+        if all(e.id in self.fixed for e, _ in procs):  # the white level alone, the processes as given
+            white = sto.exact_white(x, rec.dt_s, procs, white)
         for k, (eff, p) in enumerate(procs):
+            if eff.id in self.fixed:
+                continue
             others = procs[:k] + procs[k + 1:]
             ml, white, _ = sto.exact_fit(x, rec.dt_s, eff, p, white, others)
             # kept inside the range the record allows (``Effect.fit_params``: any sensor grade)
@@ -174,7 +181,7 @@ class Evaluator:
         if key in self.cache:
             return self.cache[key]
         try:
-            fitted = calibrate(model, self.rec)
+            fitted = calibrate(model, self.rec, frozen=self.fixed)
             fitted, m2ll = self.fit_noise(fitted)
         except (ValueError, np.linalg.LinAlgError, FloatingPointError):
             return None
@@ -336,6 +343,8 @@ def search(ev: Evaluator, start: Scored, *, max_effects: int, only: Sequence[str
                         ev.cache[a.key] = a
             children += adds
             for eid in s.model.effect_ids:
+                if eid in ev.fixed:
+                    continue
                 d = ev.dropped(s, eid)
                 if d is None:
                     continue

@@ -228,6 +228,25 @@ def exact_fit(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_
     return {k: float(np.exp(v)) for k, v in zip(names, res.x[1:])}, float(np.exp(res.x[0])), float(res.fun)
 
 
+def exact_white(r: np.ndarray, dt_s: float, known: Processes, white_sd: float) -> float:
+    """The white level at the exact maximum likelihood of ``r`` with the ``known`` processes at
+    their values (a bounded scalar search on its log, a decade either side of ``white_sd`` and
+    down to a thousandth of the sd of ``r``)."""
+    r = np.asarray(r, dtype=float)
+    rate = 1.0 / float(dt_s)
+    sd = float(np.nanstd(r)) or 1e-300
+    lo = math.log(max(min(float(white_sd) / 10, sd * 1e-3), 1e-300))
+    hi = math.log(max(float(white_sd) * 10, sd))
+
+    def nll_at(lw: float) -> float:
+        try:
+            return whiten.exact_nll(r, rate, math.exp(2 * lw), list(known))
+        except (ValueError, OverflowError):
+            return math.inf
+    res = optimize.minimize_scalar(nll_at, bounds=(lo, hi), method="bounded", options={"xatol": 1e-4})
+    return float(math.exp(res.x))
+
+
 def censored_params(r: np.ndarray, seen: np.ndarray, dt_s: float, effect: Effect, params: Params,
                     white_sd: float, kind: str, known: Processes = ()) -> Params:
     """``effect``'s parameters by the exact likelihood of ``r`` with the samples not ``seen``

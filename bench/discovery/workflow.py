@@ -80,9 +80,16 @@ class Step:
     localization: Localization
     residual_before: np.ndarray = field(repr=False)
     residual_after: np.ndarray = field(repr=False)
+    #: the times of the residuals (the record the search saw: a long record's block means or window)
+    t_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    #: how the search saw the record ("" the record itself; "block means"; "full-rate window")
+    scale: str = ""
+    #: the model's noise rms on that record after the step (the plots' white floor)
+    noise_floor: float = math.nan
 
     def to_dict(self) -> dict:
-        return {"id": self.effect_id, "params": self.params, "params_std": self.params_std,
+        return {"id": self.effect_id, "scale": self.scale or "record", "params": self.params,
+                "params_std": self.params_std,
                 "gap_before": self.gap_before.rms_ratio, "gap_after": self.gap_after.rms_ratio,
                 "p_value": self.p_value, "rms_before": self.rms_before, "rms_after": self.rms_after,
                 "gap_table": {"before": self.gap_before.to_dict(), "after": self.gap_after.to_dict()},
@@ -237,6 +244,81 @@ def _naming(parent: Scored, chosen: str | None, result: SearchResult, ties_of: d
                         "deviance saved exceeds its penalty χ²_k.isf(α / (C·M))"))
 
 
+#: Searches at most, each with the outliers its predecessor's final residual showed set aside.
+OUTLIER_PASSES = 3
+
+#: The longest record the likelihood search runs on: a longer one is searched twice — as block
+#: means (this many; its slow effects) and on a full-rate window of this many samples from its
+#: middle (its fast effects). A compute budget, not a threshold: each model weighed costs a few
+#: hundred Kalman passes of O(n), and the search weighs tens of models; at 2¹³ points a 3-h
+#: record at 100 Hz (1.08 M samples) is weighed in under a minute on 2 cores.
+SEARCH_POINTS = 8192
+
+
+@dataclass(frozen=True)
+class _Stage:
+    """One search: the record it weighed models on, its evaluator, its result, its false-name
+    rate and how it saw the record (for the report)."""
+
+    rec: Record
+    ev: Evaluator
+    result: SearchResult
+    alpha: float
+    scale: str = ""
+
+
+def _search(rec: Record, model: Model, *, alpha: float, max_effects: int, only: tuple[str, ...] | None,
+            seen: np.ndarray | None, fixed: frozenset[str], say: Callable[[str], None], map_fn: MapFn,
+            scale: str = "") -> _Stage:
+    kind = model.base.kind
+    cands = [e.id for e in applicable(model, rec) if (only is None or e.id in only)
+             and not (scale == "block means" and e.per_sample)]
+    ev = Evaluator(rec, kind, n_candidates=len(cands) or 1, alpha=alpha, seen=seen)
+    ev.given = frozenset(model.effect_ids)
+    ev.fixed = fixed
+    start = ev.score(model)
+    if start is None:
+        raise ValueError("the starting model cannot be calibrated on this record (bias or scale factor at the edge "
+                         "of the kind's range): wrong unit, sensor kind or input column?")
+    say(f"{scale + ': ' if scale else ''}{len(cands)} candidates; criterion of the starting model "
+        f"{start.criterion:.2f}")
+    result = search(ev, start, max_effects=max_effects, only=tuple(cands), say=say, map_fn=map_fn)
+    return _Stage(rec, ev, result, alpha, scale)
+
+
+def _told(stage: _Stage, told: Model, seed: int,
+          say: Callable[[str], None]) -> tuple[list[Step], list[str], dict[str, Tie]]:
+    """The stage's path told as steps (each effect its best model holds, when it came in, with
+    its values in ``told``, the final model: the gap before and after on the stage's record),
+    the effects withdrawn on the way, and the ties."""
+    result, work, alpha = stage.result, stage.rec, stage.alpha
+    final = result.best.model
+    values = dict(told.effects)
+    ties_of = {t.effect_id: t for t in ties(result, alpha)}
+    path = result.best.path()
+    steps: list[Step] = []
+    withdrawn: list[str] = []
+    gap_cur, rms_cur, _, r_cur = gap_of(path[0].model, work, seed)
+    for prev, cur in zip(path, path[1:]):
+        g_prev, rms_prev, r_prev = gap_cur, rms_cur, r_cur
+        gap_cur, rms_cur, floor, r_cur = gap_of(cur.model, work, seed)
+        gone = [e for e in prev.model.effect_ids if e not in cur.model.effect_ids]
+        new = [e for e in cur.model.effect_ids if e not in prev.model.effect_ids]
+        for g in gone:
+            withdrawn.append(f"{g}: {cur.move} lowered the criterion by {prev.criterion - cur.criterion:.1f}")
+        for eid in new:
+            if eid not in final.effect_ids:
+                continue
+            at = final.effect_ids.index(eid)
+            naming = _naming(prev, eid, result, ties_of, work, alpha)
+            steps.append(Step(eid, dict(values.get(eid, final.effects[at][1])), params_std(final, work, at),
+                              _gain_p(prev, cur, eid, work), g_prev, gap_cur, rms_prev, rms_cur, naming,
+                              _structure(prev.model, work, r_prev), r_prev, r_cur, work.t_s, stage.scale, floor))
+            say(f"named {eid}{' (' + stage.scale + ')' if stage.scale else ''}, "
+                f"rms {_fmt(rms_prev)} → {_fmt(rms_cur)}")
+    return steps, withdrawn, ties_of
+
+
 def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 0.05, seed: int = 0,
              only: tuple[str, ...] | None = None, progress: Callable[[str], None] | None = None,
              map_fn: MapFn = map) -> Discovery:
@@ -244,7 +326,13 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
     final model may add to the starting one; ``alpha``: the false-name rate; ``seed``: the
     model-noise realisations of the gap table; ``only``: the catalogue ids the search may add;
     ``progress``: called with a short message as the search goes; ``map_fn``: how one model's
-    add moves are mapped (an executor's ``map``: the same answer)."""
+    add moves are mapped (an executor's ``map``: the same answer).
+
+    A record longer than twice :data:`SEARCH_POINTS` is searched on two scales, each at half
+    the false-name rate (their union at ``alpha``): its block means (the slow effects, the
+    per-reading ones left out) and then a full-rate window from its middle with the slow model
+    held as it is (the fast effects: a quantizer, a line, the sensor's own output filter as a
+    short Gauss–Markov)."""
     if isinstance(max_effects, bool) or not isinstance(max_effects, int) or not 0 <= max_effects <= len(CATALOGUE):
         raise ValueError(f"max_effects = {max_effects!r}; allowed: an integer in [0, {len(CATALOGUE)}]")
     if not 0 < alpha < 1:
@@ -261,63 +349,99 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         notes.append(f"{', '.join(skipped)} not tried: the sample intervals vary by more than 0.1 % of the median "
                      "(a sampled filter needs a uniform record; resample to try them)")
     first = calibrate(model, rec)
-    first_prediction = first.predict(rec)
-    contamination = find_outliers(rec.y - first_prediction)
+    prediction = first.predict(rec)
+    contamination = find_outliers(rec.y - prediction)
+    # the outliers are sought on the residual of the model searched with them set aside, until
+    # that model's residual shows the same ones: a strong term not yet in the starting model
+    # (a line) hides spikes in the scale of its own second difference
+    for k in range(OUTLIER_PASSES):
+        if contamination.count:
+            say(contamination.describe())
+        work = cleaned(rec, contamination, prediction)
+        seen = ~contamination.outlier
+        stages, final = _scales(work, model, seen, alpha=alpha, max_effects=max_effects, only=only, say=say,
+                                map_fn=map_fn)
+        prediction = final.predict(rec)
+        again = find_outliers(rec.y - prediction)
+        if np.array_equal(again.outlier, contamination.outlier) or k == OUTLIER_PASSES - 1:
+            break
+        contamination = again
+        say("the final model's residual shows other outliers: searched again with them set aside")
     if contamination.count:
         notes.append(contamination.describe())
-        say(contamination.describe())
-    work = cleaned(rec, contamination, first_prediction)
-    cands = [e.id for e in applicable(model, work) if only is None or e.id in only]
-    ev = Evaluator(work, kind, n_candidates=len(cands) or 1, alpha=alpha, seen=~contamination.outlier)
-    ev.given = frozenset(model.effect_ids)
-    start = ev.score(model)
-    if start is None:
-        raise ValueError("the starting model cannot be calibrated on this record (bias or scale factor at the edge "
-                         "of the kind's range): wrong unit, sensor kind or input column?")
-    say(f"{len(cands)} candidates; criterion of the starting model {start.criterion:.2f}")
-    result = search(ev, start, max_effects=max_effects, only=only, say=say, map_fn=map_fn)
-    final = result.best.model
-    ties_of = {t.effect_id: t for t in ties(result, alpha)}
-    path = result.best.path()
+    if len(stages) == 1:
+        start_model = stages[0].result.start.model
+    else:
+        start_model = first
+        coarse, fine = stages
+        notes.append(f"{work.n} samples: searched as {coarse.rec.n} block means of {work.n // coarse.rec.n} samples "
+                     f"(slow effects) and on the full-rate window {fine.rec.t_s[0]:.6g}–{fine.rec.t_s[-1]:.6g} s "
+                     f"(fast effects: quantization, lines, short correlation), each at half the false-name rate; "
+                     "a fast effect that comes and goes outside that window is not seen")
     steps: list[Step] = []
     withdrawn: list[str] = []
-    g0, rms0, floor, r0 = gap_of(start.model, work, seed)
-    gap_cur, rms_cur, r_cur = g0, rms0, r0  # and floor: the last model's on the path, the final one's
-    for prev, cur in zip(path, path[1:]):
-        g_prev, rms_prev, r_prev = gap_cur, rms_cur, r_cur
-        gap_cur, rms_cur, floor, r_cur = gap_of(cur.model, work, seed)
-        gone = [e for e in prev.model.effect_ids if e not in cur.model.effect_ids]
-        new = [e for e in cur.model.effect_ids if e not in prev.model.effect_ids]
-        for g in gone:
-            withdrawn.append(f"{g}: {cur.move} lowered the criterion by {prev.criterion - cur.criterion:.1f}")
-        for eid in new:
-            if eid not in final.effect_ids:
-                continue
-            at = final.effect_ids.index(eid)
-            naming = _naming(prev, eid, result, ties_of, work, alpha)
-            steps.append(Step(eid, dict(final.effects[at][1]), params_std(final, work, at),
-                              _gain_p(prev, cur, eid, work), g_prev, gap_cur, rms_prev, rms_cur, naming,
-                              _structure(prev.model, work, r_prev), r_prev, r_cur))
-            say(f"named {eid}, rms {_fmt(rms_prev)} → {_fmt(rms_cur)}")
-    for t in ties_of.values():
+    ties_all: dict[str, Tie] = {}
+    for st in stages:
+        s_steps, s_withdrawn, s_ties = _told(st, final, seed, say)
+        steps += s_steps
+        withdrawn += s_withdrawn
+        ties_all.update(s_ties)
+    for t in ties_all.values():
         alts = ", ".join(f"{a or 'nothing'} (weight {w:.2f})" for a, w in t.alternatives)
         notes.append(f"{t.effect_id} (weight {t.weight:.2f}) is within the criterion's noise of {alts}"
                      + "".join(f"; {separating_experiment(t.effect_id, a)}" for a, _ in t.alternatives if a))
-    for e, p in final.entries():
-        for name in at_edge(e, p, work, kind):
-            notes.append(f"{e.id}.{name} = {p[name]:.4g} is at the edge of the range the record allows: the "
-                         "record cannot bound it (a longer or faster record would)")
-    final_naming = _naming(result.best, None, result, ties_of, work, alpha)
-    nu = heavy_tails(final, work, ev.seen, alpha)
+    for st in stages:
+        best = st.result.best.model
+        for e, p in best.entries():
+            if e.id in st.ev.fixed or e.id not in final.effect_ids:
+                continue
+            for name in at_edge(e, p, st.rec, kind):
+                notes.append(f"{e.id}.{name} = {p[name]:.4g} is at the edge of the range the record allows: the "
+                             "record cannot bound it (a longer or faster record would)")
+    last = stages[-1]
+    final_naming = _naming(last.result.best, None, last.result, ties_all, last.rec, last.alpha)
+    nu = heavy_tails(last.result.best.model, last.rec, last.ev.seen, alpha)
     if math.isfinite(nu):
         notes.append(f"the observation noise is heavy-tailed (Student-t, ν = {nu:.3g}): the criterion weighs the "
                      "innovations by that density, and single samples are judged on its tail")
-    unexplained = unexplained_structure(work, r_cur, final, alpha=alpha, nu=nu)
+    g0, rms0, _, r0 = gap_of(start_model, work, seed)
+    g1, rms1, floor, r1 = gap_of(final, work, seed)
+    unexplained = unexplained_structure(work, r1, final, alpha=alpha, nu=nu)
     if unexplained:
         say(f"unexplained structure: {len(unexplained)} finding(s)")
-    say(f"done: {result.evaluations} models weighed in {result.rounds} rounds")
-    return Discovery(start.model, final, tuple(steps), unexplained, g0, gap_cur, rms0, rms_cur, floor,
-                     _structure(final, work, r_cur), final_naming, r0, r_cur, tuple(notes), tuple(withdrawn), ())
+    say(f"done: {sum(st.result.evaluations for st in stages)} models weighed in "
+        f"{sum(st.result.rounds for st in stages)} rounds")
+    return Discovery(start_model, final, tuple(steps), unexplained, g0, g1, rms0, rms1, floor,
+                     _structure(final, work, r1), final_naming, r0, r1, tuple(notes), tuple(withdrawn), ())
+
+
+def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_effects: int,
+            only: tuple[str, ...] | None, say: Callable[[str], None], map_fn: MapFn) -> tuple[list[_Stage], Model]:
+    """The searches of :func:`discover` and the model they make: on a record of up to twice
+    :data:`SEARCH_POINTS` one search; on a longer one two — the block means' model, then the
+    window's additions after it, with the window's white level (per sample)."""
+    if work.n <= 2 * SEARCH_POINTS:
+        stage = _search(work, model, alpha=alpha, max_effects=max_effects, only=only, seen=seen,
+                        fixed=frozenset(), say=say, map_fn=map_fn)
+        return [stage], stage.result.best.model
+    m = -(-work.n // SEARCH_POINTS)
+    coarse = _search(work.block_means(m), model, alpha=alpha / 2, max_effects=max_effects, only=only, seen=None,
+                     fixed=frozenset(), say=say, map_fn=map_fn, scale="block means")
+    slow = coarse.result.best.model
+    a = (work.n - SEARCH_POINTS) // 2
+    window = work.slice(slice(a, a + SEARCH_POINTS))
+    # the readings themselves (a quantizer's lattice is in them), the slow model held as it is
+    fast = _search(window, slow, alpha=alpha / 2, max_effects=max_effects, only=only, seen=seen[a:a + SEARCH_POINTS],
+                   fixed=frozenset(slow.effect_ids), say=say, map_fn=map_fn, scale="full-rate window")
+    got = fast.result.best.model
+    # the whole record's bias and scale factor, the window's white level (per sample), and the
+    # window's terms refined on the whole record (a line's frequency to the record's resolution)
+    shift = float(window.t_s[0] - work.t_s[0])
+    added = tuple((eid, CATALOGUE[eid].time_shifted(p, shift)) for eid, p in got.effects if eid not in slow.effect_ids)
+    final = Model(slow.base, slow.effects + added).with_base(noise_sd=float(got.base.noise_sd))
+    if added:
+        final = calibrate(final, work, noise=False, frozen=frozenset(slow.effect_ids))
+    return [coarse, fast], final
 
 
 def heavy_tails(model: Model, rec: Record, seen: np.ndarray | None, alpha: float) -> float:

@@ -128,9 +128,12 @@ def write_discovery_report(result, rec, out_dir, label: str) -> Path:
              f"{html.escape(', '.join(e for e, _ in result.initial_model.effects) or 'none')}.</p>",
              f"<p>Residual rms {_fmt(result.rms_initial)} against a noise floor of {_fmt(m0.noise_sd)}.</p>"]
     for i, s in enumerate(result.steps, 1):
-        model_sd = result.final_model.base.noise_sd
-        img = _plots(rec.t_s, s.residual_before, s.residual_after, model_sd, rec.rate_hz,
-                     out / f"discovery_step{i}.png", f"step {i}")
+        # a long record's step is told on what its search saw (block means or a window)
+        t = s.t_s if s.t_s.size == s.residual_after.size else rec.t_s
+        model_sd = s.noise_floor if np.isfinite(s.noise_floor) else result.final_model.base.noise_sd
+        rate = (t.size - 1) / (t[-1] - t[0])
+        img = _plots(t, s.residual_before, s.residual_after, model_sd, rate,
+                     out / f"discovery_step{i}.png", f"step {i}" + (f" ({s.scale})" if s.scale else ""))
         ps = ", ".join(f"{html.escape(k)} = {_fmt(v)} ± {_fmt(s.params_std.get(k))}" for k, v in s.params.items())
         parts += [f"<h2>Step {i}: {html.escape(s.effect_id)}</h2>",
                   "<h3>b. Where the residual departs from the floor</h3>",
