@@ -1,16 +1,16 @@
-# Quick start: `make demo` and `make test` — each works on a fresh machine with only python3.
+# Quick start: `make demo`, `make test` and `make docs` — each works on a fresh machine with only python3.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 STORE  ?= bench-data/bench.sqlite
 
-.PHONY: demo test lint bench-speed clean postgresql chromium
+.PHONY: demo test docs lint bench-speed clean postgresql chromium
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,dev]'
+	$(BIN)/python -m pip install --quiet -e '.[test,dev,docs]'
 	touch $(STAMP)
 
 ## demo: factory acceptance of a simulated accelerometer and a simulated FOG on the simulated
@@ -26,9 +26,15 @@ demo: $(STAMP)
 postgresql:
 	$(PYTHON) scripts/pg install
 
-## test: the whole suite (hypothesis derandomised in CI), one worker per core (pytest-xdist)
+## test: the whole suite (hypothesis derandomised in CI), one worker per core (pytest-xdist); it
+## includes tests/test_docs.py: the strict docs build and the README's and tutorial's runnable commands
 test: $(STAMP) postgresql chromium
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
+
+## docs: the documentation site from docs/ into build/site/, strictly (a broken link or anchor
+## fails); the CLI reference page is generated from the parsers at build time (scripts/cli_reference.py)
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 ## lint: the linter, the type checker and the import-layer contracts on the whole tree
 lint: $(STAMP)

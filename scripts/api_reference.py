@@ -4,7 +4,9 @@
 
 The page is generated, never edited by hand: ``tests/test_docs_api.py`` fails when it and
 the code disagree. Each package's names come from its ``__all__``, each summary from the first
-line of the name's docstring.
+line of the name's docstring. Each package's section links to its page under
+``docs/reference/api/``, which the docs site renders from the docstrings at build time
+(mkdocstrings).
 """
 
 from __future__ import annotations
@@ -39,7 +41,9 @@ def _kind(obj: object) -> str:
 
 def _section(module_name: str) -> list[str]:
     module = importlib.import_module(module_name)
-    lines = [f"## `{module_name}`", "", _summary(module), "", "| name | kind | what it is |", "|---|---|---|"]
+    lines = [f"## `{module_name}`", "", _summary(module), "",
+             f"Every name with its whole docstring: [`{module_name}`](reference/api/{module_name}.md).", "",
+             "| name | kind | what it is |", "|---|---|---|"]
     for name in sorted(getattr(module, "__all__", ()), key=str.lower):
         obj = getattr(module, name)
         summary = _summary(obj) if _kind(obj) != "constant" else ""

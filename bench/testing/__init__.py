@@ -19,6 +19,10 @@ Steps and procedures
     :mod:`bench.testing.steps` — a bare station with a manual clock and a counting step, to run
     the framework without instruments. :mod:`bench.testing.specs` — a short acceptance spec of
     the simulated accelerometer.
+Documentation
+    :mod:`bench.testing.docs` — the Markdown pages' fenced blocks, the runnable shell blocks
+    (marked ``<!-- runnable -->``) run as a reader would, every ``bench`` command line shown,
+    the links into the repository.
 Operator page
     :mod:`bench.testing.operator_station` — the operator station served on loopback for a
     browser (chromium and Playwright, the ``test`` extra, drive it).

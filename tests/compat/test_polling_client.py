@@ -3,8 +3,8 @@ as a LabVIEW status loop or PyMeasure's HP34401A "stored readings" pattern does 
 ``bench sim serve --pace 20``: the world follows the wall clock twenty times faster, so the
 readings accumulate while the client sleeps and the loop ends.  On the default, event-driven
 server the same loop would never end: time moves only when a client waits (a blocking query
-such as ``*OPC?`` or ``FETC?``), so ``DATA:POIN?`` stays ``+0`` (README, "The simulated world"
-in docs/ARCHITECTURE.md).
+such as ``*OPC?`` or ``FETC?``), so ``DATA:POIN?`` stays ``+0`` ("The simulated world"
+in docs/ARCHITECTURE.md; "Simulated time" in docs/howto/real-instruments.md).
 
 Paced replies depend on when they are asked, so nothing here is timed beyond generous bounds:
 the counts a loop sees only have to grow, and end at the count asked for."""

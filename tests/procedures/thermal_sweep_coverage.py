@@ -8,7 +8,7 @@ coefficients is its b₁ and s₁ exactly), swept −20…+50 °C at 5 set point
 verification through the chamber's Modbus TCP and the instruments' SCPI. Printed: the
 fraction of units whose bias TC and SF TC lie within 2σ (the step's stated uncertainty) of
 the truth, and the compensated bias residual over its stated noise. Not a test (≈ 10 s of
-wall per unit); its figures are quoted in the README.
+wall per unit); its figures are quoted in docs/RESULTS.md.
 """
 
 from __future__ import annotations

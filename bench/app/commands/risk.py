@@ -83,7 +83,7 @@ def _pct(p) -> str:
 
 
 def risk_lines(report) -> list[str]:
-    """The risk table as printed (and pasted into the README)."""
+    """The risk table as printed (and pasted into docs/RESULTS.md)."""
     lines = [f"{report.model} ({report.spec}): {report.units} units, seed {report.root_seed}",
              f"yield {_pct(report.yield_)}" + (f"; {report.aborted} aborted" if report.aborted else ""),
              f"{'measurement':<20} {'nonconf.':>8} {'FA':>4} {'FR':>4} {'err sd':>10} "
