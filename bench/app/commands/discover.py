@@ -219,7 +219,8 @@ def summary(result, label: str, model_file: Path, report: Path) -> str:
     for i, s in enumerate(result.steps, 1):
         ps = ", ".join(f"{k} = {v:.4g} ± {s.params_std.get(k, float('nan')):.2g}" for k, v in s.params.items())
         pv = f"p ≤ {s.p_value:.0e}" if s.p_value <= 1e-300 else f"p = {s.p_value:.3g}"  # floored, no underflow
-        lines.append(f"{i}. {s.effect_id} ({ps}); {pv}; rms {s.rms_before:.4g} → {s.rms_after:.4g}")
+        seen_on = f" [{s.scale}]" if s.scale else ""  # a long record: block means or the full-rate window
+        lines.append(f"{i}. {s.effect_id}{seen_on} ({ps}); {pv}; rms {s.rms_before:.4g} → {s.rms_after:.4g}")
         for sep in s.naming.separating:
             lines.append(f"   look-alike within the criterion's noise — {sep}")
     for u in result.unexplained:

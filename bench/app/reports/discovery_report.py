@@ -135,7 +135,8 @@ def write_discovery_report(result, rec, out_dir, label: str) -> Path:
         img = _plots(t, s.residual_before, s.residual_after, model_sd, rate,
                      out / f"discovery_step{i}.png", f"step {i}" + (f" ({s.scale})" if s.scale else ""))
         ps = ", ".join(f"{html.escape(k)} = {_fmt(v)} ± {_fmt(s.params_std.get(k))}" for k, v in s.params.items())
-        parts += [f"<h2>Step {i}: {html.escape(s.effect_id)}</h2>",
+        seen_on = f" (on the record's {html.escape(s.scale)})" if s.scale else ""
+        parts += [f"<h2>Step {i}: {html.escape(s.effect_id)}{seen_on}</h2>",
                   "<h3>b. Where the residual departs from the floor</h3>",
                   "<ul>" + "".join(f"<li>{html.escape(d)}</li>" for d in s.localization.descriptions())
                   + "</ul>" if s.localization.descriptions() else "<p>no single test flags it on its own.</p>",

@@ -236,6 +236,16 @@ def _hysteresis(p: Params, rec: Record) -> np.ndarray:
     return p["half_gap"] * avg[: rec.n]
 
 
+def _lagged(p: Params, rec: Record) -> np.ndarray:
+    """The element's temperature: the logged one through a first-order lag (RK4 sub-steps,
+    :func:`_first_order_ode`), from rest at the first reading; bias and gain follow it."""
+    d = _first_order_ode(rec.column("temp"), rec.dt_s, 1.0 / (2 * np.pi * p["lag_s"]), False) - T_REF_C
+    out = p["coef_per_c"] * d
+    if rec.logged("input"):
+        out = out + p["sf_coef_per_c"] * d * rec.column("input")
+    return out
+
+
 ADDITIVE: dict[str, Callable[[Params, Record], np.ndarray]] = {
     "warmup_exponential": _warmup,
     "linear_drift": _drift,
@@ -252,6 +262,7 @@ ADDITIVE: dict[str, Callable[[Params, Record], np.ndarray]] = {
     "thermal_two_node": _two_node,
     "temperature_rate": lambda p, rec: p["coef_per_c_per_s"] * np.gradient(rec.column("temp"), rec.t_s),
     "thermal_hysteresis": _hysteresis,
+    "thermal_lag": _lagged,
 }
 
 
