@@ -338,6 +338,12 @@ class Effect:
             raise ValueError(f"effect {self.id!r}: missing parameter(s) {missing}; required: {list(names)}")
         return {q.name: q.check(p[q.name], self.id) for q in (self.params_for(kind) if kind else self.params)}
 
+    def aliases(self, p: Mapping[str, float], block_rate_hz: float, rate_hz: float) -> list[Params]:
+        """The parameters whose term, seen through block means at ``block_rate_hz`` of a record
+        at ``rate_hz``, could have made what a fit on the means found at ``p`` (a line above the
+        means' Nyquist frequency folds into their band): ``p`` first. Default: ``p`` alone."""
+        return [dict(p)]
+
     def time_shifted(self, p: Mapping[str, float], shift_s: float) -> Params:
         """The parameters that give the same term on a record starting ``shift_s`` seconds
         earlier (a term timed from the record's first sample — a line's phase — fitted on a

@@ -142,6 +142,41 @@ class StateBlock:
         return int(self.h.size)
 
 
+def block_mean_deficit(block: StateBlock, m: int) -> float:
+    """The white variance the means of ``m`` consecutive samples of ``block``'s process need
+    beside it for "the same process at the means' rate plus white noise" to hold them exactly.
+
+    Each independent first-order state x_k = φ·x_{k−1} + e_k (var e = q; σ² = q/(1 − φ²)): its
+    block means have, at lags j ≥ 1, the autocovariance σ²·S²·φ^{1−m}/m² · φ^{mj} (S = Σ_{i<m} φ^i)
+    — a first-order process at the means' rate (φ^m) of variance s² = σ²S²φ^{1−m}/m² — but at
+    lag 0 only V₀ = σ²·(m + 2·Σ_{d<m}(m − d)φ^d)/m², less than s² (by about σ²·x/3 for a block
+    x = m·dt/τ short of the correlation time). A walk (φ = 1): the first differences of its means
+    have lag-1 covariance q·(m² − 1)/(6m), which a walk at the means' rate plus white noise holds
+    only with that much less white. The sum over the states (their output weights squared) is
+    what the means' white level must at least hold; a fit on block means whose white level is
+    below it has bent its processes to stand in for the shortfall. Non-diagonal blocks (white
+    angle noise's moving average) need none: their means are white."""
+    if not m > 1:
+        return 0.0
+    f, q, h = block.f, block.q, block.h
+    if np.any(f - np.diag(np.diag(f))):
+        return 0.0
+    out = 0.0
+    d = np.arange(1, m)
+    for phi, qi, hi in zip(np.diag(f), np.diag(q), h):
+        if qi <= 0 or hi == 0:
+            continue
+        if phi >= 1.0:
+            out += hi * hi * qi * (m * m - 1) / (6.0 * m)
+            continue
+        var = qi / (1.0 - phi * phi)
+        ssum = (1.0 - phi ** m) / (1.0 - phi)
+        s2 = ssum * ssum * phi ** (1 - m) / (m * m)
+        v0 = (m + 2.0 * float(np.sum((m - d) * phi ** d))) / (m * m)
+        out += hi * hi * var * max(s2 - v0, 0.0)
+    return out
+
+
 @dataclass(frozen=True)
 class ComponentEstimate:
     """A fitted spectral component as the effect's parameters ± std (unclipped); the held-out

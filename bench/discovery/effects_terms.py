@@ -377,6 +377,14 @@ class SinusoidalInterference(Effect):
     def term(self, p, rec):
         return p["amplitude"] * np.sin(2 * np.pi * p["freq_hz"] * (rec.t_s - rec.t_s[0]) + p["phase_rad"])
 
+    def aliases(self, p, block_rate_hz, rate_hz):
+        """Every frequency |f + k·f_b| below the record's Nyquist frequency (``p``'s first): block
+        means fold a line of any of them onto f."""
+        f0, fb = float(p["freq_hz"]), float(block_rate_hz)
+        k = int(math.ceil(0.5 * rate_hz / fb)) + 1
+        fs = sorted({abs(f0 + j * fb) for j in range(-k, k + 1)} - {f0})
+        return [dict(p)] + [{**p, "freq_hz": f} for f in fs if 0 < f < 0.5 * rate_hz]
+
     def time_shifted(self, p, shift_s):
         """The phase at a start ``shift_s`` earlier: advanced by 2π·f·shift (wrapped to ±π)."""
         ph = p["phase_rad"] + 2 * np.pi * p["freq_hz"] * float(shift_s)

@@ -30,6 +30,11 @@ class Segment:
                 f"({self.z_mean:+.1f} σ of a mean), rms {self.rms_ratio:.2f}× the floor")
 
 
+#: Spectral findings told one by one in the descriptions (the strongest); the rest as a count and
+#: a span — a floor that is coloured, not white, flags hundreds of bins.
+SHOWN_BANDS = 6
+
+
 @dataclass(frozen=True)
 class Band:
     """Frequencies whose PSD exceeds the white floor: ``kind`` is "line" or "band"."""
@@ -120,7 +125,13 @@ class Localization:
         if self.cusum_p < self.alpha:
             out.append(f"cumulative sum departs from a zero-mean record (CUSUM p = {self.cusum_p:.2g})")
         out += [j.describe() for j in self.jumps]
-        out += [b.describe() for b in self.bands]
+        bands = sorted(self.bands, key=lambda b: -b.peak_ratio)  # the strongest first, a few by name
+        out += [b.describe() for b in bands[:SHOWN_BANDS]]
+        if len(bands) > SHOWN_BANDS:
+            rest = bands[SHOWN_BANDS:]
+            out.append(f"… and {len(rest)} more spectral lines or bands above the white floor (from "
+                       f"{min(b.f_low_hz for b in rest):.4g} Hz to {max(b.f_high_hz for b in rest):.4g} Hz, up to "
+                       f"{max(b.peak_ratio for b in rest):.3g}×): a coloured floor rather than lines")
         out += [t.describe() for t in self.taus]
         out += [c.describe() for c in self.correlations]
         return out

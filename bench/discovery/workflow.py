@@ -41,7 +41,7 @@ from bench.discovery.criterion import n_free, penalty
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import HistogramEffect, at_edge
-from bench.discovery.effects_noise import StochasticEffect
+from bench.discovery.effects_noise import StochasticEffect, block_mean_deficit
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import localize, unexplained_structure
@@ -286,11 +286,12 @@ def _search(rec: Record, model: Model, *, alpha: float, max_effects: int, only: 
     return _Stage(rec, ev, result, alpha, scale)
 
 
-def _told(stage: _Stage, told: Model, seed: int,
+def _told(stage: _Stage, told: Model, decided: dict[str, _Stage], seed: int,
           say: Callable[[str], None]) -> tuple[list[Step], list[str], dict[str, Tie]]:
     """The stage's path told as steps (each effect its best model holds, when it came in, with
-    its values in ``told``, the final model: the gap before and after on the stage's record),
-    the effects withdrawn on the way, and the ties."""
+    its values in ``told``, the final model, and their standard errors from the search that set
+    them, ``decided``: the gap before and after on the stage's record), the effects withdrawn on
+    the way, and the ties."""
     result, work, alpha = stage.result, stage.rec, stage.alpha
     final = result.best.model
     values = dict(told.effects)
@@ -311,7 +312,10 @@ def _told(stage: _Stage, told: Model, seed: int,
                 continue
             at = final.effect_ids.index(eid)
             naming = _naming(prev, eid, result, ties_of, work, alpha)
-            steps.append(Step(eid, dict(values.get(eid, final.effects[at][1])), params_std(final, work, at),
+            by = decided.get(eid, stage)
+            std = params_std(by.result.best.model, by.rec, by.result.best.model.effect_ids.index(eid)) \
+                if eid in by.result.best.model.effect_ids else params_std(final, work, at)
+            steps.append(Step(eid, dict(values.get(eid, final.effects[at][1])), std,
                               _gain_p(prev, cur, eid, work), g_prev, gap_cur, rms_prev, rms_cur, naming,
                               _structure(prev.model, work, r_prev), r_prev, r_cur, work.t_s, stage.scale, floor))
             say(f"named {eid}{' (' + stage.scale + ')' if stage.scale else ''}, "
@@ -378,11 +382,14 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                      f"(slow effects) and on the full-rate window {fine.rec.t_s[0]:.6g}–{fine.rec.t_s[-1]:.6g} s "
                      f"(fast effects: quantization, lines, short correlation), each at half the false-name rate; "
                      "a fast effect that comes and goes outside that window is not seen")
+    # each effect's values come from the last search that moved them (a long record's window
+    # refits what the block means could not resolve)
+    decided = {eid: st for st in stages for eid in st.result.best.model.effect_ids if eid not in st.ev.fixed}
     steps: list[Step] = []
     withdrawn: list[str] = []
     ties_all: dict[str, Tie] = {}
     for st in stages:
-        s_steps, s_withdrawn, s_ties = _told(st, final, seed, say)
+        s_steps, s_withdrawn, s_ties = _told(st, final, decided, seed, say)
         steps += s_steps
         withdrawn += s_withdrawn
         ties_all.update(s_ties)
@@ -390,12 +397,9 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         alts = ", ".join(f"{a or 'nothing'} (weight {w:.2f})" for a, w in t.alternatives)
         notes.append(f"{t.effect_id} (weight {t.weight:.2f}) is within the criterion's noise of {alts}"
                      + "".join(f"; {separating_experiment(t.effect_id, a)}" for a, _ in t.alternatives if a))
-    for st in stages:
-        best = st.result.best.model
-        for e, p in best.entries():
-            if e.id in st.ev.fixed or e.id not in final.effect_ids:
-                continue
-            for name in at_edge(e, p, st.rec, kind):
+    for e, p in final.entries():  # each judged on the record whose search set its values
+        if e.id in decided:
+            for name in at_edge(e, p, decided[e.id].rec, kind):
                 notes.append(f"{e.id}.{name} = {p[name]:.4g} is at the edge of the range the record allows: the "
                              "record cannot bound it (a longer or faster record would)")
     last = stages[-1]
@@ -430,18 +434,56 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
     slow = coarse.result.best.model
     a = (work.n - SEARCH_POINTS) // 2
     window = work.slice(slice(a, a + SEARCH_POINTS))
-    # the readings themselves (a quantizer's lattice is in them), the slow model held as it is
+    # the readings themselves (a quantizer's lattice is in them), the slow model held as it is —
+    # but for what the means cannot hold, which the window refits: an effect at the edge of the
+    # range the means allow, and, where the means' white level is below what their processes need
+    # beside them (``block_mean_deficit``: a process bent to stand in for the lag-0 shortfall — a
+    # Gauss–Markov of a few blocks' τ, the sensor's own output filter seen from afar), every
+    # process the window can resolve
+    kind = model.base.kind
+    slow, folded = _unfolded(slow, window, coarse.rec.rate_hz, work.rate_hz)
+    released = folded | {e.id for e, p in slow.entries() if at_edge(e, p, coarse.rec, kind)}
+    procs = slow.stochastic_effects()
+    need = sum(block_mean_deficit(e.state_space(p, work.dt_s, work.n), m) for e, p in procs)
+    if need > float(slow.base.noise_sd) ** 2:
+        released |= {e.id for e, p in procs if e.identifiable(p, window)}
+    held = frozenset(slow.effect_ids) - released
     fast = _search(window, slow, alpha=alpha / 2, max_effects=max_effects, only=only, seen=seen[a:a + SEARCH_POINTS],
-                   fixed=frozenset(slow.effect_ids), say=say, map_fn=map_fn, scale="full-rate window")
+                   fixed=held, say=say, map_fn=map_fn, scale="full-rate window")
     got = fast.result.best.model
     # the whole record's bias and scale factor, the window's white level (per sample), and the
     # window's terms refined on the whole record (a line's frequency to the record's resolution)
     shift = float(window.t_s[0] - work.t_s[0])
-    added = tuple((eid, CATALOGUE[eid].time_shifted(p, shift)) for eid, p in got.effects if eid not in slow.effect_ids)
-    final = Model(slow.base, slow.effects + added).with_base(noise_sd=float(got.base.noise_sd))
-    if added:
-        final = calibrate(final, work, noise=False, frozen=frozenset(slow.effect_ids))
+    kept = tuple((eid, p) for eid, p in slow.effects if eid in held)
+    added = tuple((eid, CATALOGUE[eid].time_shifted(p, shift)) for eid, p in got.effects if eid not in held)
+    final = Model(slow.base, kept + added).with_base(noise_sd=float(got.base.noise_sd))
+    if any(CATALOGUE[eid].waveform for eid, _ in added):
+        final = calibrate(final, work, noise=False, frozen=held)
     return [coarse, fast], final
+
+
+def _unfolded(slow: Model, window: Record, block_rate_hz: float, rate_hz: float) -> tuple[Model, set[str]]:
+    """``slow`` with each term the block means may have seen folded (``Effect.aliases``: a line
+    above their Nyquist frequency) at the alias that fits the full-rate ``window`` best (each
+    refitted there, the rest held; least squares), and the ids of those terms."""
+    folded: set[str] = set()
+    for i, (e, p) in enumerate(slow.entries()):
+        cands = e.aliases(p, block_rate_hz, rate_hz)
+        if len(cands) < 2:
+            continue
+        others = frozenset(slow.effect_ids) - {e.id}
+        best, best_sse = slow, math.inf
+        for c in cands:
+            try:
+                fit = calibrate(slow.with_params(i, c), window, noise=False, frozen=others)
+            except ValueError:
+                continue
+            sse = float(np.sum((window.y - fit.predict(window)) ** 2))
+            if sse < best_sse:
+                best, best_sse = slow.with_params(i, dict(fit.effects[i][1])), sse
+        slow = best
+        folded.add(e.id)
+    return slow, folded
 
 
 def heavy_tails(model: Model, rec: Record, seen: np.ndarray | None, alpha: float) -> float:
