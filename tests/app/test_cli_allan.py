@@ -151,3 +151,40 @@ def test_robust_flag_and_checks_in_json_table_and_report(tmp_path, capsys):
     assert "robust: outliers replaced" in text and "| agrees (slope -0.4" in text
     page = (out / "allan_report.html").read_text(encoding="utf-8")
     assert "Checks against the curve" in page and "robust estimate" in page
+
+
+def _white_and_gm(path, seed, n=30_000):
+    """White rate noise N = 0.01 °/√s and a Gauss–Markov of 0.05 °/s, τ 20 s, at 100 Hz (drawn here)."""
+    rng = np.random.default_rng([31, seed])
+    phi = math.exp(-1 / (FS_HZ * 20.0))
+    gm = np.zeros(n)
+    e = rng.normal(size=n) * 0.05 * math.sqrt(1 - phi * phi)
+    for k in range(1, n):
+        gm[k] = phi * gm[k - 1] + e[k]
+    return write_csv(path, n=n, value=N_DEG_PER_SQRT_S * math.sqrt(FS_HZ) * rng.normal(size=n) + gm)
+
+
+def test_the_noise_model_gives_n_and_reproduces_the_curve(tmp_path, capsys):
+    """``--model``: bench discover's estimator on three records of white noise and a Gauss–Markov
+    (long enough for its two scales): N within 3 % of the truth, the Gauss–Markov named, and the
+    model's Allan deviation inside the data's 99 % interval at ≥ 90 % of the τ over the records;
+    the progress of the estimator goes to stderr beside the JSON."""
+    inside = total = 0
+    for seed in range(3):
+        csv_path = _white_and_gm(tmp_path / f"gm{seed}.csv", seed)
+        assert main(["analyze", "allan", "--input", csv_path, "--unit", "dps", "--model", "--confidence", "0.99",
+                     "--json"]) == 0
+        captured = capsys.readouterr()
+        nm = json.loads(captured.out)["noise_model"]
+        assert "discover:" in captured.err
+        n_model = nm["terms"]["N"]["value"] / 60.0  # deg/sqrt(h) → deg/sqrt(s)
+        assert abs(n_model / N_DEG_PER_SQRT_S - 1) < 0.03, nm["terms"]["N"]
+        assert "gauss_markov" in [e["id"] for e in nm["effects"]], nm["effects"]
+        inside, total = inside + nm["within"], total + nm["taus"]
+    assert inside >= 0.9 * total, (inside, total)
+
+
+def test_the_noise_model_needs_a_sensor_unit(tmp_path, capsys):
+    csv_path = write_csv(tmp_path / "static.csv")
+    assert main(["analyze", "allan", "--input", csv_path, "--unit", "none", "--model"]) == 2
+    assert "--model needs --unit" in capsys.readouterr().err

@@ -173,3 +173,27 @@ def test_candidates_fitted_in_worker_processes_give_the_same_discovery():
     with pytest.raises(ValueError, match="--jobs 0"):
         with candidate_map(0):
             pass
+
+
+def test_a_long_csv_is_searched_on_two_scales_and_says_so(tmp_path, capsys):
+    """A record longer than twice the search budget through the command a user types: each
+    effect says the scale that named it (JSON and report), a note names the window, the progress
+    goes to stderr beside the JSON on stdout, and the report plots each step on what its search
+    saw."""
+    n = 20_000
+    rng = np.random.default_rng(4)
+    t = np.arange(n) / 100.0
+    sd = DEFAULT_NOISE_SD["gyro"]
+    y = 0.05 + sd * rng.standard_normal(n) + 2 * sd * np.exp(-t / 40.0)
+    path = tmp_path / "long.csv"
+    np.savetxt(path, np.column_stack([t, y]), delimiter=",", header="t,y", comments="")
+    out = tmp_path / "out"
+    rc = main(["discover", "--measured", str(path), "--sensor", "gyro", "--out", str(out), "--json", "--jobs", "1"])
+    captured = capsys.readouterr()
+    assert rc == 0
+    doc = json.loads(captured.out)
+    assert [(e["id"], e["scale"]) for e in doc["effects"]] == [("warmup_exponential", "block means")], doc["notes"]
+    assert any("block means" in note and "full-rate window" in note for note in doc["notes"])
+    assert "block means" in captured.err and "full-rate window" in captured.err  # progress, both scales
+    html = (out / "discovery_report.html").read_text()
+    assert "on the record's block means" in html and (out / "discovery_step1.png").stat().st_size > 1000

@@ -6,19 +6,39 @@ the mean interval — a dropped sample or a restart is refused, not bridged).  P
 table (or ``--json``: ``AllanResult.to_dict()`` plus ``source``) and with ``--report DIR``
 writes the HTML report there.  ``--robust`` replaces isolated outliers first (at
 ``--false-alarm`` per record); the table, JSON and report show each term's check against
-the curve and whether the estimate is robust.  Bad input raises ``ValueError``; ``bench`` prints it as
-one line ``bench: error: …`` and exits 2.
+the curve and whether the estimate is robust.  ``--model`` also fits the record's noise model
+with ``bench discover``'s estimator (its one criterion over white noise, a quantizer, Gauss–Markov,
+flicker, rate random walk, angle noise and a ramp), gives N, B, K, Q and R from it and checks the
+model's Allan deviation against the data's interval at every τ (``noise_model`` in the JSON).
+Bad input raises ``ValueError``; ``bench`` prints it as one line ``bench: error: …`` and exits 2.
 """
 
 from __future__ import annotations
 
 import json
+import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from bench.analysis.allan import DEFAULT_FALSE_ALARM, ONE_SIGMA, TERMS, overlapping_adev
+from bench.analysis.allan._units import RATE_UNITS, term_units
 from bench.app.commands.analyze import read_csv_columns
+from bench.discovery.data import Record
+from bench.discovery.effects import CATALOGUE
+from bench.discovery.model import Model, base_model
+from bench.discovery.whiten import model_avar
+from bench.discovery.workflow import discover
+
+#: What the noise model may hold: the catalogue's random processes (IEEE 952's flicker B, rate
+#: random walk K and angle noise Q, and the Gauss–Markov it has no term for), a quantizer of the
+#: readings and a ramp (R); white noise (N) is the model's floor.
+NOISE_MODEL_IDS = ("gauss_markov", "flicker_noise", "rate_random_walk", "angle_quantization", "quantization",
+                   "linear_drift")
+#: IEEE 952 term ← (catalogue effect, its parameter); N is the white floor's
+MODEL_TERMS = {"Q": ("angle_quantization", "q_angle"), "B": ("flicker_noise", "b"),
+               "K": ("rate_random_walk", "k_per_rs"), "R": ("linear_drift", "slope_per_s")}
 
 SAMPLING_TOLERANCE = 0.01
 
@@ -41,6 +61,10 @@ def register_analysis(kinds) -> None:
                    help="replace isolated outliers (spikes) before the Allan variance; says how many")
     p.add_argument("--false-alarm", type=float, default=DEFAULT_FALSE_ALARM,
                    help="probability that the outlier screen flags a clean record at all [0.01]")
+    p.add_argument("--model", action="store_true",
+                   help="also fit the noise model with bench discover's estimator and check its curve (needs --unit)")
+    p.add_argument("--alpha", type=float, default=0.05,
+                   help="with --model: false-name rate of the noise model's processes [0.05]")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     p.add_argument("--report", metavar="DIR", default=None, help="write the HTML report into DIR")
     p.set_defaults(func=analyze_allan_csv)
@@ -102,6 +126,56 @@ def _table(result) -> str:
     return "\n".join(lines)
 
 
+def noise_model(t: np.ndarray, y: np.ndarray, rate: float, unit: str | None, result, alpha: float,
+                progress=None) -> dict:
+    """The record's noise model by ``bench discover``'s estimator (module docstring): its effects,
+    the IEEE 952 terms it implies beside the slope fit's (each in the term's customary unit), its
+    Allan deviation at the result's τ (the record's unit) and where that leaves the data's
+    interval."""
+    kind, to_base, _ = RATE_UNITS[unit]
+    if kind == "generic":
+        raise ValueError("--model needs --unit (dps, dph, radps, g, mg, ug or mps2): the noise model is a gyro's "
+                         "or an accelerometer's")
+    if result.data_type != "rate":
+        raise ValueError("--model needs --data-type rate: the noise model is fitted to rate samples")
+    only = tuple(e for e in NOISE_MODEL_IDS if kind in CATALOGUE[e].kinds)
+    d = discover(Record(t_s=t - t[0], y=np.asarray(y, float) * to_base), Model(base_model(kind)), only=only,
+                 max_effects=len(only), alpha=alpha, progress=progress)
+    m = d.final_model
+    params = dict(m.effects)
+    white = float(m.residual_sd())  # per sample, the readings' rounding included: white in the Allan curve
+    ramp = float(params.get("linear_drift", {}).get("slope_per_s", 0.0))
+    avar = model_avar(result.tau_s, rate, t.size, white, m.stochastic_effects(), ramp)
+    adev = np.sqrt(avar) / to_base
+    lo, hi = np.asarray(result.adev_ci, float).T
+    outside = [(float(tau), "above" if a > h else "below") for tau, a, lo_, h in zip(result.tau_s, adev, lo, hi)
+               if not lo_ <= a <= h]
+    values = {"N": white / math.sqrt(rate)}
+    values.update({k: abs(float(params[e][q])) for k, (e, q) in MODEL_TERMS.items() if e in params})
+    terms = {}
+    for name, v in values.items():
+        u = term_units(unit, name)
+        c = result.coefficients.get(name)
+        terms[name] = {"label": u.label, "value": v * u.factor / to_base, "unit": u.unit,
+                       "slope_fit": None if c is None else c.fit, "slope_fit_std": None if c is None else c.fit_std}
+    return {"effects": [{"id": s.effect_id, "params": s.params, "params_std": s.params_std} for s in d.steps],
+            "terms": terms, "adev": adev.tolist(), "within": len(result.tau_s) - len(outside),
+            "taus": len(result.tau_s), "outside": outside, "notes": list(d.notes)}
+
+
+def _model_table(nm: dict) -> str:
+    lines = ["noise model (bench discover's estimator): " + (", ".join(
+        f"{e['id']} (" + ", ".join(f"{k}={v:.4g}" for k, v in e["params"].items()) + ")" for e in nm["effects"])
+        or "white noise only")]
+    for name, tm in nm["terms"].items():
+        fit = "not fitted" if tm["slope_fit"] is None else f"{tm['slope_fit']:.4g}"
+        lines.append(f"  {name} {tm['label']:<26} {tm['value']:>12.4g} {tm['unit']:<14} (slope fit: {fit})")
+    where = "; ".join(f"{tau:.4g} s ({side})" for tau, side in nm["outside"])
+    lines.append(f"  its Allan deviation lies within the data's interval at {nm['within']} of {nm['taus']} τ"
+                 + (f"; outside at {where}" if where else ""))
+    return "\n".join(lines)
+
+
 def analyze_allan_csv(args) -> int:
     """Handler of ``bench analyze allan``."""
     t, y = read_csv_columns(args.input, args.time_col, args.value_col)
@@ -112,6 +186,12 @@ def analyze_allan_csv(args) -> int:
                               points_per_decade=args.points_per_decade, unit=unit,
                               confidence=args.confidence, terms=terms, robust=args.robust,
                               false_alarm=args.false_alarm)
+    nm = None
+    if args.model:
+        if not 0 < args.alpha < 1:
+            raise ValueError(f"--alpha {args.alpha!r}; allowed: (0, 1)")
+        nm = noise_model(t, y, rate, unit, result, args.alpha,
+                         progress=lambda msg: print(f"discover: {msg}", file=sys.stderr, flush=True))
     report = None
     if args.report is not None:
         # lazy: matplotlib only when --report asks for a report (every `bench analyze` imports this module)
@@ -121,6 +201,8 @@ def analyze_allan_csv(args) -> int:
     if args.json:
         doc = result.to_dict()
         doc["source"] = args.input
+        if nm is not None:
+            doc["noise_model"] = nm
         if report is not None:
             doc["report"] = str(report)
         print(json.dumps(doc, indent=2, allow_nan=False))
@@ -128,6 +210,8 @@ def analyze_allan_csv(args) -> int:
         print(f"Allan deviation of {args.input}: {t.size} samples at {rate:.6g} Hz "
               f"({(t[-1] - t[0]):.6g} s, {args.data_type})")
         print(_table(result))
+        if nm is not None:
+            print(_model_table(nm))
         for note in result.notes:
             print(f"note: {note}")
         if report is not None:
