@@ -167,22 +167,6 @@ def noise_sd_of(rec: Record, kind: str) -> float:
     return s if s > 0 else DEFAULT_NOISE_SD[kind]
 
 
-def legendre_columns(x: np.ndarray, degrees: Sequence[int]) -> np.ndarray:
-    """Legendre polynomials of ``x`` mapped onto [−1, 1], one column per degree (a smooth
-    function of a logged column, for a relaxed basis)."""
-    x = np.asarray(x, float)
-    span = float(np.ptp(x))
-    u = (2 * (x - float(np.min(x))) / span - 1) if span > 0 else np.zeros_like(x)
-    return np.column_stack([np.polynomial.legendre.Legendre.basis(d)(u) for d in degrees])
-
-
-def input_shape_basis(rec: Record) -> tuple[np.ndarray, str]:
-    """A smooth function of the input beyond K2/K3/asymmetry: Legendre degrees 2-6 and |input|."""
-    u = rec.column("input")
-    return (np.column_stack([legendre_columns(u, (2, 3, 4, 5, 6)), np.abs(u)]),
-            "polynomials of the input of degree 2-6 and |input|")
-
-
 def reference_input(rec: Record) -> np.ndarray:
     """The applied input, or zeros when none was logged (the output then is bias alone)."""
     return rec.input.copy() if rec.input is not None else np.zeros(rec.n)
@@ -212,23 +196,16 @@ class Effect:
     whose residual floor the gap then simulates), ``mean_depends_on_noise`` (an output transform
     whose mean reading depends on the noise before it: calibration fits the noise sd with it).
 
-    Hooks the naming step asks: ``applies_to`` (does the record carry what it needs: its logged
-    columns, varying), ``big_enough`` (the size gate; ``size_noise_sd`` the sd it is judged
-    against), ``identifiable`` (can the record resolve these parameters at all), ``shape_inside``
-    (do they make a shape the effect makes),
-    ``colours_residual`` (once in the model, does it leave residual colour no random-process
-    χ² null describes: a process is then judged against the model's noise simulated through
-    it) with ``null_holds`` (is that simulation valid on the record), ``localized`` (a
-    deterministic explanation placed in time by what the record logs — a jump, a warm-up
-    when power-on is logged: tested before any catch-all),
-    ``catch_all`` (a process or trend that can absorb any slow structure: named only on the
-    evidence of its own signature), ``relaxed_basis`` (columns of a freer version of its shape:
-    if they still explain the residual once it is in the model, its shape does not hold and it
-    is not named). The fit asks ``free_params`` (which parameters a fit moves; a jump's unused
-    slots stay put) and ``coordinate_scale`` (the optimiser's scale of a parameter on rec); the
-    workflow ``searched_starts`` (a fresh search of the residual for an effect already named — a
-    jump's change points — that a refit from its values cannot make) and ``holding`` (this effect
-    alone standing for itself and a shape it nests named beside it)."""
+    Hooks the search and the criterion ask: ``applies_to`` (does the record carry what it needs:
+    its logged columns, varying), ``identifiable`` (can the record resolve these parameters at
+    all: a fit it cannot is no model), ``search_cells`` (how many positions its fit searched —
+    the criterion's multiplicity M), ``prefixes`` (shorter versions of a fit, each scored: a
+    jump's fewer change points), ``fit_params`` (the range a fit may move in on a record, any
+    sensor grade), ``per_sample`` (judged on each reading: not on a long record's block means),
+    ``aliases`` (what a fit on block means could stand for) and ``time_shifted`` (the same term
+    on a record starting earlier). The fit asks ``free_params`` (which parameters a fit moves; a
+    jump's unused slots stay put) and ``coordinate_scale`` (the optimiser's scale of a parameter
+    on rec)."""
 
     id: str = ""
     description: str = ""
@@ -257,16 +234,6 @@ class Effect:
         readings on a lattice of step q lie on one of step q/m): a long record's block means are
         not searched for it."""
         return self.stage == "output"
-    catch_all: bool = False  # absorbs any slow structure: named on the evidence of its signature only
-    #: ids of effects this one holds as a special case (a two-node transient holds a one-node one):
-    #: named over them when what it adds passes the size gate in-sample
-    nests: tuple[str, ...] = ()
-    #: ids of effects that may stand for a part of this shape once it also holds a nested one
-    #: named beside it (a two-node's slow node beyond the record is a drift): ``holding``
-    stands_beside: tuple[str, ...] = ()
-    #: its shape is a few level changes at searched times — what a random process's wander also
-    #: makes: once the names are in, the workflow weighs it against a process alone
-    level_steps: bool = False
 
     def __init__(self, look_alikes: Sequence[Effect] = ()) -> None:
         """``look_alikes``: the competitor effects themselves (the catalogue passes them); an
@@ -368,17 +335,6 @@ class Effect:
         """True when rec carries what the effect needs: every logged column of ``inputs`` present
         and varying (an input held constant is one with the bias; ``t``/``t_on`` always are)."""
         return all(n in ("t", "t_on") or rec.varies(n) for n in self.inputs)
-
-    def localized(self, rec: Record) -> bool:
-        """True when rec places this effect in time by what it logs (a jump; a warm-up once
-        power-on is logged): such an explanation is tested before any catch-all."""
-        return False
-
-    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
-        """(columns, what they are) of a freer version of this effect's shape at ``p`` on rec —
-        what would still explain the residual if its shape were wrong (harmonics and amplitude
-        changes of a line, higher powers of its input) — or None when it has none."""
-        return None
 
     def check_inputs(self, rec: Record) -> None:
         for name in self.inputs:
@@ -629,51 +585,9 @@ class Effect:
         """True when snr(p) >= MIN_SNR."""
         return self.snr(p, rec, noise_sd) >= MIN_SNR
 
-    # ---- the naming step's questions --------------------------------------------------
-    def size_noise_sd(self, p: Params, reading_sd: float) -> float:
-        """The white sd this effect's size is judged against when a reading of the model without
-        it has sd ``reading_sd`` (default: that sd; a quantizer's rounding is part of it)."""
-        return reading_sd
-
-    def big_enough(self, p: Mapping[str, float], rec: Record, noise_sd: float, *, kind: str,
-                   bias: float | None = None, scale_factor: float = 1.0) -> tuple[bool, float]:
-        """(main parameter beyond the minimum size?, that size): the plain snr of ``p`` at least
-        MIN_SNR on rec against white ``noise_sd``. An output-stage effect (clipping, rounding)
-        acts on the output itself: given the calibrated ``bias`` and ``scale_factor`` its size is
-        judged on ``bias + SF·input``, not on the unit-gain reference — a limit just under the
-        input's peak clips every reading of a unit with a positive bias. A size that cannot be
-        judged (``min_effect`` raising) is not big enough."""
-        if bias is not None and self.stage == "output" and rec.input is not None:
-            rec = rec.replace(input=bias + scale_factor * rec.input)
-        try:
-            thr = self.min_effect(rec, noise_sd, kind=kind, params=p, distinct=False)
-        except (ValueError, ZeroDivisionError, FloatingPointError):
-            return False, float("nan")  # fail closed
-        v = abs(float(p[self.main_param]))
-        return (v >= thr if self.increasing else v <= thr), float(thr)
-
     def identifiable(self, p: Mapping[str, float], rec: Record) -> bool:
         """False when rec cannot resolve these parameters (e.g. a correlation time beyond a fifth
         of the record), however significant the fit: it is then not named."""
-        return True
-
-    def shape_inside(self, p: Mapping[str, float]) -> bool:
-        """False when the fitted parameters make a shape the effect does not (a parameter the
-        range stopped where the shape turns into another): not named alone — beside a shape it
-        nests, the pair is judged merged (``workflow.renested``)."""
-        return True
-
-    def colours_residual(self, p: Mapping[str, float], noise_sd: float) -> bool:
-        """True when, in a model with white noise ``noise_sd``, this effect leaves residual colour
-        that follows the signal (a coarse quantizer's rounding): a spectral-shape test of a random
-        process then has no χ² reference: a stochastic candidate is judged against the model's
-        own noise through it (when ``null_holds``), otherwise not tried."""
-        return False
-
-    def null_holds(self, p: Mapping[str, float], rec: Record) -> bool:
-        """Whether, on ``rec``, the model's own noise passed through this effect reproduces what
-        it does to the readings (a quantizer: the readings sit on its lattice) — the condition
-        for a simulated null beside an effect that ``colours_residual``."""
         return True
 
     # ---- drawing ----------------------------------------------------------------------
@@ -753,14 +667,6 @@ class Effect:
         r = np.asarray(residual, float) if rows is None else np.where(rows, residual, 0.0)
         return grid_starts(self, rec, r, kind or guess_kind(rec))
 
-    def searched_starts(self, p: Mapping[str, float], rec: Record, residual: np.ndarray, *, kind: str,
-                        rows: np.ndarray | None = None) -> list[Params]:
-        """Starts for this effect at ``p`` from a fresh search of ``residual`` (what the model
-        leaves without it) that a least-squares refit from ``p`` cannot make — a jump's time is
-        refined within its sample, never moved to another change point — with no more
-        parameters in use than ``p`` has; [] when its fit is no such search (default)."""
-        return []
-
     def searched(self, p: Mapping[str, float]) -> int:
         """How many of the free parameters at ``p`` a search over the whole record placed (a
         jump's times): a likelihood maximised over a location gains more than a parameter's
@@ -785,12 +691,6 @@ class Effect:
         ``p`` — the workflow tries the model with it in this one's place when a random process
         named after this one may hold what the richer shape's extra parameters took; [] by
         default."""
-        return []
-
-    def holding(self, p: Mapping[str, float], nested: str, q: Mapping[str, float], kind: str) -> list[Params]:
-        """Starts for this effect alone standing for itself at ``p`` and the effect ``nested``
-        (one of :attr:`nests`) at ``q`` named beside it — the workflow tries the model with the
-        pair merged (and with :attr:`stands_beside` for a part the pair took); [] by default."""
         return []
 
     def main_grid_range(self, rec: Record, kind: str) -> tuple[float, float]:

@@ -233,7 +233,6 @@ class StochasticEffect(Effect):
 
     stochastic = True
     waveform = False
-    catch_all = True  # a random process can absorb any slow structure: named on its signature's evidence
     #: log coordinates of its Whittle spectral component
     n_coords: int = 1
     #: its levels are not stationary (a walk): a finite record's levels periodogram departs from

@@ -93,7 +93,6 @@ class BiasJump(Effect):
         "gyro": _slots("deg/s", 1.0, 1e-6),
         "mhd": _slots("deg/s", 10.0, 1e-4),
     }
-    level_steps = True
 
     def term(self, p: Mapping[str, float], rec: Record) -> np.ndarray:
         out = np.zeros(rec.n)
@@ -126,9 +125,6 @@ class BiasJump(Effect):
                 q[f"size_{k}"], q[f"time_{k}_s"] = size, time
             out.append(q)
         return out
-
-    def localized(self, rec: Record) -> bool:
-        return True
 
     def free_params(self, p: Mapping[str, float], kind: str, rec: Record,
                     rows: np.ndarray | None = None) -> tuple[Param, ...]:
@@ -195,13 +191,6 @@ class BiasJump(Effect):
         with the base regressors; one start (the count is the search's)."""
         return self._starts(rec, residual, kind or "accelerometer", rows, MAX_JUMPS)
 
-    def searched_starts(self, p: Mapping[str, float], rec: Record, residual: np.ndarray, *, kind: str,
-                        rows: np.ndarray | None = None) -> list[Params]:
-        """The change points of ``residual`` again, at most as many as ``p`` has jumps: a jump
-        placed beside a wrong warm-up (at 840 s for a step at 876 s) stays where its time was
-        found once the right transient replaces the warm-up — its time moves within a sample."""
-        return self._starts(rec, residual, kind, rows, max(1, self.count(p)))
-
     def _starts(self, rec: Record, residual: np.ndarray, kind: str, rows: np.ndarray | None,
                 max_count: int) -> list[Params]:
         rows = np.ones(rec.n, bool) if rows is None else np.asarray(rows, bool)
@@ -228,10 +217,3 @@ class BiasJump(Effect):
             p["size_1"] = float(sd * 1e-3)
         return [p]
 
-    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
-        """The level in each of 16 equal segments: between jumps it must be constant."""
-        edges = np.linspace(0, rec.n, 17).astype(int)
-        cols = np.zeros((rec.n, 16))
-        for i in range(16):
-            cols[edges[i]:edges[i + 1], i] = 1.0
-        return cols, "the level of each sixteenth of the record"

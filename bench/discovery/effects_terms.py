@@ -15,7 +15,7 @@ from scipy.ndimage import median_filter
 from scipy.signal import lombscargle
 
 from bench.discovery.data import Record
-from bench.discovery.effects_base import Effect, Param, guess_kind, input_shape_basis, legendre_columns
+from bench.discovery.effects_base import Effect, Param, guess_kind
 from bench.discovery.effects_linalg import base_regressors, project_out
 
 #: Reference temperature of the temperature effects, degC: a model file's coefficients then
@@ -34,15 +34,6 @@ FOLD_LINES_RANKED = 8
 
 def _time_range(rec: Record, lo: float, hi: float, min_samples: float = 3.0, frac: float = 0.25):
     return max(lo, min_samples * rec.dt_s), max(min(hi, frac * rec.duration_s), max(lo, min_samples * rec.dt_s) * 1.01)
-
-
-def time_shape_basis(rec: Record, tau_s: float) -> tuple[np.ndarray, str]:
-    """A transient of other time constants (a quarter and four times tau_s) and slow structure
-    over the record (polynomials of time of degree 2-5): what a wrong start-up shape leaves."""
-    t = rec.column("t_on")
-    cols = np.column_stack([np.exp(-t / (tau_s / 4)), np.exp(-t / (4 * tau_s)),
-                            legendre_columns(rec.t_s, (2, 3, 4, 5))])
-    return cols, "exponentials of t_on at tau/4 and 4·tau and polynomials of time of degree 2-5"
 
 
 class WarmupExponential(Effect):
@@ -67,13 +58,6 @@ class WarmupExponential(Effect):
         "mhd": (Param("amplitude", "deg/s", -1.0, 1.0, linear=True, floor=1e-4),
                 Param("tau_s", "s", 0.1, 1e5, log=True)),
     }
-
-    def localized(self, rec):
-        """Placed in time once power-on is logged (``t_on``): tested before any catch-all."""
-        return rec.logged("t_on")
-
-    def relaxed_basis(self, p, rec):
-        return time_shape_basis(rec, p["tau_s"])
 
     def term(self, p, rec):
         return p["amplitude"] * np.exp(-rec.column("t_on") / p["tau_s"])
@@ -109,7 +93,6 @@ class LinearDrift(Effect):
     form = "y += slope_per_s · (t − t[0])"
     inputs = ("t",)
     main_param = "slope_per_s"
-    catch_all = True  # a straight line absorbs the slow part of any wander
     signature = ("time: a ramp across the whole record; Allan: +1 slope at the longest tau; spectrum: 1/f² at the "
                  "lowest bins")
     separating = {
@@ -121,9 +104,6 @@ class LinearDrift(Effect):
         "gyro": (Param("slope_per_s", "deg/s/s", -1e-4, 1e-4, linear=True, floor=1e-10),),
         "mhd": (Param("slope_per_s", "deg/s/s", -1e-3, 1e-3, linear=True, floor=1e-8),),
     }
-
-    def relaxed_basis(self, p, rec):
-        return legendre_columns(rec.t_s, (2, 3, 4, 5)), "polynomials of time of degree 2-5"
 
     def term(self, p, rec):
         return p["slope_per_s"] * (rec.t_s - rec.t_s[0])
@@ -145,9 +125,6 @@ class TemperatureBias(Effect):
         "mhd": (Param("coef_per_c", "deg/s/degC", -1e-2, 1e-2, linear=True, floor=1e-5),
                 Param("coef_per_c2", "deg/s/degC^2", -1e-3, 1e-3, linear=True)),
     }
-
-    def relaxed_basis(self, p, rec):
-        return legendre_columns(rec.column("temp"), (3, 4)), "temp³ and temp⁴ (Legendre)"
 
     def term(self, p, rec):
         dt = rec.column("temp") - T_REF_C
@@ -181,11 +158,6 @@ class TemperatureScaleFactor(Effect):
         "mhd": (Param("sf_coef_per_c", "1/degC", -1e-2, 1e-2, linear=True, floor=1e-6),),
     }
 
-    def relaxed_basis(self, p, rec):
-        dt = rec.column("temp") - T_REF_C
-        span = max(float(np.max(np.abs(dt))), 1.0)
-        return np.column_stack([rec.input * (dt / span) ** 2, rec.input ** 2 * dt / span]), "input·ΔT², input²·ΔT"
-
     def term(self, p, rec):
         return p["sf_coef_per_c"] * (rec.column("temp") - T_REF_C) * rec.input
 
@@ -206,9 +178,6 @@ class K2Nonlinearity(Effect):
         "mhd": (Param("k2_per_u", "1/(deg/s)", -1e-3, 1e-3, linear=True, floor=1e-8),),
     }
 
-    def relaxed_basis(self, p, rec):
-        return input_shape_basis(rec)
-
     def term(self, p, rec):
         return p["k2_per_u"] * rec.input ** 2
 
@@ -226,9 +195,6 @@ class K3Nonlinearity(Effect):
         "gyro": (Param("k3_per_u2", "1/(deg/s)^2", -1e-6, 1e-6, linear=True, floor=1e-14),),
         "mhd": (Param("k3_per_u2", "1/(deg/s)^2", -1e-5, 1e-5, linear=True, floor=1e-12),),
     }
-
-    def relaxed_basis(self, p, rec):
-        return input_shape_basis(rec)
 
     def term(self, p, rec):
         return p["k3_per_u2"] * rec.input ** 3
@@ -248,9 +214,6 @@ class ScaleFactorAsymmetry(Effect):
         "mhd": (Param("asymmetry", "1", -5e-2, 5e-2, linear=True, floor=1e-6),),
     }
 
-    def relaxed_basis(self, p, rec):
-        return input_shape_basis(rec)
-
     def term(self, p, rec):
         return 0.5 * p["asymmetry"] * np.abs(rec.input)
 
@@ -267,9 +230,6 @@ class Misalignment(Effect):
         "gyro": (Param("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
         "mhd": (Param("angle_rad", "rad", -5e-2, 5e-2, linear=True, floor=1e-6),),
     }
-
-    def relaxed_basis(self, p, rec):
-        return legendre_columns(rec.column("cross_input"), (2, 3)), "cross_input of degree (2, 3) (Legendre)"
 
     def term(self, p, rec):
         return p["angle_rad"] * rec.column("cross_input")
@@ -289,9 +249,6 @@ class GSensitivity(Effect):
         "gyro": (Param("coef_per_g", "deg/s/g", -0.03, 0.03, linear=True, floor=3e-7),),
     }
 
-    def relaxed_basis(self, p, rec):
-        return legendre_columns(rec.column("accel"), (2, 3)), "accel of degree (2, 3) (Legendre)"
-
     def term(self, p, rec):
         return p["coef_per_g"] * rec.column("accel")
 
@@ -309,9 +266,6 @@ class VibrationRectification(Effect):
         "accelerometer": (Param("coef_per_g2", "g/g^2", -1e-3, 1e-3, linear=True, floor=1e-8),),
         "gyro": (Param("coef_per_g2", "deg/s/g^2", -0.03, 0.03, linear=True, floor=3e-7),),
     }
-
-    def relaxed_basis(self, p, rec):
-        return legendre_columns(rec.column("vib"), (1, 3, 4)), "vib of degree (1, 3, 4) (Legendre)"
 
     def term(self, p, rec):
         return p["coef_per_g2"] * rec.column("vib") ** 2
@@ -360,19 +314,6 @@ class SinusoidalInterference(Effect):
         "mhd": (Param("amplitude", "deg/s", 0.0, 10.0, floor=1e-4), Param("freq_hz", "Hz", 1e-4, 1e5, log=True),
                 Param("phase_rad", "rad", -math.pi, math.pi)),
     }
-
-    def relaxed_basis(self, p, rec):
-        """Harmonics 2 and 3 of its line, and its amplitude free in each sixth of the record
-        (a square or triangle wave, a chirp, bursts)."""
-        tt = rec.t_s - rec.t_s[0]
-        ph = 2 * np.pi * p["freq_hz"] * tt + p["phase_rad"]
-        cols = [f(k * ph) for k in (2, 3) for f in (np.sin, np.cos)]
-        edges = np.linspace(0, rec.n, 7).astype(int)
-        for a, b in zip(edges[:-2], edges[1:-1]):  # five of six: the sixth is the line itself
-            m = np.zeros(rec.n)
-            m[a:b] = 1.0
-            cols += [m * np.sin(ph), m * np.cos(ph)]
-        return np.column_stack(cols), "its 2nd and 3rd harmonics and its amplitude in each sixth of the record"
 
     def term(self, p, rec):
         return p["amplitude"] * np.sin(2 * np.pi * p["freq_hz"] * (rec.t_s - rec.t_s[0]) + p["phase_rad"])

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from bench.discovery.data import Record
-from bench.discovery.effects_base import N_STARTS, Effect, Param, Params, guess_kind, legendre_columns
+from bench.discovery.effects_base import N_STARTS, Effect, Param, Params, guess_kind
 from bench.discovery.effects_linalg import base_regressors, orthonormal, project_out, project_q, vdot
 from bench.discovery.effects_terms import T_REF_C, WarmupExponential
 
@@ -61,12 +61,6 @@ class ThermalTwoNode(Effect):
     main_param = "amplitude"
     signature = ("time: a decaying offset whose log-time shape is wider than one exponential (two humps in the "
                  "derivative against log t_on); correlates with t_on")
-    # not a declared look-alike: a two-node transient holds every warm-up (fraction 0), so a
-    # warm-up's snr distinct from it would be nil; its own snr counts what one node cannot absorb
-    nests = ("warmup_exponential",)
-    # a slow node beyond the record (a straight line on it) is a drift: a two-node named for a
-    # drift and a transient's slow node, and a warm-up beside it for the fast one
-    stands_beside = ("linear_drift",)
     separating = {"warmup_exponential": "record until the slow node settles (several tau_slow_s), or log the "
                                         "case temperature: one exponential leaves a hump in log t_on"}
     ranges = {  # as warmup_exponential's amplitudes; time constants from seconds (die) to hours (mount)
@@ -94,9 +88,6 @@ class ThermalTwoNode(Effect):
              "tau_fast_s": lambda: a * (1 - f) * ef * t / tf ** 2, "tau_slow_s": lambda: a * f * es * t / ts ** 2}
         return [d[k]() for k in names]
 
-    def localized(self, rec: Record) -> bool:
-        return rec.logged("t_on")
-
     def free_params(self, p: Mapping[str, float], kind: str, rec: Record,
                     rows: np.ndarray | None = None) -> tuple[Param, ...]:
         """On ``rows`` that start after power-on, the fast node no faster than :func:`node_seen`
@@ -106,21 +97,6 @@ class ThermalTwoNode(Effect):
         if seen <= 0:
             return qs
         return tuple(replace(q, low=min(max(q.low, seen), q.high / 4)) if q.name == "tau_fast_s" else q for q in qs)
-
-    def holding(self, p: Mapping[str, float], nested: str, q: Mapping[str, float], kind: str) -> list[Params]:
-        """The two nodes from the three time constants of this transient and a warm-up beside it,
-        two by two (the faster of each pair the fast node), the amplitudes summed (clipped to the
-        range), half the step on each node: a drift named as a slow node beyond the record, and the
-        transient's fast node as a warm-up, start from the warm-up's and the fast node's constants."""
-        if nested != "warmup_exponential":
-            return []
-        amp = self.param("amplitude", kind)
-        a = float(np.clip(p["amplitude"] + q["amplitude"], amp.low, amp.high))
-        taus = sorted((float(q["tau_s"]), float(p["tau_fast_s"]), float(p["tau_slow_s"])))
-        tau = self.param("tau_fast_s", kind)
-        return [{"amplitude": a, "fraction_slow": 0.5, "tau_fast_s": float(np.clip(f, tau.low, tau.high)),
-                 "tau_slow_s": float(np.clip(s, tau.low, tau.high))}
-                for f, s in ((taus[0], taus[1]), (taus[0], taus[2]), (taus[1], taus[2])) if s > f]
 
     def reduced(self, p: Mapping[str, float], nested: str, kind: str) -> list[Params]:
         """A warm-up at either node (its share of the step, or the whole step) — the other node
@@ -142,12 +118,6 @@ class ThermalTwoNode(Effect):
         beside a wandering process was named two-node, its slow node 20 000 s on 3 000 s)."""
         t = rec.column("t_on")
         return p.get("tau_slow_s", 0.0) <= float(t.max() - t.min()) and p.get("tau_fast_s", 0.0) <= float(t.max())
-
-    def shape_inside(self, p: Mapping[str, float]) -> bool:
-        """The slow node's share inside its range (:data:`FRACTION_PINNED`): a share the range
-        stopped is a hump no two nodes make."""
-        lo, hi = FRACTION_RANGE
-        return lo + FRACTION_PINNED * (hi - lo) < p.get("fraction_slow", 0.5) < hi - FRACTION_PINNED * (hi - lo)
 
     def drawable_range(self, q: Param, rec: Record, kind: str) -> tuple[float, float]:
         if q.name == "fraction_slow":
@@ -173,12 +143,6 @@ class ThermalTwoNode(Effect):
         lo, hi = self.drawable_range(self.param("tau_fast_s", kind), rec, kind)
         fast = math.sqrt(lo * hi)
         return {"amplitude": 0.0, "fraction_slow": 0.5, "tau_fast_s": fast, "tau_slow_s": 10 * fast}
-
-    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
-        t = rec.column("t_on")
-        cols = np.column_stack([np.exp(-t / (p["tau_fast_s"] / 4)), np.exp(-t / (4 * p["tau_slow_s"])),
-                                legendre_columns(rec.t_s, (2, 3, 4, 5))])
-        return cols, "exponentials of t_on at tau_fast/4 and 4·tau_slow and polynomials of time of degree 2-5"
 
     def snr(self, p: Params, rec: Record, noise_sd: float) -> float:
         """The part of the transient one exponential cannot absorb (the best warm-up direction
@@ -263,12 +227,6 @@ class TemperatureRate(Effect):
 
     def term(self, p: Mapping[str, float], rec: Record) -> np.ndarray:
         return p["coef_per_c_per_s"] * temperature_rate(rec)
-
-    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
-        rate = temperature_rate(rec)
-        span = float(np.max(np.abs(rate))) or 1.0
-        x = rate / span
-        return np.column_stack([x * x, np.abs(x), x ** 3]), "(dT/dt)², |dT/dt|, (dT/dt)³"
 
 
 @numba.njit(cache=True)
@@ -519,15 +477,6 @@ class ThermalLag(Effect):
     def reference_params(self, rec: Record, kind: str) -> Params:
         lo, hi = self.drawable_range(self.param("lag_s", kind), rec, kind)
         return {"coef_per_c": 0.0, "sf_coef_per_c": 0.0, "lag_s": math.sqrt(lo * hi)}
-
-    def relaxed_basis(self, p: Mapping[str, float], rec: Record) -> tuple[np.ndarray, str] | None:
-        """The element temperature through lags of lag_s/4 and 4·lag_s (a second thermal node) and
-        its square (a curved coefficient)."""
-        lag = p["lag_s"]
-        te = element_temperature(rec, lag)
-        cols = np.column_stack([element_temperature(rec, lag / 4), element_temperature(rec, 4 * lag),
-                                legendre_columns(te, (2,))])
-        return cols, "the element temperature at lags lag_s/4 and 4·lag_s, and its square (Legendre)"
 
     # ---- fit starts -------------------------------------------------------------------
     def fit_starts(self, rec: Record, residual: np.ndarray, *, kind: str | None = None,

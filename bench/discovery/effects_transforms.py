@@ -11,7 +11,6 @@ samples (pole ``a = exp(−2π·f·dt)``, :func:`first_order_lowpass`), which ru
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
 import numpy as np
 from scipy.signal import lfilter
@@ -26,9 +25,7 @@ from bench.discovery.effects_base import (
     HistogramEffect,
     HistogramFit,
     Param,
-    Params,
     guess_kind,
-    input_shape_basis,
     noise_sd_of,
 )
 from bench.discovery.effects_noise import reaching
@@ -286,11 +283,6 @@ class DeadZone(Effect):
         "gyro": (Param("half_width", "deg/s", 1e-5, 1.0, log=True),),
     }
 
-    def relaxed_basis(self, p, rec):
-        if not rec.varies("input"):
-            return None
-        return input_shape_basis(rec)
-
     def transform_input(self, p, rec, u):
         return np.sign(u) * np.maximum(np.abs(u) - p["half_width"], 0.0)
 
@@ -318,11 +310,6 @@ class Saturation(Effect):
         "gyro": (Param("limit", "deg/s", 1.0, 2000.0, log=True),),
         "mhd": (Param("limit", "deg/s", 1.0, 2000.0, log=True),),
     }
-
-    def relaxed_basis(self, p, rec):
-        if not rec.varies("input"):
-            return None
-        return input_shape_basis(rec)
 
     def transform(self, p, rec, y):
         return np.clip(y, -p["limit"], p["limit"])
@@ -466,25 +453,3 @@ class Quantization(HistogramEffect):
         return HistogramFit({q.name: float(np.clip(fit.step, lo, hi))}, {q.name: fit.step_std},
                             score, float(fit.p_value))
 
-    def size_noise_sd(self, p: Params, reading_sd: float) -> float:
-        """The noise before the quantizer: the calibrated white level includes the steps' own
-        s²/12 (kept at least 5 % of it)."""
-        return math.sqrt(max(reading_sd ** 2 - p["step"] ** 2 / 12, (0.05 * reading_sd) ** 2))
-
-    def colours_residual(self, p: Mapping[str, float], noise_sd: float) -> bool:
-        """A step above :data:`COARSE_STEP_SD` white-noise sd: readings are Q(signal + noise) with
-        little dither, the residual around E[Q] is a deterministic function of the signal (its
-        colour follows the input's)."""
-        return p["step"] > COARSE_STEP_SD * float(noise_sd)
-
-    def null_holds(self, p: Mapping[str, float], rec: Record) -> bool:
-        """The readings sit on this lattice (``step·k``, no offset): the median distance to it
-        within :data:`ON_LATTICE_FRACTION` of a step. Readings on a shifted lattice (another
-        quantizer's offset, a step fitted a little off over many levels) leave a rounding error
-        the model's E[Q] does not follow, coloured with the signal: its noise through this
-        quantizer is then no null for a random process."""
-        s = float(p["step"])
-        if s <= 0:
-            return True
-        y = np.asarray(rec.y, float)
-        return float(np.median(np.abs(y - s * np.round(y / s)))) <= ON_LATTICE_FRACTION * s

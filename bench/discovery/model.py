@@ -267,12 +267,6 @@ class Model:
         """True when an effect of the model transforms the whole output (saturation, quantization)."""
         return any(e.stage == "output" for e, _ in self.entries())
 
-    def colours_residual(self) -> bool:
-        """True when an effect of the model leaves residual colour that follows the signal at its
-        white noise (``Effect.colours_residual``: a coarse quantizer's rounding) — no Gaussian
-        reference holds for the residual there."""
-        return any(e.colours_residual(p, self.base.noise_sd) for e, p in self.entries())
-
     def follows_input(self, rec: Record) -> np.ndarray:
         """Samples where the output follows a small change of the signal before the output stage:
         the secant gain of ``predict`` over one white-noise sd added to the bias is above one

@@ -245,46 +245,6 @@ def sequential_p_value(observed: float, draw: Callable[[int], np.ndarray], *, n_
     return (1.0 + exceed) / (n_rep + 1.0)
 
 
-def jackknife_ratio(num: np.ndarray, den: np.ndarray) -> float:
-    """Std error of Σnum/Σden by deleting one block at a time (num, den per block)."""
-    k = num.size
-    if k < 3:
-        return float("nan")
-    loo = (num.sum() - num) / np.where(den.sum() - den > 0, den.sum() - den, np.nan)
-    return float(np.sqrt((k - 1) / k * np.nansum((loo - np.nanmean(loo)) ** 2)))
-
-
-def score_difference(err_ref: np.ndarray, err_other: np.ndarray, err_base: np.ndarray, blocks: np.ndarray,
-                     n_blocks: int) -> tuple[float, float]:
-    """How far another candidate's held-out score falls below a reference's, and that
-    difference's paired standard error (block jackknife): ``(score_ref − score_other, se)``,
-    from the per-sample held-out squared errors of the two (``err_ref``, ``err_other``) and of
-    the nuisance alone (``err_base``, the reference's), ``blocks`` the block of each sample."""
-    d_num = np.bincount(blocks, err_other - err_ref, n_blocks)
-    den = np.bincount(blocks, err_base, n_blocks)
-    return float(d_num.sum() / den.sum()), jackknife_ratio(d_num, den)
-
-
-def benjamini_hochberg(p_values, alpha: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
-    """BH step-up: (rejected mask, adjusted p-values) in the input order."""
-    p = np.asarray(p_values, dtype=float)
-    if p.size == 0:
-        return np.zeros(0, bool), np.zeros(0)
-    if np.any((p < 0) | (p > 1)) or not 0 < alpha < 1:
-        raise ValueError(f"p-values must lie in [0, 1] and alpha = {alpha!r} in (0, 1)")
-    m = p.size
-    order = np.argsort(p)
-    ranked = p[order] * m / np.arange(1, m + 1)
-    adj_sorted = np.minimum.accumulate(ranked[::-1])[::-1].clip(max=1.0)
-    adj = np.empty(m)
-    adj[order] = adj_sorted
-    below = np.flatnonzero(p[order] <= alpha * np.arange(1, m + 1) / m)
-    reject = np.zeros(m, bool)
-    if below.size:
-        reject[order[: below[-1] + 1]] = True
-    return reject, adj
-
-
 @dataclass(frozen=True)
 class Gap:
     """How far a residual is from the model's noise: rms/σ (1 = at the floor), Allan distance

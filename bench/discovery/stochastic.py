@@ -129,18 +129,6 @@ def _judged_on_differences(known: Processes) -> bool:
     return any(eff.nonstationary for eff, _ in known)
 
 
-def white_nll(r: np.ndarray, dt_s: float, known: Processes = ()) -> float:
-    """Whittle negative log-likelihood of ``r`` under white noise of free variance plus the
-    model's known stochastic effects (the null of :func:`fit_stochastic`): two residuals'
-    values differ by half a likelihood-ratio statistic on the same footing as the
-    stochastic candidates' (used to weigh a deterministic fit against them)."""
-    r = np.asarray(r, dtype=float)
-    diff = _judged_on_differences(known)  # as in fit_stochastic
-    w, i = periodogram(np.diff(r) if diff else r)
-    comps, th_k = _known_coords(known, dt_s)
-    return float(_null(comps, th_k, np.cos(w), i, diff).fun)
-
-
 def _null(comps: tuple[StochasticEffect, ...], th_k: np.ndarray, c: np.ndarray, i: np.ndarray,
           diff: bool) -> optimize.OptimizeResult:
     """Fit of white noise of free level plus the known components (all parameters free); ``c``
@@ -245,36 +233,6 @@ def exact_white(r: np.ndarray, dt_s: float, known: Processes, white_sd: float) -
             return math.inf
     res = optimize.minimize_scalar(nll_at, bounds=(lo, hi), method="bounded", options={"xatol": 1e-4})
     return float(math.exp(res.x))
-
-
-def censored_params(r: np.ndarray, seen: np.ndarray, dt_s: float, effect: Effect, params: Params,
-                    white_sd: float, kind: str, known: Processes = ()) -> Params:
-    """``effect``'s parameters by the exact likelihood of ``r`` with the samples not ``seen``
-    missing (:func:`exact_fit` from ``params``; the mean removed over the seen samples), clipped to
-    the fit range on ``r`` within what ``kind``'s model may hold: where an output stage clips,
-    the residual there holds no noise, and the Whittle fit — which needs every sample — reads
-    the clipped stretches' flat residual as part of the process (a Gauss–Markov of 3.7e-6 / 58 s
-    on a record 43 % clipped: Whittle 3.2e-6 / 17 s, exact 4.3e-6 / 68 s)."""
-    x = whiten.seen_only(r, seen)
-    ml = exact_fit(x, dt_s, effect, params, white_sd, known)[0]
-    fit = {b.name: b for b in fit_bounds(effect, x, dt_s)}
-    return {q.name: float(np.clip(ml[q.name], max(fit[q.name].low, q.fit_low), min(fit[q.name].high, q.fit_high)))
-            for q in effect.params_for(kind)}
-
-
-def exact_shape_bic(r: np.ndarray, dt_s: float, effect: Effect, params: Params, white_sd: float,
-                    known: Processes = ()) -> float:
-    """The exact log-likelihood of :func:`exact_fit` as 2·LL − ln(n/2)·n_coords: comparable
-    between shapes fitted to the same residual only.
-    The Whittle likelihood leans toward flicker when a Gauss–Markov's plateau spans a few
-    Fourier bins. Deciding the close calls by this one (``naming.shape_ranked``), on two sets
-    of 140 synthetic single-process records of 3000 s (seven settings): GM (τ 61–75 s) named
-    40 and 37 of 40 against 30 and 31 by Whittle alone, flicker 47 and 49 of 60 against 52 and
-    53, a walk 19 and 20 of 20 against 20 — a trade, 126 against 123 of 140 both times."""
-    r = np.asarray(r, dtype=float)
-    nll_ = exact_fit(r, dt_s, effect, params, white_sd, known)[2]  # a ValueError for no random process
-    n_coords = effect.n_coords if isinstance(effect, StochasticEffect) else 0
-    return float(-2.0 * nll_ - math.log(r.size / 2) * n_coords)
 
 
 def one_step_prediction(r: np.ndarray, fit: StochasticFit) -> np.ndarray:
