@@ -152,17 +152,22 @@ class Record:
             raise ValueError(f"column {name!r} was not logged in this record; logged: {have}")
         return v
 
-    def slice(self, idx) -> Record:
-        """The rows ``idx`` (a slice, an integer index array or a boolean mask) of every column.
-
-        ``t_on`` is materialised first so a slice keeps the time since power-on."""
+    def _mapped(self, fn) -> Record:
+        """Every logged column through ``fn`` (an array in, an array out), ``t_on`` materialised
+        first so the new record keeps the time since power-on."""
         kw: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name == "t_on_s" and v is None:
                 v = self.t_s - self.t_s[0]
-            kw[f.name] = None if v is None else np.asarray(v)[idx]
+            kw[f.name] = None if v is None else fn(np.asarray(v))
         return Record(**kw)
+
+    def slice(self, idx) -> Record:
+        """The rows ``idx`` (a slice, an integer index array or a boolean mask) of every column.
+
+        ``t_on`` is materialised first so a slice keeps the time since power-on."""
+        return self._mapped(lambda v: v[idx])
 
     def block_means(self, m: int) -> Record:
         """Every column averaged over consecutive blocks of ``m`` rows (the last ``n mod m`` rows,
@@ -171,13 +176,7 @@ class Record:
         if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= self.n // 2:
             raise ValueError(f"block length m = {m!r}; allowed: an integer in [1, {self.n // 2}]")
         k = self.n // m
-        kw: dict[str, Any] = {}
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name == "t_on_s" and v is None:
-                v = self.t_s - self.t_s[0]
-            kw[f.name] = None if v is None else np.asarray(v)[:k * m].reshape(k, m).mean(axis=1)
-        return Record(**kw)
+        return self._mapped(lambda v: v[:k * m].reshape(k, m).mean(axis=1))
 
     def replace(self, **changes) -> Record:
         """A copy with some fields replaced (e.g. ``y=``), validated again."""

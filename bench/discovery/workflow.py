@@ -271,8 +271,7 @@ def _search(rec: Record, model: Model, *, alpha: float, max_effects: int, only: 
             seen: np.ndarray | None, fixed: frozenset[str], say: Callable[[str], None], map_fn: MapFn,
             scale: str = "") -> _Stage:
     kind = model.base.kind
-    cands = [e.id for e in applicable(model, rec) if (only is None or e.id in only)
-             and not (scale == "block means" and e.per_sample)]
+    cands = [e.id for e in applicable(model, rec) if only is None or e.id in only]
     ev = Evaluator(rec, kind, n_candidates=len(cands) or 1, alpha=alpha, seen=seen)
     ev.given = frozenset(model.effect_ids)
     ev.fixed = fixed
@@ -293,7 +292,6 @@ def _told(stage: _Stage, told: Model, decided: dict[str, _Stage], seed: int,
     them, ``decided``: the gap before and after on the stage's record), the effects withdrawn on
     the way, and the ties."""
     result, work, alpha = stage.result, stage.rec, stage.alpha
-    final = result.best.model
     values = dict(told.effects)
     ties_of = {t.effect_id: t for t in ties(result, alpha)}
     path = result.best.path()
@@ -308,14 +306,12 @@ def _told(stage: _Stage, told: Model, decided: dict[str, _Stage], seed: int,
         for g in gone:
             withdrawn.append(f"{g}: {cur.move} lowered the criterion by {prev.criterion - cur.criterion:.1f}")
         for eid in new:
-            if eid not in final.effect_ids:
+            if eid not in values:  # not in the final model (a later search dropped it)
                 continue
-            at = final.effect_ids.index(eid)
             naming = _naming(prev, eid, result, ties_of, work, alpha)
-            by = decided.get(eid, stage)
-            std = params_std(by.result.best.model, by.rec, by.result.best.model.effect_ids.index(eid)) \
-                if eid in by.result.best.model.effect_ids else params_std(final, work, at)
-            steps.append(Step(eid, dict(values.get(eid, final.effects[at][1])), std,
+            by = decided[eid].result.best.model
+            std = params_std(by, decided[eid].rec, by.effect_ids.index(eid))
+            steps.append(Step(eid, dict(values[eid]), std,
                               _gain_p(prev, cur, eid, work), g_prev, gap_cur, rms_prev, rms_cur, naming,
                               _structure(prev.model, work, r_prev), r_prev, r_cur, work.t_s, stage.scale, floor))
             say(f"named {eid}{' (' + stage.scale + ')' if stage.scale else ''}, "
@@ -398,10 +394,9 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         notes.append(f"{t.effect_id} (weight {t.weight:.2f}) is within the criterion's noise of {alts}"
                      + "".join(f"; {separating_experiment(t.effect_id, a)}" for a, _ in t.alternatives if a))
     for e, p in final.entries():  # each judged on the record whose search set its values
-        if e.id in decided:
-            for name in at_edge(e, p, decided[e.id].rec, kind):
-                notes.append(f"{e.id}.{name} = {p[name]:.4g} is at the edge of the range the record allows: the "
-                             "record cannot bound it (a longer or faster record would)")
+        for name in at_edge(e, p, decided[e.id].rec, kind):
+            notes.append(f"{e.id}.{name} = {p[name]:.4g} is at the edge of the range the record allows: the "
+                         "record cannot bound it (a longer or faster record would)")
     last = stages[-1]
     final_naming = _naming(last.result.best, None, last.result, ties_all, last.rec, last.alpha)
     nu = heavy_tails(last.result.best.model, last.rec, last.ev.seen, alpha)
@@ -429,7 +424,9 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
                         fixed=frozenset(), say=say, map_fn=map_fn)
         return [stage], stage.result.best.model
     m = -(-work.n // SEARCH_POINTS)
-    coarse = _search(work.block_means(m), model, alpha=alpha / 2, max_effects=max_effects, only=only, seen=None,
+    # the per-reading effects are not tried on the means, which do not keep them
+    on_means = tuple(eid for eid in (CATALOGUE if only is None else only) if not CATALOGUE[eid].per_sample)
+    coarse = _search(work.block_means(m), model, alpha=alpha / 2, max_effects=max_effects, only=on_means, seen=None,
                      fixed=frozenset(), say=say, map_fn=map_fn, scale="block means")
     slow = coarse.result.best.model
     a = (work.n - SEARCH_POINTS) // 2

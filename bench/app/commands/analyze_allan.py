@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.analysis.allan import DEFAULT_FALSE_ALARM, ONE_SIGMA, TERMS, overlapping_adev
-from bench.analysis.allan._units import RATE_UNITS, term_units
+from bench.analysis.allan._units import RATE_UNITS
 from bench.app.commands.analyze import read_csv_columns
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
@@ -153,11 +153,10 @@ def noise_model(t: np.ndarray, y: np.ndarray, rate: float, unit: str | None, res
     values = {"N": white / math.sqrt(rate)}
     values.update({k: abs(float(params[e][q])) for k, (e, q) in MODEL_TERMS.items() if e in params})
     terms = {}
-    for name, v in values.items():
-        u = term_units(unit, name)
-        c = result.coefficients.get(name)
-        terms[name] = {"label": u.label, "value": v * u.factor / to_base, "unit": u.unit,
-                       "slope_fit": None if c is None else c.fit, "slope_fit_std": None if c is None else c.fit_std}
+    for name, v in values.items():  # base unit → the record's (÷ to_base) → the term's customary unit
+        c = result.coefficients[name]
+        terms[name] = {"label": c.label, "value": v * c.factor / to_base, "unit": c.unit,
+                       "slope_fit": c.fit, "slope_fit_std": c.fit_std}
     return {"effects": [{"id": s.effect_id, "params": s.params, "params_std": s.params_std} for s in d.steps],
             "terms": terms, "adev": adev.tolist(), "within": len(result.tau_s) - len(outside),
             "taus": len(result.tau_s), "outside": outside, "notes": list(d.notes)}
