@@ -115,9 +115,20 @@ class Param:
     def edge(self, value: float) -> str:
         """``"lower"`` or ``"upper"`` when ``value`` lies within :data:`EDGE_FRACTION` of this
         range (of its log-range for a log parameter) of that bound, or beyond it; else ``""``.
-        Meant for a fit range (:meth:`Effect.fit_params`), where it says a fit stopped at a bound."""
+        Meant for a fit range (:meth:`Effect.fit_params`), where it says a fit stopped at a bound.
+
+        A phase that wraps has no bound. A magnitude whose range starts at 0 (0: the effect absent)
+        with a ``floor`` is judged on its log range from the floor: its scale, not its distance
+        from 0 in units of the whole range, says whether a bound set it (a 3 mdeg/s line in a
+        range of 0 … 1 deg/s is well inside it, a 2 µdeg/s one is at the floor)."""
+        if self.periodic:
+            return ""
         v, lo, hi = float(value), self.low, self.high
-        if self.log and lo > 0 and v > 0:
+        if not self.log and lo == 0.0 and self.floor > 0.0:
+            if abs(v) <= self.floor:
+                return "lower"
+            v, lo, hi = math.log(abs(v)), math.log(self.floor), math.log(hi)
+        elif self.log and lo > 0 and v > 0:
             v, lo, hi = math.log(v), math.log(lo), math.log(hi)
         tol = EDGE_FRACTION * (hi - lo)
         if not math.isfinite(tol):
@@ -313,8 +324,8 @@ class Effect:
 
     def time_shifted(self, p: Mapping[str, float], shift_s: float) -> Params:
         """The parameters that give the same term on a record starting ``shift_s`` seconds
-        earlier (a term timed from the record's first sample — a line's phase — fitted on a
-        window of a longer record, moved to the whole record). Default: the same values (terms
+        earlier (negative: later; a term timed from the record's first sample — a line's phase —
+        fitted on a window of a longer record, moved to the whole record). Default: the same values (terms
         on absolute time or on the time since power-on; a drift's level is the bias's)."""
         return dict(p)
 

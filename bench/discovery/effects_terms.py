@@ -327,8 +327,9 @@ class SinusoidalInterference(Effect):
         return [dict(p)] + [{**p, "freq_hz": f} for f in fs if 0 < f < 0.5 * rate_hz]
 
     def time_shifted(self, p, shift_s):
-        """The phase at a start ``shift_s`` earlier: advanced by 2π·f·shift (wrapped to ±π)."""
-        ph = p["phase_rad"] + 2 * np.pi * p["freq_hz"] * float(shift_s)
+        """The phase at a start ``shift_s`` earlier (negative: later): the line has 2π·f·shift less
+        phase there (wrapped to ±π)."""
+        ph = p["phase_rad"] - 2 * np.pi * p["freq_hz"] * float(shift_s)
         return {**p, "phase_rad": float((ph + np.pi) % (2 * np.pi) - np.pi)}
 
     def term_gradient(self, p, rec, names):

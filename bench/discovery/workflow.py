@@ -438,6 +438,9 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
     # Gauss–Markov of a few blocks' τ, the sensor's own output filter seen from afar), every
     # process the window can resolve
     kind = model.base.kind
+    # terms timed from a record's first sample (a line's phase) move from the means' first mean
+    # to the window's first sample, and from there to the record's (``Effect.time_shifted``)
+    slow = _shifted(slow, float(coarse.rec.t_s[0] - window.t_s[0]))
     slow, folded = _unfolded(slow, window, coarse.rec.rate_hz, work.rate_hz)
     released = folded | {e.id for e, p in slow.entries() if at_edge(e, p, coarse.rec, kind)}
     procs = slow.stochastic_effects()
@@ -450,9 +453,9 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
     got = fast.result.best.model
     # the whole record's bias and scale factor, the window's white level (per sample), and the
     # window's terms refined on the whole record (a line's frequency to the record's resolution)
-    shift = float(window.t_s[0] - work.t_s[0])
-    kept = tuple((eid, p) for eid, p in slow.effects if eid in held)
-    added = tuple((eid, CATALOGUE[eid].time_shifted(p, shift)) for eid, p in got.effects if eid not in held)
+    on_record = _shifted(got, float(window.t_s[0] - work.t_s[0]))
+    kept = tuple((eid, p) for eid, p in on_record.effects if eid in held)
+    added = tuple((eid, p) for eid, p in on_record.effects if eid not in held)
     final = Model(slow.base, kept + added).with_base(noise_sd=float(got.base.noise_sd))
     if any(CATALOGUE[eid].waveform for eid, _ in added):
         final = calibrate(final, work, noise=False, frozen=held)
@@ -462,6 +465,11 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
     r = seen_only(work.y - final.predict(work), seen)
     white = sto.exact_white(r, work.dt_s, final.stochastic_effects(), float(final.residual_sd()))
     return [coarse, fast], final.with_noise_floor(white)
+
+
+def _shifted(model: Model, shift_s: float) -> Model:
+    """``model`` with every term moved to a record starting ``shift_s`` earlier (negative: later)."""
+    return Model(model.base, tuple((eid, CATALOGUE[eid].time_shifted(p, shift_s)) for eid, p in model.effects))
 
 
 def _unfolded(slow: Model, window: Record, block_rate_hz: float, rate_hz: float) -> tuple[Model, set[str]]:

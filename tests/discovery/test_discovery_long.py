@@ -16,6 +16,7 @@ from scipy.signal import lfilter
 
 from bench.discovery.criterion import FALSE_NAME_RATE
 from bench.discovery.data import Record
+from bench.discovery.effects import CATALOGUE
 from bench.discovery.model import Model, base_model
 from bench.discovery.workflow import SEARCH_POINTS, discover
 from bench.testing.discovery_nulls import binomial_allowance
@@ -48,14 +49,41 @@ def test_block_means_name_a_bad_block_length(m):
         rec.block_means(m)
 
 
-def _long(seed: int, effects: bool) -> tuple[Record, float]:
+def _long(seed: int, effects: bool) -> tuple[Record, float, float]:
     rng = np.random.default_rng([17, seed])
     t = np.arange(N_LONG) / RATE_HZ
     f = 11.0 + 8.0 * rng.random()  # above the means' Nyquist frequency (10 Hz): they hold its alias
+    phase = 2 * np.pi * rng.random() - np.pi
     y = 0.1 + SD * rng.standard_normal(N_LONG)
     if effects:
-        y += 0.3 * SD * np.exp(-t / 60.0) + 0.3 * SD * np.sin(2 * np.pi * f * t + 2 * np.pi * rng.random())
-    return Record(t_s=t, y=y), f
+        y += 0.3 * SD * np.exp(-t / 60.0) + 0.3 * SD * np.sin(2 * np.pi * f * t + phase)
+    return Record(t_s=t, y=y), f, phase
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2 ** 16), shift=st.floats(0.05, 500.0))
+def test_a_term_moved_to_an_earlier_start_is_the_same_term(seed, shift):
+    """``Effect.time_shifted``: every additive waveform effect timed by the record's clock, its
+    parameters moved to a record starting ``shift`` s earlier, predicts there what it predicted
+    on its own record, sample for sample, up to a constant (the bias's part); moved back
+    (``-shift``) it predicts its own term again."""
+    rng = np.random.default_rng(seed)
+    t = 1000.0 + np.arange(4000) / 20.0
+    own = Record(t_s=t, y=SD * rng.standard_normal(t.size))
+    earlier = Record(t_s=np.concatenate([[t[0] - shift], t]), y=np.zeros(t.size + 1))
+    checked = 0
+    for e in (CATALOGUE[eid] for eid in sorted(CATALOGUE)):
+        if not (e.waveform and e.stage == "additive" and "t" in e.inputs and "gyro" in e.kinds):
+            continue
+        p = e.draw(rng, own, kind="gyro")
+        q = e.time_shifted(p, shift)
+        scale = max(1e-12, float(np.ptp(e.term(p, own))))
+        there, here = e.term(q, earlier)[1:], e.term(p, own)
+        np.testing.assert_allclose(there - there.mean(), here - here.mean(), atol=1e-7 * scale, err_msg=e.id)
+        back = e.term(e.time_shifted(q, -shift), own)
+        np.testing.assert_allclose(back - back.mean(), here - here.mean(), atol=1e-7 * scale, err_msg=e.id)
+        checked += 1
+    assert checked >= 3  # a jump, a drift, a line
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -64,13 +92,17 @@ def test_a_long_record_names_its_slow_effect_on_block_means_and_its_fast_one_on_
     named from the block means (of 5 samples, 20 Hz), the line — which the means hold only as its
     alias below 10 Hz — at its own frequency, refined on the whole record within 3 σ of the
     truth; nothing else named and nothing left unexplained."""
-    rec, f = _long(seed, True)
+    rec, f, phase = _long(seed, True)
     d = discover(rec, Model(base_model("gyro")))
     got = {s.effect_id: s for s in d.steps}
     assert set(got) == {"warmup_exponential", "sinusoidal_interference"}, (list(got), d.notes)
     assert got["warmup_exponential"].scale == "block means"
     line = got["sinusoidal_interference"]  # named on either scale: at its alias on the means, unfolded
     assert abs(line.params["freq_hz"] - f) <= 3 * line.params_std["freq_hz"], (line.params, line.params_std, f)
+    # its amplitude and phase at the record's first sample too: a window's phase moved to the record
+    assert abs(line.params["amplitude"] - 0.3 * SD) <= 3 * line.params_std["amplitude"], (line.params, line.params_std)
+    dphi = (line.params["phase_rad"] - phase + np.pi) % (2 * np.pi) - np.pi
+    assert abs(dphi) <= 3 * line.params_std["phase_rad"], (line.params, line.params_std, phase)
     assert not d.unexplained, d.unexplained
     assert any("block means" in n and "full-rate window" in n for n in d.notes), d.notes
     assert d.residual_final.size == rec.n  # the final residual is the whole record's
