@@ -8,17 +8,19 @@ sets the prefix ``P`` instead of ``R``):
   sidecar), then one row per sample.  Floats are written as the shortest text that reads
   back to the identical value (NaN/±inf as ``nan``/``inf``/``-inf``; NaN payload bits are
   not kept), integers in full, bools as 0/1.
-- ``D/R.json``: the run record, per-stream units, dtypes, row counts and file names, the
-  events, and the attachment list.  Non-finite floats in metadata are written as Python's
+- ``D/R.json``: the run record, per-stream units, dtypes, row counts, chunk sizes and file
+  names, the events, and the attachment list.  Non-finite floats in metadata are written as Python's
   JSON does (``NaN``, ``Infinity``).
 - ``D/R.attachments/<name>``: each attachment's bytes.
 
 HDF5 layout: root attributes ``run_json`` (the full run record) plus browsable scalars
 (``id``, ``procedure``, ``status`` ...); ``/streams/<stream>/<column>`` datasets in the
 stored dtype with a ``unit`` attribute (group attributes ``description``, ``column_order``,
-``n_chunks``);
+``n_chunks``, ``chunk_rows``);
 ``/events/{t_s,kind,message,data_json}``; ``/attachments/<name>`` uint8 datasets with
-``mime``, ``sha256`` and ``created_utc`` attributes.  Sample bytes round-trip exactly.
+``mime``, ``sha256`` and ``created_utc`` attributes.  Sample bytes round-trip exactly, and
+so does the chunking (``chunk_rows``): ``bench runs import`` of an export stores the run as it
+was, and its digest towards a central store is the original's.
 """
 
 from __future__ import annotations
@@ -26,13 +28,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bench.core.store import AttachmentInfo, Event, RunInfo, StreamInfo
+from bench.core.store import AttachmentInfo, Event, RunInfo, RunRecord, StreamInfo
 from bench.core.store.reader import RunReader
 
 FORMAT = "inertial-bench run export"
@@ -40,18 +41,7 @@ FORMAT_VERSION = 1
 _CSV_BLOCK_ROWS = 1 << 16  # rows formatted per write: bounds the memory of string conversion
 
 
-@dataclass(frozen=True)
-class ExportedRun:
-    """A run as read back from an export: what ``RunStore`` would return for it."""
-
-    run: RunInfo
-    streams: dict[str, StreamInfo]
-    data: dict[str, dict[str, np.ndarray]]  # stream -> column -> samples
-    events: list[Event]
-    attachments: dict[str, tuple[AttachmentInfo, bytes]]
-
-
-def _snapshot(store: RunReader, run_id: str) -> ExportedRun:
+def _snapshot(store: RunReader, run_id: str) -> RunRecord:
     streams = store.streams(run_id)
     data = {name: store.load(run_id, name) for name in streams}
     # A running run may have grown between streams() and load(): report what was exported.
@@ -60,7 +50,20 @@ def _snapshot(store: RunReader, run_id: str) -> ExportedRun:
         for name, info in streams.items()
     }
     attachments = {a.name: (a, store.attachment(run_id, a.name)) for a in store.attachments(run_id)}
-    return ExportedRun(store.get_run(run_id), streams, data, store.events(run_id), attachments)
+    sizes = store.chunk_sizes(run_id)
+    chunk_rows = {name: _cut(sizes.get(name, []), streams[name].n_rows) for name in streams}
+    return RunRecord(store.get_run(run_id), streams, data, store.events(run_id), attachments, chunk_rows)
+
+
+def _cut(sizes: list[int], n_rows: int) -> list[int]:
+    """The chunk sizes of the first ``n_rows`` rows (a running run may have grown)."""
+    out, total = [], 0
+    for k in sizes:
+        if total >= n_rows:
+            break
+        out.append(min(k, n_rows - total))
+        total += out[-1]
+    return out
 
 
 # -- CSV -------------------------------------------------------------------------------------
@@ -110,7 +113,8 @@ def export_csv(store: RunReader, run_id: str, out_dir_or_file: str | os.PathLike
             "dtypes": info.dtypes,
             "description": info.description,
             "n_rows": info.n_rows,
-            "n_chunks": info.n_chunks,
+            "n_chunks": len(snap.chunk_rows[name]),
+            "chunk_rows": snap.chunk_rows[name],
         }
     attachment_dir = prefix.parent / f"{prefix.name}.attachments"
     attachment_meta, attachment_paths = [], []
@@ -154,23 +158,25 @@ def _read_csv(path: Path, dtypes: dict[str, str], n_rows: int) -> dict[str, np.n
     return out
 
 
-def read_csv_export(sidecar: str | os.PathLike[str]) -> ExportedRun:
+def read_csv_export(sidecar: str | os.PathLike[str]) -> RunRecord:
     """Read back what ``export_csv`` wrote, given the path of its JSON sidecar."""
     sidecar = Path(sidecar)
     meta = json.loads(sidecar.read_text(encoding="utf-8"))
     if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
         raise ValueError(f"{sidecar} is not a version-{FORMAT_VERSION} {FORMAT!r} sidecar")
-    streams, data = {}, {}
+    streams, data, chunk_rows = {}, {}, {}
     for name, s in meta["streams"].items():
         streams[name] = StreamInfo(
             name, s["columns"], s["dtypes"], s["description"], s["n_rows"], s["n_chunks"])
         data[name] = _read_csv(sidecar.parent / s["file"], s["dtypes"], s["n_rows"])
+        if "chunk_rows" in s:
+            chunk_rows[name] = [int(k) for k in s["chunk_rows"]]
     attachments = {}
     for a in meta["attachments"]:
         payload = (sidecar.parent / a.pop("file")).read_bytes()
         attachments[a["name"]] = (AttachmentInfo(**a), payload)
     events = [Event(**e) for e in meta["events"]]
-    return ExportedRun(RunInfo(**meta["run"]), streams, data, events, attachments)
+    return RunRecord(RunInfo(**meta["run"]), streams, data, events, attachments, chunk_rows)
 
 
 # -- HDF5 ------------------------------------------------------------------------------------
@@ -202,7 +208,8 @@ def export_hdf5(
             group = streams.create_group(name)
             group.attrs["description"] = info.description
             group.attrs["column_order"] = json.dumps(list(info.columns))
-            group.attrs["n_chunks"] = info.n_chunks  # how the store received the samples
+            group.attrs["n_chunks"] = len(snap.chunk_rows[name])  # how the store received the samples
+            group.attrs["chunk_rows"] = json.dumps(snap.chunk_rows[name])
             for column, unit in info.columns.items():
                 values = snap.data[name][column].astype(np.dtype(info.dtypes[column]), copy=False)
                 use = compression if values.size else None  # filters need a chunked, non-empty set
@@ -222,7 +229,7 @@ def export_hdf5(
     return path
 
 
-def read_hdf5_export(path: str | os.PathLike[str]) -> ExportedRun:
+def read_hdf5_export(path: str | os.PathLike[str]) -> RunRecord:
     """Read back what ``export_hdf5`` wrote."""
     # lazy: h5py only for HDF5 (as in export_hdf5)
     import h5py  # noqa: PLC0415 — lazy, see above
@@ -231,9 +238,11 @@ def read_hdf5_export(path: str | os.PathLike[str]) -> ExportedRun:
         if f.attrs.get("format") != FORMAT or f.attrs.get("format_version") != FORMAT_VERSION:
             raise ValueError(f"{path} is not a version-{FORMAT_VERSION} {FORMAT!r} HDF5 file")
         run = RunInfo(**json.loads(f.attrs["run_json"]))
-        streams, data = {}, {}
+        streams, data, chunk_rows = {}, {}, {}
         for name, group in f["streams"].items():
             order = json.loads(group.attrs["column_order"])
+            if "chunk_rows" in group.attrs:
+                chunk_rows[name] = [int(k) for k in json.loads(group.attrs["chunk_rows"])]
             data[name] = {c: group[c][()] for c in order}
             streams[name] = StreamInfo(
                 name,
@@ -250,12 +259,15 @@ def read_hdf5_export(path: str | os.PathLike[str]) -> ExportedRun:
                                   ev["data_json"].asstr()[()])
         ]
         attachments = {}
-        for name, ds in f["attachments"].items():
+        found: list[tuple[str, Any]] = []  # names with folders (analysis/startup/x.html) are nested groups
+        f["attachments"].visititems(lambda name, obj: found.append((name, obj)) if isinstance(obj, h5py.Dataset)
+                                    else None)
+        for name, ds in sorted(found):
             payload = ds[()].tobytes()
             info = AttachmentInfo(name, _text(ds.attrs["mime"]), len(payload),
                                   _text(ds.attrs["sha256"]), _text(ds.attrs["created_utc"]))
             attachments[name] = (info, payload)
-    return ExportedRun(run, streams, data, events, attachments)
+    return RunRecord(run, streams, data, events, attachments, chunk_rows)
 
 
 def _text(value: Any) -> str:

@@ -10,7 +10,7 @@ import numpy as np
 import psycopg
 import pytest
 
-from bench.core.store import RunStore
+from bench.core.store import SCHEMA_VERSION, RunStore
 from bench.core.store.central import CentralStore
 from bench.core.store.forward import package, queued, sync
 from bench.core.store.reader import is_central_url, masked
@@ -146,10 +146,11 @@ def test_a_version_1_store_is_migrated_in_place(tmp_path):
     with sqlite3.connect(path) as conn:  # back to what version 1 wrote
         conn.execute("DROP TABLE forwarded")
         conn.execute("ALTER TABLE runs DROP COLUMN labels_json")
+        conn.execute("ALTER TABLE runs DROP COLUMN origin_uuid")
         conn.execute("UPDATE meta SET value = '1' WHERE key = 'schema_version'")
         conn.execute("DELETE FROM meta WHERE key = 'store_uuid'")
     reopened = RunStore(path)
-    assert reopened.schema_version() == 2
+    assert reopened.schema_version() == SCHEMA_VERSION == 3  # through version 2 (sync) to 3 (import)
     assert reopened.get_run(run_id).labels == {}
     assert reopened.unforwarded_run_ids() == [run_id]
     assert reopened.run_uuid(run_id) == RunStore(path).run_uuid(run_id)  # the uuid is kept

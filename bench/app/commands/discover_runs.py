@@ -24,6 +24,10 @@ stream            sensor          mapping
                                   horizontal), t_on from the supply events
 ``thermal_ramp``  gyro            ``gyro_thermal_ramp`` (the stream with ``rate_dps``): rate_dps →
                                   y, temperature_c → temp, READY frames only, t_on from the events
+``record``        as imported     ``bench runs import`` (``<kind>_record``): output → y,
+                                  temperature_c → temp, applied → input; t_s counts from
+                                  power-on for a ``startup`` record; the sensor is the one the
+                                  import named (``--sensor``)
 ================  ==============  ==============================================================
 
 Time since power-on for streams on the bench clock comes from the run's supply events
@@ -36,7 +40,7 @@ label says so. Otherwise ValueError naming the gap.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -65,6 +69,7 @@ class StreamMap:
     normalise_mean: bool = False  # y / mean(y): volts to g for a level, IA-up record
     ready_only: bool = False  # keep frames whose status has the READY bit
     power_events: tuple[str, str] | None = None  # (on, off) event kinds for t_on
+    input_col: str | None = None  # column → input (the applied input, when recorded)
 
 
 STREAM_MAPS: tuple[StreamMap, ...] = (
@@ -85,7 +90,10 @@ STREAM_MAPS: tuple[StreamMap, ...] = (
     StreamMap("thermal_ramp", "gyro", "rate_dps", "gyro_thermal_ramp", needs=("temperature_c",),
               temp=("thermal_ramp", "temperature_c"), ready_only=True,
               power_events=("gyro_supply_on", "gyro_supply_off")),
+    StreamMap("record", "", "output", "bench runs import", temp=("record", "temperature_c"), input_col="applied"),
 )
+#: the stream ``bench runs import`` stores a record in (its sensor is in the run's parameters)
+IMPORTED = "record"
 
 
 def mappable(streams: dict) -> list[StreamMap]:
@@ -144,6 +152,8 @@ def record_of(store, run_id: str, m: StreamMap, streams: dict) -> tuple[Record, 
         cols["y"] = cols["y"] / float(np.mean(cols["y"]))
     if m.applied_input is not None:
         cols["input"] = np.full(cols["t"].size, m.applied_input)
+    if m.input_col is not None and m.input_col in data:
+        cols["input"] = np.asarray(data[m.input_col], float)[keep]
     if m.vib is not None:
         cols["vib"] = np.asarray(data[m.vib], float)[keep]
     if m.temp is not None and m.temp[0] in streams:
@@ -196,6 +206,12 @@ def read_run(store_path, run_id: str, stream: str | None = None) -> tuple[Record
                                  f"it has: {', '.join(m.stream for m in maps)}")
             maps = pick
         m = maps[0]
+        if m.stream == IMPORTED:
+            sensor = info.parameters.get("sensor")
+            if sensor not in ("gyro", "accelerometer"):
+                raise ValueError(f"run {run_id} ({info.procedure}) was imported without saying what the unit is; "
+                                 "import it again with --sensor gyro|accelerometer")
+            m = replace(m, sensor=sensor, from_power_on=info.parameters.get("kind") == "startup")
         rec, done = record_of(store, run_id, m, streams)
     others = [x.stream for x in maps[1:]]
     label = f"run {run_id} ({info.procedure}, stream {m.stream}{done})"

@@ -1,5 +1,9 @@
-"""``bench runs list | show ID | export ID --format csv|hdf5``, on the station's store or on
-the central store (``--store postgresql://…``: every station's runs, named by UUID)."""
+"""``bench runs list | show ID | export ID --format csv|hdf5 | import FILE``, on the station's
+store or on the central store (``--store postgresql://…``: every station's runs, named by UUID).
+
+``import`` stores a bench export exactly as it was exported, or a record made elsewhere (CSV or
+HDF5 following ``bench.app.records``' convention) as a run of its kind, analysed as the
+station's step would analyse it (``bench.app.importing``)."""
 
 from __future__ import annotations
 
@@ -8,9 +12,13 @@ import json
 import sys
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
-from bench.app.commands.common import open_reader, resolve_run_id
+from bench.app.commands.analyze_records import add_record_options, meta_of, options_of, print_analysis
+from bench.app.commands.common import open_reader, open_store, resolve_run_id
 from bench.app.export import export_csv, export_hdf5
+from bench.app.importing import bench_export, import_file
+from bench.app.records import KINDS, read_record
 from bench.app.verdict import measurements_of, verdict_of
 from bench.core.store.reader import is_central_url
 
@@ -31,6 +39,17 @@ def configure(runs: argparse.ArgumentParser) -> None:
     exp.add_argument("--format", choices=("csv", "hdf5"), default="csv")
     exp.add_argument("--out", default=None, help="output folder (csv) or file (hdf5)")
     exp.set_defaults(func=export_run)
+    imp = cmds.add_parser("import", help="store a record made elsewhere (CSV, HDF5) or a bench export as a run")
+    imp.add_argument("file", metavar="FILE", help="a record (CSV with a header row, HDF5) or a bench export "
+                     "(its .json sidecar or .h5 file)")
+    imp.add_argument("--kind", choices=tuple(KINDS), default=None,
+                     help="what the record is (or the metadata's kind); not needed for a bench export")
+    add_record_options(imp)
+    imp.add_argument("--no-analysis", action="store_true",
+                     help="store the record only (by default a tumble, rate-table, turn-on or thermal record is "
+                     "also analysed and its measurements stored with it)")
+    imp.add_argument("--json", action="store_true")
+    imp.set_defaults(func=import_run)
 
 
 def list_runs(args) -> int:
@@ -123,4 +142,30 @@ def export_run(args) -> int:
         paths = [export_hdf5(store, args.run_id, Path(args.out or f"{args.run_id}.h5"))]
     for p in paths:
         print(p)
+    return 0
+
+
+def import_run(args) -> int:
+    """Handler of ``bench runs import FILE``."""
+    store = open_store(args)
+    record = None
+    if bench_export(args.file) is None:
+        record = read_record(args.file, meta_of(args, args.kind))
+        print(f"importing {record.n_rows} rows of {args.file} as a {record.kind.name} record",
+              file=sys.stderr, flush=True)
+    run_id, analysis = import_file(store, args.file, record, analyse=not args.no_analysis,
+                                   options=options_of(args, record.kind.name) if record else None)
+    info = store.get_run(run_id)
+    if args.json:
+        doc: dict[str, Any] = {"run_id": run_id, "uuid": info.uuid, "procedure": info.procedure,
+                               "store": str(args.store)}
+        if analysis is not None:
+            doc["analysis"] = analysis.to_dict()
+        json.dump(doc, sys.stdout, indent=2, default=str)
+        print()
+        return 0
+    print(f"imported as run {run_id} ({info.procedure}, unit {info.unit_serial or '-'}) into {args.store}")
+    if analysis is not None:
+        print_analysis(analysis)
+    print(f"bench runs show {run_id}")
     return 0

@@ -289,6 +289,15 @@ class CentralStore:
         return codec.decode_chunks(dtypes, sum(int(n) for n, _, _ in chunks),
                                    ((int(n), d, bytes(b)) for n, d, b in chunks))
 
+    def chunk_sizes(self, run_id: str) -> dict[str, list[int]]:
+        """Per stream, the row count of each stored chunk in order (as the station stored them)."""
+        rows = self._conn.execute("SELECT stream, n_rows FROM chunks WHERE run_uuid = %s ORDER BY stream, seq",
+                                  (self.resolve(run_id),)).fetchall()
+        out: dict[str, list[int]] = {}
+        for stream, n in rows:
+            out.setdefault(stream, []).append(int(n))
+        return out
+
     def events(self, run_id: str) -> list[Event]:
         rows = self._conn.execute(
             "SELECT t_s, kind, message, data_json FROM events WHERE run_uuid = %s ORDER BY seq",

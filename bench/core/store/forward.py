@@ -32,10 +32,7 @@ from dataclasses import dataclass, field
 import psycopg
 
 from .central import CentralStore, DigestConflictError, RunPackage
-from .runstore import RunStore
-
-#: attachments under this prefix are analysis products: re-made at will, not in the digest
-ANALYSIS_PREFIX = "analysis/"
+from .runstore import ANALYSIS_PREFIX, RunStore  # analysis products: re-made at will, not in the digest
 
 
 def package(store: RunStore, run_id: str) -> RunPackage:

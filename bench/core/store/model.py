@@ -110,6 +110,23 @@ class AttachmentInfo:
     created_utc: str
 
 
+@dataclass(frozen=True)
+class RunRecord:
+    """A whole run as one value: what an export holds and what ``RunStore.import_run`` takes.
+
+    ``chunk_rows``: per stream, the row count of each chunk the samples were stored in (the
+    digest a central store checks covers the chunking); empty for a record that never was
+    in a store (an imported file), whose samples are then stored in blocks.
+    """
+
+    run: RunInfo
+    streams: dict[str, StreamInfo]
+    data: dict[str, dict[str, Any]]  # stream -> column -> samples (numpy arrays)
+    events: list[Event]
+    attachments: dict[str, tuple[AttachmentInfo, bytes]]
+    chunk_rows: dict[str, list[int]] = field(default_factory=dict)
+
+
 #: the labels a run may carry (``RunStore.create_run(labels=...)``)
 LABELS = ("station_id", "socket", "lot", "operator")
 

@@ -29,11 +29,15 @@ from .model import (
     Event,
     RunClosedError,
     RunInfo,
+    RunRecord,
     StreamInfo,
     UnknownAttachmentError,
     UnknownRunError,
     UnknownStreamError,
+    check_attachment_name,
+    check_column_dtype,
     check_labels,
+    check_stream_name,
     from_json,
     to_json,
     utc_now,
@@ -41,11 +45,22 @@ from .model import (
 from .writer import RunWriter
 
 DEFAULT_PATH = Path("bench-data/bench.sqlite")
+#: attachments under this prefix are analysis products (``attach_analysis``), made after the run
+ANALYSIS_PREFIX = "analysis/"
+#: rows per stored chunk when an imported run does not say how its samples were chunked
+IMPORT_BLOCK_ROWS = 1 << 16
 
 _RUN_COLUMNS = (
     "id, procedure, parameters_json, station_json, unit_serial, seed, code_version, "
-    "started_utc, ended_utc, status, reason, last_sample_t_s, labels_json"
+    "started_utc, ended_utc, status, reason, last_sample_t_s, labels_json, origin_uuid"
 )
+
+
+def _check_analysis_name(name: object) -> None:
+    if (not isinstance(name, str) or not name.startswith(ANALYSIS_PREFIX) or len(name) > 200
+            or any(part in ("", ".", "..") for part in name.split("/")[1:])):
+        raise ValueError(f"analysis attachment name {name!r} must be 'analysis/<path>' "
+                         "without empty, '.' or '..' parts")
 
 
 class RunStore:
@@ -153,6 +168,84 @@ class RunStore:
             self._open_writers[run_id] = writer
             return writer
         raise RuntimeError(f"{self.path}: could not allocate a unique run id")  # pragma: no cover
+
+    def import_run(self, record: RunRecord, *, block_rows: int = IMPORT_BLOCK_ROWS) -> str:
+        """Store a whole finished run (an export read back, or a file made into a run) in one
+        transaction, as it was: its id, times, status, results, events, attachments and
+        samples (in ``record.chunk_rows``'s chunks when given, else blocks of ``block_rows``).
+
+        A run from another store keeps its UUID there (``origin_uuid``), so both copies sync
+        to one central run.  Returns the run id.  ValueError if the run is not finished, its
+        id is already here, or a column does not match its stream's declaration.
+        """
+        info = record.run
+        if info.status == "running":
+            raise ValueError(f"run {info.id} is still running: only a finished run can be imported")
+        if not isinstance(block_rows, int) or block_rows < 1:
+            raise ValueError(f"block_rows={block_rows!r} must be an int >= 1")
+        check_stream_layout = []
+        for name, stream in record.streams.items():
+            check_stream_name(name)
+            if set(record.data.get(name, {})) != set(stream.columns):
+                raise ValueError(f"run {info.id}: stream {name!r} has columns "
+                                 f"{sorted(record.data.get(name, {}))}, declared {list(stream.columns)}")
+            dtypes = {c: check_column_dtype(stream.dtypes[c], f"stream {name!r} column {c!r}")
+                      for c in stream.columns}
+            n = len(next(iter(record.data[name].values())))
+            sizes = list(record.chunk_rows.get(name) or
+                         [min(block_rows, n - k) for k in range(0, n, block_rows)])
+            if sum(sizes) != n or any(k <= 0 for k in sizes):
+                raise ValueError(f"run {info.id}: stream {name!r} chunk sizes {sizes[:5]}… do not "
+                                 f"add up to its {n} rows")
+            check_stream_layout.append((name, stream, dtypes, sizes))
+        origin = None if info.uuid in (None, "") or info.uuid == self.run_uuid(info.id) else info.uuid
+        me = liveness.current_process()
+        with self._db.lock, self._db.write_transaction() as conn:
+            if conn.execute("SELECT 1 FROM runs WHERE id = ?", (info.id,)).fetchone():
+                raise ValueError(f"run {info.id} is already in {self.path}")
+            conn.execute(
+                "INSERT INTO runs (id, procedure, parameters_json, station_json, unit_serial, seed, "
+                "code_version, started_utc, ended_utc, last_write_utc, status, reason, "
+                "last_sample_t_s, writer_host, writer_pid, writer_start, labels_json, origin_uuid) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (info.id, info.procedure, to_json(info.parameters, "parameters"),
+                 to_json(info.station, "station"), info.unit_serial,
+                 None if info.seed is None else str(int(info.seed)), info.code_version,
+                 info.started_utc, info.ended_utc, info.ended_utc or utc_now(), info.status,
+                 info.reason, info.last_sample_t_s, me.host, me.pid, me.start_token,
+                 to_json(check_labels(info.labels), "labels"), origin))
+            for position, (name, stream, dtypes, sizes) in enumerate(check_stream_layout):
+                layout = [[c, stream.columns[c], dtypes[c].str] for c in stream.columns]
+                conn.execute(
+                    "INSERT INTO streams (run_id, name, position, columns_json, description) "
+                    "VALUES (?, ?, ?, ?, ?)",
+                    (info.id, name, position, to_json(layout, "columns"), stream.description))
+                start = 0
+                for seq, size in enumerate(sizes):
+                    cols = {c: np.asarray(record.data[name][c])[start:start + size] for c in dtypes}
+                    n_rows, dts, blob = codec.encode_chunk(name, dtypes, cols)
+                    conn.execute("INSERT INTO chunks (run_id, stream, seq, n_rows, dtypes, data) "
+                                 "VALUES (?, ?, ?, ?, ?, ?)", (info.id, name, seq, n_rows, dts, blob))
+                    start += size
+            conn.executemany(
+                "INSERT INTO events (run_id, seq, t_s, kind, message, data_json) VALUES (?, ?, ?, ?, ?, ?)",
+                [(info.id, k, None if math.isnan(e.t_s) else e.t_s, e.kind, e.message,
+                  to_json(e.data, f"data of event {e.kind!r}")) for k, e in enumerate(record.events)])
+            for name, (a, payload) in record.attachments.items():
+                if isinstance(name, str) and name.startswith(ANALYSIS_PREFIX):
+                    _check_analysis_name(name)
+                else:
+                    check_attachment_name(name)
+                digest = hashlib.sha256(payload).hexdigest()
+                if a.sha256 and a.sha256 != digest:
+                    raise ValueError(f"run {info.id}: attachment {name!r} has sha256 {digest}, "
+                                     f"its record says {a.sha256}")
+                conn.execute("INSERT INTO attachments (run_id, name, mime, sha256, created_utc, data) "
+                             "VALUES (?, ?, ?, ?, ?, ?)",
+                             (info.id, name, a.mime, digest, a.created_utc or utc_now(), payload))
+            conn.executemany("INSERT INTO results (run_id, key, value_json) VALUES (?, ?, ?)",
+                             [(info.id, k, to_json(v, f"result {k!r}")) for k, v in info.results.items()])
+        return info.id
 
     # -- recovery ------------------------------------------------------------------------
     def recover_interrupted(self, *, include_other_hosts: bool = False) -> list[str]:
@@ -293,10 +386,7 @@ class RunStore:
         Acquired data stay immutable: analysis products live under the ``analysis/`` name
         prefix, and re-analysing a run replaces its earlier product of the same name.
         """
-        if (not isinstance(name, str) or not name.startswith("analysis/") or len(name) > 200
-                or any(part in ("", ".", "..") for part in name.split("/")[1:])):
-            raise ValueError(f"analysis attachment name {name!r} must be 'analysis/<path>' "
-                             "without empty, '.' or '..' parts")
+        _check_analysis_name(name)
         if not isinstance(data, (bytes, bytearray, memoryview)):
             raise TypeError(f"attachment {name!r}: data must be bytes-like")
         if not isinstance(mime, str) or "/" not in mime:
@@ -315,6 +405,17 @@ class RunStore:
         with self._db.read_snapshot() as conn:
             self._run_row(conn, run_id)
             return self._results(conn, run_id)
+
+    def chunk_sizes(self, run_id: str) -> dict[str, list[int]]:
+        """Per stream, the row count of each stored chunk in order (how the samples arrived)."""
+        with self._db.read_snapshot() as conn:
+            self._run_row(conn, run_id)
+            rows = conn.execute("SELECT stream, n_rows FROM chunks WHERE run_id = ? ORDER BY stream, seq",
+                                (run_id,)).fetchall()
+        out: dict[str, list[int]] = {}
+        for stream, n in rows:
+            out.setdefault(stream, []).append(int(n))
+        return out
 
     # -- forwarding to a central store (bench.core.store.forward) ---------------------------
     def chunk_rows(self, run_id: str) -> Iterator[tuple[str, int, int, str, bytes]]:
@@ -392,7 +493,7 @@ class RunStore:
 
     def _run_info(self, conn: sqlite3.Connection, row: tuple[Any, ...]) -> RunInfo:
         (run_id, procedure, parameters, station, unit_serial, seed, code_version, started,
-         ended, status, reason, last_t, labels) = row
+         ended, status, reason, last_t, labels, origin_uuid) = row
         return RunInfo(
             id=run_id,
             procedure=procedure,
@@ -407,6 +508,6 @@ class RunStore:
             reason=reason,
             last_sample_t_s=last_t,
             results=self._results(conn, run_id),
-            uuid=self.run_uuid(run_id),
+            uuid=origin_uuid or self.run_uuid(run_id),
             labels=from_json(labels),
         )

@@ -19,6 +19,11 @@ which central store, with the digest they were sent with.  The store's own UUID
 (``meta.store_uuid``) names it to the central store; a run's UUID is derived from it and the
 run id (``RunStore.run_uuid``).  A version-1 file is migrated in place when opened (two added
 columns and a table; nothing rewritten).
+
+Version 3 (``bench runs import``): ``runs.origin_uuid`` keeps the UUID a run imported from
+another store's export had there, so the run keeps one identity across stores (NULL for a
+run made here or imported from a file that never was in a store).  Version 2 is migrated in
+place (one added column).
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from pathlib import Path
 
 from .model import STATUSES, SchemaVersionError, utc_now
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 SYNCHRONOUS_MODES = ("NORMAL", "FULL", "EXTRA")
 
 _STATUS_CHECK = ", ".join(f"'{s}'" for s in STATUSES)
@@ -58,7 +63,10 @@ CREATE TABLE IF NOT EXISTS runs (
     writer_pid      INTEGER NOT NULL,
     -- labels_json: {"station_id", "socket", "lot"} as text, what a factory sorts runs by
     labels_json     TEXT NOT NULL DEFAULT '{{}}',
-    writer_start    TEXT              -- see liveness.py, NULL where the OS does not tell
+    -- writer_start: see liveness.py, NULL where the OS does not tell
+    -- origin_uuid: an imported run's UUID in the store it came from (NULL: made here)
+    writer_start    TEXT,
+    origin_uuid     TEXT
 );
 CREATE INDEX IF NOT EXISTS runs_by_start ON runs (started_utc);
 CREATE INDEX IF NOT EXISTS runs_running ON runs (status) WHERE status = 'running';
@@ -117,6 +125,7 @@ CREATE TABLE IF NOT EXISTS forwarded (
 MIGRATIONS = {
     1: ["ALTER TABLE runs ADD COLUMN labels_json TEXT NOT NULL DEFAULT '{}'",
         DDL[DDL.index("CREATE TABLE IF NOT EXISTS forwarded"):]],
+    2: ["ALTER TABLE runs ADD COLUMN origin_uuid TEXT"],
 }
 TABLES = ("meta", "runs", "streams", "chunks", "events", "attachments", "results", "forwarded")
 
