@@ -73,10 +73,12 @@ UNITS: dict[str, dict[str, tuple[float, float]]] = {
     "angle": {"deg": (1.0, 0.0), "°": (1.0, 0.0), "rad": (180.0 / math.pi, 0.0)},
     "rate": {"deg/s": (1.0, 0.0), "°/s": (1.0, 0.0), "dps": (1.0, 0.0), "deg/h": (1.0 / 3600.0, 0.0),
              "°/h": (1.0 / 3600.0, 0.0), "rad/s": (180.0 / math.pi, 0.0)},
+    "acceleration": {"g": (1.0, 0.0), "mg": (1e-3, 0.0), "ug": (1e-6, 0.0), "µg": (1e-6, 0.0),
+                     "m/s^2": (1.0 / 9.80665, 0.0), "m/s2": (1.0 / 9.80665, 0.0)},
     "count": {"1": (1.0, 0.0)},
     "free": {},
 }
-BENCH_UNIT = {"time": "s", "temperature": "degC", "angle": "deg", "rate": "deg/s", "count": "1"}
+BENCH_UNIT = {"time": "s", "temperature": "degC", "angle": "deg", "rate": "deg/s", "acceleration": "g", "count": "1"}
 #: physical range of each dimension in the bench's unit: beyond it a value is a wrong unit or a fault
 RANGES = {"temperature": (-100.0, 250.0), "angle": (-3600.0, 3600.0), "rate": (-1e5, 1e5),
           "time": (-1e9, 1e9), "count": (0.0, 1e9)}
@@ -195,6 +197,9 @@ def read_meta(path: str | os.PathLike[str] | None, *, kind: str | None = None,
         if value is not None and value != {}:
             doc[key] = {**doc.get(key, {}), **value} if isinstance(value, dict) else value
     if kind is not None:
+        if doc.get("kind") not in (None, kind):
+            raise RecordError(f"{where}: kind = {doc['kind']!r}, but this is `{kind}`: the file describes "
+                              f"a {doc['kind']} record")
         doc["kind"] = kind
     known = {"kind", "sensor", "unit_serial", "model", "output_unit", "started_utc", "columns",
              "parameters", *LABELS}
@@ -202,6 +207,8 @@ def read_meta(path: str | os.PathLike[str] | None, *, kind: str | None = None,
     if unknown:
         raise RecordError(f"{where}: unknown field(s) {unknown}; allowed: {', '.join(sorted(known))}")
     k = doc.get("kind")
+    if k is None:
+        raise RecordError(f"{where}: no kind given; give one of {', '.join(KINDS)} (--kind or kind = …)")
     if k not in KINDS:
         raise RecordError(f"{where}: kind {k!r}; give one of {', '.join(KINDS)} (--kind or kind = …)")
     sensor = doc.get("sensor")
@@ -324,9 +331,9 @@ def read_record(path: str | os.PathLike[str], meta: Meta) -> Record:
         raise RecordError(f"record {os.fspath(path)!r} not found")
     kind = KINDS[meta.kind]
     header, cols, lines = _read_table(path)
-    by_bare: dict[str, list[int]] = {}
+    by_bare: dict[str, list[int]] = {}  # bench names match whatever their case
     for j, h in enumerate(header):
-        by_bare.setdefault(_split_header(h)[0], []).append(j)
+        by_bare.setdefault(_split_header(h)[0].lower(), []).append(j)
     by_alias: dict[str, list[int]] = {}
     for j, h in enumerate(header):
         bare, unit_given = _split_header(h)
@@ -338,13 +345,13 @@ def read_record(path: str | os.PathLike[str], meta: Meta) -> Record:
     for column in kind.columns:
         if column.name in meta.columns:
             file_name, unit = meta.columns[column.name]
-            matches = [j for j, h in enumerate(header) if h == file_name] or by_bare.get(file_name, [])
+            matches = [j for j, h in enumerate(header) if h == file_name] or by_bare.get(file_name.lower(), [])
             if not matches:
                 raise RecordError(f"{path}: column {file_name!r} (given for {column.name}) is not in the "
                                   f"header {header}")
         else:
             file_name, unit = column.name, None
-            matches = by_bare.get(column.name, [])
+            matches = by_bare.get(column.name.lower(), [])
             for alias in column.aliases:
                 if not matches and by_alias.get(alias):
                     file_name, matches = alias, by_alias[alias]
@@ -418,6 +425,21 @@ def _check_time(path: Path, lines: list[int], data: dict[str, np.ndarray], kind:
                           "counts from power-on (≥ 0)")
 
 
+#: what a sensor's output is measured in, as discover reads it: the dimension and the bench's unit
+SENSOR_OUTPUT = {"gyro": "rate", "accelerometer": "acceleration"}
+
+
+def to_sensor_unit(values: np.ndarray, unit: str | None, sensor: str) -> np.ndarray:
+    """A stored output in ``unit`` converted to the sensor's bench unit (deg/s, g); ValueError
+    naming the unit when it is not one of the sensor's."""
+    table = UNITS[SENSOR_OUTPUT[sensor]]
+    if unit not in table:
+        raise ValueError(f"the output is in {unit!r}, not a {SENSOR_OUTPUT[sensor]} a {sensor} gives; "
+                         f"import it with --output-unit one of {', '.join(table)}")
+    scale, offset = table[unit]
+    return np.asarray(values, float) * scale + offset
+
+
 def parameter(record: Record, name: str, default: Any, lo: float | None = None, hi: float | None = None,
               given: Any = None) -> Any:
     """A kind's parameter: the command line's ``given``, else the metadata's, else ``default``;
@@ -430,5 +452,6 @@ def parameter(record: Record, name: str, default: Any, lo: float | None = None, 
     except (TypeError, ValueError):
         raise RecordError(f"parameter {name} = {value!r} is not a number") from None
     if not math.isfinite(x) or (lo is not None and x < lo) or (hi is not None and x > hi):
-        raise RecordError(f"parameter {name} = {value!r} outside [{lo:g}, {hi:g}]")
+        span = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+        raise RecordError(f"parameter {name} = {value!r} outside {span}")
     return x

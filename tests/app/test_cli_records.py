@@ -236,7 +236,7 @@ def test_an_export_imported_elsewhere_is_the_same_run(form, tmp_path, capsys):
 def test_a_record_needs_its_kind_and_a_central_store_is_refused(tmp_path, capsys):
     path = write(tmp_path / "t.csv", ["inner_deg", "outer_deg", "output"], tumble_rows())
     code, _, err = cli(capsys, "--store", str(tmp_path / "s.sqlite"), "runs", "import", path)
-    assert code == 2 and "kind None; give one of static, startup, thermal, tumble, ratetable, turn-on" in err
+    assert code == 2 and "no kind given; give one of static, startup, thermal, tumble, ratetable, turn-on" in err
     code, _, err = cli(capsys, "--store", "postgresql://u@localhost/x", "runs", "import", path, "--kind", "tumble")
     assert code == 2 and "is a central store" in err
 
@@ -262,3 +262,55 @@ def test_an_imported_record_is_a_run_that_syncs_and_shows_in_the_fleet(tmp_path,
     assert code == 0 and "tumble_record" in out
     code, out, _ = cli(capsys, "fleet", "spc", "k1", "--central", central_url, "--json")
     assert code == 0 and "ACC-77" in out and "ACC-78" in out, out
+
+
+def test_the_metadata_kind_must_agree_and_names_match_whatever_their_case(tmp_path, capsys):
+    path = write(tmp_path / "t.csv", ["Inner_Deg", "OUTER_DEG", "Output [A]"], tumble_rows())
+    meta = tmp_path / "t.toml"
+    meta.write_text('kind = "tumble"\n', encoding="utf-8")
+    code, out, err = cli(capsys, "analyze", "tumble", "--input", path, "--meta", str(meta), "--json")
+    assert code == 0, err
+    assert json.loads(out)["units"]["output"] == "A"
+    code, _, err = cli(capsys, "analyze", "ratetable", "--input", path, "--meta", str(meta))
+    assert code == 2 and "kind = 'tumble', but this is `ratetable`" in err, err
+
+
+def test_import_takes_the_kinds_options_and_refuses_the_same_file_twice(tmp_path, capsys):
+    path = write(tmp_path / "r.csv", ["input_rate_dps", "output"], rate_rows())
+    store = str(tmp_path / "s.sqlite")
+    code, out, err = cli(capsys, "analyze", "ratetable", "--input", path, "--full-scale-dps", "490", "--json")
+    analysed = {m["name"]: m["value"] for m in json.loads(out)["measurements"]}
+    code, out, err = cli(capsys, "--store", store, "runs", "import", path, "--kind", "ratetable",
+                         "--full-scale-dps", "490", "--json")
+    assert code == 0, err
+    imported = {m["name"]: m["value"] for m in json.loads(out)["analysis"]["measurements"]}
+    assert imported == analysed  # the same numbers, whichever command read the file
+    run_id = json.loads(out)["run_id"]
+    code, _, err = cli(capsys, "--store", store, "runs", "import", path, "--kind", "ratetable")
+    assert code == 2 and f"is already stored as run {run_id} (same content" in err, err
+
+
+def test_discover_reads_an_imported_record_in_its_own_unit(tmp_path, capsys):
+    """A static gyro record in deg/h is discovered as the same record in deg/s; a unit that is
+    not a rate is refused by name."""
+    rng = np.random.default_rng(4)
+    t = np.arange(3000) * 0.1
+    y_dps = 0.01 + 0.002 * rng.standard_normal(t.size) + 0.004 * np.sin(2 * np.pi * 0.7 * t)
+    store = str(tmp_path / "s.sqlite")
+    ids = []
+    for name, unit, scale in (("a", "deg/s", 1.0), ("b", "deg/h", 3600.0), ("c", "V", 2.0)):
+        path = write(tmp_path / f"{name}.csv", ["t_s", "output"], zip(t, y_dps * scale))
+        code, out, err = cli(capsys, "--store", store, "runs", "import", path, "--kind", "static", "--sensor", "gyro",
+                             "--output-unit", unit, "--json")
+        assert code == 0, err
+        ids.append(json.loads(out)["run_id"])
+    found = []
+    for run_id in ids[:2]:
+        code, out, err = cli(capsys, "--store", store, "discover", "--run", run_id, "--json",
+                             "--out", str(tmp_path / run_id))
+        assert code == 0, err
+        found.append({e["id"]: e["params"]["amplitude"] for e in json.loads(out)["effects"]})
+    assert set(found[0]) == set(found[1]) == {"sinusoidal_interference"}
+    assert found[0]["sinusoidal_interference"] == pytest.approx(found[1]["sinusoidal_interference"], rel=1e-6)
+    code, _, err = cli(capsys, "--store", store, "discover", "--run", ids[2])
+    assert code == 2 and "the output is in 'V', not a rate a gyro gives" in err, err

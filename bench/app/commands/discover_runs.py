@@ -27,7 +27,8 @@ stream            sensor          mapping
 ``record``        as imported     ``bench runs import`` (``<kind>_record``): output → y,
                                   temperature_c → temp, applied → input; t_s counts from
                                   power-on for a ``startup`` record; the sensor is the one the
-                                  import named (``--sensor``)
+                                  import named (``--sensor``), the output converted from its
+                                  unit to deg/s or g
 ================  ==============  ==============================================================
 
 Time since power-on for streams on the bench clock comes from the run's supply events
@@ -45,6 +46,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bench.app.commands.common import require_store, resolve_run_id
+from bench.app.records import to_sensor_unit
 from bench.core.store import RunStore
 from bench.discovery.data import Record
 
@@ -213,6 +215,8 @@ def read_run(store_path, run_id: str, stream: str | None = None) -> tuple[Record
                                  "import it again with --sensor gyro|accelerometer")
             m = replace(m, sensor=sensor, from_power_on=info.parameters.get("kind") == "startup")
         rec, done = record_of(store, run_id, m, streams)
+        if m.stream == IMPORTED:  # the catalogue reads deg/s and g: the record's own unit converted
+            rec = rec.replace(y=to_sensor_unit(rec.y, streams[m.stream].columns.get("output"), m.sensor))
     others = [x.stream for x in maps[1:]]
     label = f"run {run_id} ({info.procedure}, stream {m.stream}{done})"
     if others:

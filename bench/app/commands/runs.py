@@ -14,7 +14,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from bench.app.commands.analyze_records import add_record_options, meta_of, options_of, print_analysis
+from bench.app.commands.analyze_records import OPTIONS, add_record_options, meta_of, options_of, print_analysis
 from bench.app.commands.common import open_reader, open_store, resolve_run_id
 from bench.app.export import export_csv, export_hdf5
 from bench.app.importing import bench_export, import_file
@@ -45,6 +45,9 @@ def configure(runs: argparse.ArgumentParser) -> None:
     imp.add_argument("--kind", choices=tuple(KINDS), default=None,
                      help="what the record is (or the metadata's kind); not needed for a bench export")
     add_record_options(imp)
+    for kind, options in OPTIONS.items():
+        for flag, dest, typ, text in options:
+            imp.add_argument(flag, dest=dest, type=typ, default=None, help=f"{kind}: {text}")
     imp.add_argument("--no-analysis", action="store_true",
                      help="store the record only (by default a tumble, rate-table, turn-on or thermal record is "
                      "also analysed and its measurements stored with it)")
@@ -65,10 +68,11 @@ def list_runs(args) -> int:
         print("no runs stored yet (try: bench run startup)")
         return 0
     width = 36 if central else 22  # the central store names runs by UUID
-    print(f"{'id':<{width}} {'procedure':<11} {'unit':<14} {'status':<9} {'started (UTC)':<20} "
+    pw = max([11] + [len(r.procedure) for r in runs])
+    print(f"{'id':<{width}} {'procedure':<{pw}} {'unit':<14} {'status':<9} {'started (UTC)':<20} "
           + ("station  " if central else "") + "reason")
     for r in runs:
-        print(f"{r.id:<{width}} {r.procedure:<11} {str(r.unit_serial or '-'):<14} {r.status:<9} "
+        print(f"{r.id:<{width}} {r.procedure:<{pw}} {str(r.unit_serial or '-'):<14} {r.status:<9} "
               f"{str(r.started_utc)[:19]:<20} "
               + (f"{r.labels.get('station_id', '-')}  " if central else "") + f"{r.reason or ''}")
     return 0

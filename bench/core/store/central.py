@@ -157,7 +157,7 @@ class CentralStore:
                  info.last_sample_t_s, to_json(info.labels, "labels"), info.id,
                  package.source_store, info.labels.get("station_id", package.source_store),
                  info.labels.get("socket"), info.labels.get("lot"),
-                 spec.get("model") if isinstance(spec, dict) else None, spec_sha,
+                 spec.get("model") if isinstance(spec, dict) else info.parameters.get("model"), spec_sha,
                  package.digest, package.n_samples)).fetchone()
             if inserted is None:
                 row = self._conn.execute("SELECT digest FROM runs WHERE uuid = %s",
