@@ -148,8 +148,22 @@ EDGE_FRACTION = 0.01
 def at_edge(effect: Effect, params: Mapping[str, float], rec: Record, kind: str) -> tuple[str, ...]:
     """Names of ``effect``'s parameters whose value in ``params`` lies at (within
     :data:`EDGE_FRACTION` of) or beyond a bound of its fit range on rec (:meth:`Effect.fit_params`):
-    a report then says the range, not the record, stopped the fit."""
-    return tuple(q.name for q in effect.fit_params(rec, kind) if q.name in params and q.edge(params[q.name]))
+    a report then says the range, not the record, stopped the fit. Only the parameters a fit
+    moves (:meth:`Effect.free_params`: not an unused jump slot's time) count, each in the fit
+    range narrowed by the bounds the fit keeps it in (a jump's time: inside the record)."""
+    free = {q.name: q for q in effect.free_params(params, kind, rec)}
+    physical = {q.name: q for q in effect.params_for(kind)}
+    out = []
+    for q in effect.fit_params(rec, kind):
+        f = free.get(q.name)
+        if f is None or q.name not in params:
+            continue
+        # the fit keeps the parameter inside the free bounds only where they narrow its range
+        narrowed = (f.low, f.high) != (physical[q.name].low, physical[q.name].high)
+        lo, hi = (max(q.low, f.low), min(q.high, f.high)) if narrowed else (q.low, q.high)
+        if (replace(q, low=lo, high=hi) if lo < hi else q).edge(params[q.name]):
+            out.append(q.name)
+    return tuple(out)
 
 
 def edge_notes(effect_id: str, params: Mapping[str, float], bounds: Sequence[Param]) -> tuple[str, ...]:

@@ -137,3 +137,20 @@ def test_a_process_the_block_means_cannot_resolve_is_refitted_on_the_window(seed
     for name, truth in (("sigma", 2 * SD), ("tau_s", 0.05)):
         assert abs(g.params[name] - truth) <= 3 * g.params_std[name], (g.params, g.params_std)
     assert not any("at the edge" in n for n in d.notes), d.notes
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_a_jump_outside_the_window_is_kept_from_the_block_means(seed):
+    """A bias jump of 0.75 σ in the first or last third of 40 000 samples, outside the full-rate
+    window: named from the block means, held while the window is searched (the window cannot see
+    it, so it must not drop it), its size and time within 3 of their standard errors."""
+    rng = np.random.default_rng([29, seed])
+    t = np.arange(N_LONG) / RATE_HZ
+    at = float(t[-1]) * (rng.uniform(0.1, 0.3) if seed % 2 == 0 else rng.uniform(0.7, 0.9))
+    y = 0.1 + SD * rng.standard_normal(N_LONG) + 0.75 * SD * (t > at)
+    d = discover(Record(t_s=t, y=y), Model(base_model("gyro")))
+    got = {s.effect_id: s for s in d.steps}
+    assert set(got) == {"bias_jump"}, (list(got), d.notes)
+    j = got["bias_jump"]
+    assert abs(j.params["size_1"] - 0.75 * SD) <= 3 * j.params_std["size_1"], (j.params, j.params_std)
+    assert abs(j.params["time_1_s"] - at) <= max(3 * j.params_std["time_1_s"], 1 / RATE_HZ), (j.params, at)
