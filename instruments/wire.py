@@ -56,7 +56,10 @@ class InstrumentConnectionError(ConnectionError):
         self.instrument_name, self.command = instrument_name, command
         text = " ".join(str(cause).split()) or type(cause).__name__
         context = f" after {after!r}" if after else ""
-        super().__init__(f"{instrument_name}: connection lost at {command!r}{context} "
+        # a connection that was never made is said as refused, not as lost
+        what = "connection refused" if isinstance(cause, ConnectionRefusedError) or "refused" in text.lower() \
+            else "connection lost"
+        super().__init__(f"{instrument_name}: {what} at {command!r}{context} "
                          f"({type(cause).__name__}: {text[:160]})")
 
 

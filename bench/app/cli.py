@@ -82,7 +82,20 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
             # Deliberately lazy: a command's module imports what it runs (numpy, the procedures,
             # the simulator), which `bench --help` and every other command must not pay for.
             importlib.import_module(module_name).configure(p)
+            _accept_store_after(p)
     return parser
+
+
+def _accept_store_after(parser: argparse.ArgumentParser) -> None:
+    """``--store`` also after the command (``bench runs list --store URL``), as the help shows
+    it before: every parser under the command takes it, leaving the global value when absent."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                _accept_store_after(sub)
+    if "--store" not in parser._option_string_actions:
+        parser.add_argument("--store", default=argparse.SUPPRESS,
+                            help="run store (SQLite path or postgresql:// URL), as `bench --store`")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -210,7 +210,10 @@ def parse_spec(data: dict, catalogue: Catalogue, source: str = "<spec>") -> Unit
         raise SpecError(f"{source}: no [[measurements]]: a spec with nothing to judge passes every unit")
     measurements, seen = [], set()
     for i, entry in enumerate(entries, start=1):
-        where = f"{source}: measurement #{i}"
+        named = entry.get("name") if isinstance(entry, dict) else None
+        # the measurement by its name where it has one (a typo elsewhere in it is then found by name)
+        where = f"{source}: measurement {named!r}" if isinstance(named, str) and named else \
+            f"{source}: measurement #{i} (no name)"
         if not isinstance(entry, dict):
             raise SpecError(f"{where} must be a table")
         extra = set(entry) - {"name", "procedure", "unit", "low", "high", "marginal", "description"}

@@ -1,4 +1,4 @@
-"""``bench runs list | show ID | export ID --format csv|hdf5 | import FILE``, on the station's
+"""``bench runs list | show ID | export ID --format csv|hdf5 | attachment ID NAME | import FILE``, on the station's
 store or on the central store (``--store postgresql://…``: every station's runs, named by UUID).
 
 ``import`` stores a bench export exactly as it was exported, or a record made elsewhere (CSV or
@@ -14,13 +14,15 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from bench.app.commands.analyze_records import OPTIONS, add_record_options, meta_of, options_of, print_analysis
 from bench.app.commands.common import open_reader, open_store, resolve_run_id
+from bench.app.commands.record_options import OPTIONS, add_record_options, meta_of, options_of
 from bench.app.export import export_csv, export_hdf5
-from bench.app.importing import bench_export, import_file
 from bench.app.records import KINDS, read_record
 from bench.app.verdict import measurements_of, verdict_of
 from bench.core.store.reader import is_central_url
+
+#: where ``bench runs export`` writes unless told (beside the default store)
+EXPORTS = "bench-data/exports"
 
 
 def configure(runs: argparse.ArgumentParser) -> None:
@@ -37,8 +39,17 @@ def configure(runs: argparse.ArgumentParser) -> None:
     exp = cmds.add_parser("export", help="export a run's data")
     exp.add_argument("run_id")
     exp.add_argument("--format", choices=("csv", "hdf5"), default="csv")
-    exp.add_argument("--out", default=None, help="output folder (csv) or file (hdf5)")
+    exp.add_argument("--out", default=None,
+                     help=f"output folder (csv) or file (hdf5) [{EXPORTS}/ID/ or {EXPORTS}/ID.h5]")
     exp.set_defaults(func=export_run)
+    att = cmds.add_parser("attachment", help="write one of a run's attachments (a report, a compensation file) "
+                          "to a file")
+    att.add_argument("run_id", metavar="ID", help="run id, or 'latest'")
+    att.add_argument("name", nargs="?", default=None, metavar="NAME",
+                     help="the attachment (as `bench runs show` lists it); none: list them")
+    att.add_argument("--out", default=None, metavar="FILE",
+                     help="where to write it [the attachment's file name in the current folder]; - for stdout")
+    att.set_defaults(func=attachment_of_run)
     imp = cmds.add_parser("import", help="store a record made elsewhere (CSV, HDF5) or a bench export as a run")
     imp.add_argument("file", metavar="FILE", help="a record (CSV with a header row, HDF5) or a bench export "
                      "(its .json sidecar or .h5 file)")
@@ -59,7 +70,7 @@ def list_runs(args) -> int:
     if args.limit < 1:
         raise ValueError(f"--limit {args.limit} must be ≥ 1")
     central = is_central_url(args.store)
-    runs = open_reader(args).list_runs(limit=args.limit) if central or Path(args.store).is_file() else []
+    runs = open_reader(args).list_runs(limit=args.limit)  # a store that is not there is named
     if args.json:
         json.dump([_info(r) for r in runs], sys.stdout, indent=2, default=str)
         print()
@@ -141,16 +152,43 @@ def export_run(args) -> int:
     store = open_reader(args)
     args.run_id = resolve_run_id(store, args.run_id)
     if args.format == "csv":
-        paths = export_csv(store, args.run_id, Path(args.out or f"export-{args.run_id}"))
+        paths = export_csv(store, args.run_id, Path(args.out or f"{EXPORTS}/{args.run_id}"))
     else:
-        paths = [export_hdf5(store, args.run_id, Path(args.out or f"{args.run_id}.h5"))]
+        paths = [export_hdf5(store, args.run_id, Path(args.out or f"{EXPORTS}/{args.run_id}.h5"))]
     for p in paths:
         print(p)
     return 0
 
 
+def attachment_of_run(args) -> int:
+    """Handler of ``bench runs attachment ID [NAME]``."""
+    store = open_reader(args)
+    args.run_id = resolve_run_id(store, args.run_id)
+    if args.name is None:
+        attachments = store.attachments(args.run_id)
+        if not attachments:
+            print(f"run {args.run_id} has no attachments")
+        for a in attachments:
+            print(f"{a.name:<48} {a.mime:<24} {a.size_bytes:>9} bytes")
+        return 0
+    payload = store.attachment(args.run_id, args.name)  # LookupError naming the ones it has
+    if args.out == "-":
+        sys.stdout.buffer.write(payload)
+        sys.stdout.flush()
+        return 0
+    out = Path(args.out or Path(args.name).name)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_bytes(payload)
+    print(out)
+    return 0
+
+
 def import_run(args) -> int:
     """Handler of ``bench runs import FILE``."""
+    # lazy: the analyses (scipy) only for an import; `bench runs list` imports this module
+    from bench.app.commands.analyze_records import print_analysis  # noqa: PLC0415 — lazy, see above
+    from bench.app.importing import bench_export, import_file  # noqa: PLC0415 — lazy, see above
+
     store = open_store(args)
     record = None
     if bench_export(args.file) is None:

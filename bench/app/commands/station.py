@@ -10,8 +10,10 @@ serve it over HTTPS, so the credentials do not cross the network in the clear.
 from __future__ import annotations
 
 import argparse
+import errno
 import getpass
 import ipaddress
+import socket
 import sys
 
 from bench.app.operator.auth import Users, add_user
@@ -71,6 +73,7 @@ def serve(args) -> int:
     host = check_host(args.host, args.users)
     if not 0 <= args.port <= 65535:
         raise ValueError(f"--port {args.port} not in 0..65535")
+    args.port = _bindable(host, args.port)
     if (args.tls_cert is None) != (args.tls_key is None):
         raise ValueError("--tls-cert and --tls-key go together")
     users = Users.load(args.users) if args.users is not None else None
@@ -85,6 +88,22 @@ def serve(args) -> int:
     uvicorn.run(create_app(station, users), host=host, port=args.port, log_level="warning",
                 ssl_certfile=args.tls_cert, ssl_keyfile=args.tls_key)
     return 0
+
+
+def _bindable(host: str, port: int) -> int:
+    """``port`` when it can be listened on at ``host`` now (0: a free one, chosen here so the
+    address printed is the one served); ValueError, exit 2, when another program holds it."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                raise ValueError(f"--port {port}: {host}:{port} is in use by another program; stop it or "
+                                 "give another --port (0: any free one)") from None
+            raise ValueError(f"--host {host} --port {port}: cannot listen there ({exc.strerror})") from None
+        return int(probe.getsockname()[1])
 
 
 def add_user_command(args) -> int:
