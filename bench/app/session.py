@@ -156,13 +156,14 @@ def choose_spec(spec: str | os.PathLike[str] | None, unit: str | None) -> UnitSp
     if spec is not None:
         return load_spec(os.fspath(spec), CATALOGUE)
     specs = [load_spec(p, CATALOGUE) for p in builtin_specs()]
+    patterned = [s for s in specs if s.serial_pattern]  # a spec without one is chosen by file only
     if unit is None:
         raise ValueError("give a spec file or a unit serial (built-in specs match serials: "
-                         + ", ".join(f"{s.serial_pattern} → {s.model}" for s in specs) + ")")
-    matching = [s for s in specs if s.applies_to(unit)]
+                         + ", ".join(f"{s.serial_pattern} → {s.model}" for s in patterned) + ")")
+    matching = [s for s in patterned if s.applies_to(unit)]
     if not matching:
-        raise ValueError(f"no built-in spec matches unit {unit!r} (patterns: "
-                         + ", ".join(str(s.serial_pattern) for s in specs) + "); give a spec file")
+        raise ValueError(f"no built-in spec matches unit {unit!r} (serials it knows: "
+                         + ", ".join(f"{s.serial_pattern} → {s.model}" for s in patterned) + "); give a spec file")
     return matching[0]
 
 
