@@ -154,3 +154,23 @@ def test_a_jump_outside_the_window_is_kept_from_the_block_means(seed):
     j = got["bias_jump"]
     assert abs(j.params["size_1"] - 0.75 * SD) <= 3 * j.params_std["size_1"], (j.params, j.params_std)
     assert abs(j.params["time_1_s"] - at) <= max(3 * j.params_std["time_1_s"], 1 / RATE_HZ), (j.params, at)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_a_window_addition_the_whole_record_does_not_want_is_withdrawn(seed):
+    """A bias that follows the logged temperature through a 100-s lag, 60 000 samples at 100 Hz:
+    the lag is named from the block means; the window (82 s of it) sees the held lag's misfit at
+    full rate as a slope, but the whole record, weighed under the same criterion, does not want a
+    drift — so the lag is named alone, its coefficient within 3 of its standard errors."""
+    rng = np.random.default_rng([31, seed])
+    n, dt = 60_000, 0.01
+    t = np.arange(n) * dt
+    temp = 25.0 + 15.0 * np.clip(t / 300.0, 0.0, 1.0)
+    a = np.exp(-dt / 100.0)
+    element = lfilter([1 - a], [1, -a], temp, zi=[25.0 * a])[0]
+    y = 0.01 + 2e-3 * rng.standard_normal(n) + 3e-4 * (element - 25.0)
+    d = discover(Record(t_s=t, y=y, temp_c=temp), Model(base_model("gyro")))
+    got = {s.effect_id: s for s in d.steps}
+    assert set(got) == {"thermal_lag"}, (list(got), d.notes)
+    lag = got["thermal_lag"]
+    assert abs(lag.params["coef_per_c"] - 3e-4) <= 3 * lag.params_std["coef_per_c"], (lag.params, lag.params_std)
