@@ -12,8 +12,8 @@ temperature-rate sensitivity.
 3. The output and the unit's sensor recorded all along, in chunks of ``chunk_s`` streamed as
    they arrive (``thermal_ramp``), the chamber checked between chunks (a tripped limit or an
    alarm ends the run with the record kept).
-4. :func:`bench.analysis.thermal._ramp.analyze_thermal_ramp` on the record; kept under
-   ``<step>.analysis``.
+4. :func:`bench.analysis.thermal.analyze_thermal_ramp` on the record (the hysteresis's
+   switching width fitted as a play operator); kept under ``<step>.analysis``.
 """
 
 from __future__ import annotations
@@ -61,8 +61,6 @@ class RampParameters:
     sample_interval_s: float = parameter(1.0, "output and sensor sample interval, s")
     chunk_s: float = parameter(600.0, "record read (and stored) per chunk, s")
     block_s: float = parameter(60.0, "analysis: averaging block, s")
-    settle_c: float = parameter(16.0, "analysis: travel after each reversal left out (the hysteresis switching "
-                                      "over), °C — at the slower rate")
     reference_c: float = parameter(25.0, "analysis: reference temperature of the bias curve, °C")
     soak_window_s: float = parameter(900.0, "initial soak: trailing window of the unit's sensor, s")
     soak_rate_c_per_min: float = parameter(0.02, "initial soak: largest |rate| of the unit's sensor, °C/min")
@@ -72,7 +70,7 @@ class RampParameters:
         check_ranges(asdict(self), {
             "low_c": (-70, 150), "high_c": (-70, 150), "rate_1_c_per_min": (0.01, 30),
             "rate_2_c_per_min": (0.01, 30), "dwell_s": (0, 86400), "sample_interval_s": (0.05, 60),
-            "chunk_s": (10, 3600), "block_s": (1, 3600), "settle_c": (0, 100), "reference_c": (-70, 150),
+            "chunk_s": (10, 3600), "block_s": (1, 3600), "reference_c": (-70, 150),
             "soak_window_s": (60, 86400), "soak_rate_c_per_min": (1e-4, 10), "soak_tolerance_c": (0.1, 50)})
         if not self.high_c - self.low_c >= 5.0:
             raise ValueError(f"high_c = {self.high_c} must exceed low_c = {self.low_c} by ≥ 5 °C")
@@ -153,8 +151,8 @@ class ThermalRampBase(Step[P], Generic[P]):
         t = np.concatenate([x[0] for x in parts])
         y = np.concatenate([x[1] for x in parts])
         temp = np.concatenate([x[2] for x in parts])
-        settle_s = min(p.settle_c / min(p.rate_1_c_per_min, p.rate_2_c_per_min) * 60.0, (t[-1] - t[0]) / 4)
-        r = analyze_thermal_ramp(t, y, temp, reference_c=p.reference_c, block_s=p.block_s, settle_s=settle_s)
+        # the hysteresis's switch over a reversal is fitted (a play operator), not left out
+        r = analyze_thermal_ramp(t, y, temp, reference_c=p.reference_c, block_s=p.block_s)
         ctx.run.set_result(f"{self.name}.analysis", r.to_dict())
         out = {"branch_offset": Estimate(r.branch_offset.value, r.branch_offset.std)}
         if r.hysteresis is not None:

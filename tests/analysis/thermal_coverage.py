@@ -1,12 +1,13 @@
 """Coverage figures of the thermal analysis, measured on the tests' own generator.
 
-    .venv/bin/python -m tests.analysis.thermal_coverage [--quick] [--only order|compensation|ramp|repeatability]
+    .venv/bin/python -m tests.analysis.thermal_coverage [--quick] [--only order|compensation|ramp|record|repeatability]
 
 Prints what docs/METHODS.md ("Calibration over temperature") states: the order choice (BIC
 against leave-one-out), 2σ coverage of the temperature coefficients (selected curve and
 BIC-averaged), the compensated residual on a second temperature profile against the noise,
-the ramp's hysteresis and rate sensitivity, and the turn-on repeatability interval. Not a
-test (pytest does not collect it): the suite asserts the same properties on fewer draws.
+the ramp's hysteresis, rate sensitivity and switching width (a play operator), the chamber
+record's bias TC, SF TC and element lag, and the turn-on repeatability interval. Not a test
+(pytest does not collect it): the suite asserts the same properties on fewer draws.
 """
 
 from __future__ import annotations
@@ -19,13 +20,22 @@ import numpy as np
 from bench.analysis.thermal import (
     QuantityPoints,
     analyze_thermal_ramp,
+    analyze_thermal_record,
     calibrate_over_temperature,
     compensation_model,
     fit_temperature_polynomial,
     verify_compensation,
 )
 from bench.analysis.turn_on import turn_on_repeatability
-from bench.testing.generators.thermal_truth import Program, ThermalUnit, simulate_ramp, sweep_points
+from bench.testing.generators.thermal_truth import (
+    Program,
+    ThermalUnit,
+    draw_chamber_case,
+    rate_table,
+    simulate_chamber_record,
+    simulate_ramp,
+    sweep_points,
+)
 
 SWEEP_C = (-40.0, -20.0, 0.0, 25.0, 45.0, 60.0, 70.0)
 VERIFY_C = (-35.0, -10.0, 10.0, 35.0, 55.0, 65.0)
@@ -101,30 +111,66 @@ def compensated_residual(n: int) -> None:
     print(f"  bias: uncompensated max / compensated max: median {np.median(unc):.0f}")
 
 
+def _report(z: dict[str, list[float]], n: int) -> None:
+    for name, values in z.items():
+        v = np.array(values)
+        print(f"  {name}: estimated in {v.size}/{n}; 2σ coverage {np.mean(np.abs(v) <= 2):.3f}; "
+              f"z mean {v.mean():+.2f}, sd {v.std():.2f}")
+
+
 def ramp(n: int) -> None:
+    """The ramp as the suite draws it (tests/analysis/test_analysis_thermal_ramp.py): a play
+    hysteresis of half width 1–8 °C, the width fitted. h is drawn over ±40 µg for h, k and the
+    curve; the width's coverage counts the units whose |h| ≥ 10 µg (a hysteresis the record
+    shows: the suite draws only those)."""
     rng = np.random.default_rng(13)
     prog = Program.cycles(25.0, -40.0, 70.0, (1.0, 2.0))
-    z: dict[str, list[float]] = {"hysteresis": [], "rate_sensitivity": [], "curve at 60 °C": []}
+    z: dict[str, list[float]] = {"hysteresis": [], "rate_sensitivity": [], "switching half width (|h| ≥ 10 µg)": [],
+                                 "curve at 60 °C": []}
     for i in range(n):
         h, k = rng.uniform(-40e-6, 40e-6), rng.uniform(-30e-6, 30e-6)
-        white = rng.uniform(2e-6, 10e-6)
+        white, width = rng.uniform(2e-6, 10e-6), rng.uniform(1.0, 8.0)
         coef = (1e-3, rng.uniform(1e-6, 4e-5), rng.uniform(-1e-7, 1e-7))
-        unit = ThermalUnit(bias_coef=coef, hysteresis=h,
-                           rate_coef=k, tau_case_s=rng.uniform(120.0, 600.0), white_sd=white,
-                           ar1_sd=white * rng.uniform(0.0, 0.1), ar1_phi=0.995, sensor_noise_c=0.01)
+        unit = ThermalUnit(bias_coef=coef, hysteresis=h, rate_coef=k, tau_case_s=rng.uniform(120.0, 600.0),
+                           white_sd=white, ar1_sd=white * rng.uniform(0.0, 0.1), ar1_phi=0.995, sensor_noise_c=0.01,
+                           hysteresis_width_c=width)
         d = simulate_ramp(unit, prog, 10.0, seed=i)
         r = analyze_thermal_ramp(d["t"], d["output"], d["sensor"], lag_s=0.0)
         if r.hysteresis is None or r.rate_sensitivity is None or not (r.hysteresis.std and r.rate_sensitivity.std):
             continue
         z["hysteresis"].append((r.hysteresis.value - h) / r.hysteresis.std)
         z["rate_sensitivity"].append((r.rate_sensitivity.value - k) / r.rate_sensitivity.std)
+        if abs(h) >= 10e-6:
+            z["switching half width (|h| ≥ 10 µg)"].append((r.hysteresis_width_c.value - width)
+                                                         / (r.hysteresis_width_c.std or np.inf))
         at60 = r.curve.value_at(60.0)
         z["curve at 60 °C"].append((at60.value - coef[0] - coef[1] * 35.0 - coef[2] * 35.0**2) / (at60.std or 1.0))
-    print(f"thermal ramp over {n} units (two rates, 1 and 2 °C/min, white + Gauss-Markov drift):")
-    for name, values in z.items():
-        v = np.array(values)
-        print(f"  {name}: estimated in {v.size}/{n}; 2σ coverage {np.mean(np.abs(v) <= 2):.3f}; "
-              f"z mean {v.mean():+.2f}, sd {v.std():.2f}")
+    print(f"thermal ramp over {n} units (two rates, 1 and 2 °C/min, play hysteresis w 1–8 °C, "
+          "white + Gauss-Markov drift):")
+    _report(z, n)
+
+
+def _table(rates, dwell: float):
+    return lambda t: rate_table(t, rates, dwell)
+
+
+def record(n: int) -> None:
+    """Chamber records of the chamber-record population (draw_chamber_case): bias TC, SF TC and the
+    element's lag behind the case sensor."""
+    rng = np.random.default_rng(41)
+    z: dict[str, list[float]] = {"bias TC": [], "SF TC": [], "lag": []}
+    for i in range(n):
+        unit, program, rates, dwell = draw_chamber_case(rng)
+        d = simulate_chamber_record(unit, program, _table(rates, dwell), 2.0, seed=100_000 + i)
+        r = analyze_thermal_record(d["t"], d["output"], d["sensor"], d["applied"])
+        sf = r.scale_factor_tc_ppm_per_c
+        assert sf is not None  # applied was given
+        z["bias TC"].append((r.bias_tc.value - unit.bias_coef[1]) / (r.bias_tc.std or np.inf))
+        z["SF TC"].append((sf.value - unit.sf_ppm_coef[0]) / (sf.std or np.inf))
+        z["lag"].append((r.lag_s.value - unit.tau_element_s) / (r.lag_s.std or np.inf))
+    print(f"chamber record over {n} units (gyro on a rate table, -20..60 °C over 5.75 h, sensor on the case, "
+          "element 300-600 s behind it):")
+    _report(z, n)
 
 
 def repeatability(n: int) -> None:
@@ -142,10 +188,11 @@ def repeatability(n: int) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="a tenth of the draws")
-    p.add_argument("--only", choices=("order", "compensation", "ramp", "repeatability"), default=None)
+    p.add_argument("--only", choices=("order", "compensation", "ramp", "record", "repeatability"), default=None)
     args = p.parse_args()
     scale = 10 if args.quick else 1
     sections = {"order": (order_choice, 1000), "compensation": (compensated_residual, 500), "ramp": (ramp, 200),
+                "record": (record, 200),
                 "repeatability": (repeatability, 10000)}
     for name, (fn, n) in sections.items():
         if args.only not in (None, name):

@@ -121,6 +121,22 @@ def test_the_ramp_step_separates_hysteresis_from_rate_sensitivity_with_two_rates
     assert np.allclose(setpoints["rate_c_per_min"], [0.7, 0.7, 1.4, 1.4])
 
 
+def test_the_ramp_step_fits_the_hysteresis_switching_width(tmp_path):
+    """The simulated unit's hysteresis is a play of half width w = 6.5 °C (13 °C of travel to
+    switch) and ±18 µg (36 µg up minus down): the step fits the width instead of leaving a
+    settling window out, and reads the full 36 µg. The width is read on the case sensor, which
+    the element lags by 20 s: at up to 1.4 °C/min that widens it by up to τ·r = 0.47 °C."""
+    unit = {**LINEAR, "bias_hysteresis_g": 18e-6, "hysteresis_width_c": 6.5, "element_tau_s": 20.0}
+    store, outcome, _ = run_step(tmp_path, ThermalRamp(soak_window_s=300.0), accelerometer=unit)
+    assert outcome.status == "passed", outcome.reason
+    got = {m.name: m for m in outcome.measurements}
+    assert abs(got["hysteresis"].value - 36e-6) < 3 * got["hysteresis"].uncertainty
+    a = store.results(outcome.run_id)["thermal_ramp.analysis"]
+    w = a["hysteresis_width_c"]
+    assert 6.5 - 3 * w["std"] <= w["value"] <= 6.5 + 20.0 * 1.4 / 60.0 + 3 * w["std"]
+    assert "settle_c" not in {f.name for f in dataclasses.fields(ThermalRamp.Parameters)}
+
+
 def test_gyro_turn_on_repeatability_over_two_days(tmp_path):
     step = GyroTurnOnRepeatabilityTest(cycles=4, days=2, off_s=600.0, day_gap_s=20 * 3600.0, warmup_s=300.0,
                                        record_s=60.0, soak_window_s=300.0)

@@ -8,8 +8,12 @@ of temperature (:func:`fit_temperature_polynomial`, order by BIC) and reads its 
 coefficient; :func:`compensation_model` turns the result into the compensation file a
 navigation computer loads (:func:`compensation_to_toml`, :func:`compensation_from_toml`),
 :func:`compensate` applies it to raw outputs, and :func:`verify_compensation` checks it on a
-second run. :func:`analyze_thermal_ramp` reads bias over temperature, thermal hysteresis and
-rate sensitivity from one record over a temperature ramp.
+second run. :func:`analyze_thermal_ramp` reads bias over temperature, thermal hysteresis (with
+its switching width, a play operator) and rate sensitivity from one record over a temperature
+ramp. :func:`analyze_thermal_record` reads bias and scale factor over temperature from one
+continuous chamber record (soaks and ramps, the applied input logged), the sensing element's
+lag behind the logged sensor fitted; :meth:`ThermalRecordResult.compensation_model` gives its
+compensation file and :func:`verify_thermal_record` checks it on a record.
 
 What a user calls::
 
@@ -19,6 +23,7 @@ What a user calls::
     QuantityPoints
     fit_temperature_polynomial, TemperaturePolynomial
     analyze_thermal_ramp, ThermalRampResult
+    analyze_thermal_record, ThermalRecordResult, verify_thermal_record, RecordVerification
     soak_status, find_soak, SoakCriterion, SoakStatus, SoakResult
     verify_compensation, CompensationVerification, QuantityVerification
 
@@ -37,6 +42,8 @@ from bench.analysis.thermal._compensation_file import compensation_from_toml, co
 from bench.analysis.thermal._inputs import QuantityPoints
 from bench.analysis.thermal._poly import TemperaturePolynomial, fit_temperature_polynomial
 from bench.analysis.thermal._ramp import ThermalRampResult, analyze_thermal_ramp
+from bench.analysis.thermal._record import ThermalRecordResult, analyze_thermal_record
+from bench.analysis.thermal._record_verification import RecordVerification, verify_thermal_record
 from bench.analysis.thermal._soak import SoakCriterion, SoakResult, SoakStatus, find_soak, soak_status
 from bench.analysis.thermal._verification import CompensationVerification, QuantityVerification, verify_compensation
 
@@ -48,13 +55,16 @@ __all__ = [
     "QuantityCompensation",
     "QuantityPoints",
     "QuantityVerification",
+    "RecordVerification",
     "SoakCriterion",
     "SoakResult",
     "SoakStatus",
     "TemperaturePolynomial",
     "ThermalCalibration",
     "ThermalRampResult",
+    "ThermalRecordResult",
     "analyze_thermal_ramp",
+    "analyze_thermal_record",
     "calibrate_over_temperature",
     "compensate",
     "compensation_from_toml",
@@ -64,4 +74,5 @@ __all__ = [
     "fit_temperature_polynomial",
     "soak_status",
     "verify_compensation",
+    "verify_thermal_record",
 ]

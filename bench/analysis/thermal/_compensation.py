@@ -208,6 +208,12 @@ class CompensationModel:
         The caller's free text.
     version : int, default 1
         File format version; this reader supports 1.
+    element_lag_s : float, optional
+        With ``temperature_source = "element"``: the element's temperature is the unit's
+        sensor through a first-order lag of this time constant, s, in [0, 1e5]
+        (τ·dT_e/dt = T_sensor − T_e; :func:`analyze_thermal_record`); the navigation computer
+        filters its sensor so before evaluating the curves. None: not stated (an optional key
+        of the file, written only when set).
 
     Raises
     ------
@@ -226,6 +232,7 @@ class CompensationModel:
     created: str = ""
     notes: str = ""
     version: int = FORMAT_VERSION
+    element_lag_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.version not in SUPPORTED_VERSIONS or isinstance(self.version, bool):
@@ -236,6 +243,11 @@ class CompensationModel:
         _check_text("created", self.created, empty=True)
         _check_text("notes", self.notes, empty=True)
         check_choice("temperature_source", self.temperature_source, TEMPERATURE_SOURCES)
+        if self.element_lag_s is not None:
+            if self.temperature_source != "element":
+                raise ValueError(f"element_lag_s = {self.element_lag_s!r} is allowed only with temperature_source "
+                                 f"'element', not {self.temperature_source!r}")
+            object.__setattr__(self, "element_lag_s", check_real("element_lag_s", self.element_lag_s, 0.0, 1e5))
         object.__setattr__(self, "reference_c", check_real("reference_c", self.reference_c, *TEMPERATURE_LIMITS_C))
         object.__setattr__(self, "valid_range_c", _check_range("valid_range_c", self.valid_range_c))
         _check_text("input_unit", self.input_unit)
@@ -277,6 +289,7 @@ class CompensationModel:
                 "temperature_source": self.temperature_source, "reference_c": self.reference_c,
                 "valid_range_c": list(self.valid_range_c), "input_unit": self.input_unit,
                 "output_unit": self.output_unit, "notes": self.notes,
+                **({} if self.element_lag_s is None else {"element_lag_s": self.element_lag_s}),
                 "quantities": {q.name: q.to_dict() for q in self.quantities}}
 
 

@@ -13,6 +13,8 @@ Layout (``format = "inertial-bench-thermal-compensation"``, ``version = 1``)::
     input_unit = "g"
     output_unit = "mA"
     notes = ""                                # optional
+    element_lag_s = 412.5                     # optional, temperature_source = "element" only:
+                                              # T_e = the unit's sensor through a first-order lag, s
 
     [quantities.k0]                           # one table per quantity, in model order
     role = "bias"                             # bias | scale_factor | k2 | cross_axis
@@ -45,7 +47,8 @@ from bench.analysis.thermal._compensation import (
 )
 
 _HEADER_KEYS = ("format", "version", "unit_serial", "unit_model", "created", "temperature_source",
-                "reference_c", "valid_range_c", "input_unit", "output_unit", "notes", "quantities")
+                "reference_c", "valid_range_c", "input_unit", "output_unit", "notes", "element_lag_s",
+                "quantities")
 _QUANTITY_KEYS = ("role", "unit", "coefficients", "covariance", "residual_rms", "residual_max_abs",
                   "prediction_std_max", "n_points", "order_selection", "cross_input", "sign")
 _ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\t": "\\t", "\r": "\\r"}
@@ -163,7 +166,8 @@ def compensation_from_toml(text: str) -> CompensationModel:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"compensation file is not valid TOML: {exc}") from None
-    _expect_keys("", doc, _HEADER_KEYS, tuple(k for k in _HEADER_KEYS if k not in ("created", "notes")))
+    _expect_keys("", doc, _HEADER_KEYS,
+                 tuple(k for k in _HEADER_KEYS if k not in ("created", "notes", "element_lag_s")))
     if doc["format"] != FORMAT:
         raise ValueError(f"format = {doc['format']!r}: allowed {FORMAT!r}")
     version = doc["version"]
@@ -190,4 +194,4 @@ def compensation_from_toml(text: str) -> CompensationModel:
         temperature_source=doc["temperature_source"], reference_c=doc["reference_c"],
         valid_range_c=doc["valid_range_c"], input_unit=doc["input_unit"], output_unit=doc["output_unit"],
         quantities=tuple(quantities), created=doc.get("created", ""), notes=doc.get("notes", ""),
-        version=version)
+        version=version, element_lag_s=doc.get("element_lag_s"))

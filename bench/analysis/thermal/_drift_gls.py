@@ -39,6 +39,7 @@ from scipy import optimize, signal
 
 _PHI_MAX = 0.9999
 _RATIO_BOUNDS = (1e-4, 1e4)
+_LOGIT_BOUNDS = (-8.0, 12.0)
 _CONVERGED = 1e-12
 
 
@@ -180,8 +181,11 @@ def _reml(xy: np.ndarray, mask: np.ndarray, noise: NoiseModel) -> float:
 
 
 def _unpack(theta) -> NoiseModel:
-    """(φ, ρ) from the unconstrained parameters (logit of φ/φ_max, ln ρ)."""
-    return NoiseModel(_PHI_MAX / (1.0 + math.exp(-theta[0])), math.exp(theta[1]))
+    """(φ, ρ) from the unconstrained parameters (logit of φ/φ_max, ln ρ), held within the
+    bounds REML searches (a quadrature node of a flat likelihood can land far outside)."""
+    logit = min(max(float(theta[0]), _LOGIT_BOUNDS[0]), _LOGIT_BOUNDS[1])
+    log_ratio = min(max(float(theta[1]), math.log(_RATIO_BOUNDS[0])), math.log(_RATIO_BOUNDS[1]))
+    return NoiseModel(_PHI_MAX / (1.0 + math.exp(-logit)), math.exp(log_ratio))
 
 
 def _pack(noise: NoiseModel) -> np.ndarray:
@@ -200,7 +204,7 @@ def fit_noise(x: np.ndarray, y: np.ndarray, mask: np.ndarray) -> NoiseModel:
     lo, hi = (math.log(b) for b in _RATIO_BOUNDS)
     starts = [(logit, math.log(r)) for logit in (0.0, 3.0, 6.0) for r in (0.1, 1.0, 10.0)]
     best = min(starts, key=cost)
-    res = optimize.minimize(cost, np.array(best), method="L-BFGS-B", bounds=[(-8.0, 12.0), (lo, hi)])
+    res = optimize.minimize(cost, np.array(best), method="L-BFGS-B", bounds=[_LOGIT_BOUNDS, (lo, hi)])
     # No BIC penalty on the drift: wrongly leaving out a slow drift makes every interval of a
     # slow regressor too narrow, while a drift that is not there only widens them a little.
     return _unpack(res.x) if 2.0 * float(res.fun) < white else NoiseModel()

@@ -4,15 +4,28 @@ One static record taken while the chamber ramps up and down: the unit's output y
 bias plus the constant static input), and its own sensor's temperature T(t). Model, on
 block means of ``block_s``::
 
-    y = p(T_e) + h·s/2 + k·Ṫ + noise,      T_e = T lagged by τ:  τ·dT_e/dt = T − T_e
+    y = p(T_e) + h·z/2 + k·Ṫ + noise,      T_e = T lagged by τ:  τ·dT_e/dt = T − T_e
 
 * p — the **bias-vs-temperature curve** (order 0 … 3 about ``reference_c``, BIC), at zero
   rate and mid-way between the branches, in the element's temperature T_e (the sensor's
   when τ = 0);
-* s = +1 on an up branch, −1 on a down branch — the branch flips at each extremum of T
-  (found with a ``reversal_band_c`` dead band, so sensor noise cannot flip it); h, the
-  **thermal hysteresis**, is the up-minus-down offset at equal temperature and zero rate;
-* Ṫ — the sensor's rate in °C/min (local linear slope over ``rate_window_s``); k, the
+* z, the branch: the output of a **play (backlash) operator** of half width w on T_e,
+  z = (T_e − m)/w in [−1, 1], whose memory m stays put while |T_e − m| < w and is dragged
+  at distance w otherwise — so z = +1 well into an up branch, −1 well into a down branch,
+  and after a reversal it crosses over linearly in 2w of travel (a unit's hysteresis takes a
+  reversal of some degrees to switch, not an instant). w, the **switching half width**, is
+  fitted (``hysteresis_width_c`` None: profiled over [``reversal_band_c``/4,
+  ``hysteresis_width_max_c``], the lower end the noise immunity the dead band states) with
+  its standard uncertainty; ``hysteresis_width_c = 0`` is the instant switch at each extremum
+  of T (found with a ``reversal_band_c`` dead band, so sensor noise cannot flip it). h, the
+  **thermal hysteresis**, is the up-minus-down offset at equal temperature and zero rate
+  once the branch has switched fully. The play's memory at the start depends on the unit's
+  history before the record (it is somewhere within w of T_e), so with w > 0 the first
+  branch's first 2·w_bound of travel (w_bound: the fixed w, or ``hysteresis_width_max_c``)
+  is left out of the fits: from there on the memory is known whatever it was (the element's
+  lag τ·r behind the sensor eats into that margin);
+* Ṫ — the sensor's rate in °C/min (the least-squares slope of its samples over ``rate_window_s``
+  about each block's centre, by default the block: its mean rate, turns included); k, the
   **temperature-rate sensitivity** (a FOG's Shupe effect, an accelerometer's gradient
   sensitivity), in output units per °C/min;
 * τ — the sensing element's lag behind the sensor: during a ramp it makes p(T) read
@@ -39,22 +52,25 @@ up-minus-down difference at equal temperature at the record's ramp rates
 The lag is checked the same way against the other columns.
 
 Model-free beside it, the **branch difference curve**: separate polynomials (the curve's
-order) of the sensor temperature for the up and the down branch, their difference over the
-temperatures both branches covered.
+order) of the sensor temperature for the up and the down branch on the steady ramp blocks
+(the difference at the record's ramp rates, not through the turns), their difference over
+the temperatures both branches covered.
 
 The record (block means, rate, branches, steady blocks) is prepared by
 :mod:`bench.analysis.thermal._ramp_record`.
 
 Uncertainties: the residual of a long static record is coloured (bias instability, drift),
-so the fit is a feasible GLS under an AR noise model (:mod:`bench.analysis.ar_gls`); blocks
-within ``settle_s`` after a reversal (the branch in transition) and before the first branch
-is known are left out of every fit.
+so the fit is a feasible GLS under an AR noise model (:mod:`bench.analysis.thermal._drift_gls`);
+τ's and w's standard uncertainties come from the whitened Jacobian with their columns added
+(linearised at the estimate), so the linear terms' covariance carries them too. Blocks
+before the first branch is known (before the first reversal with w > 0) are left out of
+every fit, and so is the first branch's first 2·w_bound of travel.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import optimize, signal
@@ -63,14 +79,15 @@ import bench.analysis.thermal._drift_gls as drift_gls
 from bench.analysis._checks import check_int, check_real
 from bench.analysis.thermal._drift_gls import NoiseModel
 from bench.analysis.thermal._inputs import TEMPERATURE_LIMITS_C
+from bench.analysis.thermal._play import WIDTH_GRID, WidthProfile, memory_known, play_output, width_profile
 from bench.analysis.thermal._poly import MAX_ORDER, PolynomialCurve, polynomial_rows
 from bench.analysis.thermal._ramp_record import (
+    Blocks,
     RampSegment,
-    block_means,
     branch_states,
-    local_slope,
     ramp_rates,
     ramp_segments,
+    slope_at,
     steady_blocks,
 )
 from bench.values import Estimate
@@ -102,14 +119,20 @@ class ThermalRampResult:
     lag_s : Estimate
         τ, the element's lag behind the sensor, in s (std None when fixed by the caller or
         not separable).
+    hysteresis_width_c : Estimate
+        w, the play operator's half width in °C of the element's temperature: a reversal
+        switches the branch fully over 2w of travel; std (None when fixed by the caller; 0 is
+        the instant switch) = the longer side of the 95 % profile interval / 1.96.
+    hysteresis_width_interval_c : tuple of float or None
+        The 95 % profile-likelihood interval of w (Δχ² ≤ 3.84), °C; None when fixed.
     branch_offset : Estimate
         h + k·(r_up − r_down): the up-minus-down difference at equal temperature at the
         record's ramp rates, output units (always determined).
     ramp_rates_c_per_min : tuple of float
         ``(r_up, r_down)``: median rate of the up and the down blocks, dwells left out, °C/min.
     not_separable : dict of str to str
-        Each term (``"hysteresis"``, ``"rate_sensitivity"``, ``"lag_s"``) the record could not
-        separate, with the reason.
+        Each term (``"hysteresis"``, ``"rate_sensitivity"``, ``"lag_s"``,
+        ``"hysteresis_width_c"``) the record could not separate, with the reason.
     separation_rate : float
         Fraction of the steady rate column outside the span of the curve and branch columns
         (1/√VIF); compared with ``min_separation``.
@@ -147,7 +170,9 @@ class ThermalRampResult:
     block_rate_c_per_min : ndarray
         The sensor's rate at each block, in °C/min.
     block_branch : ndarray of int
-        +1 up, −1 down, 0 before the first branch is known.
+        +1 up, −1 down, 0 before the first branch is known (the dead-band branches of T).
+    block_play : ndarray
+        z, the fitted play operator's output per block, in [−1, 1].
     block_used : ndarray of bool
         Blocks every fit used.
     block_residual : ndarray
@@ -158,6 +183,8 @@ class ThermalRampResult:
     hysteresis: Estimate | None
     rate_sensitivity: Estimate | None
     lag_s: Estimate
+    hysteresis_width_c: Estimate
+    hysteresis_width_interval_c: tuple[float, float] | None
     branch_offset: Estimate
     ramp_rates_c_per_min: tuple[float, float]
     not_separable: dict[str, str]
@@ -179,6 +206,7 @@ class ThermalRampResult:
     block_temperature_c: np.ndarray
     block_rate_c_per_min: np.ndarray
     block_branch: np.ndarray
+    block_play: np.ndarray
     block_used: np.ndarray
     block_residual: np.ndarray
 
@@ -187,6 +215,9 @@ class ThermalRampResult:
             return None if e is None else e.to_dict()
         return {"curve": self.curve.to_dict(), "order": self.order, "hysteresis": est(self.hysteresis),
                 "rate_sensitivity": est(self.rate_sensitivity), "lag_s": est(self.lag_s),
+                "hysteresis_width_c": est(self.hysteresis_width_c),
+                "hysteresis_width_interval_c": (None if self.hysteresis_width_interval_c is None
+                                                else list(self.hysteresis_width_interval_c)),
                 "branch_offset": est(self.branch_offset), "ramp_rates_c_per_min": list(self.ramp_rates_c_per_min),
                 "not_separable": dict(self.not_separable),
                 "separation_rate": self.separation_rate, "separation_lag": self.separation_lag,
@@ -223,50 +254,80 @@ def lag_filter(t: np.ndarray, temp: np.ndarray, lag_s: float) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class _Design:
-    t: np.ndarray
-    temp: np.ndarray
-    rate: np.ndarray  # °C/min
-    half_state: np.ndarray  # s/2
+    """The model's columns on block means of sample-level terms: the element's temperature and
+    the play run on the samples, so a switch inside a block counts for the part of it after."""
+
+    t: np.ndarray  # samples
+    temp: np.ndarray  # samples, the sensor
+    blocks: Blocks
+    rate: np.ndarray  # per block, °C/min
+    state: np.ndarray  # per block: dead-band branch of T, +1, −1, 0
     used: np.ndarray
     reference_c: float
     with_rate: bool
+    cache: dict = field(default_factory=dict)  # T_e per lag: the width's profile reuses it
 
-    def columns(self, order: int, lag_s: float) -> np.ndarray:
-        te = lag_filter(self.t, self.temp, lag_s)
-        cols = [polynomial_rows(te - self.reference_c, order), self.half_state[:, None]]
+    def element(self, lag_s: float) -> np.ndarray:
+        key = float(lag_s)
+        if key not in self.cache:
+            if len(self.cache) > 64:
+                self.cache.clear()
+            self.cache[key] = lag_filter(self.t, self.temp, lag_s)
+        return self.cache[key]
+
+    def branch(self, lag_s: float, width_c: float) -> np.ndarray:
+        """z per block: the block mean of the play's output on T_e (w > 0), or the dead-band
+        branch of T (w = 0)."""
+        if width_c <= 0.0:
+            return self.state.astype(float)
+        return self.blocks.mean(play_output(self.element(lag_s), width_c))
+
+    def columns(self, order: int, lag_s: float, width_c: float) -> np.ndarray:
+        te = self.element(lag_s)
+        poly = self.blocks.mean(polynomial_rows(te - self.reference_c, order))
+        z = self.state.astype(float) if width_c <= 0.0 else self.blocks.mean(play_output(te, width_c))
+        cols = [poly, z[:, None] / 2.0]
         if self.with_rate:
             cols.append(self.rate[:, None])
         return np.hstack(cols)
 
 
-def _fit_lag(design: _Design, y: np.ndarray, order: int, noise: NoiseModel, lag_max_s: float) -> float:
-    """τ minimising the whitened residual: a grid (0 and log-spaced to lag_max_s), then a
-    bounded search around the best grid point."""
-    def rss(lag):
-        return drift_gls.gls(design.columns(order, lag), y, design.used, noise).rss
-    grid = np.concatenate([[0.0], np.geomspace(lag_max_s / 1000.0, lag_max_s, _LAG_GRID - 1)])
+def _profile(rss, lo: float, hi: float, with_zero: bool) -> float:
+    """The minimiser of ``rss`` over [lo, hi]: a grid (0 first when ``with_zero``, then
+    log-spaced), then a bounded search between the best grid point's neighbours."""
+    grid = np.geomspace(lo, hi, _LAG_GRID - 1)
+    if with_zero:
+        grid = np.concatenate([[0.0], grid])
     values = [rss(g) for g in grid]
     i = int(np.argmin(values))
-    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    best = optimize.minimize_scalar(rss, bounds=(lo, hi), method="bounded",
-                                    options={"xatol": 1e-4 * max(hi, 1.0)})
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    best = optimize.minimize_scalar(rss, bounds=(a, b), method="bounded", options={"xatol": 1e-4 * max(b, 1e-3)})
     return float(best.x) if best.fun <= values[i] else float(grid[i])
 
 
-def _lag_jacobian(design: _Design, order: int, lag: float, coef: np.ndarray) -> np.ndarray:
+def _fit_lag(design: _Design, y: np.ndarray, order: int, width: float, noise: NoiseModel, lag_max_s: float) -> float:
+    """τ minimising the whitened residual (0 and log-spaced to lag_max_s, then bounded)."""
+    return _profile(lambda lag: drift_gls.gls(design.columns(order, lag, width), y, design.used, noise).rss,
+                    lag_max_s / 1000.0, lag_max_s, True)
+
+
+def _lag_jacobian(design: _Design, order: int, lag: float, width: float, coef: np.ndarray) -> np.ndarray:
     """∂(model)/∂τ with the linear coefficients held (central difference; forward at 0)."""
     h = max(1e-3 * lag, 1e-3 * (design.t[1] - design.t[0]))
-    lo = max(lag - h, 0.0)
-    hi = lag + h
-    p = slice(0, order + 1)
-    up = design.columns(order, hi)[:, p] @ coef[p]
-    dn = design.columns(order, lo)[:, p] @ coef[p]
-    return (up - dn) / (hi - lo)
+    lo, hi = max(lag - h, 0.0), lag + h
+    return (design.columns(order, hi, width) @ coef - design.columns(order, lo, width) @ coef) / (hi - lo)
+
+
+def _width_profile(design: _Design, y: np.ndarray, order: int, lag: float, noise: NoiseModel,
+                   lo: float, hi: float, points: int = WIDTH_GRID) -> WidthProfile:
+    return width_profile(lambda w: drift_gls.gls(design.columns(order, lag, w), y, design.used, noise), lo, hi,
+                         points)
 
 
 def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None, reference_c: float = 25.0,
-                         block_s: float = 60.0, rate_window_s: float = 180.0, reversal_band_c: float = 0.5,
-                         settle_s: float | None = None, lag_s: float | None = None, lag_max_s: float = 7200.0,
+                         block_s: float = 60.0, rate_window_s: float | None = None, reversal_band_c: float = 0.5,
+                         lag_s: float | None = None, lag_max_s: float = 7200.0,
+                         hysteresis_width_c: float | None = None, hysteresis_width_max_c: float = 15.0,
                          min_separation: float = 0.1, steady_tolerance: float = 0.1,
                          steady_window_s: float = 600.0) -> ThermalRampResult:
     """Bias over temperature, hysteresis and rate sensitivity from a static record over a temperature ramp.
@@ -275,13 +336,14 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
 
     ``t_s`` (s, increasing), ``output`` (any unit), ``temperature_c`` (the unit's sensor, °C)
     of one length. ``order`` fixes the curve's order (0 … 3; None: BIC). ``block_s`` (0, 3600]
-    the averaging block; ``rate_window_s`` [2·block_s, record/4] the rate's window;
-    ``reversal_band_c`` (0, 20] the dead band for reversals; ``settle_s`` [0, record/4] left
-    out after each reversal (default 600 s, or a quarter of the record); ``lag_s`` the element's lag behind
+    the averaging block; ``rate_window_s`` [block_s, record/4] the rate's window (None: block_s);
+    ``reversal_band_c`` (0, 20] the dead band for reversals; ``lag_s`` the element's lag behind
     the sensor in s, [0, 1e5], or None to fit it within [0, ``lag_max_s``];
+    ``hysteresis_width_c`` the play operator's half width in °C, [0, 50], or None to fit it within
+    [``reversal_band_c``/4, ``hysteresis_width_max_c``];
     ``min_separation`` (0, 1), ``steady_tolerance`` (0, 1) and ``steady_window_s``
     [rate_window_s, record/4] the identifiability check. The model
-    ``y = p(T_e) + h·s/2 + k·Ṫ + noise`` is fitted by feasible GLS under an AR noise model on
+    ``y = p(T_e) + h·z/2 + k·Ṫ + noise`` is fitted by feasible GLS under an AR noise model on
     block means; h and k separate only when the steady rate takes more values than the branch
     explains (ramps at two rates).
 
@@ -300,18 +362,21 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
         Reference temperature of the curve, in °C.
     block_s : float, default 60.0
         Averaging block, in s, in (0, 3600]; the record must give ≥ 40 blocks.
-    rate_window_s : float, default 180.0
-        Window of the rate's local slope, in s, in [2·block_s, record/4].
+    rate_window_s : float, optional
+        Window of the rate's least-squares slope about each block's centre, in s, in
+        [block_s, record/4]; None: ``block_s`` (the block's mean rate).
     reversal_band_c : float, default 0.5
         Dead band for reversals, in °C, in (0, 20].
-    settle_s : float, optional
-        Time left out after each reversal, in s, in [0, record/4]; default 600 s or a quarter
-        of the record.
     lag_s : float, optional
         The element's lag behind the sensor, in s, in [0, 1e5]; None fits it within
         [0, ``lag_max_s``].
     lag_max_s : float, default 7200.0
         Largest lag fitted, in s, in (0, 1e5].
+    hysteresis_width_c : float, optional
+        The play operator's half width w, in °C, in [0, 50] (0: the branch switches at once at
+        each extremum); None fits it within [``reversal_band_c``/4, ``hysteresis_width_max_c``].
+    hysteresis_width_max_c : float, default 15.0
+        Largest half width fitted, in °C, in (``reversal_band_c``/4, 50].
     min_separation : float, default 0.1
         Separation below which a term is not separable, in (0, 1].
     steady_tolerance : float, default 0.1
@@ -332,8 +397,7 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
         If the arrays are not 1-D of one length, finite, with increasing times and ≥ 40
         samples, or the temperature is out of range; a setting is outside its range; the
         record gives fewer than 40 blocks, never reverses by more than ``reversal_band_c``, or
-        leaves no up or no down branch after ``settle_s``; or the branches share no
-        temperature range.
+        leaves no up or no down branch to fit; or the branches share no temperature range.
 
     Examples
     --------
@@ -358,9 +422,15 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     >>> r.order, r.not_separable
     (2, {})
     >>> round(r.hysteresis.value * 1e6, 1), round(r.rate_sensitivity.value * 1e6, 1)  # µg, µg per °C/min
-    (20.1, 14.9)
-    >>> bool(abs(r.hysteresis.value - 20e-6) < 3 * r.hysteresis.std)
+    (22.1, 14.1)
+    >>> bool(abs(r.hysteresis.value - 20e-6) < 2 * r.hysteresis.std)
     True
+
+    The branch switching 300 s after each turn, at 1–2 °C/min, reads as a play of half width
+    about 2.3 °C (a switch over 4.6 °C of travel):
+
+    >>> round(r.hysteresis_width_c.value, 1), [round(v, 1) for v in r.hysteresis_width_interval_c]
+    (2.3, [2.2, 2.5])
     """
     t = np.asarray(t_s, dtype=float)
     y_raw = np.asarray(output, dtype=float)
@@ -378,37 +448,45 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
                          f"allowed [{lo_t:g}, {hi_t:g}]")
     span = float(t[-1] - t[0])
     block = check_real("block_s", block_s, 0.0, 3600.0, low_open=True)
-    window = check_real("rate_window_s", rate_window_s, 2 * block, max(span / 4, 2 * block))
+    window = block if rate_window_s is None else check_real("rate_window_s", rate_window_s, block,
+                                                             max(span / 4, block))
     band = check_real("reversal_band_c", reversal_band_c, 0.0, 20.0, low_open=True)
-    settle = min(600.0, span / 4) if settle_s is None else check_real("settle_s", settle_s, 0.0, span / 4)
     ref = check_real("reference_c", reference_c, lo_t, hi_t)
     if order is not None:
         check_int("order", order, 0, MAX_ORDER)
     fixed_lag = None if lag_s is None else check_real("lag_s", lag_s, 0.0, 1e5)
     lag_max = check_real("lag_max_s", lag_max_s, 0.0, 1e5, low_open=True)
+    fixed_width = None if hysteresis_width_c is None else check_real("hysteresis_width_c", hysteresis_width_c,
+                                                                     0.0, 50.0)
+    width_lo = band / 4  # the dead band's noise immunity: a narrower play would switch on noise
+    width_max = check_real("hysteresis_width_max_c", hysteresis_width_max_c, width_lo, 50.0, low_open=True)
     min_sep = check_real("min_separation", min_separation, 0.0, 1.0, low_open=True)
     steady_tol = check_real("steady_tolerance", steady_tolerance, 0.0, 1.0, low_open=True)
     steady_w = check_real("steady_window_s", steady_window_s, window, max(span / 4, window))
 
-    tb, yb, temp = block_means(t, y_raw, temp_raw, block)
+    blocks = Blocks.of(t, block)
+    tb, yb, temp = blocks.mean(t), blocks.mean(y_raw), blocks.mean(temp_raw)
     if tb.size < MIN_BLOCKS:
         raise ValueError(f"the record gives {tb.size} blocks of {block:g} s; at least {MIN_BLOCKS} are needed "
                          "(a shorter block_s or a longer record)")
-    rate = 60.0 * local_slope(tb, temp, window / 2)
+    rate = 60.0 * slope_at(t, temp_raw, tb, window / 2)
     state, starts = branch_states(temp, band)
     directions = {int(d) for d in state if d != 0}
     if directions != {1, -1}:
         raise ValueError(f"the temperature never reverses by more than reversal_band_c = {band:g} °C "
                          f"(span {temp.min():.4g} … {temp.max():.4g} °C): an up-and-down ramp is needed")
-    settling = np.zeros(tb.size, dtype=bool)
-    for s in starts[1:]:
-        settling |= (tb >= tb[s]) & (tb < tb[s] + settle)
-    used = (state != 0) & ~settling
+    known = state != 0
+    used = known.copy()
+    w_bound = width_max if fixed_width is None else fixed_width
+    if w_bound > 0:  # the play's memory before the record is unknown (for any w up to the bound)
+        used &= memory_known(temp, state, starts, w_bound)
     if not (np.any(used & (state > 0)) and np.any(used & (state < 0))):
-        raise ValueError(f"after leaving out settle_s = {settle:g} s after each reversal, no up or no down "
-                         "branch remains: a longer record or a shorter settle_s")
-    steady = used & steady_blocks(tb, rate, steady_w, steady_tol * np.abs(rate[used]).max())
-    segments = ramp_segments(tb, temp, rate, state, starts, steady)
+        raise ValueError(f"no up or no down branch remains once the first branch's first 2·{w_bound:g} °C are "
+                         "left out (the play's memory is unknown before): a longer ramp, a smaller "
+                         "hysteresis_width_max_c, or hysteresis_width_c = 0")
+    steady_known = known & steady_blocks(tb, rate, steady_w, steady_tol * np.abs(rate[known]).max())
+    steady = used & steady_known
+    segments = ramp_segments(tb, temp, rate, state, starts, steady_known)
 
     half = state / 2.0
     base = np.column_stack([polynomial_rows(temp - ref, MAX_ORDER), half])
@@ -424,39 +502,78 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
     # The rate term stays in the model even when it is not separable on the steady blocks, so
     # that its transients are not taken for drift; only an exactly collinear record drops it.
     with_rate = drift_gls.separation(rate[used], base[used]) > 1e-6
-    design = _Design(tb, temp, rate, half, used, ref, with_rate)
+    design = _Design(t, temp_raw, blocks, rate, state, used, ref, with_rate)
 
-    # Noise model (REML, jointly with the largest model), every order under it, then the lag.
+    # Noise model (REML, jointly with the largest model) and the play's width there, every order
+    # under it, then the lag, then the width again at the chosen order and lag.
     start_lag = 0.0 if fixed_lag is None else fixed_lag
-    noise = drift_gls.fit_noise(design.columns(MAX_ORDER, start_lag), yb, used)
+    width = width_lo if fixed_width is None else fixed_width
+    noise = drift_gls.fit_noise(design.columns(MAX_ORDER, start_lag, width), yb, used)
+    if fixed_width is None:
+        width = _width_profile(design, yb, MAX_ORDER, start_lag, noise, width_lo, width_max, WIDTH_GRID // 4).width
+        noise = drift_gls.fit_noise(design.columns(MAX_ORDER, start_lag, width), yb, used)
     orders = range(MAX_ORDER + 1) if order is None else [order]
-    fits = {k: drift_gls.gls(design.columns(k, start_lag), yb, used, noise) for k in orders}
+    fits = {k: drift_gls.gls(design.columns(k, start_lag, width), yb, used, noise) for k in orders}
     bic = {k: f.bic() for k, f in fits.items()}
     chosen = min(bic, key=lambda k: bic[k])
     lag_value, sep_lag = start_lag, None
     if fixed_lag is None:
-        g = _lag_jacobian(design, chosen, 0.0, fits[chosen].coefficients)
-        sep_lag = drift_gls.separation(g[steady], design.columns(chosen, 0.0)[steady]) if np.any(g[steady]) else 0.0
+        g = _lag_jacobian(design, chosen, 0.0, width, fits[chosen].coefficients)
+        x0 = design.columns(chosen, 0.0, width)
+        sep_lag = drift_gls.separation(g[steady], x0[steady]) if np.any(g[steady]) else 0.0
         if sep_lag >= min_sep:
-            lag_value = _fit_lag(design, yb, chosen, noise, lag_max)
-            noise = drift_gls.fit_noise(design.columns(chosen, lag_value), yb, used)
+            lag_value = _fit_lag(design, yb, chosen, width, noise, lag_max)
+            noise = drift_gls.fit_noise(design.columns(chosen, lag_value, width), yb, used)
         else:
             not_separable["lag_s"] = (
                 f"the lag's column is {sep_lag:.3g} < {min_sep:g} away from the curve, branch and rate columns "
                 "(a lag of the element behind the sensor acts as a rate term unless the curve bends): "
                 "fixed at 0, the rate term carries it")
-    x = design.columns(chosen, lag_value)
+    profile = None
+    if fixed_width is None:
+        width = _width_profile(design, yb, chosen, lag_value, noise, width_lo, width_max, WIDTH_GRID // 4).width
+        noise = drift_gls.fit_noise(design.columns(chosen, lag_value, width), yb, used)
+        profile = _width_profile(design, yb, chosen, lag_value, noise, width_lo, width_max)
+        width = profile.width
+    x = design.columns(chosen, lag_value, width)
     nodes, weights = drift_gls.noise_quadrature(x, yb, used, noise)
     fit = drift_gls.gls_integrated(x, yb, used, noise, nodes, weights)
-    cov, lag_std = fit.covariance, None
+    extra = []
     if fixed_lag is None and "lag_s" not in not_separable:
-        # τ's uncertainty from the whitened Jacobian with its column added (linearised at τ̂)
-        jac = np.column_stack([x, _lag_jacobian(design, chosen, lag_value, fit.coefficients)])
+        extra.append(("lag", _lag_jacobian(design, chosen, lag_value, width, fit.coefficients)))
+    cov, stds = fit.covariance, {}
+    if extra:
+        # τ's and w's uncertainty from the whitened Jacobian with their columns added (linearised)
+        jac = np.column_stack([x] + [g for _, g in extra])
         full = drift_gls.gls_integrated(jac, yb - x @ fit.coefficients, used, noise, nodes, weights)
-        lag_std = math.sqrt(full.covariance[-1, -1])
-        cov = full.covariance[:-1, :-1]
+        k = x.shape[1]
+        stds = {name: math.sqrt(full.covariance[k + i, k + i]) for i, (name, _) in enumerate(extra)}
+        cov = full.covariance[:k, :k]
+    lag_std = stds.get("lag")
+    width_std, width_interval = None, None
+    if profile is not None:
+        # w's doubt carried into the linear terms by the law of total variance over its profile
+        spread = profile.betas - fit.coefficients
+        cov = cov + (spread.T * profile.weights) @ spread
+        width_interval = profile.interval
+        width_std = float(max(width - width_interval[0], width_interval[1] - width) / 1.959963984540054)
+        if profile.at_edge:
+            not_separable["hysteresis_width_c"] = (
+                f"the 95 % profile interval of the width, {width_interval[0]:.3g} … {width_interval[1]:.3g} °C, "
+                f"reaches the end of the range fitted [{width_lo:g}, {width_max:g}] °C: the record bounds it on "
+                "one side only (a small hysteresis, or a switch narrower than the noise can show)")
     n_poly = chosen + 1
     coef = fit.coefficients
+    if len(orders) > 1:
+        # The order's doubt carried into h and k (law of total variance over the orders, BIC
+        # weights at the final τ and w): a curve too straight for a branch that covers part of
+        # the range leaks into the branch term, which the selected order's covariance leaves out.
+        others = {k: drift_gls.gls(design.columns(k, lag_value, width), yb, used, fit.noise) for k in orders}
+        b = np.array([others[k].bic() for k in orders])
+        wk = np.exp(-0.5 * (b - b.min()))
+        tail = np.array([others[k].coefficients[k + 1:] for k in orders]) - coef[n_poly:]
+        cov = cov.copy()
+        cov[n_poly:, n_poly:] += (tail.T * (wk / wk.sum())) @ tail
     curve = PolynomialCurve(ref, coef[:n_poly].copy(), cov[:n_poly, :n_poly].copy())
     offset_row = np.zeros(coef.size)
     offset_row[n_poly] = 1.0
@@ -468,17 +585,22 @@ def analyze_thermal_ramp(t_s, output, temperature_c, *, order: int | None = None
         hysteresis = Estimate(float(coef[n_poly]), math.sqrt(cov[n_poly, n_poly]))
         rate_sens = Estimate(float(coef[n_poly + 1]), math.sqrt(cov[n_poly + 1, n_poly + 1]))
     branch_offset = Estimate(float(offset_row @ coef), math.sqrt(max(float(offset_row @ cov @ offset_row), 0.0)))
-    grid, diff, diff_std, diff_mean = _branch_difference(tb, temp, yb, state, used, chosen, ref, noise)
+    # on steady ramp blocks: the difference at the record's ramp rates, not through the turns
+    on_ramp = used & steady_known & (np.abs(rate) >= 0.1 * np.abs(rate[used]).max())
+    grid, diff, diff_std, diff_mean = _branch_difference(tb, temp, yb, state, on_ramp, chosen, ref, noise)
     resid = yb - x @ coef
     return ThermalRampResult(
         curve=curve, hysteresis=hysteresis, rate_sensitivity=rate_sens,
-        lag_s=Estimate(float(lag_value), lag_std), branch_offset=branch_offset, ramp_rates_c_per_min=rates_up_down,
+        lag_s=Estimate(float(lag_value), lag_std), hysteresis_width_c=Estimate(float(width), width_std),
+        hysteresis_width_interval_c=width_interval,
+        branch_offset=branch_offset, ramp_rates_c_per_min=rates_up_down,
         not_separable=not_separable,
         separation_rate=float(sep_rate), separation_lag=sep_lag, branch_difference_t_c=grid,
         branch_difference=diff, branch_difference_std=diff_std, branch_difference_mean=diff_mean,
         segments=segments, order=chosen, bic_by_order=bic, noise=fit.noise, noise_sigma=fit.sigma,
         dof=fit.dof, block_s=block, block_t_s=tb, block_output=yb, block_temperature_c=temp,
-        block_rate_c_per_min=rate, block_branch=state, block_used=used, block_residual=resid)
+        block_rate_c_per_min=rate, block_branch=state, block_play=design.branch(lag_value, width) if width > 0
+        else state.astype(float), block_used=used, block_residual=resid)
 
 
 def _branch_difference(tb, temp, yb, state, used, order, ref, noise):

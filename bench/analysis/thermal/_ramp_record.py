@@ -3,7 +3,8 @@
 What :mod:`bench.analysis.thermal._ramp` fits is prepared here, on block means of the static
 record (blocks with under half the usual count — the record's edges, gaps — are dropped):
 
-* **rate** — the local least-squares slope of the sensor temperature over a window, °C/min;
+* **rate** — the least-squares slope of the sensor's samples over a window about each block's
+  centre (by default the block itself), °C/min;
 * **branches** — +1 up, −1 down, 0 until the first branch is known. A direction is taken,
   and a reversal confirmed, once the temperature has moved a dead band from its extreme; the
   reversal is put where the temperature last stood within a quarter of the band of the
@@ -36,13 +37,32 @@ class RampSegment:
     rate_c_per_min: float | None
 
 
+@dataclass(frozen=True, eq=False)
+class Blocks:
+    """Consecutive blocks of ``block_s`` over sample times; ``full`` marks blocks with at least
+    half the usual count (the record's edges and gaps drop out)."""
+
+    starts: np.ndarray  # first sample of every block
+    counts: np.ndarray
+    full: np.ndarray
+
+    @classmethod
+    def of(cls, t: np.ndarray, block_s: float) -> Blocks:
+        idx = np.floor((t - t[0]) / block_s).astype(np.int64)
+        starts = np.concatenate([[0], np.flatnonzero(np.diff(idx)) + 1])
+        counts = np.diff(np.concatenate([starts, [t.size]]))
+        return cls(starts, counts, counts >= 0.5 * np.median(counts))
+
+    def mean(self, a: np.ndarray) -> np.ndarray:
+        """Block means of the samples (1-D, or 2-D with rows = samples) over the full blocks."""
+        sums = np.add.reduceat(a, self.starts, axis=0)
+        return (sums / (self.counts if a.ndim == 1 else self.counts[:, None]))[self.full]
+
+
 def block_means(t, y, temp, block_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Block means; blocks with under half the usual count (edges, gaps) are dropped."""
-    idx = np.floor((t - t[0]) / block_s).astype(np.int64)
-    counts = np.bincount(idx)
-    full = counts >= 0.5 * np.median(counts[counts > 0])
-    means = [np.bincount(idx, v)[full] / counts[full] for v in (t, y, temp)]
-    return means[0], means[1], means[2]
+    blocks = Blocks.of(t, block_s)
+    return blocks.mean(t), blocks.mean(y), blocks.mean(temp)
 
 
 def local_slope(t: np.ndarray, y: np.ndarray, half_width_s: float) -> np.ndarray:
@@ -56,6 +76,21 @@ def local_slope(t: np.ndarray, y: np.ndarray, half_width_s: float) -> np.ndarray
     with np.errstate(invalid="ignore", divide="ignore"):
         slope = (suy - su * sy / n) / den
     return np.where(den > 0, slope, 0.0)
+
+
+def slope_at(t: np.ndarray, y: np.ndarray, at: np.ndarray, half_width_s: float) -> np.ndarray:
+    """Slope (per s) of the least-squares line through the samples within ±half_width_s of each
+    time in ``at``: at block centres with the block's width, the block's mean rate to second
+    order (a ramp's turn included), where a slope of block means smooths it over more blocks."""
+    lo = np.searchsorted(t, at - half_width_s, side="left")
+    hi = np.searchsorted(t, at + half_width_s, side="right")
+    u = t - t[0]
+    cs = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones_like(u), u, y, u * u, u * y)]
+    n, su, sy, suu, suy = (c[hi] - c[lo] for c in cs)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        den = suu - su * su / n
+        slope = (suy - su * sy / n) / den
+    return np.where((n >= 2) & (den > 0), slope, 0.0)
 
 
 def branch_states(temp: np.ndarray, band: float) -> tuple[np.ndarray, list[int]]:

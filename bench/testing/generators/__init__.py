@@ -9,7 +9,8 @@ parameter draws at most, so the truth is the one the estimator is asked about):
   (bilinear-transform digital filters at 16× the rate), and a judge against the exact rate;
   grades ``bench.analysis.fusion``;
 * :mod:`~bench.testing.generators.thermal_truth` — a two-node thermal unit in a chamber
-  integrated by RK4, ramps and soaked sweep points; grades ``bench.analysis.thermal`` and
+  integrated by RK4, ramps (branch flip or play hysteresis), soaked sweep points and chamber
+  records on a rate table with the sensor on the case; grades ``bench.analysis.thermal`` and
   ``bench.analysis.turn_on``;
 * :mod:`~bench.testing.generators.discovery_effects` — every discovery catalogue effect
   realised apart from the catalogue (the simulator's physics where it has the effect); grades
