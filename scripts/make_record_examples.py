@@ -242,7 +242,8 @@ def thermal(store: RunStore, seed: int) -> Example:
         {"kind": "thermal", "sensor": "gyro", "unit_serial": run.info.unit_serial,
          "model": _model(run.info.unit_serial), "output_unit": "deg/s", "station_id": STATION_ID},
         {"output": "Gyro", "temperature_c": {"column": "Case T", "unit": "degC"}},
-        {"reference_c": float(p.get("reference_c", 25.0))},
+        # the chamber ramps up and down: the hysteresis is fitted with the lag, or the lag takes it
+        {"reference_c": float(p.get("reference_c", 25.0)), "hysteresis": True},
         ["A simulated fibre-optic gyro at rest (input axis up) over two chamber ramp cycles,",
          f"{p['low_c']:g} → {p['high_c']:g} → {p['low_c']:g} °C at {p['rate_1_c_per_min']:g} then"
          f" {p['rate_2_c_per_min']:g} °C/min, {p['dwell_s']:g} s dwells;",

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from bench.analysis.ratetable import fit_rate_table
+from bench.analysis.thermal import analyze_thermal_record, compensation_to_toml, verify_thermal_record
 from bench.analysis.tumble import fit_tumble, specific_force_iapo_g
 from bench.analysis.turn_on import turn_on_metrics, turn_on_repeatability
 from bench.app.records import Record, RecordError, parameter
@@ -221,6 +222,57 @@ def analyze_turn_on(record: Record, *, settled_window_s: float | None = None,
                           summary, notes, [("Bias of each power cycle (±1σ within run)", fig)])
 
 
+def analyze_thermal(record: Record, *, reference_c: float | None = None, lag: str | None = None,
+                    hysteresis: bool | None = None) -> RecordAnalysis:
+    d = record.data
+    ref = parameter(record, "reference_c", 25.0, -70.0, 150.0, reference_c)
+    lag_text = str(lag if lag is not None else record.meta.parameters.get("lag", "fit"))
+    lag_s = None if lag_text == "fit" else parameter(record, "lag", None, 0.0, 86400.0, lag_text)
+    with_play = bool(hysteresis if hysteresis is not None else record.meta.parameters.get("hysteresis", False))
+    r = analyze_thermal_record(d["t_s"], d["output"], d["temperature_c"], d.get("applied"), reference_c=ref,
+                               lag_s=lag_s, hysteresis=with_play)
+    out_unit = record.units["output"]
+    in_unit = record.units.get("applied", out_unit) if "applied" in d else out_unit
+    out = [_m("bias_tc", r.bias_tc.value, r.bias_tc.std, f"{in_unit}/degC",
+              f"bias temperature coefficient at {ref:g} °C")]
+    if r.scale_factor_tc_ppm_per_c is not None:
+        e = r.scale_factor_tc_ppm_per_c
+        out.append(_m("sf_tc", e.value, e.std, "ppm/degC", f"scale-factor temperature coefficient at {ref:g} °C"))
+    out.append(_m("lag_s", r.lag_s.value, r.lag_s.std, "s", "the element's lag behind the logged temperature"))
+    if r.hysteresis is not None:
+        out.append(_m("hysteresis", r.hysteresis.value, r.hysteresis.std, out_unit, "thermal hysteresis (up − down)"))
+    if r.hysteresis_width_c is not None:
+        w = r.hysteresis_width_c
+        out.append(_m("hysteresis_width", w.value, w.std, "degC", "travel to switch the hysteresis branch"))
+    check = verify_thermal_record(r, d["t_s"], d["output"], d["temperature_c"], d.get("applied"))
+    out.append(_m("compensated_rms", check.compensated_rms, None, in_unit, "rms error after compensation, this record"))
+    out.append(_m("uncompensated_rms", check.uncompensated_rms, None, in_unit, "rms error without compensation"))
+    notes = [f"{term}: {why}" for term, why in r.not_separable.items()] + list(r.warnings)
+    model = r.compensation_model(unit_serial=record.meta.unit_serial or "unknown",
+                                 unit_model=record.meta.model or "unknown", input_unit=in_unit, output_unit=out_unit,
+                                 notes=f"from {Path(record.source).name} (sha256 {record.sha256[:12]}…)")
+    summary = [f"thermal record {record.source}: {record.n_rows} samples over {np.ptp(d['t_s']) / 3600:.3g} h, "
+               f"{d['temperature_c'].min():.3g} … {d['temperature_c'].max():.3g} °C logged"
+               + (", applied input given: scale factor fitted" if "applied" in d else "")]
+    fig = _figure()
+    ax1, ax2 = fig.subplots(1, 2)
+    used = r.block_used
+    ax1.plot(r.block_element_c[used], r.block_output[used], ".", ms=3, label="block means")
+    grid = np.linspace(float(np.min(r.block_element_c[used])), float(np.max(r.block_element_c[used])), 100)
+    ax1.plot(grid, r.output_bias_curve.evaluate(grid), "-", label="fitted bias")
+    ax1.set_xlabel("element temperature (°C)")
+    ax1.set_ylabel(f"output ({out_unit})")
+    ax1.legend()
+    ax2.plot(r.block_t_s[used] / 3600.0, r.block_residual[used], ".", ms=3)
+    ax2.set_xlabel("time (h)")
+    ax2.set_ylabel(f"residual ({out_unit})")
+    for ax in (ax1, ax2):
+        ax.grid(True, alpha=0.3)
+    return RecordAnalysis("thermal", out, {**r.to_dict(), "verification": check.to_dict()}, summary, notes,
+                          [("Output over the element's temperature with the fitted bias; the residual over time", fig)],
+                          {"compensation.toml": (compensation_to_toml(model).encode(), "application/toml")})
+
+
 def _thin(*arrays: np.ndarray, max_points: int = 20_000) -> list[np.ndarray]:
     step = max(1, np.asarray(arrays[0]).size // max_points)
     return [np.asarray(a)[::step] for a in arrays]
@@ -233,7 +285,7 @@ def _figure():
 
 
 ANALYSES: dict[str, Callable[..., RecordAnalysis]] = {
-    "tumble": analyze_tumble, "ratetable": analyze_ratetable, "turn-on": analyze_turn_on}
+    "tumble": analyze_tumble, "ratetable": analyze_ratetable, "turn-on": analyze_turn_on, "thermal": analyze_thermal}
 
 
 def analyze_record(record: Record, **options: Any) -> RecordAnalysis:

@@ -101,7 +101,6 @@ def test_example_analysis_agrees_with_the_station_run(name, capsys, tmp_path, mo
     check_against_station(name, doc["measurements"])
 
 
-@pytest.mark.xfail(strict=False, reason="bench analyze thermal lands with the thermal lag analysis")
 def test_thermal_example_is_analysed(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     csv_path, toml_path = files("thermal")

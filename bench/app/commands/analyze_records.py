@@ -14,7 +14,7 @@ import argparse
 import json
 import sys
 
-from bench.app.commands.record_options import OPTIONS, add_record_options, meta_of, options_of
+from bench.app.commands.record_options import OPTIONS, add_kind_option, add_record_options, meta_of, options_of
 from bench.app.record_analysis import ANALYSES, RecordAnalysis, analyze_record, write_report
 from bench.app.records import KINDS, read_record
 
@@ -25,7 +25,7 @@ def register_analysis(kinds: argparse._SubParsersAction) -> None:
         p.add_argument("--input", required=True, metavar="FILE", help="the record: CSV with a header row, or HDF5")
         add_record_options(p)
         for flag, dest, typ, text in OPTIONS[kind]:
-            p.add_argument(flag, dest=dest, type=typ, default=None, help=text)
+            add_kind_option(p, flag, dest, typ, text)
         p.add_argument("--json", action="store_true", help="print the results as JSON")
         p.add_argument("--report", metavar="DIR", default=None, help="write the HTML report (one file) into DIR")
         p.set_defaults(func=analyze_file, record_kind=kind)

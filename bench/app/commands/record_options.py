@@ -20,8 +20,18 @@ OPTIONS: dict[str, list[tuple[str, str, Any, str]]] = {
                  "each cycle's bias is its mean over this last part, s [300, at most half the shortest cycle]"),
                 ("--band", "band", float, "settling band ± in the output's unit: also each cycle's turn-on time")],
     "thermal": [("--reference-c", "reference_c", float, "temperature the coefficients are read at, °C [25]"),
-                ("--lag", "lag", str, "the element's lag behind the logged temperature: 'fit' or seconds [fit]")],
+                ("--lag", "lag", str, "the element's lag behind the logged temperature: 'fit' or seconds [fit]"),
+                ("--hysteresis", "hysteresis", "flag",
+                 "also fit thermal hysteresis with its switching width (a record that reverses)")],
 }
+
+
+def add_kind_option(p: argparse.ArgumentParser, flag: str, dest: str, typ: Any, text: str) -> None:
+    """One of :data:`OPTIONS` (``typ`` "flag": a switch)."""
+    if typ == "flag":
+        p.add_argument(flag, dest=dest, action="store_const", const=True, default=None, help=text)
+    else:
+        p.add_argument(flag, dest=dest, type=typ, default=None, help=text)
 
 
 def add_record_options(p: argparse.ArgumentParser) -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.app.commands.common import open_reader, open_store, resolve_run_id
-from bench.app.commands.record_options import OPTIONS, add_record_options, meta_of, options_of
+from bench.app.commands.record_options import OPTIONS, add_kind_option, add_record_options, meta_of, options_of
 from bench.app.export import export_csv, export_hdf5
 from bench.app.records import KINDS, read_record
 from bench.app.verdict import measurements_of, verdict_of
@@ -58,7 +58,7 @@ def configure(runs: argparse.ArgumentParser) -> None:
     add_record_options(imp)
     for kind, options in OPTIONS.items():
         for flag, dest, typ, text in options:
-            imp.add_argument(flag, dest=dest, type=typ, default=None, help=f"{kind}: {text}")
+            add_kind_option(imp, flag, dest, typ, f"{kind}: {text}")
     imp.add_argument("--no-analysis", action="store_true",
                      help="store the record only (by default a tumble, rate-table, turn-on or thermal record is "
                      "also analysed and its measurements stored with it)")
