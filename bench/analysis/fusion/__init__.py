@@ -18,6 +18,12 @@ What a user calls::
     SensorModel, FusionModel, TransferFit, fit_transfer_function
     sequential_fusion, sequential_kalman, fixed_r_kalman, complementary_filter, FusionParams, AdaptiveNoise, FilterRun
     tune_fusion, FusionTuning
+    find_spikes, SpikeSearch, estimate_relative_timing, RelativeTiming, check_method, MethodCheck
+
+Without a reference (the usual case on a production rig) :func:`analyze_fusion` finds each
+sensor's spikes without a model of the motion (:func:`find_spikes`), puts the LF record on the HF
+clock from the sensors' cross-spectrum (:func:`estimate_relative_timing`) and recommends only a
+method that passes its consistency checks (:func:`check_method`), else the complementary filter.
 
 The modules behind it are private: import from ``bench.analysis.fusion``.
 """
@@ -29,7 +35,9 @@ from bench.analysis.fusion._complementary import (
     complementary_kalman,
     fit_complementary_noise,
 )
+from bench.analysis.fusion._consistency import MethodCheck, check_method
 from bench.analysis.fusion._models import FusionModel, SensorModel, TransferFit, fit_transfer_function
+from bench.analysis.fusion._outliers import SpikeSearch, find_spikes
 from bench.analysis.fusion._sequential import (
     AdaptiveNoise,
     FilterRun,
@@ -39,6 +47,7 @@ from bench.analysis.fusion._sequential import (
     sequential_fusion,
     sequential_kalman,
 )
+from bench.analysis.fusion._timing import RelativeTiming, estimate_relative_timing
 from bench.analysis.fusion._tuning import FusionTuning, tune_fusion
 
 __all__ = [
@@ -52,12 +61,18 @@ __all__ = [
     "FusionParams",
     "FusionTuning",
     "METHODS",
+    "MethodCheck",
+    "RelativeTiming",
     "SensorModel",
+    "SpikeSearch",
     "TransferFit",
     "analyze_fusion",
+    "check_method",
     "complementary_filter",
     "complementary_kalman",
+    "estimate_relative_timing",
     "excess_over_best",
+    "find_spikes",
     "fit_complementary_noise",
     "fit_transfer_function",
     "fixed_r_kalman",

@@ -33,7 +33,7 @@ record *tunes* and the rest (after ``settle_s``) *judges*:
    and within two of *the better sensor's own* amplitude error (no worse than that sensor is
    known to be; the sharp test alone is not the stricter where the method and the sensor do
    not share their noise — an outlier in one of them); if none is, of those within two
-   standard errors of the sensor's own error; if none is, the lowest worst excess
+   standard errors of the sensor's own error; if none is, the lowest RMS error
    (:func:`~bench.analysis.fusion._tuning.choose`).  The judged part is where the choice is
    made, so the recommended method's figures there carry the (small) optimism of a choice
    among eleven.
@@ -46,22 +46,45 @@ complementary smoother, *cleaned*.  They are judged like every other, so they ar
 recommended only where they do better on the judged part; where nothing was replaced they
 are the methods they clean (and ties go to those).
 
-**Without a reference** nothing can be judged: every method runs with settings from the data
-alone (Document B's defaults, the crossover at ``√(f_h·f_l)``, the complementary noise by
-maximum likelihood over the whole record) and the recommendation is the complementary
-smoother, the estimate that is optimal for the fitted noise model and cannot lag.
+**Without a reference** nothing can be judged, and a method can go wrong unseen (on random
+motion a noise model fitted to motion it does not model makes the smoother lean on the wrong
+sensor):
+
+1. each sensor's spikes are found without a model of the motion — its interpolation residual
+   beyond a threshold set by a stated false-alarm rate
+   (:func:`~bench.analysis.fusion._outliers.find_spikes`) — and replaced in a cleaned copy;
+2. the given delays are applied, then the LF record put on the HF clock: its skew and the rest of
+   its delay from the sensors' cross-spectrum, each corrected where significant
+   (:func:`~bench.analysis.fusion._timing.estimate_relative_timing`);
+3. every method runs with settings from the data alone (Document B's defaults, the crossover at
+   ``√(f_h·f_l)``, the complementary noise by maximum likelihood on the cleaned copy);
+4. **recommended**: the first of :data:`PREFERENCE_WITHOUT_REF` (the smoother on the cleaned
+   copy, the smoother, the complementary Kalman filter) whose filter did not diverge and which
+   passes its consistency checks — read back through each sensor's model it agrees with that
+   sensor within the sensor's noise, or as well as the plain complementary filter, in every
+   octave the sensor reads (:func:`~bench.analysis.fusion._consistency.check_method`, bounds
+   from an F quantile at a 1 % false-alarm rate); if none does, the plain complementary filter
+   (on the cleaned copy where spikes were replaced).  A smoother that diverges cannot be
+   recommended.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 import bench.analysis.fusion._complementary as fc
 import bench.analysis.fusion._sequential as fu
 from bench.analysis.fusion._alignment import MIN_TONES, PairAlignment, fit_and_align
+from bench.analysis.fusion._consistency import (
+    MethodCheck,
+    check_method,
+    difference_noise,
+    sensor_noise,
+    welch_segment,
+)
 from bench.analysis.fusion._metrics import (
     detect_tones,
     nis_check,
@@ -71,6 +94,8 @@ from bench.analysis.fusion._metrics import (
     without_outliers,
 )
 from bench.analysis.fusion._models import FusionModel, SensorModel
+from bench.analysis.fusion._outliers import SPIKE_HALF_WIDTH, SpikeSearch, find_spikes
+from bench.analysis.fusion._timing import RelativeTiming, align_relative, estimate_relative_timing
 from bench.analysis.fusion._tuning import (
     ADAPTIVE_SETTINGS,
     FusionTuning,
@@ -122,7 +147,11 @@ METHODS = {m.key: m for m in (
            "the complementary smoother's noise, on the record with each sensor's outliers replaced by its "
            "tone fit"),
 )}
-RECOMMENDED_WITHOUT_REF = "complementary_smoother"
+#: without a reference, the methods tried in this order: the first that passes its consistency checks
+#: (:func:`~bench.analysis.fusion._consistency.check_method`) is recommended, else the complementary filter
+#: (on the record with its spikes replaced, where any were)
+PREFERENCE_WITHOUT_REF = ("complementary_smoother_clean", "complementary_smoother", "complementary_kf")
+MIN_CHECK_SAMPLES = 1024  # the checks' Welch spectra need 16 half-overlapped segments of at least 64 samples
 
 
 @dataclass(frozen=True)
@@ -210,7 +239,7 @@ def recommend(judgement: Judgement) -> tuple[str, str]:
     complementary filter, the lowest RMS error of those whose excess is within two standard
     errors of itself and of the better sensor's own amplitude error at every tone; if none is,
     of those within two standard errors of the better sensor's own amplitude error; if none is,
-    the lowest worst excess."""
+    the lowest RMS error."""
     names = [k for k in METHODS if k in judgement.rms_error] + [k for k in judgement.rms_error if k not in METHODS]
     rms = {k: judgement.rms_error[k] if math.isfinite(judgement.rms_error[k]) else math.inf for k in names}
     bar = min((rms[k] for k in BASELINES if k in rms), default=math.inf)
@@ -227,8 +256,11 @@ def recommend(judgement: Judgement) -> tuple[str, str]:
         index, rule = choose(scores)
         if scores[index].feasible:
             return names[index], prefix + rule.replace("within tolerance", within)
-    return names[index], prefix + rule.replace("within tolerance", "within 2 standard errors, of the excess or "
-                                                                   "of the sensor,")
+    # none meets the amplitude rule: the lowest RMS error on the judged part (the excess of every one
+    # is beyond its noise, so it no longer ranks them; ties go to the earlier method)
+    best = min(range(len(names)), key=lambda i: (rms[names[i]], i))
+    return names[best], prefix + ("none has its excess within 2 standard errors, of the excess or of the sensor, "
+                                  "at every tone: the lowest RMS error")
 
 
 @dataclass
@@ -287,6 +319,13 @@ class FusionAnalysis:
         The fitted sensor models, clocks and delays; None unless fitted.
     notes : list of str
         What the analysis assumed or changed.
+    timing : RelativeTiming or None
+        Without a reference: the LF clock's skew and delay relative to the HF one, from the
+        sensors' cross-spectrum (corrected where significant); None otherwise.
+    spikes : dict of str to SpikeSearch or None
+        Without a reference: the spikes found in each sensor (``"hf"``, ``"lf"``); None otherwise.
+    checks : dict of str to MethodCheck or None
+        Without a reference: each candidate method's consistency checks; None otherwise.
     n_samples : int
         Property: number of samples.
     recommended_rate : ndarray
@@ -316,6 +355,9 @@ class FusionAnalysis:
     noise_fit: fc.NoiseFit | None = None
     alignment: PairAlignment | None = None
     notes: list = field(default_factory=list)
+    timing: RelativeTiming | None = None
+    spikes: dict | None = None
+    checks: dict | None = None
 
     @property
     def n_samples(self) -> int:
@@ -352,6 +394,9 @@ class FusionAnalysis:
             "noise_fit": None if self.noise_fit is None else self.noise_fit.to_dict(),
             "alignment": None if self.alignment is None else self.alignment.to_dict(),
             "notes": list(self.notes),
+            "timing": None if self.timing is None else self.timing.to_dict(),
+            "spikes": None if self.spikes is None else {k: v.to_dict() for k, v in self.spikes.items()},
+            "checks": None if self.checks is None else {k: v.to_dict() for k, v in self.checks.items()},
         }
         if j is not None:
             doc.update({"rms_error": {k: float(v) for k, v in j.rms_error.items()}, "tones_hz": floats(j.tones_hz),
@@ -440,7 +485,7 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
                    lf_model: SensorModel | None = None, tones_hz=None, crossover_hz: float | None = None,
                    params: fu.FusionParams | None = None, q: float | None = None, settle_s: float = 0.0,
                    discretization: str = "euler", alpha: float = 0.05, tune_fraction: float = TUNE_FRACTION,
-                   align: bool = True) -> FusionAnalysis:
+                   align: bool = True, hf_delay_s: float = 0.0, lf_delay_s: float = 0.0) -> FusionAnalysis:
     """Every rate-fusion method on one HF/LF record: tuned, judged against a reference and one recommended.
 
     Tune every method on the first part, judge on the rest and recommend one (module
@@ -448,8 +493,11 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
     the record aligned if ``align``); else :data:`DEFAULT_HF`/:data:`DEFAULT_LF`.
     ``crossover_hz``, ``params`` and ``q`` fix what they name instead of tuning it.  With
     ``tune_fraction`` 0 nothing is tuned against the reference and the whole record is judged.
-    Without ``ref`` nothing can be judged: every method runs with settings from the data
-    alone and the complementary smoother is recommended.
+    Without ``ref`` nothing can be judged: each sensor's spikes are replaced
+    (:func:`find_spikes`), the LF record put on the HF clock (:func:`estimate_relative_timing`),
+    every method runs with settings from the data alone, and the first of
+    :data:`PREFERENCE_WITHOUT_REF` that passes its consistency checks is recommended, else the
+    complementary filter (module docstring).
 
     Parameters
     ----------
@@ -485,7 +533,13 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
     tune_fraction : float, default 0.4
         Fraction of the record that tunes (with ``ref``), in [0, 0.7].
     align : bool, default True
-        With fitted models, align the record (clock rates, delays) before running the methods.
+        Align the record before running the methods: with fitted models, clock rates and delays
+        against ``ref``; without ``ref``, the LF clock's skew and delay relative to the HF one
+        from their cross-spectrum, where significant.
+    hf_delay_s, lf_delay_s : float, default 0.0
+        Known delays of the sensors' readings (s, finite, within ±1 s; without ``ref``): the LF
+        record is moved by their difference before the rest of its delay is estimated, and
+        ``t_s`` is the HF sensor's instants less its delay.
 
     Returns
     -------
@@ -531,6 +585,9 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
     0.9
     """
     t, hf, lf, ref, rate_hz = _check_inputs(t, hf, lf, ref, rate_hz, tune_fraction, settle_s)
+    for name, v in (("hf_delay_s", hf_delay_s), ("lf_delay_s", lf_delay_s)):
+        if not (math.isfinite(v) and abs(v) <= 1.0):
+            raise ValueError(f"{name} {v} must be a finite value within [-1, 1] s")
     notes: list[str] = []
     tones = None
     if ref is not None:
@@ -560,6 +617,13 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
         source = "default"
         notes.append(f"sensor models are defaults (HF high-pass {DEFAULT_HF.corner_hz:g} Hz, LF low-pass "
                      f"{DEFAULT_LF.corner_hz:g} Hz); pass models or a ref")
+    timing = spikes = None
+    if ref is not None and (hf_delay_s or lf_delay_s):
+        notes.append("the given delays are not used with a reference (they are fitted with the models, or the "
+                     "given models are taken as they are)")
+    if ref is None:
+        t, hf, lf, hf_clean, lf_clean, timing, spikes = _prepare_without_ref(
+            t, hf, lf, rate_hz, hf_model, lf_model, align, hf_delay_s, lf_delay_s, notes)
     settle = int(round(settle_s * rate_hz))
     judged_from = n_tune + settle
     if ref is not None and tones is not None:
@@ -576,8 +640,8 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
     if ref is not None and tones is not None:
         clean = without_outliers(t[tune], np.column_stack([hf[tune], lf[tune]]), tones)[0]
         hf_var, lf_var = (float(v) for v in tone_residual_var(t[tune], clean, tones))
-    else:
-        hf_var, lf_var = fu.white_noise_var(hf), fu.white_noise_var(lf)
+    else:  # spikes (replaced without a reference) left out of the estimate
+        hf_var, lf_var = fu.white_noise_var(hf_clean), fu.white_noise_var(lf_clean)
     hf_var, lf_var = max(hf_var, 1e-30), max(lf_var, 1e-30)
     if hf_clean is None and ref is not None and tones is not None:  # not aligned: cleaned on the given clock
         hf_clean, lf_clean = without_outliers(t, np.column_stack([hf, lf]), tones)[0].T
@@ -628,8 +692,8 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
     if ref is not None and tones is not None:  # the likelihood sees the noise, outliers left out
         noise_fit = fc.fit_complementary_noise(clean[:, 0], clean[:, 1], ts, hf_model, lf_model, tones_hz=tones,
                                                t_s=t[tune])
-    else:
-        noise_fit = fc.fit_complementary_noise(hf[tune], lf[tune], ts, hf_model, lf_model)
+    else:  # spikes (replaced without a reference) left out of the likelihood
+        noise_fit = fc.fit_complementary_noise(hf_clean[tune], lf_clean[tune], ts, hf_model, lf_model)
     cnoise = noise_fit.noise
     settings["complementary_kf"] = settings["complementary_smoother"] = {"noise": cnoise.to_dict()}
     ad_tuning: SettingsTuning | None = None
@@ -656,10 +720,11 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
                  "fused": seq.rate, "fixed_r_kf": fixed.rate, "complementary_kf": ckf.rate,
                  "complementary_kf_adaptive": ckf_ad.rate, "complementary_smoother": ckf.smoothed,
                  "complementary_smoother_adaptive": ckf_ad.smoothed}
+    ckf_clean = ckf
     if cleaned:
         estimates["complementary_clean"] = fu.complementary_filter(hf_clean, lf_clean, rate_hz, model, crossover_hz)
-        estimates["complementary_smoother_clean"] = fc.complementary_kalman(
-            hf_clean, lf_clean, ts, hf_model, lf_model, cnoise, smooth=True).smoothed
+        ckf_clean = fc.complementary_kalman(hf_clean, lf_clean, ts, hf_model, lf_model, cnoise, smooth=True)
+        estimates["complementary_smoother_clean"] = ckf_clean.smoothed
     else:
         estimates["complementary_clean"] = estimates["complementary"]
         estimates["complementary_smoother_clean"] = estimates["complementary_smoother"]
@@ -673,20 +738,126 @@ def analyze_fusion(t, hf, lf, ref=None, rate_hz: float | None = None, *, hf_mode
            "fixed_r_kf": nis_check(fixed.nis[keep, 0], 2, alpha, fixed.rate),
            "complementary_kf": nis_check(ckf.nis[keep], 1, alpha, ckf.rate),
            "complementary_kf_adaptive": nis_check(ckf_ad.nis[keep], 1, alpha, ckf_ad.rate)}
+    if cleaned:  # the cleaned smoother's own filter
+        nis["complementary_kf_clean"] = nis_check(ckf_clean.nis[keep], 1, alpha, ckf_clean.rate)
     frac = {n: np.bincount(seq.interval[keep, j], minlength=3) / seq.interval[keep, j].size
             for j, n in enumerate(("hf", "lf"))}
     frac["complementary_lf"] = np.bincount(ckf_ad.interval[keep], minlength=3) / ckf_ad.interval[keep].size
     r_range = {n: [float(seq.r[keep, j].min()), float(seq.r[keep, j].max())] for j, n in enumerate(("hf", "lf"))}
     r_range["complementary_lf"] = [float(ckf_ad.r[keep].min()), float(ckf_ad.r[keep].max())]
 
-    judgement = None
+    judgement = checks = None
     if ref is not None and tones is not None:
         judgement = judge(t[keep], ref[keep], {k: v[keep] for k, v in estimates.items()}, tones, rate_hz)
         recommended, rule = recommend(judgement)
         rule = ("judged on samples after the tuning part: " if n_tune else "judged on the whole record: ") + rule
     else:
-        recommended = RECOMMENDED_WITHOUT_REF
-        rule = ("no reference: nothing can be judged; the complementary smoother is optimal for the noise "
-                "fitted by maximum likelihood and cannot lag")
+        checks = check_without_ref(estimates, hf_clean, lf_clean, hf_model, lf_model, rate_hz, nis, cleaned, cnoise)
+        recommended, rule = recommend_without_ref(checks)
     return FusionAnalysis(rate_hz, t, model, params, source, crossover_hz, estimates, nis, frac, r_range, recommended,
-                          rule, cnoise, settings, n_tune, judged_from, judgement, tuning, noise_fit, alignment, notes)
+                          rule, cnoise, settings, n_tune, judged_from, judgement, tuning, noise_fit, alignment, notes,
+                          timing, spikes, checks)
+
+
+def _prepare_without_ref(t, hf, lf, rate_hz: float, hf_model: SensorModel, lf_model: SensorModel, align: bool,
+                         hf_delay_s: float, lf_delay_s: float, notes: list) -> tuple:
+    """Without a reference: each sensor's spikes found and a cleaned copy made (:func:`find_spikes`),
+    the LF record moved by the given delays' difference, then by its skew and the rest of its
+    delay relative to the HF record (from the cleaned copies' cross-spectrum) where significant.
+    Returns ``t, hf, lf, hf_clean, lf_clean, timing, spikes``."""
+    if len(hf) > 4 * SPIKE_HALF_WIDTH:
+        hf_clean, hf_spikes = find_spikes(hf)
+        lf_clean, lf_spikes = find_spikes(lf)
+    else:  # too short to interpolate a sample from its neighbours
+        none = SpikeSearch(np.zeros(0, dtype=int), math.inf, 0.0, 0.0)
+        hf_clean, hf_spikes, lf_clean, lf_spikes = hf, none, lf, none
+        notes.append(f"spikes not searched: {len(hf)} samples (more than {4 * SPIKE_HALF_WIDTH} needed)")
+    spikes = {"hf": hf_spikes, "lf": lf_spikes}
+    if hf_spikes.index.size or lf_spikes.index.size:
+        notes.append(f"spikes replaced in the cleaned copy: {hf_spikes.index.size} HF and {lf_spikes.index.size} LF "
+                     f"samples (interpolation residual beyond {hf_spikes.threshold_sigma:.3g} robust σ)")
+    t = t - hf_delay_s
+    given = lf_delay_s - hf_delay_s
+    if given:
+        known = RelativeTiming(0.0, 0.0, given, 0.0, float(t[0]), (math.nan, math.nan), 0, 0, math.nan, False, True)
+        part, lf = align_relative(t, lf, known, rate_hz)
+        lf_clean = align_relative(t, lf_clean, known, rate_hz)[1]
+        t, hf, hf_clean = t[part], hf[part], hf_clean[part]
+    timing = None
+    if align:
+        timing = estimate_relative_timing(hf_clean, lf_clean, rate_hz, hf_model, lf_model, t0_s=float(t[0]))
+        part, lf_new = align_relative(t, lf, timing, rate_hz)
+        if timing.skew_corrected or timing.delay_corrected:
+            lf_clean = align_relative(t, lf_clean, timing, rate_hz)[1]
+            t, hf, hf_clean, lf = t[part], hf[part], hf_clean[part], lf_new
+        skew = ("not measured" if not math.isfinite(timing.skew_ppm) else
+                f"{timing.skew_ppm:+.3g} ± {timing.skew_std_ppm:.2g} ppm "
+                f"({'corrected' if timing.skew_corrected else 'not significant: not corrected'})")
+        if timing.n_bins == 0:
+            notes.append("LF clock relative to HF not measured: no band where both sensors read the same motion")
+        else:
+            notes.append(f"LF clock relative to HF from their cross-spectrum ({timing.band_hz[0]:.3g}–"
+                         f"{timing.band_hz[1]:.3g} Hz): skew {skew}; delay {timing.delay_s * 1e3:+.4g} ± "
+                         f"{timing.delay_std_s * 1e3:.2g} ms "
+                         f"({'corrected' if timing.delay_corrected else 'not significant: not corrected'})")
+    if not hf_spikes.index.size:
+        hf_clean = hf
+    if not lf_spikes.index.size:
+        lf_clean = lf
+    return t, hf, lf, hf_clean, lf_clean, timing, spikes
+
+
+def check_without_ref(estimates: dict, hf, lf, hf_model: SensorModel, lf_model: SensorModel, rate_hz: float,
+                      nis: dict, cleaned: bool, noise: fc.ComplementaryNoise | None = None) -> dict:
+    """Every candidate of :data:`PREFERENCE_WITHOUT_REF` checked on the (cleaned) record
+    (:func:`~bench.analysis.fusion._consistency.check_method`), the complementary filter on the
+    same record the yardstick; a Kalman method whose NIS diverged fails; a cleaned method where
+    nothing was replaced is not checked (it is its uncleaned twin).  The yardstick's own check
+    (against the sensors' noise alone) is reported under its key.  Each sensor's noise level is
+    the lowest of its reading's PSD in the noise band and of the level the sensors' difference
+    shows (:func:`~bench.analysis.fusion._consistency.difference_noise`) — upper bounds both:
+    motion and model error only add — and the white noise of ``noise`` (the fitted model's own):
+    a method is held to the tightest noise the data or its own model claim."""
+    fallback = "complementary_clean" if cleaned else "complementary"
+    if len(hf) < MIN_CHECK_SAMPLES:  # nothing to check on: nothing is trusted beyond the complementary filter
+        short = MethodCheck(False, f"the record ({len(hf)} samples) is too short to check (≥ {MIN_CHECK_SAMPLES})")
+        return {key: short for key in (*PREFERENCE_WITHOUT_REF, fallback) if cleaned or not key.endswith("_clean")}
+    nper = welch_segment(len(hf))
+    levels = [sensor_noise(hf, rate_hz, nper), sensor_noise(lf, rate_hz, nper)]
+    bounds = [list(difference_noise(hf, lf, hf_model, lf_model, rate_hz))]
+    if noise is not None:
+        bounds.append([2 * noise.hf_var / rate_hz, 2 * noise.lf_var / rate_hz])
+    levels = [replace(level, psd=float(np.nanmin([level.psd] + [b[i] for b in bounds])))
+              for i, level in enumerate(levels)]
+    checks: dict = {}
+    for key in (*PREFERENCE_WITHOUT_REF, fallback):
+        if key.endswith("_clean") and not cleaned:
+            continue
+        own = "complementary_kf_clean" if key.endswith("_clean") else "complementary_kf"
+        stats = nis.get(own) if key.startswith(("complementary_kf", "complementary_smoother")) else None
+        if stats is not None and stats.diverged:
+            checks[key] = MethodCheck(False, "its filter's normalised innovations diverged")
+            continue
+        checks[key] = check_method(estimates[key], hf, lf, hf_model, lf_model, rate_hz, noise=tuple(levels),
+                                   yardstick=None if key == fallback else estimates[fallback])
+    return checks
+
+
+def recommend_without_ref(checks: dict) -> tuple[str, str]:
+    """The first method of :data:`PREFERENCE_WITHOUT_REF` that passed its checks, else the
+    complementary filter (cleaned where spikes were replaced), and the rule in words."""
+    failed: list[str] = []
+    for key in PREFERENCE_WITHOUT_REF:
+        check = checks.get(key)
+        if check is None:
+            continue
+        if check.passed:
+            return key, ("no reference: the first of " + ", ".join(PREFERENCE_WITHOUT_REF) + " that passes its "
+                         "consistency checks (read back through each sensor's model, it agrees with that sensor "
+                         "within its noise or as well as the complementary filter does)"
+                         + (f"; failed: {'; '.join(failed)}" if failed else ""))
+        failed.append(f"{key} ({check.reason})")
+    fallback = "complementary_clean" if "complementary_clean" in checks else "complementary"
+    return fallback, ("no reference and no candidate passes its consistency checks: the complementary filter"
+                      + (" on the record with its spikes replaced" if fallback.endswith("_clean") else "")
+                      + "; failed: " + "; ".join(failed))

@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 from scipy.signal import bilinear, lfilter, lfilter_zi
 
 OVERSAMPLE = 16
@@ -62,9 +63,52 @@ class Sensor:
     dropouts: tuple = ()  # (first sample, number of samples)
 
 
+@dataclass(frozen=True, eq=False)
+class Broadband:
+    """Random motion: Gaussian white noise shaped in frequency to a flat band ``band_hz`` with
+    smooth edges (magnitude ``1/√(1 + (f_lo/f)⁸)·1/√(1 + (f/f_hi)⁸)``), scaled to ``rms`` (rate
+    units), synthesised on a grid of ``grid_hz`` from ``start_s`` over ``span_s`` and evaluated
+    anywhere inside it by a cubic spline (error ~(2πf/grid_hz)⁴/384: 10⁻⁵ at a fortieth of the
+    grid's rate, the band's top at eight times the sample rate)."""
+
+    seed: int
+    rms: float
+    band_hz: tuple
+    grid_hz: float
+    start_s: float
+    span_s: float
+
+    def _spline(self) -> CubicSpline:
+        """The motion on its grid, synthesised on first use (drawing a rig stays cheap)."""
+        cached = self.__dict__.get("_cached")
+        if cached is not None:
+            return cached
+        n = int(math.ceil(self.span_s * self.grid_hz)) + 1
+        rng = np.random.default_rng([SEED_BASE, self.seed, 2])
+        f = np.fft.rfftfreq(n, 1.0 / self.grid_hz)
+        f_lo, f_hi = self.band_hz
+        with np.errstate(divide="ignore"):
+            shape = 1 / np.sqrt(1 + (f_lo / f) ** 8) / np.sqrt(1 + (f / f_hi) ** 8)
+        shape[0] = 0.0
+        spec = shape * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
+        y = np.fft.irfft(spec, n)
+        y *= self.rms / float(np.std(y))
+        spline = CubicSpline(self.start_s + np.arange(n) / self.grid_hz, y)
+        object.__setattr__(self, "_cached", spline)
+        return spline
+
+    def __call__(self, t_s) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        if t.size and (t.min() < self.start_s or t.max() > self.start_s + self.span_s):
+            raise ValueError(f"times {t.min():.6g}…{t.max():.6g} s outside the motion's span "
+                             f"{self.start_s:.6g}…{self.start_s + self.span_s:.6g} s")
+        return self._spline()(t)
+
+
 @dataclass(frozen=True)
 class PairSpec:
-    """A drawn pair: sample rate, duration, tones (Hz, amplitude, phase rad) and both sensors."""
+    """A drawn pair: sample rate, duration, tones (Hz, amplitude, phase rad), both sensors and
+    optional broadband motion (:class:`Broadband`) added to the tones."""
 
     seed: int
     rate_hz: float
@@ -73,12 +117,15 @@ class PairSpec:
     hf: Sensor
     lf: Sensor
     regime: dict = field(default_factory=dict)
+    motion: Broadband | None = None
 
     def rate(self, t_s: np.ndarray) -> np.ndarray:
         """The true rate at times ``t_s`` (s, reference clock)."""
         out = np.zeros_like(np.asarray(t_s, dtype=float))
         for f, a, ph in self.tones:
             out += a * np.sin(2 * np.pi * f * t_s + ph)
+        if self.motion is not None:
+            out += self.motion(t_s)
         return out
 
     @property
@@ -152,6 +199,68 @@ def draw_spec(seed: int, max_samples: int = MAX_SAMPLES) -> PairSpec:
                 bool(rng.uniform() < 0.5), lf_spikes, lf_drops)
     tones = tuple((float(f), float(a), float(p)) for f, a, p in zip(freqs, amps, phases))
     return PairSpec(seed, float(fs), float(n / fs), tones, hf, lf, regime)
+
+
+RANDOM_MAX_SAMPLES = 60_000  # a random-vibration rig's record stays below this many samples
+
+
+def draw_random_spec(seed: int, max_samples: int = RANDOM_MAX_SAMPLES, *, spikes: bool | None = None,
+                     tones: bool | None = None) -> PairSpec:
+    """A random-vibration rig (module docstring), drawn from its own seeded stream: sample rate
+    1–8 kHz, a record of 12–30 s (at most ``max_samples``), HF corner 0.3–5 Hz and LF corner
+    10–200 Hz (at least 5× apart, at most a twentieth of the sample rate), each of order 1 or 2
+    (damping 0.5–1), broadband motion 0.5–2 rate units RMS over a band from a tenth of the HF
+    corner to 3–10 LF corners (at most a fifth of the sample rate), up to three tones (with
+    ``tones`` None: half the rigs), the LF clock off by ±10–100 ppm, the HF by nothing, delays
+    (HF ≤ 50 µs, LF ≤ 2 ms), white noise 10⁻³…3·10⁻² of the motion's RMS, and (``spikes`` None:
+    two rigs in three) 5–25 spikes of 10–50 motion RMS in one sensor or both."""
+    rng = np.random.default_rng([SEED_BASE, seed, 3])
+    fs = round(_log_uniform(rng, 1000.0, 8000.0), -1)
+    duration = min(rng.uniform(12.0, 30.0), max_samples / fs)
+    n = int(round(duration * fs))
+    fh = _log_uniform(rng, 0.3, 5.0)
+    fl = _log_uniform(rng, max(10.0, 5 * fh), min(200.0, fs / 20))
+    f_hi = min(_log_uniform(rng, 3.0, 10.0) * fl, 0.2 * fs)
+    f_lo = fh / 10
+    rms = _log_uniform(rng, 0.5, 2.0)
+    with_tones = rng.uniform() < 0.5 if tones is None else tones
+    tone_list: list = []
+    if with_tones:
+        for _ in range(int(rng.integers(1, 4))):
+            tone_list.append((round(_log_uniform(rng, f_lo * 3, f_hi) * duration) / duration,
+                              _log_uniform(rng, 0.2, 1.0) * rms, rng.uniform(0, 2 * np.pi)))
+    sig_rms = math.sqrt(rms ** 2 + sum(a * a / 2 for _, a, _ in tone_list))
+    with_spikes = rng.uniform() < 2 / 3 if spikes is None else spikes
+    where = str(rng.choice(["hf", "lf", "both"])) if with_spikes else "none"
+    hf_noise_rel, lf_noise_rel = _log_uniform(rng, 1e-3, 3e-2), _log_uniform(rng, 1e-3, 3e-2)
+    regime = {"random": True, "corner_ratio": fl / fh, "band_hz": (f_lo, f_hi), "spikes": where,
+              "hf_noise_rel": hf_noise_rel, "lf_noise_rel": lf_noise_rel}
+
+    def spike_plan(which: str, gain: float) -> tuple:
+        if where not in (which, "both"):
+            return ()
+        count = int(rng.integers(5, 26))
+        index = rng.choice(np.arange(50, n - 50), count, replace=False)
+        size = np.array([_log_uniform(rng, 10.0, 50.0) for _ in range(count)]) * sig_rms * abs(gain)
+        return tuple((int(i), float(s)) for i, s in zip(np.sort(index), size * rng.choice([-1.0, 1.0], count)))
+
+    hf_gain = float(_log_uniform(rng, 0.1, 10.0) * rng.choice([-1.0, 1.0]))
+    lf_gain = _log_uniform(rng, 0.5, 2.0)
+    hf = Sensor("highpass", int(rng.integers(1, 3)), fh, rng.uniform(0.5, 1.0), hf_gain, None,
+                rng.uniform(0.0, 50e-6), 0.0, hf_noise_rel * sig_rms * abs(hf_gain),
+                0.01 * sig_rms * hf_gain * rng.uniform(-1, 1), False, spike_plan("hf", hf_gain))
+    lf = Sensor("lowpass", int(rng.integers(1, 3)), fl, rng.uniform(0.5, 1.0), lf_gain, None,
+                rng.uniform(0.0, 2e-3), float(rng.choice([-1.0, 1.0]) * rng.uniform(10, 100)),
+                lf_noise_rel * sig_rms * lf_gain, 0.0, bool(rng.uniform() < 0.5), spike_plan("lf", lf_gain))
+    # the motion's grid spans every instant a sensor reads, its pre-roll included (see _record)
+    pre = PRE_ROLL_TIME_CONSTANTS / (2 * math.pi * fh) + 2 / fs
+    motion = Broadband(seed, rms, (f_lo, f_hi), fs * OVERSAMPLE / 2, -pre - 0.01, duration * 1.001 + pre + 0.02)
+    return PairSpec(seed, float(fs), float(n / fs), tuple(tone_list), hf, lf, regime, motion)
+
+
+def spike_truth(spec: PairSpec, which: str) -> np.ndarray:
+    """Indices of ``which`` sensor's spiked samples (sorted, unique)."""
+    return np.unique(np.array([i for i, _ in getattr(spec, which).spikes], dtype=int))
 
 
 def analog_prototype(sensor: Sensor) -> tuple[np.ndarray, np.ndarray]:
