@@ -56,6 +56,21 @@ def rate_rows(seed: int = 2):
             for _ in range(20)]
 
 
+def thermal_rows(seed: int = 5, n: int = 2400):
+    """A static gyro 4 h in a chamber ramping 25 → 60 → 0 °C, its bias 2e-3 °/s/°C of the logged
+    temperature lagged by 300 s."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 6.0
+    logged = np.interp(t, [0, 1800, 5400, 9000, 14400], [25, 25, 60, 0, 0])
+    a = math.exp(-6.0 / 300.0)
+    element = np.empty(n)
+    element[0] = logged[0]
+    for k in range(1, n):
+        element[k] = a * element[k - 1] + (1 - a) * logged[k]
+    y = 0.05 + 2e-3 * (element - 25) + 2e-3 * rng.standard_normal(n)
+    return list(zip(t, y, logged))
+
+
 def turn_on_rows(seed: int = 3, cycles: int = 6):
     rng = np.random.default_rng(seed)
     rows = []
@@ -69,6 +84,7 @@ GOOD = {
     "tumble": (["inner_deg", "outer_deg", "output"], tumble_rows),
     "ratetable": (["input_rate_dps", "output"], rate_rows),
     "turn-on": (["cycle", "t_s", "output", "day"], turn_on_rows),
+    "thermal": (["t_s", "output", "temperature_c"], thermal_rows),
 }
 
 
@@ -97,6 +113,11 @@ def _bad_cases():
     th, tr = GOOD["tumble"][0], tumble_rows()
     rh, rr = GOOD["ratetable"][0], rate_rows()
     oh, orows = GOOD["turn-on"][0], turn_on_rows()
+    thh, thr = GOOD["thermal"][0], thermal_rows()
+    th_nan = [list(r) for r in thr]
+    th_nan[7][1] = "nan"
+    th_back = [list(r) for r in thr]
+    th_back[20][0] = 60.0
     nan_t = [list(r) for r in tr]
     nan_t[4][2] = "nan"
     back = [list(r) for r in orows]
@@ -126,6 +147,16 @@ def _bad_cases():
         "turn-on cycle not integer": ("turn-on", oh, [(0.5, *r[1:]) for r in orows],
                                       r"column 'cycle', line 2: 0.5 is not an integer"),
         "turn-on too few": ("turn-on", oh, orows[:100], r"100 rows; a turn-on record needs at least 128"),
+        "thermal missing column": ("thermal", ["t_s", "output"], [r[:2] for r in thr],
+                                   r"no column 'temperature_c' \(the logged temperature\) in the header"),
+        "thermal wrong unit": ("thermal", ["t_s", "output", "Temp [V]"], thr,
+                               r"column 'Temp \[V\]' \(temperature_c, a temperature\) in 'V'; allowed units: degC"),
+        "thermal kelvin under degC": ("thermal", ["t_s", "output", "Temp [degC]"], [(r[0], r[1], r[2] + 273.15)
+                                                                                    for r in thr],
+                                      r"line 2: 298.15 degC outside \[-100, 250\] \(a wrong unit\?\)"),
+        "thermal NaN": ("thermal", thh, th_nan, r"column 'output', line 9: nan is not a finite number"),
+        "thermal time back": ("thermal", thh, th_back, r"column 't_s', line 22: time 60 s does not increase"),
+        "thermal too few": ("thermal", thh, thr[:40], r"40 rows; a thermal record needs at least 64"),
     }
 
 
@@ -314,3 +345,18 @@ def test_discover_reads_an_imported_record_in_its_own_unit(tmp_path, capsys):
     assert found[0]["sinusoidal_interference"] == pytest.approx(found[1]["sinusoidal_interference"], rel=1e-6)
     code, _, err = cli(capsys, "--store", store, "discover", "--run", ids[2])
     assert code == 2 and "the output is in 'V', not a rate a gyro gives" in err, err
+
+
+def test_a_chamber_record_gives_its_coefficient_and_lag_and_a_compensation_file(tmp_path, capsys):
+    path = write(tmp_path / "c.csv", ["Time [min]", "output", "Case T [K]"],
+                 [(t / 60.0, y, c + 273.15) for t, y, c in thermal_rows()])
+    code, out, err = cli(capsys, "analyze", "thermal", "--input", path, "--output-unit", "deg/s", "--json",
+                         "--col", "temperature_c=Case T",
+                         "--report", str(tmp_path / "rep"))
+    assert code == 0, err
+    m = {x["name"]: x for x in json.loads(out)["measurements"]}
+    assert abs(m["bias_tc"]["value"] - 2e-3) <= 3 * m["bias_tc"]["uncertainty"], m["bias_tc"]
+    assert abs(m["lag_s"]["value"] - 300.0) <= 3 * m["lag_s"]["uncertainty"], m["lag_s"]
+    assert m["bias_tc"]["unit"] == "deg/s/degC"
+    text = (tmp_path / "rep" / "compensation.toml").read_text()
+    assert "element_lag_s" in text and 'temperature_source = "element"' in text
