@@ -196,7 +196,8 @@ def params_std(model: Model, rec: Record, at: int) -> dict:
         if isinstance(eff, StochasticEffect):
             r = rec.y - model.predict(rec)
             others = tuple(ep for ep in model.stochastic_effects() if ep[0].id != eff.id)
-            fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=others, bootstrap=False)
+            # with its bias correction: a random walk's std is its parametric bootstrap's spread
+            fit = sto.fit_stochastic(r - r.mean(), rec.dt_s, eff, known=others, bootstrap=True)
             return {k: float(fit.params_std[k]) for k in p}
         if isinstance(eff, HistogramEffect):
             return dict(eff.fit_histogram(rec.y, float(model.base.noise_sd), block_folds(rec.n), kind).params_std)

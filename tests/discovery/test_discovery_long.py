@@ -18,7 +18,8 @@ from bench.discovery.criterion import FALSE_NAME_RATE
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.model import Model, base_model
-from bench.discovery.workflow import SEARCH_POINTS, discover
+from bench.discovery.stochastic import fit_stochastic
+from bench.discovery.workflow import SEARCH_POINTS, discover, params_std
 from bench.testing.discovery_nulls import binomial_allowance
 
 RATE_HZ = 100.0
@@ -174,3 +175,21 @@ def test_a_window_addition_the_whole_record_does_not_want_is_withdrawn(seed):
     assert set(got) == {"thermal_lag"}, (list(got), d.notes)
     lag = got["thermal_lag"]
     assert abs(lag.params["coef_per_c"] - 3e-4) <= 3 * lag.params_std["coef_per_c"], (lag.params, lag.params_std)
+
+
+def test_a_random_walks_standard_error_is_its_bootstrap_spread():
+    """A named rate random walk reports a standard error (its parametric bootstrap's spread), not
+    NaN; over draws of the walk the estimate lies within 2 of its standard errors of the truth as
+    often as a 95 % interval should (the binomial allowance at 1 %)."""
+    k, n, dt, draws = 2e-5, 8000, 0.8, 20
+    misses = 0
+    for seed in range(draws):
+        rng = np.random.default_rng([41, seed])
+        y = 7e-4 * rng.standard_normal(n) + np.cumsum(rng.normal(0.0, k * np.sqrt(dt), n))
+        rec = Record(t_s=np.arange(n) * dt, y=y)
+        model = Model(base_model("gyro"), (("rate_random_walk", {"k_per_rs": k}),))
+        std = params_std(model, rec, 0)["k_per_rs"]
+        assert np.isfinite(std) and std > 0, std
+        fit = fit_stochastic(y - y.mean(), dt, CATALOGUE["rate_random_walk"], bootstrap=True)
+        misses += abs(fit.params["k_per_rs"] - k) > 2 * fit.params_std["k_per_rs"]
+    assert misses <= binomial_allowance(draws, 0.05), misses
