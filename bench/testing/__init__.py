@@ -23,6 +23,8 @@ Documentation
     :mod:`bench.testing.docs` — the Markdown pages' fenced blocks, the runnable shell blocks
     (marked ``<!-- runnable -->``) run as a reader would, every ``bench`` command line shown,
     the links into the repository.
+Reports
+    :mod:`bench.testing.reports` — a report is one file: every figure inline, no resource outside it.
 Operator page
     :mod:`bench.testing.operator_station` — the operator station served on loopback for a
     browser (chromium and Playwright, the ``test`` extra, drive it).

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from bench.analysis.allan import overlapping_adev
 from bench.app.cli import main
 from bench.app.reports.allan_plot import plot_allan
+from bench.testing.reports import assert_self_contained
 
 FS_HZ = 100.0
 N_DEG_PER_SQRT_S = 0.01
@@ -57,7 +58,7 @@ def test_table_and_report(tmp_path, capsys):
     assert {p.name for p in out.iterdir()} == {"allan_report.html", "allan_plot.png", "allan_result.json"}
     assert (out / "allan_plot.png").read_bytes()[:4] == b"\x89PNG"
     page = (out / "allan_report.html").read_text(encoding="utf-8")
-    assert 'src="allan_plot.png"' in page and "deg/sqrt(h)" in page
+    assert assert_self_contained(page) == 1 and "deg/sqrt(h)" in page
     assert json.loads((out / "allan_result.json").read_text())["coefficients"]["N"]["unit"] == "deg/sqrt(h)"
 
 

@@ -11,6 +11,7 @@ from scipy.signal import lfilter
 
 from bench.app.commands.analyze import configure
 from bench.core.store import RunStore
+from bench.testing.reports import assert_self_contained
 
 
 def run(argv: list[str]) -> int:
@@ -58,8 +59,9 @@ def test_report_files_are_written(tmp_path, capsys):
     assert names >= {"startup_report.html", "startup_model.json", "startup_signal.png", "startup_acf_pacf.png",
                      "startup_trend_residual.png", "startup_residual_acf.png", "startup_simulated.png"}
     page = (out / "startup_report.html").read_text(encoding="utf-8")
-    for png in (n for n in names if n.endswith(".png")):
-        assert f"src='{png}'" in page and (out / png).read_bytes()[:4] == b"\x89PNG"
+    pngs = [n for n in names if n.endswith(".png")]
+    assert all((out / png).read_bytes()[:4] == b"\x89PNG" for png in pngs)
+    assert assert_self_contained(page) == len(pngs)  # each figure inline, the files beside it too
     assert "Ljung–Box" in page and "<table>" in page
     assert json.loads((out / "startup_model.json").read_text())["model"]["method"] == "burg"
 

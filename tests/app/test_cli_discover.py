@@ -18,6 +18,7 @@ from bench.discovery.effects_base import DEFAULT_NOISE_SD
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.workflow import discover
+from bench.testing.reports import assert_self_contained
 from procedures.running import alone
 from procedures.startup import StartupAcquisition, StartupParameters
 
@@ -58,7 +59,7 @@ def test_discover_csv_names_the_hidden_effect_json_model_and_report(hidden_csv, 
     model = read_model(doc["model_file"])
     assert model.effect_ids[:1] == ("k3_nonlinearity",)
     html = (out / "discovery_report.html").read_text()
-    assert "k3_nonlinearity" in html and "discovery_step1.png" in html
+    assert "k3_nonlinearity" in html and assert_self_contained(html, figures=2)
     assert (out / "discovery_step1.png").stat().st_size > 1000
 
 

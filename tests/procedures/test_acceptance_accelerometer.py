@@ -14,6 +14,7 @@ from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.spec import parse_spec
 from bench.core.store import RunStore
+from bench.testing.reports import assert_self_contained
 from procedures.acceptance import AcceptanceTest
 from procedures.catalogue import CATALOGUE
 from procedures.running import alone
@@ -79,7 +80,7 @@ def test_a_unit_inside_its_spec_passes_with_record_and_report(tmp_path, spec_fil
     assert 0 < k1["uncertainty"] < 1e-3 and k1["unit"] == "mA/g"
     report = tmp_path / "rep" / doc["run_id"]
     html = (report / "acceptance_report.html").read_text()
-    assert "QA-SIM-0002" in html and "acceptance_tumble.png" in html and "acceptance_startup.png" in html
+    assert "QA-SIM-0002" in html and assert_self_contained(html, figures=2)
     assert (report / "acceptance_tumble.png").stat().st_size > 10_000
     with RunStore(store) as s:
         assert {"output", "temperature", "tumble"} <= set(s.streams(doc["run_id"]))

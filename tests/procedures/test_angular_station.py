@@ -16,6 +16,7 @@ from bench.app.cli import main
 from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.store import RunStore
+from bench.testing.reports import assert_self_contained
 from instruments.angular_table import AngularLimits
 from procedures.frf import FrfParameters, FrfTest, safe_amplitude_dps
 from procedures.fusion import FusionParameters, FusionTest, tone_demand
@@ -116,7 +117,8 @@ def test_cli_frf_writes_the_report_and_json(tmp_path, capsys):
     assert code == 0 and doc["status"] == "passed"
     folder = tmp_path / "rep" / doc["run_id"]
     assert (folder / "angular_report.html").exists() and (folder / "angular_frf.png").exists()
-    assert "Frequency response" in (folder / "angular_report.html").read_text()
+    page = (folder / "angular_report.html").read_text()
+    assert "Frequency response" in page and assert_self_contained(page) >= 1
 
 
 @pytest.mark.parametrize("args,fragment", [

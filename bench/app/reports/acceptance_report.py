@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.app.reports.acceptance_plots import SECTIONS
+from bench.app.reports.common import write_page
 from bench.app.verdict import measurements_of, verdict_of
 
 _COLOURS = {"pass": "#d8f0d8", "marginal": "#fff2c0", "fail": "#f8d0d0"}
@@ -96,5 +97,5 @@ td,th{{border:1px solid #bbb;padding:2px 8px}} img{{max-width:100%}}
 </body></html>
 """
     path = out / "acceptance_report.html"
-    path.write_text(page, encoding="utf-8")
+    write_page(path, page)
     return path

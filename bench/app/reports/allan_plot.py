@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 
 from bench.analysis.allan import B_FACTOR, CHECK_CONFIDENCE, AllanResult, term_adev
 from bench.app.reports.common import html_table as _table
+from bench.app.reports.common import write_page
 
 _COLOURS = {"Q": "C4", "N": "C2", "B": "C1", "K": "C5", "R": "C6"}
 _SLOPE_TEXT = {"Q": "−1", "N": "−1/2", "B": "0", "K": "+1/2", "R": "+1"}
@@ -150,5 +151,5 @@ read-off with its interval ({CHECK_CONFIDENCE:.0%}) against the fit.</p>
 </body></html>
 """
     path = out / "allan_report.html"
-    path.write_text(page, encoding="utf-8")
+    write_page(path, page)
     return path

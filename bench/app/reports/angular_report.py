@@ -32,7 +32,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.fusion import METHODS, SensorModel, excess_over_best
-from bench.app.reports.common import html_table, save_figure
+from bench.app.reports.common import html_table, save_figure, write_page
 
 #: plot style per method (colour, marker); every method of the registry has one
 STYLE = {"hf": ("C1", "v"), "lf": ("C4", "D"), "complementary": ("C2", "^"), "fused": ("C3", "o"),
@@ -320,8 +320,8 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
              "margin:8px 0}td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}tr.best{font-weight:bold}"
              "img{max-width:100%}</style>")
     out = folder / "angular_report.html"
-    out.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>Angular rig report</title>{style}"
-                   f"</head><body>{''.join(parts)}</body></html>", encoding="utf-8")
+    write_page(out, f"<!doctype html><html><head><meta charset='utf-8'><title>Angular rig report</title>{style}"
+                    f"</head><body>{''.join(parts)}</body></html>")
     (folder / "angular_report.json").write_text(json.dumps(
         {k: results[k] for k in ("frf.points", "frf.fits", "fusion.tuning", "fusion.analysis", "fusion.alignment")
          if k in results},

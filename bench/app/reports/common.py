@@ -1,8 +1,11 @@
-"""What every report shares: thinning long traces for plotting, saving a figure, an HTML table."""
+"""What every report shares: thinning long traces for plotting, saving a figure, an HTML table,
+writing the page as one self-contained file."""
 
 from __future__ import annotations
 
+import base64
 import html
+import re
 from collections.abc import Collection, Sequence
 from pathlib import Path
 
@@ -34,3 +37,21 @@ def html_table(header: Sequence[str], rows: Sequence[Sequence[object]],
         cells = "".join(f"<td>{html.escape(str(v))}</td>" for v in row)
         body.append(f"<tr class='best'>{cells}</tr>" if i in bold_rows else f"<tr>{cells}</tr>")
     return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+
+
+_IMAGE_SRC = re.compile(r"""src=(['"])([^'"/:]+\.png)\1""")
+
+
+def write_page(path: Path, page: str) -> Path:
+    """Write the HTML ``page`` to ``path`` with every figure it shows from its own folder inlined
+    (``src`` as a data URI): the report is one file that opens, prints and files on its own, with
+    no resource outside it. The figures stay beside it as PNG files too."""
+    folder = path.parent
+
+    def inline(m: re.Match[str]) -> str:
+        png = folder / m.group(2)
+        if not png.is_file():
+            return m.group(0)
+        return f"src={m.group(1)}data:image/png;base64,{base64.b64encode(png.read_bytes()).decode()}{m.group(1)}"
+    path.write_text(_IMAGE_SRC.sub(inline, page), encoding="utf-8")
+    return path

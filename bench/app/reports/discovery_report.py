@@ -19,7 +19,7 @@ from matplotlib.ticker import NullFormatter
 from scipy import signal
 
 from bench.analysis.allan import overlapping_adev
-from bench.app.reports.common import html_table, save_figure
+from bench.app.reports.common import html_table, save_figure, write_page
 
 CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.4}"
        "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;padding:2px 6px;"
@@ -177,6 +177,6 @@ def write_discovery_report(result, rec, out_dir, label: str) -> Path:
                      rec.rate_hz, out / "discovery_overall.png", "initial vs final")
         parts.append(f"<img src='{img}' alt='initial vs final'>")
     path = out / "discovery_report.html"
-    path.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>discover</title>"
-                    f"<style>{CSS}</style></head><body>{''.join(parts)}</body></html>", encoding="utf-8")
+    write_page(path, f"<!doctype html><html><head><meta charset='utf-8'><title>discover</title>"
+                     f"<style>{CSS}</style></head><body>{''.join(parts)}</body></html>")
     return path

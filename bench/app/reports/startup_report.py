@@ -25,6 +25,7 @@ from bench.analysis.startup import StartupAnalysis
 from bench.app.reports.common import html_table as _table
 from bench.app.reports.common import save_figure as _save
 from bench.app.reports.common import thin as _thin
+from bench.app.reports.common import write_page
 
 _SIM_SEED = 0
 
@@ -171,5 +172,5 @@ p = {lb.p_value:.4g}.</p>
 </body></html>
 """
     path = out / "startup_report.html"
-    path.write_text(page, encoding="utf-8")
+    write_page(path, page)
     return path

@@ -30,7 +30,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.vibration import VibrationAnalysis
-from bench.app.reports.common import MAX_POINTS, save_figure
+from bench.app.reports.common import MAX_POINTS, save_figure, write_page
 from bench.app.reports.common import html_table as _table
 from bench.app.reports.common import thin as _thin
 
@@ -174,5 +174,5 @@ non-random terms.</p>
 </body></html>
 """
     path = out / "vibration_report.html"
-    path.write_text(page, encoding="utf-8")
+    write_page(path, page)
     return path
