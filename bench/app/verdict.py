@@ -1,11 +1,14 @@
 """The verdict of a finished run from its stored measurements: PASS, PASS (marginal), FAIL or
-ABORTED — what ``bench runs show``, the operator page's history and the acceptance report say.
+ABORTED — what ``bench runs show``, the operator page's history and the acceptance report say;
+and the record's digest a signed report prints (:func:`record_digest`).
 
 Plain data in, a word out: no plotting, so a reading command gets it without matplotlib."""
 
 from __future__ import annotations
 
 from typing import Any
+
+from bench.core.store.forward import package
 
 
 def measurements_of(results: dict[str, Any]) -> list[dict[str, Any]]:
@@ -22,3 +25,14 @@ def verdict_of(status: str, measurements: list[dict[str, Any]]) -> str:
     if any(m["outcome"] == "marginal" for m in measurements):
         return "PASS (marginal)"
     return "PASS"
+
+
+def record_digest(store, run_id: str) -> str:
+    """The digest the central store checks for the finished run (``forward.package``); a
+    sentence saying why there is none for a run still running or a store that cannot say."""
+    if not hasattr(store, "chunk_rows"):
+        return "not computed here (read from the central store)"
+    try:
+        return package(store, run_id).digest
+    except ValueError as exc:
+        return f"none yet: {exc}"

@@ -14,6 +14,8 @@ from bench.app.station import Station, builtin_sim_config
 from bench.core.procedure import execute
 from bench.core.spec import parse_spec
 from bench.core.store import RunStore
+from bench.core.store.central import spec_identity
+from bench.core.store.forward import package
 from bench.testing.reports import assert_self_contained
 from procedures.acceptance import AcceptanceTest
 from procedures.catalogue import CATALOGUE
@@ -81,6 +83,12 @@ def test_a_unit_inside_its_spec_passes_with_record_and_report(tmp_path, spec_fil
     report = tmp_path / "rep" / doc["run_id"]
     html = (report / "acceptance_report.html").read_text()
     assert "QA-SIM-0002" in html and assert_self_contained(html, figures=2)
+    # what a signature needs: the spec by its content's SHA-256, an approval block, the record's digest
+    with RunStore(store) as s:
+        spec = s.results(doc["run_id"])["acceptance.spec"]
+        digest = package(s, doc["run_id"]).digest
+    assert spec_identity(spec)[0] in html and "tested by" in html and "reviewed by" in html
+    assert f"<code>{digest}</code>" in html and str(spec_file) not in html  # the spec by name, not its path
     assert (report / "acceptance_tumble.png").stat().st_size > 10_000
     with RunStore(store) as s:
         assert {"output", "temperature", "tumble"} <= set(s.streams(doc["run_id"]))
@@ -88,6 +96,7 @@ def test_a_unit_inside_its_spec_passes_with_record_and_report(tmp_path, spec_fil
                    for a in s.attachments(doc["run_id"]))
     assert main(["--store", store, "runs", "show", doc["run_id"], "--json"]) == 0
     shown = json.loads(capsys.readouterr().out)
+    assert shown["digest"] == digest  # a printed report is matched to the stored run by it
     assert shown["verdict"] == "PASS" and len(shown["measurements"]) == len(names)
 
 

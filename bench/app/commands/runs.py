@@ -18,7 +18,7 @@ from bench.app.commands.common import open_reader, open_store, resolve_run_id
 from bench.app.commands.record_options import OPTIONS, add_kind_option, add_record_options, meta_of, options_of
 from bench.app.export import export_csv, export_hdf5
 from bench.app.records import KINDS, read_record
-from bench.app.verdict import measurements_of, verdict_of
+from bench.app.verdict import measurements_of, record_digest, verdict_of
 from bench.core.store.reader import is_central_url
 
 #: where ``bench runs export`` writes unless told (beside the default store)
@@ -113,6 +113,7 @@ def show_run(args) -> int:
         doc["events"] = events  # (t_s, kind, message, data) each
         doc["attachments"] = [asdict(a) if hasattr(a, "__dataclass_fields__") else a
                               for a in store.attachments(args.run_id)]
+        doc["digest"] = record_digest(store, args.run_id)
         json.dump(doc, sys.stdout, indent=2, default=str)
         print()
         return 0
@@ -122,7 +123,8 @@ def show_run(args) -> int:
           f"status     {info.status}" + (f" — {info.reason}" if info.reason else "") +
           (f"\nverdict    {verdict}" if verdict else "") +
           f"\nstarted    {info.started_utc}\nended      {info.ended_utc}\nseed       {info.seed}\n"
-          f"code       {info.code_version}\nlast good sample at t = {info.last_sample_t_s} s")
+          f"code       {info.code_version}\nlast good sample at t = {info.last_sample_t_s} s\n"
+          f"digest     {record_digest(store, args.run_id)}")
     print("streams:")
     for name, s in streams.items():
         print(f"  {name:<14} {getattr(s, 'n_rows', '?'):>10} rows  "
