@@ -86,7 +86,7 @@ def _groups(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return keys[np.sort(first)], rank[inverse.ravel()]
 
 
-def _group_means(y: np.ndarray, se: np.ndarray | None, index: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+def _group_means(y: np.ndarray, se: np.ndarray | None, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard error per group: from the given standard errors (combined), else the
     rows' spread (None-as-NaN where a group has one row and no error was given)."""
     k = int(index.max()) + 1
@@ -111,7 +111,7 @@ def analyze_tumble(record: Record, *, g_over_g0: float | None = None,
     positions, index = _groups(np.column_stack([d["inner_deg"], d["outer_deg"]]))
     if len(positions) < 4:
         raise RecordError(f"{record.source}: {len(positions)} distinct table positions; a tumble needs at least 4")
-    means, errors = _group_means(d["output"], d.get("output_se"), index, "position")
+    means, errors = _group_means(d["output"], d.get("output_se"), index)
     forces = specific_force_iapo_g(positions[:, 0], positions[:, 1], g0)
     fit = fit_tumble(forces, means, None, output_unit_per_ma=per_ma)
     if fit.dof == 0 and np.all(np.isfinite(errors)) and np.all(errors > 0):
@@ -143,7 +143,7 @@ def analyze_ratetable(record: Record, *, full_scale_dps: float | None = None,
         raise RecordError(f"{record.source}: {len(rates)} distinct input rates; a rate-table fit needs at least 3")
     fs = parameter(record, "full_scale_dps", float(np.max(np.abs(rates))), 1e-6, 1e5, full_scale_dps)
     sf = parameter(record, "nominal_scale_factor", 1.0, -1e9, 1e9, nominal_scale_factor)
-    means, errors = _group_means(d["output"], d.get("output_se"), index, "rate")
+    means, errors = _group_means(d["output"], d.get("output_se"), index)
     if not np.any(np.isfinite(errors)):
         raise RecordError(f"{record.source}: one row per rate and no output_se column: the standard error of each "
                           "rate's mean is unknown; give output_se or every reading")
@@ -271,11 +271,6 @@ def analyze_thermal(record: Record, *, reference_c: float | None = None, lag: st
     return RecordAnalysis("thermal", out, {**r.to_dict(), "verification": check.to_dict()}, summary, notes,
                           [("Output over the element's temperature with the fitted bias; the residual over time", fig)],
                           {"compensation.toml": (compensation_to_toml(model).encode(), "application/toml")})
-
-
-def _thin(*arrays: np.ndarray, max_points: int = 20_000) -> list[np.ndarray]:
-    step = max(1, np.asarray(arrays[0]).size // max_points)
-    return [np.asarray(a)[::step] for a in arrays]
 
 
 def _figure():

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from bench.core.store.forward import package
+from bench.core.store.digest import stored_digest
 
 
 def measurements_of(results: dict[str, Any]) -> list[dict[str, Any]]:
@@ -28,11 +28,11 @@ def verdict_of(status: str, measurements: list[dict[str, Any]]) -> str:
 
 
 def record_digest(store, run_id: str) -> str:
-    """The digest the central store checks for the finished run (``forward.package``); a
+    """The digest the central store checks for the finished run (``digest.stored_digest``); a
     sentence saying why there is none for a run still running or a store that cannot say."""
     if not hasattr(store, "chunk_rows"):
         return "not computed here (read from the central store)"
     try:
-        return package(store, run_id).digest
+        return stored_digest(store, run_id)
     except ValueError as exc:
         return f"none yet: {exc}"

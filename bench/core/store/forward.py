@@ -3,9 +3,10 @@
 The station's SQLite store is the queue.  ``sync`` sends every finished (passed, failed,
 completed or aborted) run that the central store has not acknowledged, oldest first:
 
-1. the run is read from SQLite in one snapshot and its **digest** computed (sha256 over the
-   run record, streams, every chunk's bytes, events, results and acquired attachments —
-   everything but the ``analysis/`` attachments, which may change after the run);
+1. the run is read from SQLite in one snapshot and its **digest** computed
+   (:mod:`bench.core.store.digest`: sha256 over the run record, streams, every chunk's bytes,
+   events, results and acquired attachments — everything but the ``analysis/`` attachments,
+   which may change after the run);
 2. one PostgreSQL transaction inserts it under its **UUID** (``RunStore.run_uuid``) or, when
    that UUID is already there, checks the stored digest is the same (a conflict is reported,
    never overwritten); either way the attachments are brought up to date; COMMIT;
@@ -32,7 +33,8 @@ from dataclasses import dataclass, field
 import psycopg
 
 from .central import CentralStore, DigestConflictError, RunPackage
-from .runstore import ANALYSIS_PREFIX, RunStore  # analysis products: re-made at will, not in the digest
+from .digest import run_digest
+from .runstore import RunStore
 
 
 def package(store: RunStore, run_id: str) -> RunPackage:
@@ -44,23 +46,8 @@ def package(store: RunStore, run_id: str) -> RunPackage:
     chunks = list(store.chunk_rows(run_id))
     events = store.events(run_id)
     attachments = [(a, store.attachment(run_id, a.name)) for a in store.attachments(run_id)]
-    h = hashlib.sha256()
-    record = {k: getattr(info, k) for k in (
-        "id", "uuid", "procedure", "parameters", "station", "unit_serial", "seed", "code_version",
-        "started_utc", "ended_utc", "status", "reason", "last_sample_t_s", "results", "labels")}
-    h.update(json.dumps(record, sort_keys=True, default=str).encode())
-    for s in streams.values():
-        h.update(json.dumps([s.name, list(s.columns.items()), list(s.dtypes.items()),
-                             s.description]).encode())
-    for stream, seq, n_rows, dtypes, data in chunks:
-        h.update(f"{stream}|{seq}|{n_rows}|{dtypes}|{len(data)}|".encode())
-        h.update(data)
-    for e in events:
-        h.update(json.dumps(list(e), sort_keys=True, default=str).encode())
-    for a, _ in attachments:
-        if not a.name.startswith(ANALYSIS_PREFIX):
-            h.update(f"{a.name}|{a.mime}|{a.sha256}".encode())
-    return RunPackage(info, str(store.uuid), streams, chunks, events, attachments, h.hexdigest())
+    digest = run_digest(info, streams, chunks, events, (a for a, _ in attachments))
+    return RunPackage(info, str(store.uuid), streams, chunks, events, attachments, digest)
 
 
 def manifest(store: RunStore, run_id: str) -> str:

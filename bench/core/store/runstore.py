@@ -183,7 +183,7 @@ class RunStore:
             raise ValueError(f"run {info.id} is still running: only a finished run can be imported")
         if not isinstance(block_rows, int) or block_rows < 1:
             raise ValueError(f"block_rows={block_rows!r} must be an int >= 1")
-        check_stream_layout = []
+        layouts = []
         for name, stream in record.streams.items():
             check_stream_name(name)
             if set(record.data.get(name, {})) != set(stream.columns):
@@ -197,7 +197,7 @@ class RunStore:
             if sum(sizes) != n or any(k <= 0 for k in sizes):
                 raise ValueError(f"run {info.id}: stream {name!r} chunk sizes {sizes[:5]}… do not "
                                  f"add up to its {n} rows")
-            check_stream_layout.append((name, stream, dtypes, sizes))
+            layouts.append((name, stream, dtypes, sizes))
         origin = None if info.uuid in (None, "") or info.uuid == self.run_uuid(info.id) else info.uuid
         me = liveness.current_process()
         with self._db.lock, self._db.write_transaction() as conn:
@@ -214,7 +214,7 @@ class RunStore:
                  info.started_utc, info.ended_utc, info.ended_utc or utc_now(), info.status,
                  info.reason, info.last_sample_t_s, me.host, me.pid, me.start_token,
                  to_json(check_labels(info.labels), "labels"), origin))
-            for position, (name, stream, dtypes, sizes) in enumerate(check_stream_layout):
+            for position, (name, stream, dtypes, sizes) in enumerate(layouts):
                 layout = [[c, stream.columns[c], dtypes[c].str] for c in stream.columns]
                 conn.execute(
                     "INSERT INTO streams (run_id, name, position, columns_json, description) "
