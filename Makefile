@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 STORE  ?= bench-data/bench.sqlite
 
-.PHONY: demo test docs lint bench-speed clean postgresql chromium
+.PHONY: demo test docs lint bench-speed clean postgresql chromium poppler
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,7 +28,7 @@ postgresql:
 
 ## test: the whole suite (hypothesis derandomised in CI), one worker per core (pytest-xdist); it
 ## includes tests/test_docs.py: the strict docs build and the README's and tutorial's runnable commands
-test: $(STAMP) postgresql chromium
+test: $(STAMP) postgresql chromium poppler
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
 
 ## docs: the documentation site from docs/ into build/site/, strictly (a broken link or anchor
@@ -53,3 +53,8 @@ clean:
 ## it cannot download a browser of its own), apt-get installed as root when missing
 chromium:
 	command -v chromium >/dev/null 2>&1 || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium)
+
+## poppler: poppler's pdftoppm/pdftotext, with which the tests render the reports' PDFs page by
+## page (Debian's poppler-utils, apt-get installed as root when missing)
+poppler:
+	command -v pdftoppm >/dev/null 2>&1 || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y poppler-utils)

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 
 from bench.analysis.allan import overlapping_adev
 from bench.app.cli import main
-from bench.app.reports.allan_plot import plot_allan
+from bench.app.reports.allan_plot import model_segments, plot_allan
 from bench.testing.reports import assert_self_contained
 
 FS_HZ = 100.0
@@ -55,7 +55,8 @@ def test_table_and_report(tmp_path, capsys):
     assert code == 0
     assert "20000 samples at 100 Hz" in text and "tau (s)" in text and "N angle random walk" in text
     assert f"report: {out / 'allan_report.html'}" in text
-    assert {p.name for p in out.iterdir()} == {"allan_report.html", "allan_plot.png", "allan_result.json"}
+    assert {p.name for p in out.iterdir()} == {"allan_report.html", "allan_report.pdf", "allan_plot.png",
+                                               "allan_result.json"}
     assert (out / "allan_plot.png").read_bytes()[:4] == b"\x89PNG"
     page = (out / "allan_report.html").read_text(encoding="utf-8")
     assert assert_self_contained(page) == 1 and "deg/sqrt(h)" in page
@@ -119,8 +120,8 @@ def test_plot_allan_draws_curve_slope_lines_and_read_offs():
     ax = plot_allan(Figure().add_subplot(), result, title="gyro X")
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert ax.get_title() == "gyro X" and ax.get_xscale() == "log" and ax.get_yscale() == "log"
-    assert "ADEV" in labels and "fitted model" in labels
-    assert any(label.startswith("N = ") and "deg/sqrt(h) (slope −1/2)" in label for label in labels)
+    assert "ADEV" in labels and "fitted model (where within the intervals)" in labels
+    assert any(label.startswith("N = ") and "deg/sqrt(h), slope −1/2" in label for label in labels)
     assert any(label.startswith("K = ") for label in labels)
     assert any(label.startswith("read-off N = ") and "at τ = 1 s" in label for label in labels)
     marker = next(line for line in ax.get_lines() if line.get_label().startswith("read-off N"))
@@ -128,6 +129,37 @@ def test_plot_allan_draws_curve_slope_lines_and_read_offs():
     assert marker.get_ydata()[0] == pytest.approx(result.coefficients["N"].read_off_input)
     flat = plot_allan(Figure().add_subplot(), overlapping_adev(np.zeros(64), 1.0))
     assert "constant record" in flat.texts[0].get_text()
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_plotted_model_lies_within_the_intervals_where_it_is_drawn(seed):
+    """Drawn records (white + a random walk + a Gauss–Markov of drawn sizes, some the model cannot
+    follow): wherever the plot draws the fitted model, at every measured τ inside the drawn span the
+    model lies within that τ's interval; the read-off values are the legend's only numbers when the
+    page's table gives them (``fit_values=False``)."""
+    rng = np.random.default_rng([77, seed])
+    n = 2**15
+    phi = math.exp(-1 / (FS_HZ * rng.uniform(1.0, 50.0)))
+    gm = np.zeros(n)
+    kick = rng.uniform(0.0, 0.05) * math.sqrt(1 - phi**2) * rng.normal(size=n)
+    for i in range(1, n):
+        gm[i] = phi * gm[i - 1] + kick[i]
+    y = (0.01 * math.sqrt(FS_HZ) * rng.normal(size=n) + gm
+         + np.cumsum(rng.uniform(0.0, 3e-4) / math.sqrt(FS_HZ) * rng.normal(size=n)))
+    result = overlapping_adev(y, FS_HZ)
+    ax = plot_allan(Figure().add_subplot(), result, fit_values=False)
+    ok = result.adev > 0
+    tau, lo, hi = result.tau_s[ok], result.adev_ci[ok, 0], result.adev_ci[ok, 1]
+    drawn = [line for line in ax.get_lines() if line.get_color() == "C3"]
+    assert len(drawn) == len(model_segments(result))
+    for line in drawn:
+        x = np.asarray(line.get_xdata())
+        inside = (tau >= x.min() * (1 - 1e-9)) & (tau <= x.max() * (1 + 1e-9))
+        assert inside.sum() >= 2
+        model = np.interp(np.log(tau[inside]), np.log(x), np.asarray(line.get_ydata()))
+        assert np.all(model >= lo[inside] * (1 - 1e-6)) and np.all(model <= hi[inside] * (1 + 1e-6))
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert not any(label.startswith(("N = ", "K = ", "B = ")) for label in labels)
 
 
 def test_robust_flag_and_checks_in_json_table_and_report(tmp_path, capsys):

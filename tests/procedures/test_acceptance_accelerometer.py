@@ -16,7 +16,7 @@ from bench.core.spec import parse_spec
 from bench.core.store import RunStore
 from bench.core.store.central import spec_identity
 from bench.core.store.forward import package
-from bench.testing.reports import assert_self_contained
+from bench.testing.reports import assert_pdf, assert_self_contained, assert_signable
 from procedures.acceptance import AcceptanceTest
 from procedures.catalogue import CATALOGUE
 from procedures.running import alone
@@ -87,8 +87,11 @@ def test_a_unit_inside_its_spec_passes_with_record_and_report(tmp_path, spec_fil
     with RunStore(store) as s:
         spec = s.results(doc["run_id"])["acceptance.spec"]
         digest = package(s, doc["run_id"]).digest
-    assert spec_identity(spec)[0] in html and "tested by" in html and "reviewed by" in html
-    assert f"<code>{digest}</code>" in html and str(spec_file) not in html  # the spec by name, not its path
+    assert spec_identity(spec)[0] in html and str(spec_file) not in html  # the spec by name, not its path
+    assert_signable(html, digest)
+    # the PDF beside it: its pages render and its text names the unit, the spec's hash and the digest
+    assert_pdf(report / "acceptance_report.pdf", pages=2,
+               text=["QA-SIM-0002", spec_identity(spec)[0], digest, "reviewed by"])
     assert (report / "acceptance_tumble.png").stat().st_size > 10_000
     with RunStore(store) as s:
         assert {"output", "temperature", "tumble"} <= set(s.streams(doc["run_id"]))

@@ -66,11 +66,11 @@ def run_acceptance(args) -> int:
     except OSError as exc:
         raise ValueError(f"--report {args.report!r} cannot be created: {exc.strerror}") from None
     seed = seed_of(args, config)  # --seed named in the error, before the unit is touched
+    labels = labels_of(args, config)  # so is --operator
     store = open_store(args)
     with progress_bar(not args.no_progress and not args.json) as progress:
         outcome = session.run_acceptance(unit, spec=spec, station=config, seed=seed, store=store,
-                                         labels=labels_of(args, config), operator=operator_of(args),
-                                         progress=progress)
+                                         labels=labels, operator=operator_of(args), progress=progress)
     folder = report_root / outcome.run_id
     report = None
     written = FollowUpResult("report")

@@ -22,6 +22,7 @@ import bench.app.commands
 from bench.analysis.startup import analyze_startup
 from bench.analysis.timeseries import AR_METHODS
 from bench.app.commands.common import attach_folder, require_store, resolve_run_id
+from bench.app.verdict import record_digest
 from bench.core.store import DEFAULT_PATH, RunStore
 
 RUN_STREAM, RUN_TIME_COL, RUN_VALUE_COL = "output", "t_s", "voltage_v"
@@ -140,7 +141,8 @@ def _analyse_and_print(t: np.ndarray, y: np.ndarray, args, report_dir: Path | No
         # lazy: matplotlib only when a report is drawn (every `bench analyze` imports this module)
         from bench.app.reports.startup_report import write_startup_report  # noqa: PLC0415 — lazy, see above
 
-        report = write_startup_report(analysis, report_dir)
+        report = write_startup_report(analysis, report_dir, {"input": label, "time column": args.time_col,
+                                                             "value column": args.value_col})
     if args.json:
         print(json.dumps(analysis_document(analysis, label, report), indent=2, allow_nan=False))
     else:
@@ -218,7 +220,8 @@ def analyse_run(store_path, run_id: str, report_root: Path | None, *, stream: st
         context = {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure,
                    "station": (info.station or {}).get("name"), "status": info.status,
                    "started (UTC)": info.started_utc, "seed": info.seed,
-                   "code version": info.code_version, "stream": f"{stream}.{value_col}"}
+                   "run's code version": info.code_version, "stream": f"{stream}.{value_col}",
+                   "digest": record_digest(store, run_id)}
         folder = Path(report_root) / run_id if report_root is not None else Path(tmp)
         report = write_startup_report(analysis, folder, context)
         attach_folder(store, run_id, report.parent, ATTACHED)  # the report and model travel with the run

@@ -69,12 +69,21 @@ def label_options(p) -> None:
                    "[$BENCH_STATION_ID, else host:station]")
     p.add_argument("--socket", default=None, help="test socket (fixture position) of the unit")
     p.add_argument("--lot", default=None, help="production lot of the unit")
+    p.add_argument("--operator", dest="operator_name", default=None, metavar="NAME",
+                   help="who runs the test (printed as 'tested by' on the report)")
 
 
 def labels_of(args, config) -> dict[str, str]:
-    """The run's labels from :func:`label_options` (station id always; socket and lot if given)."""
-    return station_labels(config.name, station_id=getattr(args, "station_id", None),
-                          socket_name=getattr(args, "socket", None), lot=getattr(args, "lot", None))
+    """The run's labels from :func:`label_options` (station id always; socket, lot and operator if
+    given)."""
+    labels = station_labels(config.name, station_id=getattr(args, "station_id", None),
+                            socket_name=getattr(args, "socket", None), lot=getattr(args, "lot", None))
+    name = getattr(args, "operator_name", None)
+    if name is not None:
+        if not name.strip() or len(name) > 80 or not name.isprintable():
+            raise ValueError(f"--operator {name!r} must be a printable name of 1 to 80 characters")
+        labels["operator"] = name.strip()
+    return labels
 
 
 def seed_of(args, config) -> int | None:

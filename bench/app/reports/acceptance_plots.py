@@ -7,6 +7,7 @@ steps register here in :data:`SECTIONS`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,8 +15,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from bench.analysis.allan import overlapping_adev
-from bench.app.reports.allan_plot import plot_allan
+from bench.analysis.allan import AllanResult, overlapping_adev
+from bench.app.reports.allan_plot import model_segments, plot_allan
 from bench.app.reports.common import save_figure as _save
 from bench.app.reports.thermal_plots import (
     gyro_thermal_ramp_section,
@@ -137,19 +138,25 @@ def ratetable_section(store, run_id: str, results: dict[str, Any], out: Path) ->
 
 
 def _allan_section(title: str, png: str, record, rate_hz: float, unit: str,
-                   out: Path) -> tuple[str, str]:
+                   out: Path) -> tuple[str, str, AllanResult]:
     result = overlapping_adev(record, rate_hz, "octave", unit=unit)  # the same reduction as the step
     fig = Figure(figsize=(8, 5))
-    plot_allan(fig.add_subplot(), result, title=title)
-    n, b = result.coefficients["N"], result.coefficients["B"]
-    caption = (f"{result.n_samples} samples at {rate_hz:g} Hz ({result.n_samples / rate_hz / 3600:.2f} h). "
-               f"Read off the slope lines: {n.label} {_fmt(n.read_off)} {n.unit}, "
-               f"{b.label} {_fmt(b.read_off)} {b.unit}; 68 % confidence intervals shown.")
-    return _save(fig, out / png), caption
+    plot_allan(fig.add_subplot(), result, title=title, fit_values=False)
+    spans = model_segments(result)
+    drawn = ("; the fitted model is drawn where it lies within the intervals ("
+             + ", ".join(f"τ {lo:.3g}–{hi:.3g} s" for lo, hi in spans) + ")" if spans
+             else "; the fitted model lies outside the intervals everywhere and is not drawn")
+    caption = (f"{result.n_samples} samples at {rate_hz:g} Hz ({result.n_samples / rate_hz / 3600:.2f} h); "
+               f"68 % confidence intervals{drawn}.")
+    return _save(fig, out / png), caption, result
 
 
 def _fmt(x) -> str:
     return "—" if x is None else f"{x:.4g}"
+
+
+def _micro(x: float | None) -> str:
+    return "—" if x is None else f"{x * 1e6:.4g}"
 
 
 def accelerometer_noise_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
@@ -157,9 +164,17 @@ def accelerometer_noise_section(store, run_id: str, results: dict[str, Any], out
     if not r or "noise" not in store.streams(run_id):
         return None
     v = np.asarray(store.load(run_id, "noise")["voltage_v"])
-    name, caption = _allan_section("Accelerometer static record: Allan deviation", "acceptance_noise.png",
-                                   v / v.mean(), r["sample_rate_hz"], "g", out)
-    return "Bias stability and noise", name, caption + " (white noise corrected for the DMM aperture in the table)"
+    name, caption, result = _allan_section("Accelerometer static record: Allan deviation",
+                                           "acceptance_noise.png", v / v.mean(), r["sample_rate_hz"], "g", out)
+    n, b = result.coefficients["N"], result.coefficients["B"]
+    duty = math.sqrt(r["aperture_s"] / r["interval_s"])
+    density = None if n.read_off is None else n.read_off * math.sqrt(2.0) * duty
+    return "Bias stability and noise", name, caption + (
+        f" The table's values are read off this curve: N (IEEE 952 velocity random walk, the −½ slope line "
+        f"at τ = 1 s) = {_micro(n.read_off)} µg/√Hz; noise_density is the one-sided density √2·N, corrected "
+        f"for the DMM aperture ({r['aperture_s']:g} s of each {r['interval_s']:g} s reading, "
+        f"×√{r['aperture_s'] / r['interval_s']:.3g}) = {_micro(density)} µg/√Hz; bias_instability is B, the "
+        f"curve's minimum ÷ 0.664 = {_micro(b.read_off)} µg.")
 
 
 def gyro_noise_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
@@ -167,9 +182,14 @@ def gyro_noise_section(store, run_id: str, results: dict[str, Any], out: Path) -
     if not r or "gyro_static" not in store.streams(run_id):
         return None
     rate = np.asarray(store.load(run_id, "gyro_static")["rate_dps"])
-    name, caption = _allan_section("Gyro static record: Allan deviation", "acceptance_gyro_noise.png",
-                                   rate, r["sample_rate_hz"], "dps", out)
-    return "Bias stability and noise", name, caption
+    name, caption, result = _allan_section("Gyro static record: Allan deviation", "acceptance_gyro_noise.png",
+                                           rate, r["sample_rate_hz"], "dps", out)
+    n, b = result.coefficients["N"], result.coefficients["B"]
+    return "Bias stability and noise", name, caption + (
+        f" The table's values are read off this curve: arw is N (IEEE 952 angle random walk, the −½ slope "
+        f"line at τ = 1 s) = {_fmt(n.read_off)} {n.unit} ({_fmt(n.to_dict()['alt']['read_off'])} "
+        f"{n.alt_unit}); bias_instability is B, the curve's minimum ÷ 0.664 = {_fmt(b.read_off)} {b.unit} "
+        f"({_fmt(b.to_dict()['alt']['read_off'])} {b.alt_unit}).")
 
 
 def vibration_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:

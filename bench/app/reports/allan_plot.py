@@ -5,15 +5,14 @@
   fitted model, one dashed line per fitted term (its slope), and the slope-line
   read-offs — a dotted line through the curve point each was read from and a marker
   where it is read (τ = √3, 1, 3, √2 s; B at the minimum).
-* :func:`write_allan_report` writes ``allan_report.html``, ``allan_plot.png`` and
-  ``allan_result.json`` into a directory.
+* :func:`write_allan_report` writes ``allan_report.html`` (``templates/allan.html.j2`` on the
+  shared layout), its PDF, ``allan_plot.png`` and ``allan_result.json`` into a directory.
 
 Figures use the object API (``Figure`` + Agg canvas): no pyplot state, no GUI backend.
 """
 
 from __future__ import annotations
 
-import html
 import json
 from pathlib import Path
 
@@ -22,8 +21,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from bench.analysis.allan import B_FACTOR, CHECK_CONFIDENCE, AllanResult, term_adev
-from bench.app.reports.common import html_table as _table
-from bench.app.reports.common import write_page
+from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
 
 _COLOURS = {"Q": "C4", "N": "C2", "B": "C1", "K": "C5", "R": "C6"}
 _SLOPE_TEXT = {"Q": "−1", "N": "−1/2", "B": "0", "K": "+1/2", "R": "+1"}
@@ -41,8 +39,34 @@ def _span(result: AllanResult) -> np.ndarray:
     return np.geomspace(min(taus), max(taus), 200)
 
 
-def plot_allan(ax: Axes, result: AllanResult, title: str | None = None) -> Axes:
-    """Draw the Allan plot of ``result`` onto ``ax`` and return it."""
+def model_segments(result: AllanResult) -> list[tuple[float, float]]:
+    """The τ ranges where the fitted model lies within the measured curve's intervals: runs of
+    two or more consecutive τ whose interval holds the model. A plot draws the model there only
+    — outside them the model is not what the data show (e.g. a fitted random walk above points
+    that keep falling), and a line through them would read as a finding."""
+    ok = result.adev > 0
+    if not np.any(ok) or not any(c.fit_input for c in result.coefficients.values()):
+        return []
+    tau, ci = result.tau_s[ok], result.adev_ci[ok]
+    model = result.model_adev(tau)
+    inside = (model >= ci[:, 0]) & (model <= ci[:, 1]) & (model > 0)
+    segments, start = [], None
+    for i, flag in enumerate(np.append(inside, False)):
+        if flag and start is None:
+            start = i
+        elif not flag and start is not None:
+            if i - start >= 2:
+                segments.append((float(tau[start]), float(tau[i - 1])))
+            start = None
+    return segments
+
+
+def plot_allan(ax: Axes, result: AllanResult, title: str | None = None, *, fit_values: bool = True) -> Axes:
+    """Draw the Allan plot of ``result`` onto ``ax`` and return it.
+
+    The fitted model is drawn only over :func:`model_segments`; each fitted term as a dashed line
+    of its slope, labelled with its value when ``fit_values`` (a page whose table gives the
+    read-off values passes False, so one value of each coefficient shows on the page)."""
     unit = result.units["adev"]
     ok = result.adev > 0
     ax.set_xscale("log")
@@ -56,14 +80,16 @@ def plot_allan(ax: Axes, result: AllanResult, title: str | None = None) -> Axes:
     ax.errorbar(tau, dev, yerr=[dev - ci[:, 0], ci[:, 1] - dev], fmt="o", ms=4, color="C0",
                 ecolor="C0", elinewidth=0.8, capsize=2, label="ADEV", zorder=3)
     grid = _span(result)
-    model = result.model_adev(grid)
-    if np.any(model > 0):
-        ax.plot(grid, model, color="C3", lw=1.4, label="fitted model", zorder=2)
+    for k, (lo, hi) in enumerate(model_segments(result)):
+        span = np.geomspace(lo, hi, 60)
+        ax.plot(span, result.model_adev(span), color="C3", lw=1.4, zorder=2,
+                label="fitted model (where within the intervals)" if k == 0 else None)
     for name, c in result.coefficients.items():
         colour = _COLOURS[name]
         if c.fit_input:  # the fitted term alone: a line of its slope
+            value = f" = {_g(c.fit)} {c.unit}" if fit_values else " (fitted)"
             ax.plot(grid, term_adev(name, c.fit_input, grid), "--", color=colour, lw=1.0,
-                    label=f"{name} = {_g(c.fit)} {c.unit} (slope {_SLOPE_TEXT[name]})")
+                    label=f"{name}{value}, slope {_SLOPE_TEXT[name]}")
         if c.read_off_input is None or c.read_off_tau_s is None:  # both None: no part of the curve has the slope
             continue
         if c.read_at_tau_s is None:  # B: read at the curve's minimum, not at a fixed τ
@@ -84,10 +110,11 @@ def plot_allan(ax: Axes, result: AllanResult, title: str | None = None) -> Axes:
 
 
 def write_allan_report(result: AllanResult, directory: str | Path, context: dict | None = None,
-                       title: str | None = None) -> Path:
+                       title: str | None = None, *, pdf: bool = True) -> Path:
     """Write the report files into ``directory`` (created if missing); return the HTML path.
 
-    ``context`` (optional) is shown as a header table: where the record came from.
+    ``context`` (optional) heads the report: where the record came from (``input`` names the
+    file whose SHA-256 goes to the page's foot; ``run`` + ``digest`` a stored run).
     """
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
@@ -122,34 +149,13 @@ def write_allan_report(result: AllanResult, directory: str | Path, context: dict
     if screen is not None:
         robust_text += (f"; {screen.n_flagged} samples ({screen.fraction:.2%}) flagged at false-alarm probability "
                         f"{screen.false_alarm:g} per record")
-    notes = "".join(f"<li>{html.escape(n)}</li>" for n in result.notes) or "<li>none</li>"
-    duration = result.n_samples / result.sample_rate_hz
-    chi2 = result.fit_reduced_chi2
-    page = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>Allan deviation report</title>
-<style>body{{font-family:sans-serif;max-width:1000px;margin:auto}} table{{border-collapse:collapse;margin:0.5em 0}}
-td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}} img{{max-width:100%}}</style></head><body>
-<h1>{html.escape(title or "Allan deviation (IEEE Std 952)")}</h1>
-{_table(["source", "value"], [[k, v] for k, v in context.items()]) if context else ""}
-<p>{result.n_samples} {html.escape(result.data_type)} samples at {result.sample_rate_hz:g} Hz ({_g(duration, 6)} s),
-rate unit {html.escape(result.units["adev"])}; overlapping estimator, {len(result.tau_s)} values of τ;
-intervals at {result.confidence:.1%} from Greenhall's EDF and chi-squared.</p>
-<img src="allan_plot.png" alt="Allan plot">
-<h2>Noise terms</h2>
-<p>Fit: weighted non-negative least squares of σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)B² + K²τ/3 + R²τ²/2 over the
-terms {html.escape(", ".join(result.fit_terms))}; reduced χ² = {_g(chi2, 3)}, {result.fit_iterations} iterations.
-Read-off: slope lines through the curve (B: minimum / 0.664).</p>
-{_table(["term", "", "fit ± 1σ", "read-off", "unit", "alternative (fit / read-off)", "read from τ (s)"], coef_rows)}
-<h2>Checks against the curve</h2>
-<p>{html.escape(robust_text)}. Each term: the slope the curve shows where the term makes the model, and the
-read-off with its interval ({CHECK_CONFIDENCE:.0%}) against the fit.</p>
-{_table(["term", "check", "slope shown (term)", "read-off [interval]", "finding"], check_rows)}
-<h2>Notes</h2><ul>{notes}</ul>
-<h2>Allan deviation</h2>
-{_table(["τ (s)", f"ADEV ({result.units['adev']})", "CI low", "CI high", "EDF", "noise α", "differences"], curve_rows)}
-<p>Numbers: <a href="allan_result.json">allan_result.json</a></p>
-</body></html>
-"""
-    path = out / "allan_report.html"
-    write_page(path, page)
-    return path
+    spans = model_segments(result)
+    model_caption = ("The fitted model (red) is drawn where it lies within the intervals: "
+                     + ", ".join(f"τ {lo:.3g}–{hi:.3g} s" for lo, hi in spans) + "." if spans else
+                     "The fitted model lies outside the intervals everywhere; it is not drawn.")
+    header = Header(title=title or "Allan deviation (IEEE Std 952)", subject=subject_rows(context),
+                    identity=source_identity(context), numbers="allan_result.json")
+    return write_report(out / "allan_report.html", "allan.html.j2", header, pdf=pdf, r=result,
+                        duration=result.n_samples / result.sample_rate_hz, model_caption=model_caption,
+                        coefficients=coef_rows, checks=check_rows, robust_text=robust_text,
+                        check_confidence=CHECK_CONFIDENCE, curve=curve_rows)

@@ -42,16 +42,19 @@ def html_table(header: Sequence[str], rows: Sequence[Sequence[object]],
 _IMAGE_SRC = re.compile(r"""src=(['"])([^'"/:]+\.png)\1""")
 
 
-def write_page(path: Path, page: str) -> Path:
-    """Write the HTML ``page`` to ``path`` with every figure it shows from its own folder inlined
-    (``src`` as a data URI): the report is one file that opens, prints and files on its own, with
-    no resource outside it. The figures stay beside it as PNG files too."""
-    folder = path.parent
-
+def inline_figures(page: str, folder: Path) -> str:
+    """``page`` with every figure it shows from ``folder`` inlined (``src`` as a data URI)."""
     def inline(m: re.Match[str]) -> str:
         png = folder / m.group(2)
         if not png.is_file():
             return m.group(0)
         return f"src={m.group(1)}data:image/png;base64,{base64.b64encode(png.read_bytes()).decode()}{m.group(1)}"
-    path.write_text(_IMAGE_SRC.sub(inline, page), encoding="utf-8")
+    return _IMAGE_SRC.sub(inline, page)
+
+
+def write_page(path: Path, page: str) -> Path:
+    """Write the HTML ``page`` to ``path`` with every figure it shows from its own folder inlined
+    (``src`` as a data URI): the report is one file that opens, prints and files on its own, with
+    no resource outside it. The figures stay beside it as PNG files too."""
+    path.write_text(inline_figures(page, path.parent), encoding="utf-8")
     return path

@@ -1,0 +1,143 @@
+"""One layout for every report: a Jinja2 template per report on one base page, written as a
+self-contained HTML file with a PDF of it beside it.
+
+Every report carries the same parts (``templates/base.html.j2``): a title, a verdict when there
+is one, the **record header** (what was tested or analysed, where, by whom, against which spec,
+with which code and seed, when), the report's own body, an **approval block** (tested by /
+reviewed by: name, signature, date) and, at the foot of the page and of every PDF page, the
+**record's identity**: the stored run's digest (``bench runs show ID`` prints the same) or, for
+an analysis of a file, the file's SHA-256 — so a printed copy can be matched to what it reports.
+
+The PDF is made from the same HTML by xhtml2pdf (pure Python: no browser needed on the user's
+machine); figures are inlined in both.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import io
+import logging
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
+
+from bench.app.reports.common import inline_figures
+from bench.core.version import code_version
+
+_ENV = Environment(loader=PackageLoader("bench.app.reports", "templates"),
+                   autoescape=select_autoescape(["html", "j2"]), undefined=StrictUndefined,
+                   trim_blocks=True, lstrip_blocks=True)
+
+
+def _g(x: Any, digits: int = 4) -> str:
+    """A number to ``digits`` significant digits ("—" for None); anything else as text."""
+    if x is None:
+        return "—"
+    if isinstance(x, bool | int) or not isinstance(x, float):
+        return str(x)
+    return f"{x:.{digits}g}"
+
+
+_ENV.filters["g"] = _g
+
+
+@dataclass(frozen=True)
+class Identity:
+    """What the foot of every page names: a label, the value and how a reader checks it."""
+
+    label: str
+    value: str
+    how: str = ""
+
+
+@dataclass
+class Header:
+    """The parts every report shares (see the module's docstring)."""
+
+    title: str
+    subject: Sequence[tuple[str, Any]]
+    identity: Identity
+    verdict: str | None = None
+    reason: str | None = None
+    approval: bool = True
+    tested_by: str = ""
+    numbers: str | None = None  # the file beside the report holding its numbers (JSON)
+    code: str = field(default_factory=code_version)
+    generated_utc: str = field(
+        default_factory=lambda: dt.datetime.now(dt.UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z"))
+
+
+def run_identity(digest: str, run_id: str) -> Identity:
+    """The foot for a report of a stored run: the run's digest."""
+    return Identity("Record digest", digest,
+                    f"SHA-256 of the stored run's acquired content; bench runs show {run_id} prints it")
+
+
+def file_identity(paths: Iterable[str | Path]) -> Identity:
+    """The foot for an analysis of files: each file's SHA-256."""
+    parts = []
+    for p in paths:
+        path = Path(p)
+        try:
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        except OSError:
+            digest = "not readable"
+        parts.append(f"{path.name}: {digest}")
+    return Identity("Input SHA-256", "; ".join(parts) or "—", "the analysed file's content; sha256sum prints it")
+
+
+def source_identity(context: dict[str, Any] | None) -> Identity:
+    """The foot for an analysis described by ``context``: the stored run's digest when it names
+    one (``digest``, ``run``), else the SHA-256 of its ``input`` file(s)."""
+    context = context or {}
+    if context.get("digest") and context.get("run"):
+        return run_identity(str(context["digest"]), str(context["run"]))
+    inputs = context.get("input")
+    paths = [inputs] if isinstance(inputs, str | Path) else list(inputs or [])
+    files = [p for p in paths if Path(p).is_file()]
+    if files:
+        return file_identity(files)
+    return Identity("Record", "no stored run or file named", "the analysed data came from the caller")
+
+
+def subject_rows(context: dict[str, Any] | None) -> list[tuple[str, Any]]:
+    """``context`` as header rows (the digest goes to the foot, not the header)."""
+    return [(k.replace("_", " "), v) for k, v in (context or {}).items() if k != "digest"]
+
+
+def render(template: str, header: Header, **context: Any) -> str:
+    """The page of ``template`` (a name under ``templates/``) with ``header`` and ``context``."""
+    return _ENV.get_template(template).render(h=header, **context)
+
+
+def write_report(path: str | Path, template: str, header: Header, *, pdf: bool = True,
+                 **context: Any) -> Path:
+    """Render ``template`` into ``path`` (figures named by ``src`` inlined from ``path``'s
+    folder) and, with ``pdf``, the same page as a PDF beside it (``path`` with ``.pdf``)."""
+    path = Path(path)
+    page = inline_figures(render(template, header, **context), path.parent)
+    path.write_text(page, encoding="utf-8")
+    if pdf:
+        write_pdf(page, path.with_suffix(".pdf"))
+    return path
+
+
+class PdfError(RuntimeError):
+    """The PDF could not be made from the page."""
+
+
+def write_pdf(page: str, path: Path) -> Path:
+    """The HTML ``page`` (figures inline) as a PDF at ``path``."""
+    from xhtml2pdf import pisa  # noqa: PLC0415 — lazy: reportlab costs ≈ 0.3 s of import
+
+    logging.getLogger("xhtml2pdf").setLevel(logging.ERROR)  # its notes on CSS it ignores
+    buf = io.BytesIO()
+    status = pisa.CreatePDF(page, dest=buf, encoding="utf-8")
+    if status.err:
+        raise PdfError(f"the PDF of {path.name} could not be made ({status.err} errors)")
+    path.write_bytes(buf.getvalue())
+    return path
