@@ -24,6 +24,7 @@ def test_turn_on_time_of_an_exponential_warm_up(amp, tau, seed):
     # by about half the averaging time
     exact = tau * math.log(amp / band)
     assert exact - 1.0 < r.turn_on_time_s < exact + smooth, (r.turn_on_time_s, exact)
+    assert r.resolved and r.to_dict()["resolved"] is True  # a measured time, not a bound
     drift_true = amp * (math.exp(-t[-1] / tau) - math.exp(-smooth / tau))
     assert r.warmup_drift == pytest.approx(drift_true, rel=0.02, abs=3 * (r.warmup_drift_std or 0))
 
@@ -33,6 +34,7 @@ def test_a_record_that_never_leaves_the_band_turns_on_at_the_first_average():
     r = turn_on_metrics(t, np.ones_like(t) + 1e-7 * np.sin(t), band=1e-6, smooth_s=5.0,
                         settled_window_s=100.0)
     assert r.turn_on_time_s == pytest.approx(4.5)  # the first 5-s average ends at the 10th sample
+    assert not r.resolved  # an upper bound: the unit settled sooner than the window can tell
 
 
 @pytest.mark.parametrize("kwargs,message", [

@@ -36,7 +36,7 @@ class TurnOnResult:
     turn_on_time_s : float
         Time after power-on, in s, from which the causal ``smooth_s`` moving average stays
         within ± ``band`` of the settled value (the time of the first average when it never
-        leaves the band).
+        leaves the band: then an upper bound, ``resolved`` False).
     settled_value : float
         Mean output over the last ``settled_window_s`` of the record, output unit.
     band : float
@@ -56,6 +56,10 @@ class TurnOnResult:
         Times of the moving averages (the end of each window), in s.
     smoothed : ndarray, shape (N − n + 1,)
         The causal moving average of the output, output unit.
+    resolved : bool
+        False when the average never leaves the band: the output settled before the first full
+        average could tell, so ``turn_on_time_s`` (the first average's time, ``smooth_s`` after
+        the first sample) is an upper bound, not a measured time.
     """
 
     turn_on_time_s: float
@@ -67,9 +71,11 @@ class TurnOnResult:
     trend: TrendFit
     smoothed_t_s: np.ndarray
     smoothed: np.ndarray
+    resolved: bool = True
 
     def to_dict(self) -> dict:
-        return {"turn_on_time_s": self.turn_on_time_s, "settled_value": self.settled_value,
+        return {"turn_on_time_s": self.turn_on_time_s, "resolved": self.resolved,
+                "settled_value": self.settled_value,
                 "band": self.band, "smooth_s": self.smooth_s, "warmup_drift": self.warmup_drift,
                 "warmup_drift_std": self.warmup_drift_std, "trend": self.trend.to_dict()}
 
@@ -169,7 +175,7 @@ def turn_on_metrics(t_s, y, *, band: float, smooth_s: float = 10.0,
     drift = float(trend.evaluate(np.array([t2]))[0] - trend.evaluate(np.array([t1]))[0])
     drift_std = _drift_std(trend, t1, t2)
     return TurnOnResult(turn_on, settled, float(band), float(smooth_s), drift, drift_std, trend,
-                        ts, smooth)
+                        ts, smooth, resolved=bool(outside.size))
 
 
 def _drift_std(trend: TrendFit, t1: float, t2: float) -> float | None:

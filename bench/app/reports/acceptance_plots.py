@@ -74,13 +74,28 @@ def _turn_on_figure(t, y, r: dict[str, Any], scale: float, unit: str, png: Path)
     ax.plot(ts[::step], (smooth[::step] - settled) * scale, lw=1.0, color="C0",
             label=f"{r['smooth_s']:g} s average")
     ax.axhspan(-band * scale, band * scale, color="C2", alpha=0.15, label=f"±{band * scale:g} {unit} band")
-    ax.axvline(r["turn_on_time_s"], color="C3", lw=1.0,
-               label=f"turn-on time {r['turn_on_time_s']:.0f} s")
+    ax.axvline(r["turn_on_time_s"], color="C3", lw=1.0, label=f"turn-on time {_turn_on_text(r)}")
     lim = max(5 * band, 1.2 * float(np.max(np.abs(smooth - settled)))) * scale
     ax.set(xlabel="time since power-on (s)", ylabel=f"output − settled ({unit})", ylim=(-lim, lim),
            title="Start-up: output relative to its settled value")
     ax.legend(fontsize=8, loc="upper right")
     return _save(fig, png)
+
+
+def _turn_on_text(r: dict[str, Any]) -> str:
+    """The turn-on time as measured, or as the upper bound it is when the first full average
+    was already in the band."""
+    if r.get("resolved", True):
+        return f"{r['turn_on_time_s']:.0f} s"
+    return f"≤ {r['turn_on_time_s']:.0f} s (in the band from the first full {r['smooth_s']:g}-s average)"
+
+
+def _bound_note(r: dict[str, Any]) -> str:
+    if r.get("resolved", True):
+        return ""
+    return (f" The output was within the band from the first full {r['smooth_s']:g}-s average, so the "
+            f"turn-on time ({r['turn_on_time_s']:.0f} s in the table) is an upper bound: the unit settled "
+            "sooner than the averaging window can resolve.")
 
 
 def startup_section(store, run_id: str, results: dict[str, Any], out: Path) -> Section | None:
@@ -92,7 +107,8 @@ def startup_section(store, run_id: str, results: dict[str, Any], out: Path) -> S
     keep = t >= 0
     name = _turn_on_figure(t[keep], g[keep], r, 1e6, "µg", out / "acceptance_startup.png")
     caption = (f"Settled value {r['settled_value']:.7g} g (mean of the last part of the record); "
-               f"warm-up drift of the fitted trend {r['warmup_drift'] * 1e6:.3g} µg ({r['trend']['kind']}).")
+               f"warm-up drift of the fitted trend {r['warmup_drift'] * 1e6:.3g} µg ({r['trend']['kind']})."
+               + _bound_note(r))
     return "Start-up", name, caption
 
 
@@ -106,7 +122,7 @@ def gyro_startup_section(store, run_id: str, results: dict[str, Any], out: Path)
     name = _turn_on_figure(t, rate, r, 1.0, "°/h", out / "acceptance_gyro_startup.png")
     caption = (f"First valid output {r['first_valid_s']:.2f} s after power-on; settled rate "
                f"{r['settled_value']:.4g} °/h (Earth rate included); warm-up drift of the fitted "
-               f"trend {r['warmup_drift']:.3g} °/h ({r['trend']['kind']}).")
+               f"trend {r['warmup_drift']:.3g} °/h ({r['trend']['kind']})." + _bound_note(r))
     return "Start-up", name, caption
 
 
