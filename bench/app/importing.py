@@ -123,10 +123,9 @@ def import_file(store: RunStore, path: str | Path, record: Record | None = None,
         return store.import_run(exported), None
     if record is None:
         raise ValueError(f"{path}: not a bench export; say what kind of record it is (--kind or the metadata's kind)")
-    for earlier in store.list_runs():
-        if earlier.parameters.get("source_sha256") == record.sha256 and earlier.procedure == record.kind.procedure:
-            raise ValueError(f"{path} is already stored as run {earlier.id} (same content, sha256 "
-                             f"{record.sha256[:12]}…): bench runs show {earlier.id}")
+    for earlier in store.find_runs(record.kind.procedure, source_sha256=record.sha256):
+        raise ValueError(f"{path} is already stored as run {earlier} (same content, sha256 "
+                         f"{record.sha256[:12]}…): bench runs show {earlier}")
     analysis = analyze_record(record, **(options or {})) if analyse and record.kind.name in ANALYSES else None
     return store.import_run(record_run(record, analysis)), analysis
 

@@ -255,6 +255,17 @@ def test_list_runs_newest_first_with_limit_and_ids_are_unique(store):
         store.list_runs(limit=0)
 
 
+def test_find_runs_by_procedure_and_parameters_newest_first(store):
+    a = new_run(store, procedure="static_record", parameters={"source_sha256": "aa", "n": 1}).id
+    b = new_run(store, procedure="static_record", parameters={"source_sha256": "bb"}).id
+    c = new_run(store, procedure="static_record", parameters={"source_sha256": "aa", "n": 2}).id
+    new_run(store, procedure="tumble_record", parameters={"source_sha256": "aa"})
+    assert store.find_runs("static_record", source_sha256="aa") == [c, a]
+    assert store.find_runs("static_record", source_sha256="aa", n=1) == [a]
+    assert store.find_runs("static_record") == [c, b, a]
+    assert store.find_runs("static_record", source_sha256="zz") == [] and store.find_runs("nothing") == []
+
+
 # -- errors -------------------------------------------------------------------------------
 @pytest.mark.parametrize("method", ["get_run", "streams", "events", "attachments", "results"])
 def test_unknown_run_id_raises_lookup_error_naming_it(store, method):

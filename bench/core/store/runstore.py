@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import math
 import os
 import secrets
@@ -289,6 +290,20 @@ class RunStore:
                 (-1 if limit is None else limit,),
             ).fetchall()
             return [self._run_info(conn, row) for row in rows]
+
+    def find_runs(self, procedure: str, **parameters: Any) -> list[str]:
+        """Ids of the runs of ``procedure`` whose parameters hold each of ``parameters`` (equal
+        values), newest first — reading only those runs' rows, not their results."""
+        with self._db.read_snapshot() as conn:
+            rows = conn.execute(
+                "SELECT id, parameters_json FROM runs WHERE procedure = ? "
+                "ORDER BY started_utc DESC, rowid DESC", (procedure,)).fetchall()
+        found = []
+        for run_id, text in rows:
+            stored = json.loads(text)
+            if all(stored.get(k) == v for k, v in parameters.items()):
+                found.append(run_id)
+        return found
 
     def get_run(self, run_id: str) -> RunInfo:
         """The run ``run_id``; UnknownRunError (a LookupError) if there is none."""
