@@ -18,14 +18,12 @@ kind's station step runs, on the same kind of numbers:
   their coefficients at the reference, the lag, and the compensation file.
 
 Each gives its measurements (name, value, σ, unit, what), the analysis's own JSON and a text
-summary; :func:`write_report` writes one self-contained HTML file (figures inline).
+summary; :func:`write_report` writes one self-contained HTML report (figures inline) on the
+reports' shared layout, with its PDF beside it.
 """
 
 from __future__ import annotations
 
-import base64
-import html
-import io
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -293,41 +291,42 @@ def analyze_record(record: Record, **options: Any) -> RecordAnalysis:
     return ANALYSES[record.kind.name](record, **options)
 
 
-def _png(fig) -> str:
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=110)
-    return base64.b64encode(buf.getvalue()).decode()
+def write_report(analysis: RecordAnalysis, record: Record, directory: str | Path,
+                 context: dict[str, Any] | None = None, *, pdf: bool = True) -> Path:
+    """Write ``<kind>_report.html`` (one file, figures inline; ``templates/record.html.j2`` on the
+    shared layout), its PDF beside it (with ``pdf``), the figures as PNG files and the analysis's
+    attachments into ``directory``; return the HTML path. ``context`` (optional) adds rows to the
+    header: how the record was read (metadata file, options). The page's foot is the file's
+    SHA-256, the one the analysis read."""
+    # lazy: the page's libraries (Jinja2, matplotlib) only when a report is written
+    from bench.app.reports import layout  # noqa: PLC0415 — lazy
+    from bench.app.reports.common import save_figure  # noqa: PLC0415 — lazy
 
-
-def write_report(analysis: RecordAnalysis, record: Record, directory: str | Path) -> Path:
-    """Write ``<kind>_report.html`` (one file, figures inline) and the analysis's attachments into
-    ``directory``; return the HTML path."""
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
-    e = html.escape
-    head = [("record", record.source), ("sha256", record.sha256), ("kind", record.kind.name),
-            ("unit", record.meta.unit_serial or "—"), ("model", record.meta.model or "—"),
-            *((k, v) for k, v in record.meta.labels.items())]
-    rows = "".join(f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>" for k, v in head)
+    stem = analysis.kind.replace("-", "_")
+    name = Path(record.source).name
+    meta = record.meta
+    subject = [("record", record.source), ("kind", record.kind.name), ("unit", meta.unit_serial or "—"),
+               ("model", meta.model or "—"), ("sensor", meta.sensor or "—"), ("started (UTC)", meta.started_utc),
+               *((k.replace("_", " "), v) for k, v in meta.labels.items()),
+               ("columns", "; ".join(f"{k} [{record.units.get(k, '—')}] ← {v}"
+                                     for k, v in record.conversions.items())),
+               *((k, v) for k, v in (context or {}).items() if v is not None)]
+    figures = [{"png": save_figure(fig, out / f"{stem}_figure{i}.png"), "caption": caption}
+               for i, (caption, fig) in enumerate(analysis.figures, 1)]
 
     def num(x, unc=False):
         return "—" if x is None else (f"{x:.2g}" if unc else f"{x:.6g}")
-    meas = "".join(f"<tr><td>{e(m['description'])}</td><td>{e(m['name'])}</td><td>{num(m['value'])}</td>"
-                   f"<td>{num(m['uncertainty'], True)}</td><td>{e(m['unit'])}</td></tr>"
-                   for m in analysis.measurements)
-    figures = "".join(f"<figure><img alt='{e(cap)}' src='data:image/png;base64,{_png(fig)}'>"
-                      f"<figcaption>{e(cap)}</figcaption></figure>" for cap, fig in analysis.figures)
-    notes = "".join(f"<li>{e(n)}</li>" for n in analysis.notes)
-    page = (f"<!doctype html><html lang='en'><head><meta charset='utf-8'><title>{e(analysis.kind)} analysis — "
-            f"{e(Path(record.source).name)}</title><style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}"
-            "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:.25em .6em;text-align:left}"
-            "img{max-width:100%}</style></head><body>"
-            f"<h1>{e(analysis.kind)} analysis of {e(Path(record.source).name)}</h1><table>{rows}</table>"
-            f"<h2>Measurements</h2><table><tr><th>what</th><th>name</th><th>value</th><th>± 1σ</th><th>unit</th></tr>"
-            f"{meas}</table>{figures}" + (f"<h2>Notes</h2><ul>{notes}</ul>" if notes else "") + "</body></html>")
-    path = out / f"{analysis.kind.replace('-', '_')}_report.html"
-    path.write_text(page, encoding="utf-8")
-    for name, (payload, _) in analysis.attachments.items():
-        (out / name).write_bytes(payload)
+    rows = [[m["description"], m["name"], num(m["value"]), num(m["uncertainty"], True), m["unit"]]
+            for m in analysis.measurements]
+    header = layout.Header(title=f"{analysis.kind} analysis of {name}", subject=subject,
+                           identity=layout.Identity("Input SHA-256", f"{name}: {record.sha256}",
+                                                    "the analysed file's content; sha256sum prints it"),
+                           tested_by=meta.labels.get("operator", ""))
+    path = layout.write_report(out / f"{stem}_report.html", "record.html.j2", header, pdf=pdf,
+                               summary=analysis.summary, measurements=rows, figures=figures, notes=analysis.notes,
+                               attachments=list(analysis.attachments))
+    for attachment, (payload, _) in analysis.attachments.items():
+        (out / attachment).write_bytes(payload)
     return path

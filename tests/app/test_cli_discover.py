@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 
 import numpy as np
@@ -18,7 +19,7 @@ from bench.discovery.effects_base import DEFAULT_NOISE_SD
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import BaseModel, Model, base_model
 from bench.discovery.workflow import discover
-from bench.testing.reports import assert_self_contained
+from bench.testing.reports import assert_self_contained, assert_signable
 from procedures.running import alone
 from procedures.startup import StartupAcquisition, StartupParameters
 
@@ -61,6 +62,8 @@ def test_discover_csv_names_the_hidden_effect_json_model_and_report(hidden_csv, 
     html = (out / "discovery_report.html").read_text()
     assert "k3_nonlinearity" in html and assert_self_contained(html, figures=2)
     assert (out / "discovery_step1.png").stat().st_size > 1000
+    assert (out / "discovery_report.pdf").read_bytes()[:5] == b"%PDF-" and "reviewed by" in html
+    assert_signable(html, hashlib.sha256(path.read_bytes()).hexdigest())  # the measured file's digest
 
 
 def test_discover_from_a_model_file_that_already_has_the_effect_names_nothing(hidden_csv, tmp_path, capsys):

@@ -9,9 +9,11 @@ imported record syncs to PostgreSQL and appears in ``bench fleet``.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,8 +23,10 @@ from hypothesis import strategies as st
 from bench.analysis.tumble import specific_force_iapo_g
 from bench.app.cli import main
 from bench.app.export import export_csv, export_hdf5, read_csv_export
+from bench.app.verdict import record_digest
 from bench.core.store import RunStore
 from bench.core.store.forward import package
+from bench.testing.reports import assert_self_contained, assert_signable
 
 
 def cli(capsys, *argv: str) -> tuple[int, str, str]:
@@ -97,7 +101,9 @@ def test_a_good_record_is_analysed(kind, tmp_path, capsys):
     doc = json.loads(out)
     assert doc["kind"] == kind and doc["measurements"] and doc["sha256"]
     html = (tmp_path / "rep" / f"{kind.replace('-', '_')}_report.html").read_text()
-    assert "data:image/png;base64," in html and "src='http" not in html  # one file, figures inline
+    assert assert_self_contained(html) >= 1  # one file, figures inline
+    assert (tmp_path / "rep" / f"{kind.replace('-', '_')}_report.pdf").read_bytes()[:5] == b"%PDF-"
+    assert_signable(html, hashlib.sha256(Path(path).read_bytes()).hexdigest())
 
 
 def test_tumble_recovers_its_parameters(tmp_path, capsys):
@@ -341,6 +347,9 @@ def test_discover_reads_an_imported_record_in_its_own_unit(tmp_path, capsys):
                              "--out", str(tmp_path / run_id))
         assert code == 0, err
         found.append({e["id"]: e["params"]["amplitude"] for e in json.loads(out)["effects"]})
+        with RunStore(store) as runs:  # the report of a stored run carries the run's digest at its foot
+            digest = record_digest(runs, run_id)
+        assert_signable((tmp_path / run_id / "discovery_report.html").read_text(), digest)
     assert set(found[0]) == set(found[1]) == {"sinusoidal_interference"}
     assert found[0]["sinusoidal_interference"] == pytest.approx(found[1]["sinusoidal_interference"], rel=1e-6)
     code, _, err = cli(capsys, "--store", store, "discover", "--run", ids[2])

@@ -1,15 +1,18 @@
-"""``bench analyze vibration``: JSON keys, text summary, report files, one-line errors with exit 2."""
+"""``bench analyze vibration``: JSON keys, text summary, report files (HTML, its PDF, the input's
+SHA-256 at the foot), one-line errors with exit 2."""
 
 from __future__ import annotations
 
+import hashlib
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.signal import lfilter
 
 from bench.app.cli import main
-from bench.testing.reports import assert_self_contained
+from bench.testing.reports import assert_self_contained, assert_signable
 
 
 def vibration_csv(path, n: int = 4000, header=("t", "y"), gap: bool = False) -> str:
@@ -55,6 +58,9 @@ def test_text_summary_and_report(csv_file, tmp_path, capsys):
     page = (out / "vibration_report.html").read_text(encoding="utf-8")
     assert assert_self_contained(page) == len([n for n in names if n.endswith(".png")])
     assert "Document C" in page
+    assert (out / "vibration_report.pdf").read_bytes()[:5] == b"%PDF-"  # the signable copy beside it
+    assert "reviewed by" in page  # the approval block
+    assert_signable(page, hashlib.sha256(Path(csv_file).read_bytes()).hexdigest())  # the input's digest
     saved = json.loads((out / "vibration_analysis.json").read_text())
     assert saved["settings"]["criterion"] == "aic" and saved["settings"]["p_max"] == 10
 

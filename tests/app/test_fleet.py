@@ -1,10 +1,13 @@
 """``bench sync`` and ``bench fleet`` against a real PostgreSQL server: yield by group with
-Wilson intervals, control charts that flag a shifted process, a unit traced across stations,
+Wilson intervals, control charts that flag a shifted process, a unit traced across stations (each
+view's page with its PDF and the digest of its ``--json`` document at the foot),
 ``bench runs`` on the central store, and forwarding after a run when BENCH_CENTRAL is set."""
 
 from __future__ import annotations
 
+import hashlib
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +15,9 @@ from statsmodels.stats.proportion import proportion_confint
 
 from bench.app.cli import main
 from bench.app.commands.common import forward_after_run
+from bench.app.commands.fleet import shown_url
 from bench.core.store import RunStore
+from bench.testing.reports import assert_self_contained, assert_signable
 
 SPEC = {"model": "QA-T", "kind": "accelerometer", "source": "x.toml", "measurements": []}
 
@@ -31,6 +36,16 @@ def acceptance_run(store: RunStore, serial: str, k0_mg: float, station: str, lot
                                           "uncertainty": 0.01})
         run.finish("passed" if passed else "failed")
     return run.id
+
+
+def assert_signable_page(html: Path, printed_json: str) -> str:
+    """The page is one file with its PDF beside it, an approval block, and at its foot the SHA-256
+    of the view's ``--json`` document as the command printed it; returns the page."""
+    page = html.read_text(encoding="utf-8")
+    assert_self_contained(page)
+    assert html.with_suffix(".pdf").read_bytes()[:5] == b"%PDF-" and "reviewed by" in page
+    assert_signable(page, hashlib.sha256(printed_json.encode()).hexdigest())
+    return page
 
 
 def cli(capsys, *argv: str) -> tuple[int, str, str]:
@@ -67,7 +82,7 @@ def test_yield_by_station_with_wilson_intervals(fleet, capsys, tmp_path):
     assert a["passed"] + a["failed"] == 30 and a["failed"] >= 2  # shifted units fail
     low, high = proportion_confint(a["passed"], 30, method="wilson")
     assert a["yield"]["low"] == pytest.approx(low) and a["yield"]["high"] == pytest.approx(high)
-    assert "<img" in (tmp_path / "y.html").read_text()
+    assert_signable_page(tmp_path / "y.html", out)
     code, out, _ = cli(capsys, "fleet", "yield", "--by", "lot", "--central", fleet)
     assert code == 0 and "L0" in out and "L9" in out
 
@@ -80,14 +95,16 @@ def test_spc_flags_the_shift_and_not_the_stable_part(fleet, capsys, tmp_path):
     assert code == 0 and doc["n"] == 30 and doc["unit"] == "mg"
     assert flagged and min(flagged) >= 20  # the shift is caught, the stable units are not flagged
     assert doc["xbar"]["subgroup"] == 5 and doc["range"] is not None
-    assert "Western Electric" in (tmp_path / "spc.html").read_text()
+    assert "Western Electric" in assert_signable_page(tmp_path / "spc.html", out)
     code, _, err = cli(capsys, "fleet", "spc", "nope", "--central", fleet)
     assert code == 2 and "measurements there: k0" in err
 
 
-def test_trace_finds_a_unit_on_both_stations(fleet, capsys):
-    code, out, _ = cli(capsys, "fleet", "trace", "QA-003", "--central", fleet, "--json")
+def test_trace_finds_a_unit_on_both_stations(fleet, capsys, tmp_path):
+    code, out, _ = cli(capsys, "fleet", "trace", "QA-003", "--central", fleet, "--json",
+                       "--html", str(tmp_path / "trace.html"))
     runs = json.loads(out)["runs"]
+    assert "ST-B" in assert_signable_page(tmp_path / "trace.html", out)
     assert code == 0 and [r["station_id"] for r in runs] == ["ST-A", "ST-B"]
     assert all(r["measurements"][0]["name"] == "k0" for r in runs)
     # ... and its raw samples through bench runs on the central store
@@ -113,6 +130,12 @@ def test_forwarding_after_a_run_and_when_the_server_is_away(tmp_path, central_ur
     assert store.unforwarded_run_ids() == []
     code, out, _ = cli(capsys, "--store", str(tmp_path / "s.sqlite"), "sync", "--status")
     assert code == 0 and out.startswith("0 finished run(s)")
+
+
+def test_a_page_names_the_store_without_its_password():
+    assert shown_url("postgresql://bench:s3cret@db.example:5433/bench?password=x") == \
+        "postgresql://bench@db.example:5433/bench"
+    assert shown_url("postgresql://[::1]:5432/b") == "postgresql://[::1]:5432/b"
 
 
 def test_sync_needs_a_central_url(tmp_path, capsys, monkeypatch):

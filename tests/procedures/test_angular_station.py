@@ -13,10 +13,12 @@ from hypothesis import strategies as st
 
 from bench.analysis.fusion import SensorModel
 from bench.app.cli import main
+from bench.app.reports.angular_report import write_angular_report
 from bench.app.station import Station, builtin_sim_config
+from bench.app.verdict import record_digest
 from bench.core.procedure import execute
 from bench.core.store import RunStore
-from bench.testing.reports import assert_self_contained
+from bench.testing.reports import assert_self_contained, assert_signable
 from instruments.angular_table import AngularLimits
 from procedures.frf import FrfParameters, FrfTest, safe_amplitude_dps
 from procedures.fusion import FusionParameters, FusionTest, tone_demand
@@ -107,6 +109,10 @@ def test_fusion_step_fuses_the_rig(tmp_path):
     assert {"fused_dps", "hf_alone_dps", "lf_alone_dps", "ref_dps"} <= set(aligned)
     raw = store.load(outcome.run_id, "fusion_hf")
     assert set(np.unique(raw["block"])) == {0, 1}  # static segment and profile both stored
+    # the report's fusion part (its PDF is checked on the FRF run: here the page alone, cheaply)
+    page = write_angular_report(results, tmp_path / "rep", {"run": outcome.run_id}, pdf=False).read_text()
+    assert "Every method against the reference" in page and "Document B's claims on this run" in page
+    assert "amplitude error (%) at tone (Hz)" in page and assert_self_contained(page, figures=3) == 3
 
 
 def test_cli_frf_writes_the_report_and_json(tmp_path, capsys):
@@ -119,6 +125,10 @@ def test_cli_frf_writes_the_report_and_json(tmp_path, capsys):
     assert (folder / "angular_report.html").exists() and (folder / "angular_frf.png").exists()
     page = (folder / "angular_report.html").read_text()
     assert "Frequency response" in page and assert_self_contained(page) >= 1
+    assert (folder / "angular_report.pdf").read_bytes()[:5] == b"%PDF-" and "reviewed by" in page
+    with RunStore(tmp_path / "b.sqlite") as store:  # the run's digest at the foot, as bench runs show prints it
+        digest = record_digest(store, doc["run_id"])
+    assert_signable(page, digest)
 
 
 @pytest.mark.parametrize("args,fragment", [

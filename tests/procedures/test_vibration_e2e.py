@@ -8,8 +8,10 @@ import pytest
 
 from bench.app.cli import main
 from bench.app.station import Station, builtin_sim_config
+from bench.app.verdict import record_digest
 from bench.core.procedure import execute
 from bench.core.store import RunStore
+from bench.testing.reports import assert_self_contained, assert_signable
 from procedures.running import alone
 from procedures.vibration import VibrationParameters, VibrationTest
 
@@ -100,10 +102,19 @@ def test_aborted_shaker_aborts_the_run_and_keeps_the_frames(tmp_path):
 def test_cli_runs_vibration_and_rejects_bad_options(tmp_path, capsys):
     store = str(tmp_path / "cli.sqlite")
     args = ["--store", store, "run", "vibration", "--static-s", "2", "--duration-s", "3",
-            "--warmup-s", "10", "--ramp-s", "0.5", "--no-progress"]
+            "--warmup-s", "10", "--ramp-s", "0.5", "--no-progress", "--analyze", "--report", str(tmp_path / "rep")]
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "PASSED" in out and "vibration_bias_shift" in out
+    # the model's report of the stored run: its PDF beside it, the run's digest at the foot
+    with RunStore(store) as runs:
+        run_id = runs.list_runs()[0].id
+        digest = record_digest(runs, run_id)
+    folder = tmp_path / "rep" / run_id
+    page = (folder / "vibration_report.html").read_text(encoding="utf-8")
+    assert (folder / "vibration_report.pdf").read_bytes()[:5] == b"%PDF-" and "reviewed by" in page
+    assert_signable(page, digest)
+    assert assert_self_contained(page, figures=4)
     assert main(["--store", store, "run", "vibration", "--level-grms", "45"]) == 2
     err = capsys.readouterr().err
     assert "level_grms = 45.0 must be a number in 0.01..30" in err and err.count("\n") == 1

@@ -3,8 +3,8 @@ analysed as the station's step analyses its own (``bench.app.record_analysis``).
 
 The file follows the column convention of its kind (``bench.app.records``; a metadata TOML
 ``--meta`` or ``--col NAME=COLUMN[:UNIT]`` maps other names and units). Prints a table (or
-``--json``), and with ``--report DIR`` writes one self-contained HTML report there (plus the
-thermal compensation file). Exit 0, or 2 after one line ``bench: error: …`` naming the file,
+``--json``), and with ``--report DIR`` writes one self-contained HTML report there, its PDF beside
+it (plus the thermal compensation file). Exit 0, or 2 after one line ``bench: error: …`` naming the file,
 column and row of a bad input.
 """
 
@@ -27,7 +27,8 @@ def register_analysis(kinds: argparse._SubParsersAction) -> None:
         for flag, dest, typ, text in OPTIONS[kind]:
             add_kind_option(p, flag, dest, typ, text)
         p.add_argument("--json", action="store_true", help="print the results as JSON")
-        p.add_argument("--report", metavar="DIR", default=None, help="write the HTML report (one file) into DIR")
+        p.add_argument("--report", metavar="DIR", default=None,
+                       help="write the HTML report (one file) and its PDF into DIR")
         p.set_defaults(func=analyze_file, record_kind=kind)
 
 
@@ -49,7 +50,9 @@ def analyze_file(args: argparse.Namespace) -> int:
     record = read_record(args.input, meta_of(args, kind))
     print(f"analysing {record.n_rows} rows of {args.input} ({kind})", file=sys.stderr, flush=True)
     analysis = analyze_record(record, **options_of(args, kind))
-    report = write_report(analysis, record, args.report) if args.report else None
+    given = {flag: getattr(args, dest) for flag, dest, _, _ in OPTIONS[kind] if getattr(args, dest, None) is not None}
+    report = (write_report(analysis, record, args.report, {"metadata file": args.meta, **given})
+              if args.report else None)
     if args.json:
         doc = {**analysis.to_dict(), "source": record.source, "sha256": record.sha256,
                "columns": record.conversions, "units": record.units}

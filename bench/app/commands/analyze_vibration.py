@@ -21,6 +21,7 @@ from bench.analysis.emd import STOP_RULES
 from bench.analysis.vibration import analyze_vibration
 from bench.app.commands.analyze import analysis_document, read_csv_columns
 from bench.app.commands.common import attach_folder
+from bench.app.verdict import record_digest
 from bench.core.store import RunStore
 
 DOCUMENT_C = {"ar": (7.3677e-6, 0.0041), "ar_kalman": (3.9332e-6, 0.0018)}  # °/s, published table
@@ -83,7 +84,8 @@ def analyze_vibration_csv(args) -> int:
         from bench.app.reports.vibration_report import write_vibration_report  # noqa: PLC0415 — lazy, see above
 
         report = write_vibration_report(analysis, Path(args.report),
-                                        {"input": args.input, "column": args.value_col})
+                                        {"input": args.input, "time column": f"{args.time_col} (s)",
+                                         "rate column": args.value_col})
     if args.json:
         print(json.dumps(analysis_document(analysis, args.input, report), indent=2, allow_nan=False))
     else:
@@ -107,9 +109,13 @@ def analyse_vibration_run(store_path, run_id: str, report_root: Path | None):
             raise ValueError(f"run {run_id} has no steady vibration frames to analyse")
         analysis = analyze_vibration(frames["t_s"][keep], frames["rate_dps"][keep])
         info = store.get_run(run_id)
+        labels = info.labels or {}
         context = {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure,
-                   "seed": info.seed, "code version": info.code_version,
-                   "record": "gyro_frames.rate_dps, steady vibration segment (deg/s)"}
+                   "station": labels.get("station_id") or (info.station or {}).get("name"),
+                   "operator": labels.get("operator"), "started (UTC)": info.started_utc, "seed": info.seed,
+                   "run's code version": info.code_version,
+                   "record": "gyro_frames.rate_dps, steady vibration segment (deg/s)",
+                   "digest": record_digest(store, run_id)}
         folder = Path(report_root) / run_id if report_root is not None else Path(tmp)
         report = write_vibration_report(analysis, folder, context)
         attach_folder(store, run_id, report.parent, ATTACHED)

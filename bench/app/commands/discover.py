@@ -34,9 +34,12 @@ from rich.markup import escape
 
 from bench.app.blas import blas_threads, set_blas_threads
 from bench.app.commands.analyze import read_csv_table
+from bench.app.commands.common import require_store, resolve_run_id
 from bench.app.commands.discover_runs import read_run
 from bench.app.files import read_model, write_model
 from bench.app.reports.discovery_report import write_discovery_report
+from bench.app.verdict import record_digest
+from bench.core.store import RunStore
 from bench.discovery.data import CSV_COLUMNS, Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.model import Model, base_model
@@ -100,11 +103,13 @@ def read_measured(path: str) -> Record:
 
 def discover_command(args) -> int:
     if args.run is not None:
-        rec, run_kind, label = read_run(args.store, args.run, args.stream)
+        run_id, source = run_context(args.store, args.run)
+        rec, run_kind, label = read_run(args.store, run_id, args.stream)
     else:
         if args.stream is not None:
             raise ValueError("--stream applies to --run only")
         rec, run_kind, label = read_measured(args.measured), None, args.measured
+        source = {"input": args.measured}
     if args.model is not None:
         model = read_model(args.model, rate_hz=rec.rate_hz)  # noise_sd carried to this record's rate
         if args.sensor is not None and args.sensor != model.base.kind:
@@ -127,7 +132,9 @@ def discover_command(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     model_file = out / "discovered_model.toml"
     write_model(result.final_model, model_file, rate_hz=rec.rate_hz)
-    report = write_discovery_report(result, rec, out, label)
+    context = {**source, "sensor model": model.base.kind, "starting model": args.model or "the built-in base model",
+               "false-name rate α": args.alpha, "most effects": args.max_effects, "gap-table seed": args.seed}
+    report = write_discovery_report(result, rec, out, label, context)
     doc = result.to_dict(str(model_file))
     doc["report"] = str(report)
     doc["source"] = label
@@ -136,6 +143,20 @@ def discover_command(args) -> int:
     else:
         print(summary(result, label, model_file, report))
     return 0
+
+
+def run_context(store_path, run_id: str) -> tuple[str, dict]:
+    """The run ``run_id`` names ('latest' resolved) and what the report's header says of it (its
+    digest goes to the report's foot)."""
+    require_store(store_path)
+    with RunStore(store_path) as store:
+        run_id = resolve_run_id(store, run_id)
+        info = store.get_run(run_id)
+        labels = info.labels or {}
+        return run_id, {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure,
+                        "station": labels.get("station_id") or (info.station or {}).get("name"),
+                        "operator": labels.get("operator"), "started (UTC)": info.started_utc,
+                        "run's seed": info.seed, "digest": record_digest(store, run_id)}
 
 
 def default_jobs() -> int:

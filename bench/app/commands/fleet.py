@@ -5,7 +5,8 @@
     bench fleet trace QA-SIM-0003             # every run of a unit, on every station
 
 Each reads the central store (``--central`` or ``$BENCH_CENTRAL``), prints a table, or the
-``--json`` document, and with ``--html FILE`` writes a page with its plots.
+``--json`` document, and with ``--html FILE`` writes a page with its plots (and its PDF beside
+it, the page's foot carrying the SHA-256 of the ``--json`` document).
 """
 
 from __future__ import annotations
@@ -14,13 +15,15 @@ import argparse
 import json
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit, urlunsplit
 
 import numpy as np
 
 from bench.analysis.quality import RULES, individuals_chart, wilson_interval, xbar_r_charts
-from bench.app.reports.fleet_report import spc_page, trace_page, yield_page
+from bench.app.reports.fleet_report import FleetPage, spc_page, trace_page, yield_page
 from bench.core.store.central import CentralStore
 from bench.core.store.fleet import measurement_names, measurement_series, unit_runs, yield_counts
 from bench.core.store.reader import is_central_url
@@ -47,30 +50,51 @@ def configure(fleet: argparse.ArgumentParser) -> None:
                        help="central store URL [$BENCH_CENTRAL]")
         p.add_argument("--model", default=None, help="only units of this model")
         p.add_argument("--json", action="store_true", help="print the view as JSON")
-        p.add_argument("--html", metavar="FILE", default=None, help="also write an HTML page with plots")
+        p.add_argument("--html", metavar="FILE", default=None,
+                       help="also write an HTML page with plots, and its PDF beside it")
 
 
-def _central(args):
+def _central_url(args) -> str:
     url = args.central or (args.store if is_central_url(args.store) else None)
     if not url:
         raise ValueError("no central store: give --central postgresql://… or set BENCH_CENTRAL")
     if not is_central_url(url):
         raise ValueError(f"--central {url!r} must be a postgresql:// URL")
-    return CentralStore(url)
+    return url
 
 
-def _emit(args, doc: dict[str, Any], lines: list[str], page) -> int:
+def _central(args):
+    return CentralStore(_central_url(args))
+
+
+def shown_url(url: str) -> str:
+    """A store URL as a page may print it: no password, no query (it may carry one)."""
+    parts = urlsplit(url)
+    host = parts.hostname or ""
+    host = f"[{host}]" if ":" in host else host  # an IPv6 address keeps its brackets
+    netloc = (f"{parts.username}@" if parts.username else "") + host + (f":{parts.port}" if parts.port else "")
+    return urlunsplit((parts.scheme, netloc, parts.path, "", ""))
+
+
+def _context(args, **view: Any) -> dict[str, Any]:
+    """What the page's header says the view was drawn from."""
+    return {**view, "model": args.model or "all models", "central store": shown_url(_central_url(args))}
+
+
+def _emit(args, doc: dict[str, Any], lines: list[str], page: Callable[[], FleetPage]) -> int:
+    pdf = None
     if args.html:
         path = Path(args.html)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(page(), encoding="utf-8")
+        page().write(path)
+        pdf = path.with_suffix(".pdf")
     if args.json:
         json.dump(doc, sys.stdout, indent=2, allow_nan=False, default=str)
         print()
     else:
         print("\n".join(lines))
         if args.html:
-            print(f"page: {args.html}")
+            print(f"page: {args.html} (PDF: {pdf})")
     return 0
 
 
@@ -89,7 +113,7 @@ def fleet_yield(args) -> int:
     if not rows:
         lines.append("no acceptance runs in the central store yet")
     doc = {"by": args.by, "model": args.model, "groups": rows}
-    return _emit(args, doc, lines, lambda: yield_page(doc))
+    return _emit(args, doc, lines, lambda: yield_page(doc, _context(args, view=f"acceptance yield by {args.by}")))
 
 
 def fleet_spc(args) -> int:
@@ -142,7 +166,11 @@ def fleet_spc(args) -> int:
         p = points[i]
         lines.append(f"  #{i:<4} {p.started_utc[:19]} {p.unit_serial or '-':<16} {p.station_id:<16} "
                      f"{p.value:.6g}  rule {r}: {RULES[r]}")
-    return _emit(args, doc, lines, lambda: spc_page(doc, chart, xbar, rng))
+    context = _context(args, view=f"control charts of {args.param} [{unit}]",
+                       station=args.station or "all stations",
+                       baseline=f"the first {args.baseline} values" if args.baseline else "all values",
+                       subgroup=args.subgroup)
+    return _emit(args, doc, lines, lambda: spc_page(doc, chart, xbar, rng, context))
 
 
 def fleet_trace(args) -> int:
@@ -161,4 +189,4 @@ def fleet_trace(args) -> int:
             lines.append(f"{'':<20} failed: {', '.join(failed)}")
     lines.append("raw samples: bench runs show|export UUID --store <central URL>")
     doc = {"serial": args.serial, "runs": runs}
-    return _emit(args, doc, lines, lambda: trace_page(doc))
+    return _emit(args, doc, lines, lambda: trace_page(doc, _context(args, view=f"every run of unit {args.serial}")))

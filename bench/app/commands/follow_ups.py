@@ -27,6 +27,7 @@ import numpy as np
 from bench.app.commands.analyze import analyse_run, analysis_document, analysis_lines
 from bench.app.commands.analyze_vibration import ATTACHED, analyse_vibration_run, summary
 from bench.app.commands.common import FollowUpResult, attach_folder
+from bench.app.verdict import record_digest
 from bench.core.step import FollowUp
 from bench.core.store import RunStore
 
@@ -75,8 +76,11 @@ def attach_angular_report(store_path: Path, run_id: str, report_root: Path | Non
                 aligned = store.load(run_id, "fusion_aligned")
             except LookupError:
                 aligned = None
-        context = {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure, "seed": info.seed,
-                   "code version": info.code_version}
+        labels = info.labels or {}
+        context = {"run": run_id, "unit": info.unit_serial, "procedure": info.procedure,
+                   "station": labels.get("station_id") or (info.station or {}).get("name"),
+                   "operator": labels.get("operator"), "started (UTC)": info.started_utc, "seed": info.seed,
+                   "run's code version": info.code_version, "digest": record_digest(store, run_id)}
         folder = Path(report_root) / run_id if report_root is not None else Path(tmp)
         report = write_angular_report(results, folder, context,
                                       None if aligned is None else {k: np.asarray(v) for k, v in aligned.items()})

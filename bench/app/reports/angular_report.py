@@ -2,10 +2,11 @@
 
 :func:`write_angular_report` writes into one directory:
 
-* ``angular_report.html`` — the story: each sensor's FRF and fitted model, the alignment,
-  how every method was tuned, the side-by-side table of every method (RMS error, worst
-  amplitude/phase error, worst excess over the better sensor, the recommended one in bold),
-  the per-tone error table, NIS, and whether Document B's claims hold on this run;
+* ``angular_report.html`` (``templates/angular.html.j2`` on the shared layout; its PDF beside
+  it) — the story: each sensor's FRF and fitted model, the alignment, how every method was
+  tuned, the side-by-side table of every method (RMS error, worst amplitude/phase error, worst
+  excess over the better sensor, the recommended one in bold), the per-tone error tables, NIS,
+  and whether Document B's claims hold on this run;
 * ``angular_frf.png`` — FRF magnitude and phase of both sensors (points with ±2σ bars)
   and the fitted models (with their delays);
 * ``angular_errors.png`` — amplitude error (%) and phase error (deg) against frequency for
@@ -23,7 +24,6 @@ only an FRF gets the FRF part.  Figures use matplotlib's object API (no pyplot s
 
 from __future__ import annotations
 
-import html
 import json
 import math
 from pathlib import Path
@@ -32,7 +32,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.fusion import METHODS, SensorModel, excess_over_best
-from bench.app.reports.common import html_table, save_figure, write_page
+from bench.app.reports.common import save_figure
+from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
 
 #: plot style per method (colour, marker); every method of the registry has one
 STYLE = {"hf": ("C1", "v"), "lf": ("C4", "D"), "complementary": ("C2", "^"), "fused": ("C3", "o"),
@@ -225,105 +226,116 @@ def _settings_text(analysis: dict) -> list[str]:
     return out
 
 
-def write_angular_report(results: dict, folder: Path, context: dict, aligned: dict | None = None) -> Path:
-    """Write the report (module docstring) from a run's results; returns the HTML path."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    head = html.escape(", ".join(f"{k}: {v}" for k, v in context.items()))
-    parts = [f"<h1>Angular rig — Document B</h1><p>{head}</p>"]
+#: most tones in one per-tone table (a printed page holds this many number columns beside the method)
+TONES_PER_TABLE = 8
+
+
+def _frf_part(results: dict, folder: Path) -> dict | None:
     points, fits = results.get("frf.points"), results.get("frf.fits", {})
-    if points:
-        png = frf_figure(points, fits, folder / "angular_frf.png")
-        frf_rows: list[list[object]] = []
-        for sensor, (title, _unit) in SENSORS.items():
-            fit = fits.get(sensor)
-            if fit:
-                m = fit["model"]
-                frf_rows.append([title, f"{m['kind']} order {m['order']}", _fmt(m["corner_hz"]), _fmt(m["gain"]),
-                                 _fmt(m.get("zeta")), _fmt(1e6 * fit.get("delay_s", 0.0)), _fmt(fit["residual"], 3)])
-        parts.append("<h2>1. Frequency response (stepped sine against the table reference)</h2>"
-                     f"<img src='{png}'>" + html_table(
-                         ["sensor", "model", "corner (Hz)", "gain", "ζ", "delay (µs)", "relative misfit"], frf_rows))
-    analysis = results.get("fusion.analysis")
-    if analysis and analysis.get("rms_error"):
-        align = results.get("fusion.alignment", {})
-        clock = align.get("clock", {})
-        parts.append("<h2>2. Alignment</h2><p>" + html.escape(
-            f"MHD offset {_fmt(align.get('hf_offset_v'))} V and LF bias {_fmt(align.get('lf_bias_dps'))} deg/s "
+    if not points:
+        return None
+    png = frf_figure(points, fits, folder / "angular_frf.png")
+    rows: list[list[object]] = []
+    for sensor, (title, _unit) in SENSORS.items():
+        fit = fits.get(sensor)
+        if fit:
+            m = fit["model"]
+            rows.append([title, f"{m['kind']} order {m['order']}", _fmt(m["corner_hz"]), _fmt(m["gain"]),
+                         _fmt(m.get("zeta")), _fmt(1e6 * fit.get("delay_s", 0.0)), _fmt(fit["residual"], 3)])
+    return {"png": png, "rows": rows}
+
+
+def _alignment_text(align: dict) -> str:
+    clock = align.get("clock", {})
+    return (f"MHD offset {_fmt(align.get('hf_offset_v'))} V and LF bias {_fmt(align.get('lf_bias_dps'))} deg/s "
             f"(static segment) removed; LF clock error {_fmt(clock.get('rate_error_ppm'))} ppm "
             f"(± {_fmt(clock.get('rate_error_std_ppm'))}) estimated at {_fmt(clock.get('frequency_hz'))} Hz and "
             f"removed; delays moved back: MHD {_fmt(1e6 * align.get('hf_delay_s', 0.0))} µs, "
-            f"LF {_fmt(1e6 * align.get('lf_delay_s', 0.0))} µs.") + "</p>")
-        tuning = results.get("fusion.tuning")
-        if tuning:
-            ch = tuning["chosen"]
-            fixed_same_q = [c for c in tuning["candidates"]
-                            if c["q_factor"] == ch["q_factor"] and c["upper_factor"] == 1]
-            same = (f"; a fixed R at the same q gives {fixed_same_q[0]['rms_error']:.5g} deg/s, excess "
-                    f"{fixed_same_q[0]['excess_pct']:.3g} pp") if fixed_same_q else ""
-            parts.append("<h2>3. Tuning Document B (on the first part of the record; everything below is the rest)</h2>"
-                         f"<img src='{tuning_figure(tuning, folder / 'angular_tuning.png')}'><p>" + html.escape(
-                             f"Chosen: q × {ch['q_factor']:g} (q = {tuning['q']:.4g} (deg/s)²/s), r_upper = "
-                             f"{ch['upper_factor']:g} σ², disturbed R = {ch['inflate']:g} σ² — RMS "
-                             f"{ch['rms_error']:.5g} deg/s, excess {ch['excess_pct']:.3g} pp{same}. Rule: "
-                             f"{tuning['rule']}.") + "</p>")
-        png = errors_figure(analysis, folder / "angular_errors.png")
-        rms = analysis["rms_error"]
-        methods = _methods(analysis)
-        recommended = analysis.get("recommended") or min(rms, key=rms.get)
-        rows: list[list[object]] = []
-        for method in methods:
-            amp = np.abs(np.asarray(analysis["amplitude_error_pct"][method], dtype=float))
-            ph = np.abs(np.asarray(analysis["phase_error_deg"][method], dtype=float))
-            ex, sd = excess_over_best(analysis, method)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                z = np.where(sd > 0, ex / sd, np.where(ex > 0, np.inf, 0.0))
-            sensor_ok = (analysis.get("feasible_sensor") or {}).get(method)
-            rows.append([_label(method) + (" (recommended)" if method == recommended else ""), _fmt(rms[method]),
-                         _fmt(float(amp.max())), _fmt(float(ph.max())),
-                         f"{float(ex.max()):+.3g} pp ({float(z.max()):.3g}σ)",
-                         ("yes" if bool(np.all(ex <= 2 * sd)) else "no") + " / "
-                         + ("—" if sensor_ok is None else "yes" if sensor_ok else "no")])
-        settings = "".join(f"<li>{html.escape(line)}</li>" for line in _settings_text(analysis))
-        parts.append("<h2>4. Every method against the reference</h2><p>" + html.escape(
-            f"Recommended: {_label(recommended)} — {analysis.get('recommendation_rule', '')}.") + "</p>"
-            + (f"<ul>{settings}</ul>" if settings else "")
-            + f"<img src='{png}'>" + html_table(
-                ["method", "RMS error (deg/s)", "max |amplitude error| (%)", "max |phase error| (deg)",
-                 "worst excess over the better sensor",
-                 "within 2σ at every tone: of the excess / of the sensor's own error"],
-                rows, bold_rows={methods.index(recommended)} if recommended in methods else frozenset()))
-        f = analysis["tones_hz"]
-        tone_rows: list[list[object]] = []
-        for i, fk in enumerate(f):
-            cells: list[object] = [_fmt(fk)]
-            cells += [f"{analysis['amplitude_error_pct'][m][i]:+.3g} / {analysis['phase_error_deg'][m][i]:+.3g}"
-                      for m in methods]
-            tone_rows.append(cells)
-        parts.append("<h3>Per tone: amplitude error (%) / phase error (deg)</h3>"
-                     + html_table(["tone (Hz)"] + [_label(m) for m in methods], tone_rows))
-        nis_rows: list[list[object]] = [[k, _fmt(v["mean"]), f"{_fmt(v['lower'])}..{_fmt(v['upper'])}",
-                     "yes" if v.get("consistent") else "no", "yes" if v.get("diverged") else "no"]
-                    for k, v in analysis["nis"].items()]
-        parts.append("<h3>Consistency (normalised innovation squared)</h3>"
-                     + html_table(["filter/update", "mean NIS", "95 % band", "consistent", "diverged"], nis_rows))
-        check_rows: list[list[object]] = [[c, "holds" if ok else "does not hold", ev] for c, ok, ev in claims(analysis)]
-        parts.append("<h2>5. Document B's claims on this run</h2>"
-                     + html_table(["claim", "verdict", "evidence"], check_rows))
-        if aligned is not None:
-            png = time_figure(aligned, folder / "angular_time.png", recommended)
-            parts.append(f"<h2>6. A window of the record</h2><img src='{png}'>")
-        notes = analysis.get("notes") or []
-        if notes:
-            parts.append("<h3>Notes</h3><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
-    style = ("<style>body{font-family:sans-serif;max-width:1000px;margin:auto}table{border-collapse:collapse;"
-             "margin:8px 0}td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}tr.best{font-weight:bold}"
-             "img{max-width:100%}</style>")
-    out = folder / "angular_report.html"
-    write_page(out, f"<!doctype html><html><head><meta charset='utf-8'><title>Angular rig report</title>{style}"
-                    f"</head><body>{''.join(parts)}</body></html>")
+            f"LF {_fmt(1e6 * align.get('lf_delay_s', 0.0))} µs.")
+
+
+def _tuning_part(tuning: dict | None, folder: Path) -> dict | None:
+    if not tuning:
+        return None
+    ch = tuning["chosen"]
+    fixed_same_q = [c for c in tuning["candidates"] if c["q_factor"] == ch["q_factor"] and c["upper_factor"] == 1]
+    same = (f"; a fixed R at the same q gives {fixed_same_q[0]['rms_error']:.5g} deg/s, excess "
+            f"{fixed_same_q[0]['excess_pct']:.3g} pp") if fixed_same_q else ""
+    return {"png": tuning_figure(tuning, folder / "angular_tuning.png"),
+            "text": f"Chosen: q × {ch['q_factor']:g} (q = {tuning['q']:.4g} (deg/s)²/s), r_upper = "
+                    f"{ch['upper_factor']:g} σ², disturbed R = {ch['inflate']:g} σ² — RMS {ch['rms_error']:.5g} deg/s, "
+                    f"excess {ch['excess_pct']:.3g} pp{same}. Rule: {tuning['rule']}."}
+
+
+def _method_rows(analysis: dict, methods: list[str], recommended: str) -> list[list[object]]:
+    rms = analysis["rms_error"]
+    rows: list[list[object]] = []
+    for method in methods:
+        amp = np.abs(np.asarray(analysis["amplitude_error_pct"][method], dtype=float))
+        ph = np.abs(np.asarray(analysis["phase_error_deg"][method], dtype=float))
+        ex, sd = excess_over_best(analysis, method)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.where(sd > 0, ex / sd, np.where(ex > 0, np.inf, 0.0))
+        sensor_ok = (analysis.get("feasible_sensor") or {}).get(method)
+        rows.append([_label(method) + (" (recommended)" if method == recommended else ""), _fmt(rms[method]),
+                     _fmt(float(amp.max())), _fmt(float(ph.max())),
+                     f"{float(ex.max()):+.3g} pp ({float(z.max()):.3g}σ)",
+                     ("yes" if bool(np.all(ex <= 2 * sd)) else "no") + " / "
+                     + ("—" if sensor_ok is None else "yes" if sensor_ok else "no")])
+    return rows
+
+
+def _per_tone_tables(analysis: dict, methods: list[str]) -> list[dict]:
+    """The per-tone errors as tables of one quantity each, a row per method and a column per
+    tone, at most :data:`TONES_PER_TABLE` tones to a table (a page's width)."""
+    f = analysis["tones_hz"]
+    per_table = -(-len(f) // -(-len(f) // TONES_PER_TABLE))  # the tones spread evenly over the tables
+    tables = []
+    for key, what in (("amplitude_error_pct", "amplitude error (%)"), ("phase_error_deg", "phase error (deg)")):
+        for start in range(0, len(f), per_table):
+            tones = range(start, min(start + per_table, len(f)))
+            tables.append({"header": [f"{what} at tone (Hz)"] + [_fmt(f[i]) for i in tones],
+                           "rows": [[_label(m)] + [f"{analysis[key][m][i]:+.3g}" for i in tones] for m in methods],
+                           "widths": [28] + [72 // per_table] * len(tones)})
+    return tables
+
+
+def _fusion_part(results: dict, folder: Path, aligned: dict | None) -> dict | None:
+    analysis = results.get("fusion.analysis")
+    if not (analysis and analysis.get("rms_error")):
+        return None
+    rms = analysis["rms_error"]
+    methods = _methods(analysis)
+    recommended = analysis.get("recommended") or min(rms, key=rms.get)
+    nis = [[k, _fmt(v["mean"]), f"{_fmt(v['lower'])}..{_fmt(v['upper'])}", "yes" if v.get("consistent") else "no",
+            "yes" if v.get("diverged") else "no"] for k, v in analysis["nis"].items()]
+    return {"alignment": _alignment_text(results.get("fusion.alignment", {})),
+            "tuning": _tuning_part(results.get("fusion.tuning"), folder),
+            "recommendation": f"Recommended: {_label(recommended)} — {analysis.get('recommendation_rule', '')}.",
+            "settings": _settings_text(analysis),
+            "errors_png": errors_figure(analysis, folder / "angular_errors.png"),
+            "methods": _method_rows(analysis, methods, recommended),
+            "method_classes": ["best" if m == recommended else "" for m in methods],
+            "tones": _per_tone_tables(analysis, methods), "nis": nis,
+            "claims": [[c, "holds" if ok else "does not hold", ev] for c, ok, ev in claims(analysis)],
+            "time_png": None if aligned is None else time_figure(aligned, folder / "angular_time.png", recommended),
+            "notes": analysis.get("notes") or []}
+
+
+def write_angular_report(results: dict, folder: Path, context: dict, aligned: dict | None = None, *,
+                         pdf: bool = True) -> Path:
+    """Write the report (module docstring) from a run's results; returns the HTML path.
+
+    ``context`` heads the report: the run it reports (``run`` + ``digest``: the stored run's
+    digest goes to the page's foot; ``operator`` also fills the approval block's "tested by")."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    frf, fusion = _frf_part(results, folder), _fusion_part(results, folder, aligned)
     (folder / "angular_report.json").write_text(json.dumps(
         {k: results[k] for k in ("frf.points", "frf.fits", "fusion.tuning", "fusion.analysis", "fusion.alignment")
          if k in results},
         indent=1, allow_nan=False, default=float), encoding="utf-8")
-    return out
+    header = Header(title="Angular rig — Document B", subject=subject_rows(context),
+                    identity=source_identity(context), tested_by=str(context.get("operator") or ""),
+                    numbers="angular_report.json")
+    return write_report(folder / "angular_report.html", "angular.html.j2", header, pdf=pdf, frf=frf, fusion=fusion)

@@ -3,14 +3,15 @@
 For each named effect: what the localization flagged, the candidates' table (deviance saved,
 the penalty it must beat, χ² p, that p times the criterion's multiplicity), the named one with
 parameters ± std, look-alikes within the criterion's noise and the experiment that separates
-them, the gap table before/after and three plots (residual vs time, Welch PSD with the white
-floor, Allan deviation with the white expectation), before in grey, after in colour. Then what
-remains: "unexplained structure" (where) or "nothing significant".
+them, the gap table before/after and one figure: the residual against time before and after in two
+panels sharing the time axis (each with its mean over short runs), and below them the Welch
+PSD with the white floor and the Allan deviation with the white expectation, before in grey,
+after in colour. Then what remains: "unexplained structure" (where) or "nothing significant".
+The page is ``templates/discovery.html.j2`` on the shared layout, its PDF beside it.
 """
 
 from __future__ import annotations
 
-import html
 from pathlib import Path
 
 import numpy as np
@@ -19,11 +20,8 @@ from matplotlib.ticker import NullFormatter
 from scipy import signal
 
 from bench.analysis.allan import overlapping_adev
-from bench.app.reports.common import html_table, save_figure, write_page
-
-CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.4}"
-       "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;padding:2px 6px;"
-       "font-size:90%}tr.best{font-weight:bold;background:#eef}img{max-width:100%}")
+from bench.app.reports.common import save_figure
+from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
 
 
 def _fmt(x, digits: int = 4) -> str:
@@ -42,6 +40,8 @@ def _welch(r: np.ndarray, rate_hz: float):
 
 #: bins of a residual-vs-time trace: each drawn as its minimum and maximum (spikes kept)
 TRACE_BINS = 1500
+#: bins of the mean line drawn over a residual trace: slow structure the min/max band hides
+MEAN_BINS = 200
 
 
 def envelope(t: np.ndarray, y: np.ndarray, bins: int = TRACE_BINS) -> tuple[np.ndarray, np.ndarray]:
@@ -57,126 +57,123 @@ def envelope(t: np.ndarray, y: np.ndarray, bins: int = TRACE_BINS) -> tuple[np.n
     return np.repeat(mid, 2), np.column_stack([lo, hi]).ravel()
 
 
+def bin_means(t: np.ndarray, y: np.ndarray, bins: int = MEAN_BINS) -> tuple[np.ndarray, np.ndarray]:
+    """The mean of each of ``bins`` equal runs of samples at the run's middle time (the trace
+    itself when it is shorter than ``2·bins``)."""
+    if y.size <= 2 * bins:
+        return t, y
+    edges = np.linspace(0, y.size, bins + 1).astype(int)
+    return t[(edges[:-1] + edges[1:]) // 2], np.add.reduceat(y, edges[:-1]) / np.diff(edges)
+
+
 def _plots(t: np.ndarray, before: np.ndarray, after: np.ndarray, noise_sd: float, rate_hz: float,
            path: Path, title: str) -> str:
-    fig = Figure(figsize=(12, 3.4))
-    ax = fig.subplots(1, 3)
-    ax[0].plot(*envelope(t, before), color="0.6", lw=0.6, label="before")
-    ax[0].plot(*envelope(t, after), color="C0", lw=0.6, label="after")
-    ax[0].set(xlabel="t (s)", ylabel="residual", title=f"{title}: residual vs time")
-    ax[0].legend(fontsize=8)
+    """Residual against time, before and after, in two panels sharing both axes (their sizes
+    compare; neither hides the other), each with its mean over short runs; below them the Welch
+    PSD and the Allan deviation, before in grey and after in colour."""
+    fig = Figure(figsize=(10, 7.2))
+    grid = fig.add_gridspec(3, 2, height_ratios=[1, 1, 1.9])
+    ax_b = fig.add_subplot(grid[0, :])
+    ax_a = fig.add_subplot(grid[1, :], sharex=ax_b, sharey=ax_b)
+    ax_psd, ax_adev = fig.add_subplot(grid[2, 0]), fig.add_subplot(grid[2, 1])
+    trace = "min–max of each run of samples" if before.size > 2 * TRACE_BINS else "every sample"
+    per = before.size // MEAN_BINS if before.size > 2 * MEAN_BINS else 1
+    for ax, r, colour, mean_colour, name in ((ax_b, before, "0.7", "k", "before"),
+                                              (ax_a, after, "#9ecae1", "C0", "after")):
+        ax.plot(*envelope(t, r), color=colour, lw=0.6, label=f"{name} ({trace})")
+        ax.plot(*bin_means(t, r), color=mean_colour, lw=1.0, label=f"mean of each {per} samples")
+        ax.set_ylabel(f"residual {name}")
+        ax.legend(fontsize=7, loc="upper right")
+        ax.grid(alpha=0.3)
+    ax_b.set_title(f"{title}: residual vs time")
+    ax_b.tick_params(labelbottom=False)
+    ax_a.set_xlabel("t (s)")
     for r, c, lab in ((before, "0.6", "before"), (after, "C0", "after")):
         f, p = _welch(r - r.mean(), rate_hz)
-        ax[1].loglog(f[1:], p[1:], color=c, lw=0.8, label=lab)
-    ax[1].axhline(2 * noise_sd ** 2 / rate_hz, color="k", ls="--", lw=0.8, label="white floor")
-    ax[1].set(xlabel="f (Hz)", ylabel="PSD (unit²/Hz)", title="Welch PSD")
-    ax[1].xaxis.set_minor_formatter(NullFormatter())
-    ax[1].legend(fontsize=8)
+        ax_psd.loglog(f[1:], p[1:], color=c, lw=0.8, label=lab)
+    ax_psd.axhline(2 * noise_sd ** 2 / rate_hz, color="k", ls="--", lw=0.8, label="white floor")
+    ax_psd.set(xlabel="f (Hz)", ylabel="PSD (unit²/Hz)", title="Welch PSD")
+    ax_psd.xaxis.set_minor_formatter(NullFormatter())
+    ax_psd.legend(fontsize=8)
     for r, c, lab in ((before, "0.6", "before"), (after, "C0", "after")):
         if r.size >= 16:
             a = overlapping_adev(r, rate_hz, "octave", unit=None)
-            ax[2].loglog(a.tau_s, a.adev, "o-", ms=3, color=c, lw=0.8, label=lab)
+            ax_adev.loglog(a.tau_s, a.adev, "o-", ms=3, color=c, lw=0.8, label=lab)
     if before.size >= 16:
         tau = overlapping_adev(before, rate_hz, "octave", unit=None).tau_s
-        ax[2].loglog(tau, noise_sd / np.sqrt(tau * rate_hz), "k--", lw=0.8, label="white expectation")
-    ax[2].set(xlabel="τ (s)", ylabel="ADEV", title="Allan deviation")
-    ax[2].legend(fontsize=8)
+        ax_adev.loglog(tau, noise_sd / np.sqrt(tau * rate_hz), "k--", lw=0.8, label="white expectation")
+    ax_adev.set(xlabel="τ (s)", ylabel="ADEV", title="Allan deviation")
+    ax_adev.legend(fontsize=8)
     return save_figure(fig, path)
 
 
-def _gap_table(before, after) -> str:
-    rows: list[list[object]] = [
-        ["residual rms / model noise", _fmt(before.rms_ratio), _fmt(after.rms_ratio)],
-        ["Allan distance (decades, rms)", _fmt(before.allan_distance), _fmt(after.allan_distance)],
-        ["spectral distance (dB, rms)", _fmt(before.spectral_distance_db), _fmt(after.spectral_distance_db)],
-        ["whiteness (Ljung–Box p)", _fmt(before.whiteness_p, 3), _fmt(after.whiteness_p, 3)]]
-    return html_table(["gap", "before", "after"], rows)
+def _gap_rows(before, after) -> list[list[object]]:
+    return [["residual rms / model noise", _fmt(before.rms_ratio), _fmt(after.rms_ratio)],
+            ["Allan distance (decades, rms)", _fmt(before.allan_distance), _fmt(after.allan_distance)],
+            ["spectral distance (dB, rms)", _fmt(before.spectral_distance_db), _fmt(after.spectral_distance_db)],
+            ["whiteness (Ljung–Box p)", _fmt(before.whiteness_p, 3), _fmt(after.whiteness_p, 3)]]
 
 
-def _candidates_table(naming) -> str:
+def _candidates(naming) -> dict[str, list]:
+    """The candidates' table: rows, and the named one's row class ``best``."""
     rows: list[list[object]] = []
-    bold = set()
-    for i, c in enumerate(naming.candidates):
-        if naming.best is not None and c.id == naming.best.id:
-            bold.add(i)
+    classes = []
+    for c in naming.candidates:
+        classes.append("best" if naming.best is not None and c.id == naming.best.id else "")
         main = ", ".join(f"{k}={_fmt(v, 3)}" for k, v in c.params.items())
         rows.append([c.id, _fmt(c.score, 3), _fmt(c.score_se, 3), _fmt(c.p_value, 3), _fmt(c.q_value, 3),
                      "yes" if c.big_enough else "no", "yes" if c.named else "", main])
-    return html_table(["candidate", "deviance saved", "penalty", "p", "p × multiplicity", "lowers the criterion",
-                       "named", "parameters"], rows, bold)
+    return {"rows": rows, "classes": classes}
 
 
-def _model_table(model) -> str:
+def _model_rows(model) -> list[list[object]]:
     b = model.base
     rows: list[list[object]] = [["base", "bias", _fmt(b.bias, 6)], ["base", "scale_factor", _fmt(b.scale_factor, 8)],
                                 ["base", "noise_sd (white, per sample)", _fmt(b.noise_sd, 4)]]
-    rows += [[eid, k, _fmt(v, 6)] for eid, p in model.effects for k, v in p.items()]
-    return html_table(["part", "parameter", "value"], rows)
+    return rows + [[eid, k, _fmt(v, 6)] for eid, p in model.effects for k, v in p.items()]
 
 
-def write_discovery_report(result, rec, out_dir, label: str) -> Path:
-    """Write ``discovery_report.html`` (and its PNGs) into ``out_dir``; return the HTML path."""
+def _step(i: int, s, rec, result, out: Path) -> dict:
+    """One named effect as the template tells it."""
+    # a long record's step is told on what its search saw (block means or a window)
+    t = s.t_s if s.t_s.size == s.residual_after.size else rec.t_s
+    model_sd = s.noise_floor if np.isfinite(s.noise_floor) else result.final_model.base.noise_sd
+    rate = (t.size - 1) / (t[-1] - t[0])
+    png = _plots(t, s.residual_before, s.residual_after, model_sd, rate, out / f"discovery_step{i}.png",
+                 f"step {i}" + (f" ({s.scale})" if s.scale else ""))
+    return {"i": i, "effect": s.effect_id, "scale": s.scale, "where": s.localization.descriptions(),
+            "candidates": _candidates(s.naming), "p": _fmt(s.p_value, 3),
+            "params": ", ".join(f"{k} = {_fmt(v)} ± {_fmt(s.params_std.get(k))}" for k, v in s.params.items()),
+            "competitors": ", ".join(s.naming.competitors), "separating": list(s.naming.separating),
+            "gap": _gap_rows(s.gap_before, s.gap_after), "png": png}
+
+
+def write_discovery_report(result, rec, out_dir, label: str, context: dict | None = None, *,
+                           pdf: bool = True) -> Path:
+    """Write ``discovery_report.html`` (its PDF beside it, with ``pdf``) and its PNGs into
+    ``out_dir``; return the HTML path.
+
+    ``label`` names the record; ``context`` (optional) heads the report beside it: where the
+    record came from (``input`` names the file whose SHA-256 goes to the page's foot; ``run`` +
+    ``digest`` a stored run; ``operator`` also fills the approval block's "tested by")."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     m0 = result.initial_model.base
-    parts = [f"<h1>Discrepancy workflow — {html.escape(label)}</h1>",
-             f"<p>{rec.n} samples at {_fmt(rec.rate_hz)} Hz over {_fmt(rec.duration_s)} s; sensor kind "
-             f"{html.escape(m0.kind)}. Logged: {html.escape(', '.join(rec.to_columns()))}.</p>",
-             "<h2>a. Calibrated starting model</h2>",
-             f"<p>bias {_fmt(m0.bias)}, scale factor {_fmt(m0.scale_factor)}, white noise σ {_fmt(m0.noise_sd)} "
-             f"(from the residual's high-frequency floor); effects: "
-             f"{html.escape(', '.join(e for e, _ in result.initial_model.effects) or 'none')}.</p>",
-             f"<p>Residual rms {_fmt(result.rms_initial)} against a noise floor of {_fmt(m0.noise_sd)}.</p>"]
-    for i, s in enumerate(result.steps, 1):
-        # a long record's step is told on what its search saw (block means or a window)
-        t = s.t_s if s.t_s.size == s.residual_after.size else rec.t_s
-        model_sd = s.noise_floor if np.isfinite(s.noise_floor) else result.final_model.base.noise_sd
-        rate = (t.size - 1) / (t[-1] - t[0])
-        img = _plots(t, s.residual_before, s.residual_after, model_sd, rate,
-                     out / f"discovery_step{i}.png", f"step {i}" + (f" ({s.scale})" if s.scale else ""))
-        ps = ", ".join(f"{html.escape(k)} = {_fmt(v)} ± {_fmt(s.params_std.get(k))}" for k, v in s.params.items())
-        seen_on = f" (on the record's {html.escape(s.scale)})" if s.scale else ""
-        parts += [f"<h2>Step {i}: {html.escape(s.effect_id)}{seen_on}</h2>",
-                  "<h3>b. Where the residual departs from the floor</h3>",
-                  "<ul>" + "".join(f"<li>{html.escape(d)}</li>" for d in s.localization.descriptions())
-                  + "</ul>" if s.localization.descriptions() else "<p>no single test flags it on its own.</p>",
-                  "<h3>c. Candidates (exact likelihood; named when the deviance saved beats the penalty "
-                  "χ²_k.isf(α / (C·M)))</h3>", _candidates_table(s.naming),
-                  f"<p><b>Named: {html.escape(s.effect_id)}</b> — {ps}; p = {_fmt(s.p_value, 3)}.</p>"]
-        if s.naming.competitors:
-            parts.append("<p>Look-alikes within the criterion's noise (weight ≥ α of the named one's): "
-                         + html.escape(", ".join(s.naming.competitors)) + ".</p><ul>"
-                         + "".join(f"<li>{html.escape(x)}</li>" for x in s.naming.separating) + "</ul>")
-        parts += ["<h3>d. Added, re-calibrated: the gap before and after</h3>",
-                  _gap_table(s.gap_before, s.gap_after), f"<img src='{img}' alt='step {i} plots'>"]
-    parts.append("<h2>e. What remains</h2>")
-    if result.withdrawn:
-        parts.append("<p><b>Withdrawn</b> — added on the way, then dropped or swapped out by a move that lowered "
-                     "the criterion:</p><ul>"
-                     + "".join(f"<li>{html.escape(w)}</li>" for w in result.withdrawn) + "</ul>")
-    if result.set_aside:
-        parts.append("<p><b>Set aside</b> — catch-alls (random processes, a drift) that would have been chosen last, "
-                     "but whose own signature does not hold:</p><ul>"
-                     + "".join(f"<li>{html.escape(w)}</li>" for w in result.set_aside) + "</ul>")
-    if result.unexplained:
-        parts.append("<p><b>Unexplained structure</b> (no catalogue effect lowers the criterion for it):</p><ul>"
-                     + "".join(f"<li>{html.escape(u)}</li>" for u in result.unexplained) + "</ul>")
-    elif not result.steps:
-        parts.append("<p>Nothing significant: the residual is at the model's noise floor; nothing named.</p>")
-    else:
-        parts.append("<p>No further candidate is significant; the residual shows no structure the tests flag.</p>")
-    if result.final_naming is not None and result.final_naming.candidates:
-        parts += ["<h3>Last round of candidates</h3>", _candidates_table(result.final_naming)]
-    parts += [f"<p>Final residual rms {_fmt(result.rms_final)}; model noise floor {_fmt(result.noise_floor)} "
-              f"(ratio {_fmt(result.rms_final / result.noise_floor, 3)}).</p>",
-              _gap_table(result.gap_initial, result.gap_final)]
-    parts += ["<h3>Final model (written to the model file)</h3>", _model_table(result.final_model)]
-    parts += [f"<p>note: {html.escape(n)}</p>" for n in result.notes]
+    steps = [_step(i, s, rec, result, out) for i, s in enumerate(result.steps, 1)]
+    overall = None
     if result.steps:
-        img = _plots(rec.t_s, result.residual_initial, result.residual_final, result.final_model.base.noise_sd,
-                     rec.rate_hz, out / "discovery_overall.png", "initial vs final")
-        parts.append(f"<img src='{img}' alt='initial vs final'>")
-    path = out / "discovery_report.html"
-    write_page(path, f"<!doctype html><html><head><meta charset='utf-8'><title>discover</title>"
-                     f"<style>{CSS}</style></head><body>{''.join(parts)}</body></html>")
-    return path
+        overall = _plots(rec.t_s, result.residual_initial, result.residual_final, result.final_model.base.noise_sd,
+                         rec.rate_hz, out / "discovery_overall.png", "initial vs final")
+    final_naming = result.final_naming
+    context = context or {}
+    if "input" not in context:  # a file's name heads the page as its input
+        context = {"record": label, **context}
+    header = Header(title="Discrepancy workflow: model against measurement", subject=subject_rows(context),
+                    identity=source_identity(context), tested_by=str(context.get("operator") or ""))
+    return write_report(
+        out / "discovery_report.html", "discovery.html.j2", header, pdf=pdf, fmt=_fmt, rec=rec, m0=m0,
+        result=result, logged=", ".join(rec.to_columns()), steps=steps,
+        start_effects=", ".join(e for e, _ in result.initial_model.effects) or "none",
+        last_round=_candidates(final_naming) if final_naming is not None and final_naming.candidates else None,
+        final_gap=_gap_rows(result.gap_initial, result.gap_final), final_model=_model_rows(result.final_model),
+        overall=overall)

@@ -1,37 +1,70 @@
-"""The fleet views as single-file HTML pages (plots embedded as PNG): yield by group with its
-Wilson intervals, a measurement's control charts with the flagged points, a unit's runs."""
+"""The fleet views as reports on the shared layout (``templates/fleet.html.j2``): yield by group
+with its Wilson intervals, a measurement's control charts with the flagged points, a unit's runs.
+
+Each view is a :class:`FleetPage` — the page's header and body as data — that renders to one
+self-contained HTML file (plots inline) and writes its PDF beside it. The page's foot carries
+the SHA-256 of the view's ``--json`` document (the numbers the page shows), so a printed chart
+can be matched to the data it was drawn from; the approval block is there, as a quality
+engineer signs control charts too.
+"""
 
 from __future__ import annotations
 
 import base64
-import html
+import hashlib
 import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.quality import RULES, ControlChart
-from bench.app.reports.common import html_table
+from bench.app.reports.layout import Header, Identity, render, subject_rows, write_report
 
-STYLE = ("body{font-family:sans-serif;margin:2em;max-width:1100px}table{border-collapse:collapse}"
-         "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}"
-         "tr.best td{background:#fdd}")
+
+@dataclass(frozen=True)
+class FleetPage:
+    """One fleet view as a page: its header and the body's data (``fleet.html.j2``)."""
+
+    header: Header
+    body: dict[str, Any]
+
+    def html(self) -> str:
+        """The page as one self-contained HTML document."""
+        return render("fleet.html.j2", self.header, **self.body)
+
+    def write(self, path: str | Path, *, pdf: bool = True) -> Path:
+        """Write the page to ``path`` and, with ``pdf``, its PDF beside it (``.pdf``)."""
+        return write_report(path, "fleet.html.j2", self.header, pdf=pdf, **self.body)
+
+
+def view_identity(doc: dict[str, Any]) -> Identity:
+    """The foot of a fleet page: the SHA-256 of the view's ``--json`` document as ``bench fleet``
+    prints it (so ``bench fleet … --json | sha256sum`` prints the same while the store is unchanged)."""
+    text = json.dumps(doc, indent=2, allow_nan=False, default=str) + "\n"
+    return Identity("View SHA-256", hashlib.sha256(text.encode()).hexdigest(),
+                    "of the view's --json document; the same command with --json piped to sha256sum prints it "
+                    "while the central store holds the same runs")
 
 
 def _png(fig: Figure) -> str:
+    """``fig`` as a data URI (the page is one file; nothing is written beside it but its PDF)."""
     buffer = io.BytesIO()
     fig.tight_layout()
     fig.savefig(buffer, format="png", dpi=100)
-    return f"<img alt='plot' src='data:image/png;base64,{base64.b64encode(buffer.getvalue()).decode()}'>"
+    return f"data:image/png;base64,{base64.b64encode(buffer.getvalue()).decode()}"
 
 
-def _page(title: str, body: str) -> str:
-    return (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{STYLE}</style></head><body><h1>{html.escape(title)}</h1>{body}</body></html>")
+def _page(title: str, doc: dict[str, Any], context: dict[str, Any] | None, **body: Any) -> FleetPage:
+    header = Header(title=title, subject=subject_rows(context), identity=view_identity(doc))
+    return FleetPage(header, {"figure": None, "paragraphs": [], "rules": None, "table": None, "empty": None, **body})
 
 
-def yield_page(doc: dict[str, Any]) -> str:
+def yield_page(doc: dict[str, Any], context: dict[str, Any] | None = None) -> FleetPage:
+    """Acceptance yield by group (``bench fleet yield``'s document); ``context`` heads the page."""
     groups = doc["groups"]
     fig = Figure(figsize=(9, 0.5 + 0.4 * max(len(groups), 3)))
     ax = fig.add_subplot()
@@ -48,11 +81,12 @@ def yield_page(doc: dict[str, Any]) -> str:
     rows = [[g["group"], g["passed"], g["failed"], g["aborted"],
              "—" if g["yield"]["p"] is None else f"{100 * g['yield']['p']:.1f} %",
              f"{100 * g['yield']['low']:.1f} – {100 * g['yield']['high']:.1f} %"] for g in groups]
-    table = html_table([doc["by"], "passed", "failed", "aborted", "yield", "95 % interval"], rows)
-    note = ("<p>Yield = passed / (passed + failed) over acceptance runs; aborted runs are no verdict "
-            "and are counted apart. A unit tested twice counts twice.</p>")
-    return _page(f"Yield by {doc['by']}" + (f" — {doc['model']}" if doc.get("model") else ""),
-                 _png(fig) + note + table)
+    return _page(f"Yield by {doc['by']}" + (f" — {doc['model']}" if doc.get("model") else ""), doc, context,
+                 figure={"png": _png(fig), "alt": "yield by group"},
+                 paragraphs=["Yield = passed / (passed + failed) over acceptance runs; aborted runs are no verdict "
+                             "and are counted apart. A unit tested twice counts twice."],
+                 table={"header": [doc["by"], "passed", "failed", "aborted", "yield", "95 % interval"],
+                        "rows": rows, "classes": None, "num_from": 1, "widths": [30, 11, 11, 11, 13, 24]})
 
 
 def _draw(ax, chart: ControlChart, label: str, low: float | None = None,
@@ -79,7 +113,8 @@ def _draw(ax, chart: ControlChart, label: str, low: float | None = None,
 
 
 def spc_page(doc: dict[str, Any], chart: ControlChart, xbar: ControlChart | None,
-             rng: ControlChart | None) -> str:
+             rng: ControlChart | None, context: dict[str, Any] | None = None) -> FleetPage:
+    """Control charts of one measurement (``bench fleet spc``'s document and charts)."""
     unit = doc["unit"]
     n_axes = 1 if xbar is None else 3
     fig = Figure(figsize=(10, 3.2 * n_axes))
@@ -101,19 +136,21 @@ def spc_page(doc: dict[str, Any], chart: ControlChart, xbar: ControlChart | None
         p = doc["points"][v["index"]]
         rows.append([v["index"], p["started_utc"][:19], p["unit_serial"] or "-", p["station_id"],
                      f"{p['value']:.6g}", f"{v['rule']}: {v['rule_text']}"])
-    rules = "".join(f"<li>{r}: {html.escape(t)}</li>" for r, t in RULES.items())
-    summary = (f"<p>{doc['n']} values; centre {chart.centre:.6g} {html.escape(unit)}, control "
-               f"limits {chart.lcl:.6g} … {chart.ucl:.6g}.</p><p>Western Electric rules:</p><ul>{rules}</ul>")
-    table = html_table(["#", "started (UTC)", "unit", "station", "value", "rule"], rows) if rows \
-        else "<p>No point breaks a rule: the process is in statistical control.</p>"
-    return _page(f"Control charts — {doc['param']}" + (f" ({doc['model']})" if doc.get("model") else ""),
-                 _png(fig) + summary + table)
+    return _page(f"Control charts — {doc['param']}" + (f" ({doc['model']})" if doc.get("model") else ""), doc, context,
+                 figure={"png": _png(fig), "alt": "control charts"},
+                 paragraphs=[f"{doc['n']} values; centre {chart.centre:.6g} {unit}, control limits "
+                             f"{chart.lcl:.6g} … {chart.ucl:.6g}."],
+                 rules=[f"{r}: {t}" for r, t in RULES.items()],
+                 table={"header": ["#", "started (UTC)", "unit", "station", "value", "rule"], "rows": rows,
+                        "classes": None, "num_from": None, "widths": [6, 19, 15, 14, 11, 35]} if rows else None,
+                 empty="No point breaks a rule: the process is in statistical control.")
 
 
-def trace_page(doc: dict[str, Any]) -> str:
+def trace_page(doc: dict[str, Any], context: dict[str, Any] | None = None) -> FleetPage:
+    """Every run of one unit (``bench fleet trace``'s document)."""
     runs = doc["runs"]
     names = sorted({m["name"] for r in runs for m in r["measurements"] if m["value"] is not None})
-    body = ""
+    figure = None
     if names:
         fig = Figure(figsize=(10, 2.2 * min(len(names), 6)))
         for i, name in enumerate(names[:6]):
@@ -127,9 +164,11 @@ def trace_page(doc: dict[str, Any]) -> str:
             ax.set_ylabel(f"{name}\n[{pts[0][4]}]")
             ax.set_xticks(range(len(runs)), [r["station_id"] for r in runs], fontsize=7)
             ax.grid(alpha=0.3)
-        body += _png(fig)
+        figure = {"png": _png(fig), "alt": "measurements of every run"}
     rows = [[r["started_utc"][:19], r["station_id"], r["socket"] or "-", r["lot"] or "-",
              r["procedure"], r["status"], r["n_samples"], r["uuid"]] for r in runs]
-    body += html_table(["started (UTC)", "station", "socket", "lot", "procedure", "status", "samples",
-                        "uuid"], rows, bold_rows={i for i, r in enumerate(runs) if r["status"] != "passed"})
-    return _page(f"Unit {doc['serial']}: every run", body)
+    return _page(f"Unit {doc['serial']}: every run", doc, context, figure=figure,
+                 table={"header": ["started (UTC)", "station", "socket", "lot", "procedure", "status", "samples",
+                                   "uuid"], "rows": rows,
+                        "classes": ["" if r["status"] == "passed" else "fail" for r in runs], "num_from": None,
+                        "widths": [18, 11, 6, 6, 11, 8, 8, 32]})

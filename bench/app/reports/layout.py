@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import matplotlib
 from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
 
 from bench.app.reports.common import inline_figures
@@ -130,13 +131,35 @@ class PdfError(RuntimeError):
     """The PDF could not be made from the page."""
 
 
+def _font_dir() -> Path:
+    return Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+
+
+def _pdf_fonts() -> str:
+    """CSS embedding DejaVu Sans (shipped with matplotlib, so present wherever the bench is) in
+    the PDF: the PDF's built-in Helvetica has no σ̂, x̄, K₁ or √ glyphs. The HTML page keeps the
+    reader's fonts and loads no file."""
+    ttf = _font_dir()
+    faces = "".join(
+        f"@font-face {{ font-family: benchsans; src: url('{(ttf / name).as_posix()}');"
+        f"{' font-weight: bold;' if 'Bold' in name else ''}{' font-style: italic;' if 'Oblique' in name else ''} }}\n"
+        for name in ("DejaVuSans.ttf", "DejaVuSans-Bold.ttf", "DejaVuSans-Oblique.ttf", "DejaVuSans-BoldOblique.ttf"))
+    mono = f"@font-face {{ font-family: benchmono; src: url('{(ttf / 'DejaVuSansMono.ttf').as_posix()}'); }}\n"
+    return (f"<style>{faces}{mono}body, td, th, p, li, h1, h2, h3 {{ font-family: benchsans; }}"
+            " code, pre { font-family: benchmono; } td, th { font-size: 8pt; }</style>")
+
+
 def write_pdf(page: str, path: Path) -> Path:
-    """The HTML ``page`` (figures inline) as a PDF at ``path``."""
+    """The HTML ``page`` (figures inline) as a PDF at ``path``, in DejaVu Sans."""
     from xhtml2pdf import pisa  # noqa: PLC0415 — lazy: reportlab costs ≈ 0.3 s of import
+    from xhtml2pdf.config.resources import ResourceAccessPolicy  # noqa: PLC0415 — lazy, as above
 
     logging.getLogger("xhtml2pdf").setLevel(logging.ERROR)  # its notes on CSS it ignores
     buf = io.BytesIO()
-    status = pisa.CreatePDF(page, dest=buf, encoding="utf-8")
+    # the page reads nothing but the fonts: figures are inline, nothing remote
+    policy = ResourceAccessPolicy(base_dir=_font_dir(), allow_remote=False)
+    status = pisa.CreatePDF(page.replace("</head>", _pdf_fonts() + "</head>", 1), dest=buf, encoding="utf-8",
+                            resource_policy=policy)
     if status.err:
         raise PdfError(f"the PDF of {path.name} could not be made ({status.err} errors)")
     path.write_bytes(buf.getvalue())

@@ -3,9 +3,10 @@
 
 :func:`write_vibration_report` writes into one directory:
 
-* ``vibration_report.html`` — summary, the non-random terms and why, the per-IMF table
-  (tests, orders, coefficients, Kalman gain), the error-statistics table beside
-  Document C's published one, notes;
+* ``vibration_report.html`` (``templates/vibration.html.j2`` on the shared layout; its PDF
+  beside it) — summary, the non-random terms and why, the per-IMF table (tests, orders,
+  coefficients, Kalman gain), the error-statistics table beside Document C's published one,
+  notes;
 * ``vibration_imfs.png`` — the record, every IMF (labelled random / periodic / trend)
   and the residue;
 * ``vibration_orders.png`` — AIC and BIC against the AR order for every modelled IMF,
@@ -22,7 +23,6 @@ are thinned to ≤ 20 000 plotted points.
 from __future__ import annotations
 
 import functools
-import html
 import json
 from pathlib import Path
 
@@ -30,9 +30,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.vibration import VibrationAnalysis
-from bench.app.reports.common import MAX_POINTS, save_figure, write_page
-from bench.app.reports.common import html_table as _table
+from bench.app.reports.common import MAX_POINTS, save_figure
 from bench.app.reports.common import thin as _thin
+from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
 
 _ZOOM_SAMPLES = 400
 _KIND_COLOUR = {"random": "C0", "periodic": "C3", "trend": "C2"}
@@ -119,10 +119,13 @@ def _g(x: float, digits: int = 4) -> str:
     return f"{x:.{digits}g}"
 
 
-def write_vibration_report(analysis: VibrationAnalysis, directory: str | Path, context: dict | None = None) -> Path:
+def write_vibration_report(analysis: VibrationAnalysis, directory: str | Path, context: dict | None = None,
+                           *, pdf: bool = True) -> Path:
     """Write the report files into ``directory`` (created if missing); return the HTML path.
 
-    ``context`` (optional) is shown as a header table: where the record came from.
+    ``context`` (optional) heads the report: where the record came from (``input`` names the
+    file whose SHA-256 goes to the page's foot; ``run`` + ``digest`` a stored run; ``operator``
+    also fills the approval block's "tested by").
     """
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
@@ -132,8 +135,6 @@ def write_vibration_report(analysis: VibrationAnalysis, directory: str | Path, c
             "fit": _fit_figure(a, out / "vibration_fit.png"),
             "hist": _error_figure(a, out / "vibration_error_hist.png")}
     (out / "vibration_analysis.json").write_text(json.dumps(a.to_dict(), indent=2, allow_nan=False))
-    img = {k: f"<img src='{html.escape(v)}' alt='{k}'>" for k, v in figs.items()}
-    dec = a.decomposition
     comp_rows = [[c.label, c.kind, _g(c.frequency_hz), _g(c.amplitude), _g(c.rms), _g(c.cycles), c.reason]
                  for c in a.terms.components]
     model_rows = [[f"IMF{m.index}", m.p, m.aic_order, m.bic_order, ", ".join(f"{v:.4f}" for v in m.ar), _g(m.sigma2),
@@ -145,34 +146,10 @@ def write_vibration_report(analysis: VibrationAnalysis, directory: str | Path, c
         ["AR + Kalman fit", _g(a.error_ar_kalman.mean), _g(a.error_ar_kalman.std), DOCUMENT_C[1][1], DOCUMENT_C[1][2]],
         ["std ratio (Kalman / AR)", "", _g(a.std_ratio, 3), "", _g(DOCUMENT_C[1][2] / DOCUMENT_C[0][2], 3)],
     ]
-    notes = "".join(f"<li>{html.escape(n)}</li>" for n in a.notes) or "<li>none</li>"
-    page = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>Random-vibration error model</title>
-<style>body{{font-family:sans-serif;max-width:1000px;margin:auto}} table{{border-collapse:collapse;margin:0.5em 0}}
-td,th{{border:1px solid #bbb;padding:2px 8px;text-align:right}} img{{max-width:100%}}</style></head><body>
-<h1>Random-vibration error model (Document C)</h1>
-{_table(["source", "value"], [[k, v] for k, v in (context or {}).items()]) if context else ""}
-<p>{a.y.size} samples at {_g(a.rate_hz, 6)} Hz ({_g(a.y.size / a.rate_hz, 6)} s).
-EMD stop rule <b>{html.escape(dec.stop)}</b>: {dec.n_imfs} IMFs + residue, siftings {list(dec.sifts)}.</p>
-<h2>1. Fit error (y − fit, from sample {a.compared_from})</h2>
-{_table(["", "mean", "std", "Document C mean (°/s)", "Document C std (°/s)"], err_rows)}
-<p>The AR fit is each IMF's one-step prediction from its past samples; the AR + Kalman fit
-is the filtered estimate x̂(n|n), which also uses sample n (P0 = I, X0 = the first p samples,
-Q = σ<sub>a</sub>², R = {_g(a.settings["r_ratio"])}·σ<sub>a</sub>²). Both add back the
-non-random terms.</p>
-{img["hist"]}
-{img["fit"]}
-<h2>2. Decomposition and non-random terms</h2>
-{img["imfs"]}
-{_table(["component", "kind", "frequency (Hz)", "amplitude", "rms", "cycles", "why"], comp_rows)}
-<h2>3. IMF models</h2>
-{_table(["IMF", "p", "AIC p", "BIC p", "φ", "σ_a²", "residual LB p", "ADF p", "KPSS p", "IMF LB p",
-         "ACF/PACF", "K₁"], model_rows)}
-{img["orders"]}
-<h2>Notes</h2><ul>{notes}</ul>
-<p>Numbers: <a href="vibration_analysis.json">vibration_analysis.json</a></p>
-</body></html>
-"""
-    path = out / "vibration_report.html"
-    write_page(path, page)
-    return path
+    context = context or {}
+    header = Header(title="Random-vibration error model (Document C)", subject=subject_rows(context),
+                    identity=source_identity(context), tested_by=str(context.get("operator") or ""),
+                    numbers="vibration_analysis.json")
+    return write_report(out / "vibration_report.html", "vibration.html.j2", header, pdf=pdf, a=a,
+                        dec=a.decomposition, figs=figs, errors=err_rows, components=comp_rows, models=model_rows,
+                        r_ratio=_g(a.settings["r_ratio"]))
