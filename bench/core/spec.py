@@ -19,6 +19,7 @@ parameters) and every measurement with its unit, limits and optional marginal ba
     low = -4.0
     high = 4.0
     marginal = 0.4                         # inside the limits but this close: "marginal"
+    label = "Bias (K0)"                    # optional: its name on the operator page
 
     [[prompts]]                            # optional: the operator is asked before a procedure
     before = "tumble"
@@ -28,7 +29,9 @@ The procedures are steps of the step catalogue the caller passes
 (``procedures.catalogue.CATALOGUE``): which sensor kinds each applies to, its parameters,
 what it produces and what a given parameter table can produce.  The spec is checked against
 it completely before any instrument is touched; a step's old name is refused naming the new
-one.  Limits are compared in the spec's unit.
+one.  Limits are compared in the spec's unit.  A measurement's ``label`` is the name an
+operator reads (the measurement's own name when it has none); :func:`plain_unit` writes a unit
+as a person reads it (``ug/g^2`` → ``µg/g²``).
 """
 
 from __future__ import annotations
@@ -74,6 +77,11 @@ UNITS: dict[str, tuple[str, float]] = {
     "degC": ("temperature difference", 1.0),
 }
 KINDS = ("accelerometer", "gyro")
+#: a label is one line an operator reads beside the value: at most this many characters
+MAX_LABEL_CHARS = 60
+#: how a unit's parts are written for a person (applied in order: ``degC`` before ``deg``)
+_PLAIN_PARTS = (("rtHz", "√Hz"), ("rth", "√h"), ("^2", "²"), ("^3", "³"), ("degC", "°C"),
+                ("deg", "°"))
 
 
 class SpecError(ValueError):
@@ -99,6 +107,19 @@ def same_dimension(unit: str) -> list[str]:
     return [u for u, (d, _) in UNITS.items() if d == dim]
 
 
+def plain_unit(unit: str) -> str:
+    """``unit`` (a key of :data:`UNITS`) as a person reads it: ``ug/g^2`` → ``µg/g²``,
+    ``ug/rtHz`` → ``µg/√Hz``, ``deg/h`` → ``°/h``, ``urad`` → ``µrad``; ValueError naming
+    the known units for any other."""
+    _unit(unit)
+    # the micro prefix is written "u" in a spec (ug, urad): µ wherever it prefixes a base unit
+    text = "/".join("µ" + part[1:] if part.startswith(("ug", "urad")) else part
+                    for part in unit.split("/"))
+    for written, plain in _PLAIN_PARTS:
+        text = text.replace(written, plain)
+    return text
+
+
 @dataclass(frozen=True)
 class SpecMeasurement:
     """One line of the spec: a produced measurement, its unit and its limits (in that unit)."""
@@ -110,10 +131,17 @@ class SpecMeasurement:
     high: float | None = None
     marginal: float = 0.0
     description: str = ""
+    #: what an operator reads for it (the operator page); the name when the spec gives none
+    label: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.label:
+            object.__setattr__(self, "label", self.name)  # frozen: set once, here
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "procedure": self.procedure, "unit": self.unit, "low": self.low,
-                "high": self.high, "marginal": self.marginal, "description": self.description}
+                "high": self.high, "marginal": self.marginal, "description": self.description,
+                "label": self.label}
 
 
 @dataclass(frozen=True)
@@ -216,7 +244,8 @@ def parse_spec(data: dict, catalogue: Catalogue, source: str = "<spec>") -> Unit
             f"{source}: measurement #{i} (no name)"
         if not isinstance(entry, dict):
             raise SpecError(f"{where} must be a table")
-        extra = set(entry) - {"name", "procedure", "unit", "low", "high", "marginal", "description"}
+        extra = set(entry) - {"name", "procedure", "unit", "low", "high", "marginal", "description",
+                              "label"}
         if extra:
             raise SpecError(f"{where}: unknown key(s) {sorted(extra)}")
         name = _text(entry, "name", where)
@@ -251,9 +280,21 @@ def parse_spec(data: dict, catalogue: Catalogue, source: str = "<spec>") -> Unit
         description = entry.get("description", produced[name][1])
         if not isinstance(description, str):
             raise SpecError(f"{where}: description {description!r} must be text")
-        measurements.append(SpecMeasurement(name, proc, unit_name, low, high, marginal, description))
+        measurements.append(SpecMeasurement(name, proc, unit_name, low, high, marginal, description,
+                                            _label(entry, name, where)))
     return UnitSpec(model, kind, checked, tuple(measurements), unit.get("description", ""),
                     pattern, source, _prompts(data.get("prompts", []), checked, source))
+
+
+def _label(entry: dict, name: str, where: str) -> str:
+    """The measurement's ``label``: one line of 1..MAX_LABEL_CHARS printable characters; its
+    name when the spec gives none."""
+    label = entry.get("label", name)
+    if (not isinstance(label, str) or not label.strip() or len(label) > MAX_LABEL_CHARS
+            or not label.isprintable()):
+        raise SpecError(f"{where}: label {label!r} must be text of 1..{MAX_LABEL_CHARS} printable "
+                        "characters on one line (the measurement's name on the operator page)")
+    return label.strip()
 
 
 def _prompts(entries: Any, procedures: dict[str, Any], source: str) -> dict[str, str]:
@@ -285,5 +326,5 @@ def load_spec(path: str | Path, catalogue: Catalogue) -> UnitSpec:
     return parse_spec(read_toml(path, "spec file", SpecError), catalogue, str(path))
 
 
-__all__ = ["UNITS", "KINDS", "SpecError", "SpecMeasurement", "UnitSpec", "convert",
-           "same_dimension", "parse_spec", "load_spec"]
+__all__ = ["UNITS", "KINDS", "MAX_LABEL_CHARS", "SpecError", "SpecMeasurement", "UnitSpec",
+           "convert", "same_dimension", "plain_unit", "parse_spec", "load_spec"]

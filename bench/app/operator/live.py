@@ -1,9 +1,11 @@
 """The operator station's live state: what a batch is doing now, as every page sees it.
 
 One :class:`LiveBatch` per server, written by the batch's thread and read (as a JSON
-snapshot) by every page: sockets and serials, the step list with progress and time left, the
-decimated samples of each socket's current stream, the measurements as they are judged, the
-verdicts, and the operator prompt.  A reload or a second browser gets the same snapshot.
+snapshot) by every page: sockets and serials, the seed, the step list with progress and a
+steady time left (``time_left``), the decimated samples of each socket's current stream (time
+in seconds since the stream began), the measurements as they are judged (with the spec's
+labels and the text the page shows, ``wording``), the verdicts, and the operator prompt.  A
+reload or a second browser gets the same snapshot.
 
 The samples and measurements are tapped where they are stored: :class:`LiveStore` is the run
 store whose writers (:class:`TappedWriter`) hand each appended chunk and each judged
@@ -15,11 +17,14 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from bench.app.operator.time_left import TimeLeft
+from bench.app.operator.wording import measurement_row, plain_name, time_left_text
 from bench.core.operator import OperatorAbort
 from bench.core.store import RunStore, RunWriter
 
@@ -28,6 +33,8 @@ CHUNK_POINTS = 120       # an appended chunk is decimated to at most this many p
 #: stream → the column plotted and its label
 PLOTTED = {"output": ("acceleration_g", "output, g"), "noise": ("voltage_v", "static record, V"),
            "tumble": ("voltage_v", "tumble position means, V")}
+#: the plots' time axis: station seconds since the plotted stream began (its step's record)
+TIME_AXIS = "time since step start, s"
 
 
 @dataclass
@@ -40,23 +47,33 @@ class SocketView:
     verdict: str | None = None         # PASS | PASS (marginal) | FAIL | ABORTED
     report: str | None = None          # the report's URL path
     stream: str | None = None          # the stream plotted now
+    t0: float = 0.0                    # the stream's first sample time (the plot's zero)
     t: deque = field(default_factory=lambda: deque(maxlen=PLOT_POINTS))
     y: deque = field(default_factory=lambda: deque(maxlen=PLOT_POINTS))
     measurements: list[dict[str, Any]] = field(default_factory=list)
 
+    def reason_text(self) -> str | None:
+        """Why the unit stopped, a failure named by the measurements' labels."""
+        failed = [m["label"] for m in self.measurements if m.get("outcome") == "fail"]
+        if self.status == "failed" and failed:
+            return "out of limits: " + ", ".join(failed)
+        return self.reason
+
     def to_dict(self) -> dict[str, Any]:
         return {"socket": self.socket, "serial": self.serial, "run_id": self.run_id,
-                "status": self.status, "reason": self.reason, "verdict": self.verdict,
+                "status": self.status, "reason": self.reason_text(), "verdict": self.verdict,
                 "report": self.report, "stream": self.stream,
-                "label": PLOTTED.get(self.stream or "", ("", ""))[1],
+                "label": PLOTTED.get(self.stream or "", ("", ""))[1], "x_label": TIME_AXIS,
                 "t": list(self.t), "y": list(self.y), "measurements": list(self.measurements)}
 
 
 class LiveBatch:
-    """Thread-safe live state of the station's batch (one at a time)."""
+    """Thread-safe live state of the station's batch (one at a time); ``clock`` is the wall
+    clock in seconds (a test passes its own)."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._lock = threading.Lock()
+        self.clock = clock
         self.version = 0
         self._clear()
 
@@ -69,7 +86,11 @@ class LiveBatch:
         self.done_s = 0.0
         self.total_s = 0.0
         self.message = ""
+        self.seed: int | None = None
+        self.labels: dict[str, str] = {}
         self.started_wall = 0.0
+        self.paused_s = 0.0                # wall time spent waiting at mid-run prompts
+        self.time_left = TimeLeft()
         self.prompt: dict[str, Any] | None = None
         self.abort_requested = False
         self.error: str | None = None
@@ -78,39 +99,64 @@ class LiveBatch:
 
     # -- written by the batch ----------------------------------------------------------
     def begin(self, operator: str, spec: str, sockets: dict[int, str],
-              steps: list[tuple[str, float]]) -> None:
+              steps: list[tuple[str, float]], *, seed: int | None = None,
+              labels: Mapping[str, str] | None = None,
+              wall_per_planned_s: float | None = None) -> None:
+        """A new batch: its sockets, its steps (name, planned station seconds), its ``seed``,
+        the spec's measurement ``labels``; ``wall_per_planned_s`` is 1.0 on a station whose
+        clock is the wall clock (its plan is its time), None where the pace is read from the run."""
         with self._lock:
             self._clear()
             self.state, self.operator, self.spec = "prompt", operator, spec
+            self.seed, self.labels = seed, dict(labels or {})
             self.sockets = {n: SocketView(n, s) for n, s in sorted(sockets.items())}
-            self.steps = [{"name": name, "duration_s": d} for name, d in steps]
+            self.steps = [{"name": name, "title": plain_name(name), "duration_s": d} for name, d in steps]
             self.total_s = sum(d for _, d in steps)
+            self.time_left = TimeLeft(wall_per_planned_s)
             self._touch()
 
     def ask(self, text: str) -> bool:
-        """Show a prompt and wait for the operator: True on Continue, False on Abort."""
+        """Show a prompt and wait for the operator: True on Continue, False on Abort.  The
+        wait is not the station's pace: it is left out of the time-left estimate."""
         with self._lock:
             if self.abort_requested:  # Abort pressed before the prompt came up: it stands
                 return False
+            if self.state == "running":
+                self.time_left.at(self._active_s())  # shown as it stands until the answer
             self.prompt = {"text": text, "id": self.version + 1}
             self._answer.clear()
             self._touch()
+            asked = self.clock()
         self._answer.wait()
         with self._lock:
             self.prompt = None
+            if self.state == "running":
+                self.paused_s += self.clock() - asked
             self._touch()
             return self._continue
 
     def running(self) -> None:
         with self._lock:
-            self.state, self.started_wall = "running", time.monotonic()
+            self.state, self.started_wall, self.paused_s = "running", self.clock(), 0.0
+            self.time_left.report(0.0, self.done_s, self.total_s)  # the plan, where it is the time
             for view in self.sockets.values():
                 view.status = "running"
             self._touch()
 
+    def _active_s(self) -> float:
+        """Wall seconds the batch has been running, prompts left out."""
+        return self.clock() - self.started_wall - self.paused_s
+
     def progress(self, done: float, total: float, message: str = "") -> None:
+        """``done`` of ``total`` planned seconds; ``message`` "<step>: what it does", the step
+        named in words."""
+        step, sep, rest = message.partition(":")
+        if sep and step in (s["name"] for s in self.steps):
+            message = plain_name(step) + sep + rest
         with self._lock:
             self.done_s, self.total_s, self.message = float(done), float(total), message
+            if self.state == "running":
+                self.time_left.report(self._active_s(), self.done_s, self.total_s)
             self._touch()
 
     def run_created(self, socket: int, run_id: str) -> None:
@@ -126,18 +172,19 @@ class LiveBatch:
         with self._lock:
             view = self.sockets[socket]
             if view.stream != stream:
-                view.stream = stream
+                finite = t[np.isfinite(t)]
+                view.stream, view.t0 = stream, float(finite[0]) if finite.size else 0.0
                 view.t.clear()
                 view.y.clear()
             keep = np.isfinite(y[::step])
-            view.t.extend(np.round(t[::step][keep], 4).tolist())
+            view.t.extend(np.round(t[::step][keep] - view.t0, 4).tolist())
             view.y.extend(y[::step][keep].tolist())
             self._touch()
 
     def measured(self, socket: int, measurement: dict[str, Any]) -> None:
         with self._lock:
             if socket in self.sockets:
-                self.sockets[socket].measurements.append(measurement)
+                self.sockets[socket].measurements.append(measurement_row(measurement, self.labels))
                 self._touch()
 
     def socket_ended(self, socket: int, status: str, reason: str | None) -> None:
@@ -195,8 +242,9 @@ class LiveBatch:
     def snapshot(self) -> dict[str, Any]:
         with self._lock:
             fraction = self.done_s / self.total_s if self.total_s > 0 else 0.0
-            elapsed = time.monotonic() - self.started_wall if self.state == "running" else 0.0
-            left = elapsed * (1 - fraction) / fraction if fraction > 0.01 else None
+            left = None
+            if self.state == "running":  # held while a prompt waits for the operator
+                left = self.time_left.shown_s if self.prompt else self.time_left.at(self._active_s())
             start = 0.0
             steps = []
             for s in self.steps:
@@ -206,8 +254,10 @@ class LiveBatch:
                 steps.append({**s, "state": state})
                 start = end
             return {"version": self.version, "state": self.state, "operator": self.operator,
-                    "spec": self.spec, "message": self.message, "fraction": fraction,
-                    "wall_left_s": left, "steps": steps, "prompt": self.prompt,
+                    "spec": self.spec, "seed": self.seed, "message": self.message,
+                    "seed_text": "" if self.seed is None else str(self.seed),  # JS loses digits past 2**53
+                    "fraction": fraction, "wall_left_s": left, "time_left": time_left_text(left),
+                    "steps": steps, "prompt": self.prompt,
                     "abort_requested": self.abort_requested, "error": self.error,
                     "sockets": [v.to_dict() for v in self.sockets.values()]}
 
@@ -286,4 +336,4 @@ class AbortableClock:
 
 
 __all__ = ["LiveBatch", "LiveStore", "TappedWriter", "AbortableClock", "SocketView",
-           "PLOTTED"]
+           "PLOTTED", "TIME_AXIS"]

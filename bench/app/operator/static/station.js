@@ -34,7 +34,7 @@ async function start() {
   const sockets = {};
   for (let n = 1; n <= SOCKETS; n++) sockets[n] = $(`serial-${n}`).value.trim();
   $("error").textContent = "";
-  const {ok, doc} = await post("/api/start", {operator: $("operator").value, sockets});
+  const {ok, doc} = await post("/api/start", {operator: $("operator").value, sockets, seed: $("seed").value});
   if (!ok) $("error").textContent = doc.error;
 }
 
@@ -52,29 +52,62 @@ async function retest() {
   await start();
 }
 
+// ticks at 1, 2 or 5 × 10^n: about `count` of them over [lo, hi]
+function ticks(lo, hi, count) {
+  const raw = (hi - lo) / count, mag = Math.pow(10, Math.floor(Math.log10(raw)));
+  const step = [1, 2, 5, 10].map((m) => m * mag).find((s) => s >= raw);
+  const out = [];
+  for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(Math.abs(v) < step * 1e-9 ? 0 : v);
+  return {values: out, step};
+}
+function tickText(v, step) {  // as many decimals as the step needs, a true minus sign
+  const decimals = Math.max(0, -Math.floor(Math.log10(step) + 1e-9));
+  const text = Math.abs(v) >= 1e5 || (v !== 0 && Math.abs(v) < 1e-4) ? v.toExponential(2) : v.toFixed(decimals);
+  return text.replace("-", "\u2212");
+}
+
 const lastPlotted = {};
-function plot(canvas, t, y, key) {
+function plot(canvas, t, y, key, xLabel) {
   if (lastPlotted[canvas.id] === key) return;
   lastPlotted[canvas.id] = key;
-  const w = canvas.width = canvas.clientWidth * devicePixelRatio;
-  const h = canvas.height = canvas.clientHeight * devicePixelRatio;
+  const px = devicePixelRatio;
+  const w = canvas.width = canvas.clientWidth * px;
+  const h = canvas.height = canvas.clientHeight * px;
   const g = canvas.getContext("2d");
   g.clearRect(0, 0, w, h);
   if (t.length < 2) return;
-  let t0 = Math.min(...t), t1 = Math.max(...t), y0 = Math.min(...y), y1 = Math.max(...y);
+  let t0 = Math.min(0, ...t), t1 = Math.max(...t), y0 = Math.min(...y), y1 = Math.max(...y);
   if (t1 === t0) t1 = t0 + 1;
-  if (y1 === y0) { y0 -= 1e-9; y1 += 1e-9; }
-  const pad = 4 * devicePixelRatio;
-  g.strokeStyle = "#3b6fd8"; g.lineWidth = devicePixelRatio; g.beginPath();
+  if (y1 === y0) { const d = Math.abs(y0) * 1e-6 || 1e-9; y0 -= d; y1 += d; }
+  g.font = `${10 * px}px sans-serif`;
+  const ystep = ticks(y0, y1, 3).step;  // the y range widened to whole ticks: both ends labelled
+  y0 = Math.floor(y0 / ystep) * ystep; y1 = Math.ceil(y1 / ystep) * ystep;
+  const yt = ticks(y0, y1, 3), xt = ticks(t0, t1, 5);
+  const left = 6 * px + Math.max(...yt.values.map((v) => g.measureText(tickText(v, yt.step)).width));
+  const top = 8 * px, bottom = 28 * px, right = 8 * px;
+  const X = (v) => left + (v - t0) / (t1 - t0) * (w - left - right);
+  const Y = (v) => h - bottom - (v - y0) / (y1 - y0) * (h - top - bottom);
+  g.strokeStyle = "#ccd"; g.fillStyle = "#555"; g.lineWidth = px;
+  g.textAlign = "right"; g.textBaseline = "middle";
+  for (const v of yt.values) {  // y grid and its values
+    g.beginPath(); g.moveTo(left, Y(v)); g.lineTo(w - right, Y(v)); g.stroke();
+    g.fillText(tickText(v, yt.step), left - 3 * px, Y(v));
+  }
+  g.textAlign = "center"; g.textBaseline = "top";
+  for (const v of xt.values) {  // the time axis: seconds since the step's record began
+    g.beginPath(); g.moveTo(X(v), h - bottom); g.lineTo(X(v), h - bottom + 3 * px); g.stroke();
+    g.fillText(tickText(v, xt.step), X(v), h - bottom + 4 * px);
+  }
+  g.beginPath(); g.moveTo(left, h - bottom); g.lineTo(w - right, h - bottom); g.stroke();
+  g.textAlign = "right"; g.fillText(xLabel, w - right, h - 12 * px);
+  g.strokeStyle = "#3b6fd8"; g.beginPath();
   for (let i = 0; i < t.length; i++) {
-    const x = pad + (t[i] - t0) / (t1 - t0) * (w - 2 * pad);
-    const yy = h - pad - (y[i] - y0) / (y1 - y0) * (h - 2 * pad);
-    if (i === 0) g.moveTo(x, yy); else g.lineTo(x, yy);
+    if (i === 0) g.moveTo(X(t[i]), Y(y[i])); else g.lineTo(X(t[i]), Y(y[i]));
   }
   g.stroke();
-  g.fillStyle = "#555"; g.font = `${10 * devicePixelRatio}px sans-serif`;
-  g.fillText(`${y1.toPrecision(7)}`, pad, 11 * devicePixelRatio);
-  g.fillText(`${y0.toPrecision(7)}`, pad, h - pad);
+  canvas.dataset.xLabel = xLabel;
+  canvas.dataset.xRange = `${tickText(t0, xt.step)} ${tickText(t1, xt.step)}`;
+  canvas.setAttribute("aria-label", `plot against ${xLabel}, ${canvas.dataset.xRange.replace(" ", " to ")}`);
   window.plotUpdates++;
 }
 
@@ -91,9 +124,9 @@ function socketCard(s) {
     card.className = "card"; card.id = `socket-${s.socket}`;
     card.innerHTML = `<b>Socket ${s.socket}</b> <span class="serial"></span> — <span class="status"></span>
       <div class="verdict"></div><div class="reason" style="font-size:12px"></div>
-      <div class="label" style="font-size:12px;color:#555"></div><canvas id="plot-${s.socket}"></canvas>
-      <table class="measurements"><thead><tr><th>measurement</th><th>value</th><th>unit</th><th>limits</th><th></th></tr></thead><tbody></tbody></table>
-      <a class="report"></a>`;
+      <div class="label" style="font-size:12px;color:#555"></div><canvas id="plot-${s.socket}" role="img"></canvas>
+      <table class="measurements"><thead><tr><th>measurement</th><th class="num">value</th><th>limits</th><th></th></tr></thead><tbody></tbody></table>
+      <a class="report"></a> <span class="seed"></span>`;
     $("sockets").appendChild(card);
   }
   card.querySelector(".serial").textContent = s.serial;
@@ -102,17 +135,18 @@ function socketCard(s) {
   v.textContent = s.verdict || ""; v.className = "verdict " + verdictClass(s.verdict);
   card.querySelector(".reason").textContent = s.reason || "";
   card.querySelector(".label").textContent = s.label || "";
-  plot(card.querySelector("canvas"), s.t, s.y, `${s.stream}:${s.t.length}:${s.t[s.t.length - 1]}`);
-  const rows = s.measurements.map((m) => {
-    const lim = `${m.low ?? ""} … ${m.high ?? ""}`;
-    const value = m.value === null ? "—" : Number(m.value).toPrecision(6);
-    return `<tr><td>${esc(m.name)}</td><td>${value}</td><td>${esc(m.unit)}</td><td>${lim}</td><td class="${m.outcome}">${m.outcome.toUpperCase()}</td></tr>`;
-  }).join("");
+  plot(card.querySelector("canvas"), s.t, s.y, `${s.stream}:${s.t.length}:${s.t[s.t.length - 1]}`, s.x_label);
+  const rows = s.measurements.map((m) =>
+    `<tr><td title="${esc(m.name)}: ${esc(m.description)}">${esc(m.label)}</td><td class="num" title="${esc(m.uncertainty_text)}">${esc(m.value_text)} <span class="unit">${esc(m.unit_text)}</span></td>` +
+    `<td class="limits">${esc(m.limits_text)}</td><td class="outcome ${m.outcome}">${m.outcome.toUpperCase()}</td></tr>`).join("");
   const body = card.querySelector("tbody");
   if (body.dataset.rows !== String(s.measurements.length)) { body.innerHTML = rows; body.dataset.rows = s.measurements.length; }
   const a = card.querySelector(".report");
   if (s.report) { a.href = s.report; a.textContent = "report"; a.target = "_blank"; } else { a.removeAttribute("href"); a.textContent = ""; }
+  card.querySelector(".seed").textContent = lastSnapshot && lastSnapshot.seed_text ? `seed ${lastSnapshot.seed_text}` : "";
 }
+
+function duration(s) { return s < 90 ? `${Math.round(s)} s` : s < 5400 ? `${Math.round(s / 60)} min` : `${(s / 3600).toFixed(1)} h`; }
 
 function render(st) {
   window.stateMessages++;
@@ -123,16 +157,20 @@ function render(st) {
   const busy = st.state === "prompt" || st.state === "running";
   $("start").disabled = busy;
   $("abort").classList.toggle("hidden", !busy);
+  const ended = lastSnapshot && (lastSnapshot.state === "prompt" || lastSnapshot.state === "running") && !busy;
   lastSnapshot = st;
+  if (st.station) $("seed-field").classList.toggle("hidden", !st.station.seeded);
+  $("live-seed").textContent = st.seed_text ? `seed ${st.seed_text}` : "";
   $("retest").classList.toggle("hidden", retestable(st).length === 0);
   $("progress").style.width = `${(100 * st.fraction).toFixed(1)}%`;
-  const left = st.wall_left_s == null ? "" : ` — about ${Math.ceil(st.wall_left_s)} s left`;
+  const left = st.time_left ? ` — ${st.time_left}` : "";
   $("progress-text").textContent = `${(100 * st.fraction).toFixed(0)}% ${st.message || ""}${left}` + (st.error ? ` — ${st.error}` : "");
-  $("steps").innerHTML = st.steps.map((s) => `<li class="${s.state}">${esc(s.name)} (${(s.duration_s / 60).toFixed(0)} min)</li>`).join("");
+  $("steps").innerHTML = st.steps.map((s) => `<li class="${s.state}" title="${esc(s.name)}">${esc(s.title)} (${duration(s.duration_s)})</li>`).join("");
   const shown = new Set(st.sockets.map((s) => `socket-${s.socket}`));
   for (const card of [...$("sockets").children]) if (!shown.has(card.id)) card.remove();
   st.sockets.forEach(socketCard);
   document.body.dataset.state = st.state;
+  if (ended) loadHistory();  // the batch's runs are stored: show them
 }
 
 function listen() {
@@ -141,11 +179,29 @@ function listen() {
   source.onerror = () => { source.close(); setTimeout(listen, 1000); };
 }
 
-async function searchHistory() {
-  const q = new URLSearchParams({serial: $("history-serial").value, verdict: $("history-verdict").value, date: $("history-date").value});
-  const doc = await (await fetch(`/api/history?${q}`)).json();
-  $("history-table").querySelector("tbody").innerHTML = doc.runs.map((r) =>
-    `<tr><td>${esc(r.run_id)}</td><td>${esc(r.serial)}</td><td>${esc(r.socket)}</td><td>${esc(r.started_utc)}</td><td class="${r.verdict === "FAIL" ? "fail" : ""}">${esc(r.verdict)}</td><td>${r.report ? `<a href="${r.report}" target="_blank">report</a>` : ""}</td></tr>`).join("");
+// History: the stored runs, newest first, loaded with the page and after every batch; the
+// filter keeps the rows where every word is found in the serial, procedure, result or date
+let historyRows = [];
+async function loadHistory() {
+  const r = await fetch("/api/history");
+  if (!r.ok) return;
+  historyRows = (await r.json()).runs;
+  showHistory();
+}
+function showHistory() {
+  const words = $("history-filter").value.toLowerCase().split(/\s+/).filter(Boolean);
+  const rows = historyRows.filter((r) => {
+    const text = [r.serial, r.procedure_text, r.result, r.started_utc].join(" ").toLowerCase();
+    return words.every((w) => text.includes(w));
+  });
+  $("history-count").textContent = `${rows.length} of ${historyRows.length} stored runs`;
+  $("history-table").querySelector("tbody").innerHTML = rows.map((r) => {
+    const cls = r.verdict == null ? "status" : r.verdict === "FAIL" ? "fail" : r.verdict.startsWith("PASS (marginal)") ? "marginal" : "";
+    const why = r.verdict == null ? "not an acceptance: the run's own status, no spec judged" : (r.reason || "");
+    return `<tr data-run="${esc(r.run_id)}"><td>${esc(r.started_utc.slice(0, 19).replace("T", " "))}</td><td>${esc(r.serial)}</td><td class="procedure">${esc(r.procedure_text)}</td>` +
+      `<td class="result ${cls}" title="${esc(why)}">${esc(r.result)}</td><td>${esc(r.socket)}</td><td class="seed-cell">${esc(r.seed_text)}</td>` +
+      `<td>${r.report ? `<a href="${r.report}" target="_blank">report</a>` : ""}</td><td>${esc(r.run_id)}</td></tr>`;
+  }).join("");
 }
 
 async function doctor() {
@@ -170,6 +226,8 @@ $("abort").addEventListener("click", () => post("/api/abort"));
 $("retest").addEventListener("click", retest);
 $("prompt-continue").addEventListener("click", () => post("/api/prompt", {answer: "continue"}));
 $("prompt-abort").addEventListener("click", () => post("/api/prompt", {answer: "abort"}));
-$("history-search").addEventListener("click", searchHistory);
+$("history-refresh").addEventListener("click", loadHistory);
+$("history-filter").addEventListener("input", showHistory);
 $("doctor-run").addEventListener("click", doctor);
+loadHistory();
 listen();
