@@ -18,7 +18,7 @@ from bench.app.operator.live import LiveBatch
 from bench.app.operator.products import Products
 from bench.app.operator.server import DRAWN_SEED_BITS, batch_seed
 from bench.app.operator.time_left import TAU_S, TimeLeft, next_shown, raw_time_left
-from bench.app.operator.wording import limits_text, measurement_row, number_text, plain_name, time_left_text
+from bench.app.wording import limits_text, measurement_row, number_text, plain_name, time_left_text
 from bench.core.spec import MAX_LABEL_CHARS, UNITS, SpecError, load_spec, parse_spec, plain_unit
 from bench.specs import builtin_specs
 from bench.testing.specs import SHORT_ACCEPTANCE_SPEC

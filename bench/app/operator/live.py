@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from bench.app.operator.time_left import TimeLeft
-from bench.app.operator.wording import measurement_row, plain_name, time_left_text
+from bench.app.wording import measurement_row, plain_name, time_left_text
 from bench.core.operator import OperatorAbort
 from bench.core.store import RunStore, RunWriter
 

@@ -20,6 +20,7 @@ from typing import Any
 from bench.app.reports.acceptance_plots import SECTIONS
 from bench.app.reports.layout import Header, run_identity, write_report
 from bench.app.verdict import measurements_of, record_digest, verdict_of
+from bench.app.wording import measurement_label, unit_text
 from bench.core.store.central import spec_identity
 
 _OUTCOMES = ("pass", "marginal", "fail")
@@ -61,11 +62,15 @@ def write_acceptance_report(store, run_id: str, directory: str | Path, *, pdf: b
     results = store.results(run_id)
     doc = acceptance_document(store, run_id)
     (out / "acceptance.json").write_text(json.dumps(doc, indent=2, default=str))
+    labels = {e["name"]: e.get("label") or e["name"]
+              for e in (results.get("acceptance.spec") or {}).get("measurements", [])}
     rows, outcomes = [], []
     for m in doc["measurements"]:
         value = ("not produced" if m["value"] is None else _num(m["value"])) + ("" if m.get("uncertainty") is None
                                     else f" ± {m['uncertainty']:.2g}")
-        rows.append([m["name"], m["description"], value, m["unit"], _num(m["low"]), _num(m["high"]),
+        label = measurement_label(m, labels)
+        described = m["description"] if label == m["name"] else f"{m['description']} [{m['name']}]"
+        rows.append([label, described, value, unit_text(m["unit"]), _num(m["low"]), _num(m["high"]),
                      _num(m["marginal"]) if m["marginal"] else "", m["outcome"].upper()])
         outcomes.append(m["outcome"] if m["outcome"] in _OUTCOMES else "")
     sections = []

@@ -1,8 +1,8 @@
-"""What the operator page says, in the operator's words: measurement names from the spec's
-labels, units as a person writes them, numbers to the digits they carry, limits on one line,
-the time left, and a stored run's procedure and result.
+"""What a person reads — on the operator page and in the reports: measurement names from the
+spec's labels, units as a person writes them, numbers to the digits they carry, limits on one
+line, the time left, and a stored run's procedure and result.
 
-Plain data in, text out; the page only places the text.
+Plain data in, text out; the page or the report only places the text.
 """
 
 from __future__ import annotations
