@@ -21,9 +21,10 @@ What a user calls::
     find_spikes, SpikeSearch, estimate_relative_timing, RelativeTiming, check_method, MethodCheck
 
 Without a reference (the usual case on a production rig) :func:`analyze_fusion` finds each
-sensor's spikes without a model of the motion (:func:`find_spikes`), puts the LF record on the HF
-clock from the sensors' cross-spectrum (:func:`estimate_relative_timing`) and recommends only a
-method that passes its consistency checks (:func:`check_method`), else the complementary filter.
+sensor's spikes and dropouts without a model of the motion (:func:`find_spikes`), puts the LF
+record on the HF clock from the sensors' cross-spectrum (:func:`estimate_relative_timing`) and
+recommends only a method that passes its consistency checks (:func:`check_method`), else the
+complementary filter.
 
 The modules behind it are private: import from ``bench.analysis.fusion``.
 """

@@ -44,15 +44,19 @@ copy with each sensor's outliers replaced by its own tone fit (the reference unu
 :func:`~bench.analysis.fusion._alignment.fit_and_align`): the complementary filter and the
 complementary smoother, *cleaned*.  They are judged like every other, so they are
 recommended only where they do better on the judged part; where nothing was replaced they
-are the methods they clean (and ties go to those).
+are the methods they clean (and ties go to those).  With a reference the tone fit finds the
+outliers rather than the detector used without one (step 1 below): where the motion is the
+tones it restores a dropout's samples from them, which a detector without a model of the
+motion cannot (it fills a dropout from its neighbours); on random motion it misses them.
 
 **Without a reference** nothing can be judged, and a method can go wrong unseen (on random
 motion a noise model fitted to motion it does not model makes the smoother lean on the wrong
 sensor):
 
-1. each sensor's spikes are found without a model of the motion — its interpolation residual
-   beyond a threshold set by a stated false-alarm rate
-   (:func:`~bench.analysis.fusion._outliers.find_spikes`) — and replaced in a cleaned copy;
+1. each sensor's spikes and dropouts are found without a model of the motion — its interpolation
+   residual beyond a threshold set by a stated false-alarm rate; a dropout as a run, flat between
+   two jumps, filled from its neighbours (:func:`~bench.analysis.fusion._outliers.find_spikes`) —
+   and replaced in a cleaned copy;
 2. the given delays are applied, then the LF record put on the HF clock: its skew and the rest of
    its delay from the sensors' cross-spectrum, each corrected where significant
    (:func:`~bench.analysis.fusion._timing.estimate_relative_timing`);
@@ -774,8 +778,11 @@ def _prepare_without_ref(t, hf, lf, rate_hz: float, hf_model: SensorModel, lf_mo
         notes.append(f"spikes not searched: {len(hf)} samples (more than {4 * SPIKE_HALF_WIDTH} needed)")
     spikes = {"hf": hf_spikes, "lf": lf_spikes}
     if hf_spikes.index.size or lf_spikes.index.size:
+        runs = len(hf_spikes.runs) + len(lf_spikes.runs)
         notes.append(f"spikes replaced in the cleaned copy: {hf_spikes.index.size} HF and {lf_spikes.index.size} LF "
-                     f"samples (interpolation residual beyond {hf_spikes.threshold_sigma:.3g} robust σ)")
+                     f"samples (interpolation residual beyond {hf_spikes.threshold_sigma:.3g} robust σ)"
+                     + (f", {runs} dropout run{'s' if runs > 1 else ''} among them (each filled from its neighbours)"
+                        if runs else ""))
     t = t - hf_delay_s
     given = lf_delay_s - hf_delay_s
     if given:

@@ -21,7 +21,17 @@ clock runs off the HF one by ``ε`` (its sample ``k``, stamped ``k/fs``, really 
    weighted least squares of its residual phase against ``2πf`` (standard error from the weights);
 4. the blocks' delays against their mid times by weighted least squares: ``d₀`` (at the
    record's middle) and ``ε``, the standard errors inflated by √(χ²/dof) when the blocks
-   scatter more than their weights say (an unmodelled drift, model error).
+   scatter more than their weights say (an unmodelled drift, model error);
+5. the LF record put on the HF clock by that first estimate (:func:`align_relative`'s
+   band-limited resampling, significant or not) and steps 1–4 repeated on the aligned pair:
+   what they find is added to the first estimate, with their standard errors.  A Welch
+   estimate is the cross-spectrum smoothed over a bin; where the phase slopes (a delay) while
+   the magnitude falls (a sensor's roll-off, the motion's band edge) the smoothed phase is
+   biased toward a smaller delay, by many standard errors where the coherence is high.  On the
+   aligned pair the delay's slope is gone; what is left — the models' own phase curvature
+   under the smoothing — grows as the bin width squared, so steps 1–4 once more with segments
+   half as long quadruple it: a third of the change of the delay is the bias left at full
+   resolution (Richardson), and it joins the delay's standard error in quadrature.
 
 :func:`align_relative` then puts the LF record on the HF clock (band-limited resampling,
 :func:`~bench.analysis.frf.resample`): the skew and the delay are corrected only where
@@ -33,7 +43,7 @@ a model's phase error that is linear in frequency is indistinguishable from a de
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.signal import csd, welch
@@ -64,7 +74,7 @@ class RelativeTiming:
         How much later the LF sensor reads than the HF one at ``epoch_s``, beyond the models'
         phases, in s.
     delay_std_s : float
-        Its standard error, in s.
+        Its standard error, in s, the bias the spectral resolution leaves included (step 5).
     epoch_s : float
         Time at which ``delay_s`` holds (the record's middle), in s of the time column.
     band_hz : tuple of float
@@ -180,9 +190,49 @@ def estimate_relative_timing(hf, lf, rate_hz: float, hf_model: SensorModel, lf_m
         raise ValueError(f"hf ({hf.size}) and lf ({lf.size}) must be finite series of one length")
     if not (math.isfinite(rate_hz) and rate_hz > 0):
         raise ValueError(f"rate_hz {rate_hz} must be a finite value > 0")
+    first = _one_pass(hf, lf, rate_hz, hf_model, lf_model, t0_s, 1)
+    if first.n_blocks == 0:
+        return first
+    # 5. the pair put on one clock by the first estimate, and the rest measured at two resolutions
+    t = t0_s + np.arange(hf.size) / rate_hz
+    on_one_clock = replace(first, skew_corrected=math.isfinite(first.skew_ppm), delay_corrected=True)
+    try:
+        part, lf_aligned = align_relative(t, lf, on_one_clock, rate_hz)
+    except ValueError:  # too little overlap left to refine on
+        return first
+    t0_rest = float(t[part][0])
+    rest = _one_pass(hf[part], lf_aligned, rate_hz, hf_model, lf_model, t0_rest, 1, aligned=True)
+    coarse = _one_pass(hf[part], lf_aligned, rate_hz, hf_model, lf_model, t0_rest, 2, aligned=True)
+    if rest.n_blocks == 0 or coarse.n_blocks == 0:
+        return first
+
+    def at_epoch(timing: RelativeTiming) -> float:  # its delay at the first pass's epoch
+        skew = timing.skew_ppm * 1e-6 if math.isfinite(timing.skew_ppm) else 0.0
+        return timing.delay_s - skew * (first.epoch_s - timing.epoch_s)
+
+    d0 = first.delay_s + at_epoch(rest)
+    # the smoothing bias grows as the bin width squared: halving the segment quadruples it, so a
+    # third of the change is the bias left at full resolution (Richardson); it joins the error
+    bias = (at_epoch(coarse) - at_epoch(rest)) / 3
+    sd0 = math.hypot(rest.delay_std_s, bias)
+    if math.isfinite(first.skew_ppm) and math.isfinite(rest.skew_ppm):
+        eps_ppm, sde_ppm = first.skew_ppm + rest.skew_ppm, rest.skew_std_ppm
+    else:
+        eps_ppm, sde_ppm = first.skew_ppm, first.skew_std_ppm
+    skew_ok = math.isfinite(eps_ppm) and math.isfinite(sde_ppm)
+    return RelativeTiming(eps_ppm, sde_ppm, d0, sd0, first.epoch_s, rest.band_hz, rest.n_bins, rest.n_blocks,
+                          rest.chi2_reduced, skew_ok and abs(eps_ppm) > TIMING_SIGNIFICANCE * sde_ppm,
+                          abs(d0) > TIMING_SIGNIFICANCE * sd0)
+
+
+def _one_pass(hf: np.ndarray, lf: np.ndarray, rate_hz: float, hf_model: SensorModel, lf_model: SensorModel,
+              t0_s: float, coarsen: int, aligned: bool = False) -> RelativeTiming:
+    """Steps 1–4 of the module docstring on one pair, the Welch segment ``coarsen`` times shorter
+    than :func:`_segment` gives; an ``aligned`` pair (put on one clock already) skips the grid of
+    step 3: what is left of its delay is a fraction of a sample."""
     n = hf.size
     bounds = np.linspace(0, n, TIMING_BLOCKS + 1).astype(int)
-    nper = _segment(rate_hz, int(np.diff(bounds).min()), hf_model, lf_model)
+    nper = max(_segment(rate_hz, int(np.diff(bounds).min()), hf_model, lf_model) // coarsen, 32)
     blocks = []  # (mid time, frequencies, phase less the models', weights)
     for i0, i1 in zip(bounds[:-1], bounds[1:]):
         if i1 - i0 < 2 * nper:
@@ -210,12 +260,13 @@ def estimate_relative_timing(hf, lf, rate_hz: float, hf_model: SensorModel, lf_m
     # the record's delay: the weighted phasor sum over a grid fine enough that its step turns the
     # highest bin by at most 0.1 rad, then the per-block refinement below
     # (the sum repeats every 1/Δf, Δf the bins' spacing: the grid spans one period at most)
-    step = 0.1 / (2 * np.pi * f_all.max())
-    reach = min(MAX_DELAY_S, 0.5 * nper / rate_hz)
-    grid = np.arange(-reach, reach + step, step)
     phasor = w_all * np.exp(1j * ph_all)
-    score = _grid_scores(phasor, f_all, grid)
-    d_rec = float(grid[int(np.argmax(score))])
+    d_rec = 0.0
+    if not aligned:
+        step = 0.1 / (2 * np.pi * f_all.max())
+        reach = min(MAX_DELAY_S, 0.5 * nper / rate_hz)
+        grid = np.arange(-reach, reach + step, step)
+        d_rec = float(grid[int(np.argmax(_grid_scores(phasor, f_all, grid)))])
     # a gain of the wrong sign turns every bin by π: that is not a delay (any other phase common to
     # the bins — a model's phase error — goes into the delay with the models' other errors)
     common = math.pi * round(float(np.angle(np.sum(phasor * np.exp(-2j * np.pi * f_all * d_rec)))) / math.pi)

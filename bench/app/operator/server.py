@@ -44,10 +44,10 @@ from bench.app.labels import SEED_RANGE
 from bench.app.operator.auth import LoginRequired, Users
 from bench.app.operator.live import AbortableClock, LiveBatch, LiveStore
 from bench.app.operator.products import Products
-from bench.app.wording import procedure_text
 from bench.app.reports.acceptance_report import acceptance_document
 from bench.app.reports.parallel import start_report_server
 from bench.app.verdict import measurements_of, verdict_of
+from bench.app.wording import procedure_text
 from bench.core.operator import OperatorAbort
 from procedures.batch_acceptance import BatchAcceptance
 

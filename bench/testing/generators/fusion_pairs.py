@@ -263,6 +263,17 @@ def spike_truth(spec: PairSpec, which: str) -> np.ndarray:
     return np.unique(np.array([i for i, _ in getattr(spec, which).spikes], dtype=int))
 
 
+def noise_free_reading(spec: PairSpec, which: str) -> np.ndarray:
+    """``which`` sensor's readings as :func:`make_pair` records them (the same instants, filter,
+    sampling and offset) without its noise, spikes and dropouts: what the record holds of the
+    motion alone.  Nothing is drawn (a null for an outlier detector: add noise of the sensor's
+    ``noise_sd`` and nothing else)."""
+    if which not in ("hf", "lf"):
+        raise ValueError(f"which {which!r} must be 'hf' or 'lf'")
+    sensor = getattr(spec, which)
+    return _record(spec, replace(sensor, noise_sd=0.0, spikes=(), dropouts=()), np.random.default_rng(0))
+
+
 def analog_prototype(sensor: Sensor) -> tuple[np.ndarray, np.ndarray]:
     """Numerator and denominator (descending powers of s) of the sensor's analog prototype."""
     wc = 2 * math.pi * sensor.corner_hz
