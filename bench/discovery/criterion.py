@@ -20,6 +20,10 @@ For a model M (base + effects) on a record, the **criterion** is
   −2 ln L by a χ²_k variable (more for a searched location: the largest of ``M_e``), so by the
   union bound over the ``C`` candidates an add move names something false with probability
   ≤ ``α`` — the **false-name rate** — on a record that holds nothing.
+* An effect made of parts the search could have added one at a time (a sinusoid's lines:
+  :meth:`~.effects_base.Effect.components`) is charged per part, each ``pen`` of that part
+  alone: a second line costs what a line added by itself costs (``k = 3``, ``M = n/2``), so
+  beside a true line a false one is named with probability ≤ ``α / C``, as any addition.
 
 Every move of the search (:mod:`.search`) — add, drop, swap — is taken when, and only when, it
 lowers D. Two models whose D differ by Δ have relative weight ``exp(−Δ/2)`` (the likelihood
@@ -52,17 +56,21 @@ def n_free(effect: Effect, params: Params, rec: Record, kind: str) -> int:
 
 def penalty(effect: Effect, params: Params, rec: Record, kind: str, n_candidates: int,
             alpha: float = FALSE_NAME_RATE) -> float:
-    """``χ²_k.isf(α / (C · M_e))`` — the deviance ``effect`` must save to be named (module
-    docstring). ValueError for ``alpha`` outside (0, 1) or no candidate."""
+    """``Σ χ²_k.isf(α / (C · M_e))`` over the effect's parts (one part but for a sinusoid's
+    lines) — the deviance ``effect`` must save to be named (module docstring). ValueError for
+    ``alpha`` outside (0, 1) or no candidate."""
     if not 0 < alpha < 1:
         raise ValueError(f"alpha = {alpha!r}; allowed: (0, 1)")
     if n_candidates < 1:
         raise ValueError(f"n_candidates = {n_candidates!r}; allowed: ≥ 1")
-    k = max(n_free(effect, params, rec, kind), 1)
-    cells = max(float(effect.search_cells(params, rec)), 1.0)
-    # in logs: a few jumps on a long record search n^count positions
-    log_p = math.log(alpha) - math.log(n_candidates) - math.log(cells)
-    return float(chi2.isf(max(math.exp(log_p), P_MIN), k))
+    total = 0.0
+    for part in effect.components(params):
+        k = max(n_free(effect, part, rec, kind), 1)
+        cells = max(float(effect.search_cells(part, rec)), 1.0)
+        # in logs: a few jumps on a long record search n^count positions
+        log_p = math.log(alpha) - math.log(n_candidates) - math.log(cells)
+        total += float(chi2.isf(max(math.exp(log_p), P_MIN), k))
+    return total
 
 
 def equivalent_deviance(p_value: float, k: int) -> float:

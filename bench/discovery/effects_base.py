@@ -224,9 +224,11 @@ class Effect:
     Hooks the search and the criterion ask: ``applies_to`` (does the record carry what it needs:
     its logged columns, varying), ``identifiable`` (can the record resolve these parameters at
     all: a fit it cannot is no model), ``search_cells`` (how many positions its fit searched —
-    the criterion's multiplicity M), ``prefixes`` (shorter versions of a fit, each scored: a
-    jump's fewer change points), ``fit_params`` (the range a fit may move in on a record, any
-    sensor grade), ``per_sample`` (judged on each reading: not on a long record's block means),
+    the criterion's multiplicity M), ``components`` (the parts the criterion charges one by one:
+    each line of a sinusoid, as if it were added alone; ``joined`` puts parts together),
+    ``prefixes`` (shorter versions of a fit, each scored: a jump's fewer change points, a
+    sinusoid's fewer lines), ``fit_params`` (the range a fit may move in on a record, any sensor
+    grade), ``per_sample`` (judged on each reading: not on a long record's block means),
     ``aliases`` (what a fit on block means could stand for) and ``time_shifted`` (the same term
     on a record starting earlier). The fit asks ``free_params`` (which parameters a fit moves; a
     jump's unused slots stay put) and ``coordinate_scale`` (the optimiser's scale of a parameter
@@ -330,10 +332,13 @@ class Effect:
             raise ValueError(f"effect {self.id!r}: missing parameter(s) {missing}; required: {list(names)}")
         return {q.name: q.check(p[q.name], self.id) for q in (self.params_for(kind) if kind else self.params)}
 
-    def aliases(self, p: Mapping[str, float], block_rate_hz: float, rate_hz: float) -> list[Params]:
+    def aliases(self, p: Mapping[str, float], block_rate_hz: float, rate_hz: float,
+                shift_s: float = 0.0) -> list[Params]:
         """The parameters whose term, seen through block means at ``block_rate_hz`` of a record
-        at ``rate_hz``, could have made what a fit on the means found at ``p`` (a line above the
-        means' Nyquist frequency folds into their band): ``p`` first. Default: ``p`` alone."""
+        at ``rate_hz`` whose first mean is ``shift_s`` after its first sample (``p`` referenced to
+        that sample: :meth:`time_shifted`), could have made what a fit on the means found at
+        ``p`` (a line above the means' Nyquist frequency folds into their band): ``p`` first.
+        Default: ``p`` alone."""
         return [dict(p)]
 
     def time_shifted(self, p: Mapping[str, float], shift_s: float) -> Params:
@@ -703,6 +708,18 @@ class Effect:
         """Smaller versions of the fitted ``p`` for the criterion to weigh too (a jump fit's
         first j change points, j below its count); [] by default."""
         return []
+
+    def components(self, p: Mapping[str, float]) -> list[Params]:
+        """The parts of the effect at ``p`` that the criterion charges one by one, each its own
+        penalty (:func:`.criterion.penalty`), as the parameters of the effect holding that part
+        alone: ``[p]`` by default (one charge for the whole effect); a sinusoid's lines, each a
+        line the search could have added by itself."""
+        return [dict(p)]
+
+    def joined(self, p: Mapping[str, float], parts: Sequence[Mapping[str, float]]) -> Params:
+        """The effect holding ``parts`` (each as :meth:`components` gives one) together, its other
+        parameters from ``p``: the one part itself by default."""
+        return dict(parts[0]) if parts else dict(p)
 
     def search_cells(self, p: Mapping[str, float], rec: Record) -> float:
         """How many distinct positions the fit of this effect at ``p`` chose among (the

@@ -8,14 +8,14 @@ unit), down to a floor below which the coefficient is immaterial for that class.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.ndimage import median_filter
 from scipy.signal import lombscargle
 
 from bench.discovery.data import Record
-from bench.discovery.effects_base import Effect, Param, guess_kind
+from bench.discovery.effects_base import Effect, Param, Params, guess_kind
 from bench.discovery.effects_linalg import base_regressors, project_out
 
 #: Reference temperature of the temperature effects, degC: a model file's coefficients then
@@ -30,6 +30,16 @@ FOLD_ALIAS_LEVEL = 0.01
 #: Beside a clip a sine's fold fit ranks this many of the strongest lines by how much of the
 #: training rows each explains (:meth:`SinusoidalInterference.fit_starts`).
 FOLD_LINES_RANKED = 8
+#: Most lines one sinusoidal_interference effect holds — a practical cap: what a bench picks up
+#: is mains (its fundamental and a harmonic) and one machine (a pump, a fan, a table's or a
+#: dither's line). Each line is three parameters in every joint refit; the lines of a record with
+#: more are left in its innovations and reported as unexplained spectral structure at their
+#: frequencies.
+MAX_LINES = 3
+#: Two periodogram peaks closer than this many Fourier bins (1/T each) are one line's start: a
+#: Hann window's main lobe spans two bins either side of a line, so a peak inside it is the
+#: line's own leakage. Lines of a record closer than 3/T are one line to the starts.
+LINE_SEPARATION_BINS = 3
 
 
 def _time_range(rec: Record, lo: float, hi: float, min_samples: float = 3.0, frac: float = 0.25):
@@ -299,67 +309,211 @@ def _runs_demeaned(x: np.ndarray, runs: np.ndarray, seen: np.ndarray) -> np.ndar
     return out
 
 
+def line_names(k: int) -> tuple[str, str, str]:
+    """Names of line ``k``'s (1-based) amplitude, frequency and phase: the first line's carry no
+    number (``amplitude``, ``freq_hz``, ``phase_rad``), the others' do (``amplitude_2``,
+    ``freq_2_hz``, ``phase_2_rad``)."""
+    return ("amplitude", "freq_hz", "phase_rad") if k == 1 else (f"amplitude_{k}", f"freq_{k}_hz", f"phase_{k}_rad")
+
+
+def line_of(name: str) -> int:
+    """The line (1-based) a parameter name belongs to."""
+    parts = name.split("_")
+    return int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else 1
+
+
+def _line_slots(unit: str, amp_high: float, floor: float, freq_high: float) -> tuple[Param, ...]:
+    """Amplitude (0 … amp_high, with a physical floor), frequency (1e-4 … freq_high Hz) and phase
+    (±π) of each of the :data:`MAX_LINES` lines."""
+    out: list[Param] = []
+    for k in range(1, MAX_LINES + 1):
+        a, f, ph = line_names(k)
+        out += [Param(a, unit, 0.0, amp_high, floor=floor), Param(f, "Hz", 1e-4, freq_high, log=True),
+                Param(ph, "rad", -math.pi, math.pi)]
+    return tuple(out)
+
+
+#: One line: (amplitude, freq_hz, phase_rad).
+Line = tuple[float, float, float]
+
+
 class SinusoidalInterference(Effect):
     id = "sinusoidal_interference"
-    description = "a periodic disturbance: mains pick-up, a pump or fan, a table's or dither's line"
-    form = "y += amplitude · sin(2π·freq_hz·(t − t[0]) + phase_rad)"
+    description = ("periodic disturbances: mains pick-up, a pump or fan, a table's or dither's line — "
+                   f"up to {MAX_LINES} lines, each an amplitude, a frequency and a phase")
+    form = ("y += Σ_k amplitude_k · sin(2π·freq_k_hz·(t − t[0]) + phase_k_rad) (the first line's names carry no "
+            "number); amplitude_k = 0: no line")
     inputs = ("t",)
     main_param = "amplitude"
-    signature = "frequency: a spectral line at freq_hz; time: present throughout"
+    signature = "frequency: a spectral line at each freq_hz; time: present throughout"
     ranges = {
-        "accelerometer": (Param("amplitude", "g", 0.0, 1e-2, floor=1e-8), Param("freq_hz", "Hz", 1e-4, 1e4, log=True),
-                          Param("phase_rad", "rad", -math.pi, math.pi)),
-        "gyro": (Param("amplitude", "deg/s", 0.0, 1.0, floor=1e-6), Param("freq_hz", "Hz", 1e-4, 1e4, log=True),
-                 Param("phase_rad", "rad", -math.pi, math.pi)),
-        "mhd": (Param("amplitude", "deg/s", 0.0, 10.0, floor=1e-4), Param("freq_hz", "Hz", 1e-4, 1e5, log=True),
-                Param("phase_rad", "rad", -math.pi, math.pi)),
+        "accelerometer": _line_slots("g", 1e-2, 1e-8, 1e4),
+        "gyro": _line_slots("deg/s", 1.0, 1e-6, 1e4),
+        "mhd": _line_slots("deg/s", 10.0, 1e-4, 1e5),
     }
 
+    # ---- the lines ---------------------------------------------------------------------
+    def lines(self, p: Mapping[str, float]) -> list[Line]:
+        """(amplitude, freq_hz, phase_rad) of each used line (non-zero amplitude), in slot order."""
+        out = []
+        for k in range(1, MAX_LINES + 1):
+            a, f, ph = line_names(k)
+            if p.get(a, 0.0) != 0.0:
+                out.append((float(p[a]), float(p[f]), float(p[ph])))
+        return out
+
+    def with_lines(self, p: Mapping[str, float], lines: Sequence[Line]) -> Params:
+        """``p`` with ``lines`` in the first slots and the others unused (amplitude 0, the
+        frequency at the bottom of its range, phase 0: values nothing reads)."""
+        if len(lines) > MAX_LINES:
+            raise ValueError(f"{len(lines)} lines; allowed: at most {MAX_LINES}")
+        out = dict(p)
+        for k in range(1, MAX_LINES + 1):
+            a, f, ph = line_names(k)
+            out[a], out[f], out[ph] = lines[k - 1] if k <= len(lines) else (0.0, self.param(f).low, 0.0)
+        return out
+
+    def count(self, p: Mapping[str, float]) -> int:
+        """Number of lines (non-zero amplitudes)."""
+        return len(self.lines(p))
+
+    def check_params(self, p: Mapping[str, object], kind: str | None = None) -> Params:
+        """As every effect checks them; a line whose three parameters are all absent is unused (a
+        model file written with one line reads as that line)."""
+        full = dict(p)
+        for k in range(2, MAX_LINES + 1):
+            names = line_names(k)
+            if not any(n in full for n in names):
+                full |= dict(zip(names, (0.0, self.param(names[1]).low, 0.0)))
+        return super().check_params(full, kind)
+
+    # ---- the term ----------------------------------------------------------------------
     def term(self, p, rec):
-        return p["amplitude"] * np.sin(2 * np.pi * p["freq_hz"] * (rec.t_s - rec.t_s[0]) + p["phase_rad"])
-
-    def aliases(self, p, block_rate_hz, rate_hz):
-        """Every frequency |f + k·f_b| below the record's Nyquist frequency (``p``'s first): block
-        means fold a line of any of them onto f."""
-        f0, fb = float(p["freq_hz"]), float(block_rate_hz)
-        k = int(math.ceil(0.5 * rate_hz / fb)) + 1
-        fs = sorted({abs(f0 + j * fb) for j in range(-k, k + 1)} - {f0})
-        return [dict(p)] + [{**p, "freq_hz": f} for f in fs if 0 < f < 0.5 * rate_hz]
-
-    def time_shifted(self, p, shift_s):
-        """The phase at a start ``shift_s`` earlier (negative: later): the line has 2π·f·shift less
-        phase there (wrapped to ±π)."""
-        ph = p["phase_rad"] - 2 * np.pi * p["freq_hz"] * float(shift_s)
-        return {**p, "phase_rad": float((ph + np.pi) % (2 * np.pi) - np.pi)}
-
-    def term_gradient(self, p, rec, names):
         tt = rec.t_s - rec.t_s[0]
-        ph = 2 * np.pi * p["freq_hz"] * tt + p["phase_rad"]
-        a_cos = p["amplitude"] * np.cos(ph) if {"phase_rad", "freq_hz"} & set(names) else None  # once for both
-        d = {"amplitude": lambda: np.sin(ph), "phase_rad": lambda: a_cos,
-             "freq_hz": lambda: a_cos * (2 * np.pi * tt)}
-        return [d[k]() for k in names]
+        out = np.zeros(rec.n)
+        for a, f, ph in self.lines(p):
+            out += a * np.sin(2 * np.pi * f * tt + ph)
+        return out
 
-    def search_cells(self, p, rec):
-        """The line's frequency was chosen among the record's n/2 Fourier bins."""
-        return max(rec.n / 2.0, 1.0)
+    def term_gradient(self, p: Mapping[str, float], rec: Record, names: Sequence[str]) -> list[np.ndarray]:
+        tt = rec.t_s - rec.t_s[0]
+        cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+        def sin_cos(k: int) -> tuple[np.ndarray, np.ndarray]:  # once per line for its three names
+            if k not in cache:
+                _, f, ph = line_names(k)
+                arg = 2 * np.pi * p[f] * tt + p[ph]
+                cache[k] = np.sin(arg), np.cos(arg)
+            return cache[k]
+
+        out = []
+        for name in names:
+            k = line_of(name)
+            a = p[line_names(k)[0]]
+            s, c = sin_cos(k)
+            out.append(s if name.startswith("amplitude") else a * c if name.startswith("phase")
+                       else a * c * (2 * np.pi * tt))
+        return out
+
+    # ---- what the search and the criterion ask -------------------------------------------
+    def free_params(self, p: Mapping[str, float], kind: str, rec: Record,
+                    rows: np.ndarray | None = None) -> tuple[Param, ...]:
+        """Amplitude, frequency and phase of each used line (the first always)."""
+        used = {1} | {k for k in range(2, MAX_LINES + 1) if p.get(line_names(k)[0], 0.0) != 0.0}
+        return tuple(q for q in self.params_for(kind) if line_of(q.name) in used)
+
+    def components(self, p: Mapping[str, float]) -> list[Params]:
+        """Each line alone (in the first slot): the criterion charges every line as a line added
+        by itself (:func:`.criterion.penalty`)."""
+        lines = self.lines(p)
+        return [dict(p)] if len(lines) <= 1 else [self.with_lines(p, [line]) for line in lines]
+
+    def search_cells(self, p: Mapping[str, float], rec: Record) -> float:
+        """Each line's frequency was chosen among the record's n/2 Fourier bins."""
+        return max(rec.n / 2.0, 1.0) ** max(self.count(p), 1)
+
+    def identity_params(self, p: Params) -> Params:
+        return self.with_lines(p, [])
+
+    def prefixes(self, p: Mapping[str, float]) -> list[Params]:
+        """The j strongest lines of ``p`` (j = 1 … count − 1), strongest first: the number of
+        lines is the criterion's to choose."""
+        strongest = sorted(self.lines(p), key=lambda line: -abs(line[0]))
+        return [self.with_lines(p, strongest[:j]) for j in range(1, len(strongest))]
+
+    def aliases(self, p: Mapping[str, float], block_rate_hz: float, rate_hz: float,
+                shift_s: float = 0.0) -> list[Params]:
+        """Every frequency |f + k·f_b| below the record's Nyquist frequency of the first line (``p``
+        first), each with the phase a line there has for block means of ``m = rate/f_b`` samples
+        to show ``p``: on means whose first time is ``shift_s`` after the record's (``p``'s phase
+        referenced to the record's first sample) a line at ``f + k·f_b`` reads as one at ``f``
+        shifted by ``2π·k·f_b·shift_s``, by π more where the block average's gain
+        ``sin(π·f·m/rate)/(m·sin(π·f/rate))`` is negative, mirrored when ``f + k·f_b < 0``. A fit of
+        several lines is asked one line at a time (:meth:`components`, :meth:`joined`)."""
+        f0, fb = float(p["freq_hz"]), float(block_rate_hz)
+        m = max(round(rate_hz / fb), 1)
+        k = int(math.ceil(0.5 * rate_hz / fb)) + 1
+        out = []
+        for j in range(-k, k + 1):
+            fk = f0 + j * fb
+            if j == 0 or not 0 < abs(fk) < 0.5 * rate_hz or abs(fk) == f0:
+                continue
+            ph = float(p["phase_rad"]) - 2 * math.pi * j * fb * float(shift_s)
+            if math.sin(math.pi * fk * m / rate_hz) * math.sin(math.pi * fk / rate_hz) < 0:
+                ph += math.pi
+            if fk < 0:  # sin(−2π|f|t + φ) = sin(2π|f|t − φ + π)
+                ph = math.pi - ph
+            out.append({**p, "freq_hz": abs(fk), "phase_rad": (ph + math.pi) % (2 * math.pi) - math.pi})
+        return [dict(p)] + sorted(out, key=lambda q: q["freq_hz"])
+
+    def joined(self, p: Mapping[str, float], parts: Sequence[Mapping[str, float]]) -> Params:
+        """The lines of ``parts`` (each a line in the first slot), in that order."""
+        return self.with_lines(p, [(float(q["amplitude"]), float(q["freq_hz"]), float(q["phase_rad"])) for q in parts])
+
+    def time_shifted(self, p: Mapping[str, float], shift_s: float) -> Params:
+        """The phases at a start ``shift_s`` earlier (negative: later): each line has 2π·f·shift
+        less phase there (wrapped to ±π)."""
+        out = dict(p)
+        for k in range(1, MAX_LINES + 1):
+            _, f, ph = line_names(k)
+            v = p[ph] - 2 * np.pi * p[f] * float(shift_s)
+            out[ph] = float((v + np.pi) % (2 * np.pi) - np.pi)
+        return out
+
+    def reference_params(self, rec: Record, kind: str) -> Params:
+        """One line (the geometric mean of the resolvable frequencies); the others unused."""
+        out = super().reference_params(rec, kind)
+        return self.with_lines(out, [(out["amplitude"], out["freq_hz"], out["phase_rad"])])
+
+    def draw_others(self, rng: np.random.Generator, rec: Record, kind: str) -> Params:
+        """One line's frequency and phase, uniform over their resolvable ranges (log-uniform for
+        the frequency); the other lines unused."""
+        out: Params = {}
+        for q in self.params_for(kind):
+            if q.name == self.main_param or line_of(q.name) != 1:
+                continue
+            lo, hi = self.drawable_range(q, rec, kind)
+            out[q.name] = math.exp(rng.uniform(math.log(lo), math.log(hi))) if q.log else rng.uniform(lo, hi)
+        return self.with_lines(out, [(0.0, out["freq_hz"], out["phase_rad"])])
 
     def drawable_range(self, q, rec, kind):
-        if q.name == "freq_hz":  # at least 20 cycles in the record, below 0.4 × the sample rate
+        if q.name.startswith("freq"):  # at least 20 cycles in the record, below 0.4 × the sample rate
             return max(q.low, 20.0 / rec.duration_s), min(q.high, 0.4 * rec.rate_hz)
         return q.low, q.high
 
     def fit_range(self, q, rec, kind):
-        if q.name == "freq_hz":  # two cycles in the record up to the Nyquist frequency
+        if q.name.startswith("freq"):  # two cycles in the record up to the Nyquist frequency
             return 2.0 / rec.duration_s, 0.5 * rec.rate_hz
         return q.low, q.high
 
     def fit_starts(self, rec, residual, *, kind=None, rows=None, held_out=None):
-        """The three strongest periodogram lines of the residual on ``rows`` (others zero; uniform
-        records: FFT with a Hann window; else a Lomb-Scargle grid), each judged against the
+        """One start: the :data:`MAX_LINES` strongest periodogram lines of the residual on ``rows``
+        (others zero; uniform records: FFT with a Hann window; else a Lomb-Scargle grid), at
+        least :data:`LINE_SEPARATION_BINS` bins apart, strongest first, each judged against the
         periodogram's running median over :data:`LINE_BACKGROUND_BINS` bins around it (a line
         stands out of its neighbourhood; beside a red process the strongest bins are its low
-        frequencies, not the line), amplitude and phase by least squares on ``rows``.
+        frequencies, not the line), amplitudes and phases by one least-squares fit of them all on
+        ``rows``. How many of them the record holds is the criterion's to say (:meth:`prefixes`).
 
         On part of the record (a fold's training blocks), zeroing the held-out blocks modulates
         a red process's level by the fold pattern and puts false lines at the pattern's odd
@@ -416,9 +570,9 @@ class SinusoidalInterference(Effect):
         order = idx[np.argsort(ratio[idx], kind="stable")[::-1]]
         # the fold pattern's lines: a start only as the strongest line
         order = np.r_[order[:1], [i for i in order[1:] if not alias[i]]].astype(int)
-        used: list[int] = []  # the strongest lines, three bins apart: as many as may be ranked
+        used: list[int] = []  # the strongest lines, apart: as many as may be ranked
         for i in order:
-            if not any(abs(i - j) < 3 for j in used):
+            if not any(abs(i - j) < LINE_SEPARATION_BINS for j in used):
                 used.append(int(i))
                 if len(used) == FOLD_LINES_RANKED:
                     break
@@ -430,10 +584,8 @@ class SinusoidalInterference(Effect):
             return m * np.asarray(rows, float)[:, None] if part else m  # r is zero off the rows
         if blocks is not None and not np.array_equal(seen, blocks):  # a fold beside a clip
             used = _explained_first(used[:FOLD_LINES_RANKED], columns, r)
-        starts = []
-        for i in used[:3]:
-            m = columns(i)
-            (a, b), *_ = np.linalg.lstsq(m, r, rcond=None)
-            starts.append({"amplitude": float(math.hypot(a, b)), "freq_hz": float(np.clip(f[i], qf.low, qf.high)),
-                           "phase_rad": float(math.atan2(b, a))})
-        return starts
+        chosen = used[:MAX_LINES]
+        coef, *_ = np.linalg.lstsq(np.column_stack([columns(i) for i in chosen]), r, rcond=None)
+        lines = [(float(math.hypot(coef[2 * j], coef[2 * j + 1])), float(np.clip(f[i], qf.low, qf.high)),
+                  float(math.atan2(coef[2 * j + 1], coef[2 * j]))) for j, i in enumerate(chosen)]
+        return [self.with_lines({}, lines)]

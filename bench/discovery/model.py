@@ -191,7 +191,8 @@ class Model:
         """Signal-to-noise ratio on rec of effect ``index`` *inside this model*: what tells its
         term apart from everything else the model holds — its contribution to ``predict`` with
         the base regressors and every other deterministic effect's parameter directions (the
-        model's Jacobian there: what a joint fit of them could absorb) projected out — against
+        model's Jacobian in the parameters a fit moves, ``Effect.free_params``: what a joint fit
+        of them could absorb) projected out — against
         the model's whole noise, white ``noise_sd`` plus its random processes (both sides
         Kalman-whitened: generalised least squares). Alone in a model without processes this is
         the plain snr of ``Effect.snr`` (no look-alike taken out); beside a strong random walk
@@ -216,7 +217,8 @@ class Model:
         for j, (other, p) in enumerate(entries):
             if j == index or other.stochastic or other.stage == "output":
                 continue
-            for name, v in p.items():
+            for name in (q.name for q in other.free_params(p, self.base.kind, rec)):  # not an unused slot's
+                v = p[name]
                 h = 1e-4 * abs(v) if v != 0 else 1e-9
                 try:
                     d = (self.with_params(j, {**p, name: v + h}).predict(rec) - here) / h

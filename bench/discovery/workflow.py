@@ -40,7 +40,7 @@ from bench.discovery.contamination import cleaned, find_outliers
 from bench.discovery.criterion import n_free, penalty
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
-from bench.discovery.effects_base import HistogramEffect, at_edge
+from bench.discovery.effects_base import HistogramEffect, Params, at_edge
 from bench.discovery.effects_noise import StochasticEffect, block_mean_deficit
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
@@ -444,8 +444,9 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
     kind = model.base.kind
     # terms timed from a record's first sample (a line's phase) move from the means' first mean
     # to the window's first sample, and from there to the record's (``Effect.time_shifted``)
-    slow = _shifted(slow, float(coarse.rec.t_s[0] - window.t_s[0]))
-    slow, folded = _unfolded(slow, window, coarse.rec.rate_hz, work.rate_hz)
+    shift = float(coarse.rec.t_s[0] - window.t_s[0])
+    slow = _shifted(slow, shift)
+    slow, folded = _unfolded(slow, window, coarse.rec.rate_hz, work.rate_hz, shift)
     released = folded | {e.id for e, p in slow.entries() if at_edge(e, p, coarse.rec, kind)}
     procs = slow.stochastic_effects()
     need = sum(block_mean_deficit(e.state_space(p, work.dt_s, work.n), m) for e, p in procs)
@@ -508,25 +509,36 @@ def _shifted(model: Model, shift_s: float) -> Model:
     return Model(model.base, tuple((eid, CATALOGUE[eid].time_shifted(p, shift_s)) for eid, p in model.effects))
 
 
-def _unfolded(slow: Model, window: Record, block_rate_hz: float, rate_hz: float) -> tuple[Model, set[str]]:
-    """``slow`` with each term the block means may have seen folded (``Effect.aliases``: a line
-    above their Nyquist frequency) at the alias that fits the full-rate ``window`` best (each
-    refitted there, the rest held; least squares), and the ids of those terms."""
+def _unfolded(slow: Model, window: Record, block_rate_hz: float, rate_hz: float,
+              shift_s: float) -> tuple[Model, set[str]]:
+    """``slow`` (its terms referenced to the ``window``'s first sample, the means' first time
+    ``shift_s`` after it) with each term the block means may have seen folded
+    (``Effect.aliases``: a line above their Nyquist frequency) at the alias that fits the
+    full-rate ``window`` best (each refitted there, the rest held; least squares), and the ids
+    of those terms. An effect of
+    several lines (``Effect.components``) is unfolded one line at a time, each with the lines
+    unfolded before it and without those after it (which the window may hold at another
+    frequency)."""
     folded: set[str] = set()
-    for i, (e, p) in enumerate(slow.entries()):
-        cands = e.aliases(p, block_rate_hz, rate_hz)
-        if len(cands) < 2:
+    for i, e in enumerate(CATALOGUE[eid] for eid in slow.effect_ids):
+        p = slow.effects[i][1]
+        parts = e.components(p)
+        if all(len(e.aliases(part, block_rate_hz, rate_hz, shift_s)) < 2 for part in parts):
             continue
         others = frozenset(slow.effect_ids) - {e.id}
-        best, best_sse = slow, math.inf
-        for c in cands:
-            try:
-                fit = calibrate(slow.with_params(i, c), window, noise=False, frozen=others)
-            except ValueError:
-                continue
-            sse = float(np.sum((window.y - fit.predict(window)) ** 2))
-            if sse < best_sse:
-                best, best_sse = slow.with_params(i, dict(fit.effects[i][1])), sse
+        done: list[Params] = []
+        best = slow
+        for part in parts:  # the lines unfolded so far and this one's alias, refitted together
+            best, best_sse = slow, math.inf
+            for c in e.aliases(part, block_rate_hz, rate_hz, shift_s):
+                try:
+                    fit = calibrate(slow.with_params(i, e.joined(p, [*done, c])), window, noise=False, frozen=others)
+                except ValueError:
+                    continue
+                sse = float(np.sum((window.y - fit.predict(window)) ** 2))
+                if sse < best_sse:
+                    best, best_sse = slow.with_params(i, dict(fit.effects[i][1])), sse
+            done = e.components(best.effects[i][1]) if math.isfinite(best_sse) else [*done, part]
         slow = best
         folded.add(e.id)
     return slow, folded

@@ -15,6 +15,9 @@ parameter draws at most, so the truth is the one the estimator is asked about):
 * :mod:`~bench.testing.generators.discovery_effects` — every discovery catalogue effect
   realised apart from the catalogue (the simulator's physics where it has the effect); grades
   ``bench.discovery``;
+* :mod:`~bench.testing.generators.discovery_lines` — records of a few spectral lines in white
+  noise (cosines on the record's own clock, frequencies, snr and phases drawn apart from the
+  catalogue's ``draw``); grades how ``bench.discovery`` names several lines at once;
 * :mod:`~bench.testing.generators.discovery_shapes` — structure no catalogue effect has
   (triangle and square waves, chirps, bursts, a supply dependence, a compression), sized
   against its closest look-alike; grades the discovery's "unexplained structure".
