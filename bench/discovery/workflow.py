@@ -42,6 +42,7 @@ from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import HistogramEffect, Params, at_edge
 from bench.discovery.effects_noise import StochasticEffect, block_mean_deficit
+from bench.discovery.effects_terms import MAX_LINES, SinusoidalInterference, line_names
 from bench.discovery.findings import Localization
 from bench.discovery.fitting import CandidateFitter
 from bench.discovery.localize import localize, unexplained_structure
@@ -206,6 +207,37 @@ def params_std(model: Model, rec: Record, at: int) -> dict:
         return dict(f.fit([f.pack(p, model.base.bias, model.base.scale_factor)], max_nfev=1).params_std)
     except (ValueError, np.linalg.LinAlgError, FloatingPointError):
         return dict.fromkeys(p, math.nan)
+
+
+#: lines whose frequencies are integer multiples of the lowest line's within this many standard
+#: errors (of their difference) are said to be harmonics: a pair of unrelated lines lands there by
+#: chance with probability ≈ 0.3 % per pair at the stated errors (two-sided normal, 3σ)
+HARMONIC_Z = 3.0
+
+
+def harmonic_notes(model: Model, recs: dict[str, Record]) -> list[str]:
+    """A note for each named ``sinusoidal_interference`` whose higher lines sit at integer
+    multiples of its lowest one (within :data:`HARMONIC_Z` standard errors): the lines may be one
+    periodic source that is not a sine (a triangle, square or clipped wave) rather than separate
+    pick-ups. ``recs``: each effect's record (the one whose search set its values)."""
+    notes = []
+    for at, (e, p) in enumerate(model.entries()):
+        if not isinstance(e, SinusoidalInterference) or e.count(p) < 2:
+            continue
+        std = params_std(model, recs[e.id], at)
+        freqs = sorted((float(p[line_names(k)[1]]), float(std.get(line_names(k)[1], math.nan)))
+                       for k in range(1, MAX_LINES + 1) if p.get(line_names(k)[0], 0.0) != 0.0)
+        (f1, s1), multiples = freqs[0], []
+        for f, s in freqs[1:]:
+            m = round(f / f1)
+            if m >= 2 and abs(f - m * f1) <= HARMONIC_Z * math.hypot(s, m * s1):
+                multiples.append(f"{f:.4g} Hz ({m}×)")
+        if multiples:
+            notes.append(f"{e.id}: the line{'s' if len(multiples) > 1 else ''} at {', '.join(multiples)} "
+                         f"{'are' if len(multiples) > 1 else 'is'} at a multiple of the one at {f1:.4g} Hz within "
+                         f"{HARMONIC_Z:g} standard errors: they may be one periodic source that is not a sine "
+                         f"(a triangle, square or clipped wave at {f1:.4g} Hz) rather than separate pick-ups")
+    return notes
 
 
 def _gain_p(parent: Scored, child: Scored, eid: str, rec: Record) -> float:
@@ -399,6 +431,7 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
         for name in at_edge(e, p, decided[e.id].rec, kind):
             notes.append(f"{e.id}.{name} = {p[name]:.4g} is at the edge of the range the record allows: the "
                          "record cannot bound it (a longer or faster record would)")
+    notes += harmonic_notes(final, {e.id: decided[e.id].rec for e, _ in final.entries()})
     last = stages[-1]
     final_naming = _naming(last.result.best, None, last.result, ties_all, last.rec, last.alpha)
     nu = heavy_tails(last.result.best.model, last.rec, last.ev.seen, alpha)

@@ -183,6 +183,27 @@ def test_two_lines_are_both_named_within_three_sigma():
             other.append(rows[-1])
     assert ok >= RECOVERY_SHARE * len(seeds), rows
     assert len(other) <= binomial_allowance(len(seeds), FALSE_NAME_RATE), other
+    # unrelated lines are not said to be harmonics (≈ 0.3 % a pair by chance at the stated errors)
+    assert sum(any("at a multiple of" in n for n in discover(_record(seed, 2)[0], _start(), only=(LINE.id,)).notes)
+               for seed in seeds) <= binomial_allowance(len(seeds), 0.003)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_square_wave_named_as_lines_is_said_to_be_one_periodic_source(seed):
+    """A square wave's fundamental and 3rd harmonic (amplitudes 1 and 1/3 of 40 noise sd, drawn
+    frequency and phase): named as two lines, the note says the higher one sits at
+    3× the lower within its errors — one periodic source that is not a sine."""
+    rng = np.random.default_rng([36, 3, seed])
+    t = np.arange(N) / 10.0
+    f = rng.uniform(0.2, 1.0)
+    phase = rng.uniform(-math.pi, math.pi)
+    amp = 40 * SD  # a pick-up well above the noise: the lines' errors are small, the test is the ratio
+    y = (amp * (np.sin(2 * np.pi * f * t + phase) + np.sin(3 * (2 * np.pi * f * t + phase)) / 3)
+         + SD * rng.standard_normal(N))
+    d = discover(Record(t_s=t, y=y), _start(), only=(LINE.id,))
+    assert len(_lines(d)) >= 2, d.steps
+    note = next((n for n in d.notes if "at a multiple of" in n), None)
+    assert note is not None and "(3×)" in note, d.notes
 
 
 def test_one_line_records_name_one_line():
