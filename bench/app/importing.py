@@ -23,10 +23,8 @@ import secrets
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from bench.app.export import FORMAT, read_csv_export, read_hdf5_export
-from bench.app.record_analysis import ANALYSES, RecordAnalysis, analyze_record
+from bench.app.record_analysis import ANALYSES, RecordAnalysis, analyze_record, json_safe
 from bench.app.records import Record
 from bench.core.store import AttachmentInfo, Event, RunInfo, RunRecord, RunStore, StreamInfo
 from bench.core.store.model import utc_now
@@ -56,21 +54,6 @@ def bench_export(path: str | Path) -> RunRecord | None:
     return None
 
 
-def _json_safe(value: Any) -> Any:
-    """``value`` with non-finite floats as None (a record's result is JSON everywhere it goes)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, np.generic):
-        return _json_safe(value.item())
-    if isinstance(value, np.ndarray):
-        return _json_safe(value.tolist())
-    return value
-
-
 def _run_id(started_utc: str) -> str:
     t = _dt.datetime.fromisoformat(started_utc.replace("Z", "+00:00")).astimezone(_dt.UTC)
     return t.strftime("%Y%m%d-%H%M%S") + "-" + secrets.token_hex(2)
@@ -95,9 +78,9 @@ def record_run(record: Record, analysis: RecordAnalysis | None) -> RunRecord:
     events = [Event(math.nan, "import", f"imported from {Path(record.source).name} (sha256 {record.sha256[:12]}…)",
                     {"rows": record.n_rows})]
     if analysis is not None:
-        results[f"{kind.procedure}.analysis"] = _json_safe(analysis.result)
+        results[f"{kind.procedure}.analysis"] = json_safe(analysis.result)
         for m in analysis.measurements:
-            results[f"measurement.{m['name']}"] = _json_safe(m)
+            results[f"measurement.{m['name']}"] = json_safe(m)
         for note in analysis.notes:
             events.append(Event(math.nan, "note", note, {}))
         for name, (payload, mime) in analysis.attachments.items():
@@ -105,7 +88,7 @@ def record_run(record: Record, analysis: RecordAnalysis | None) -> RunRecord:
                 AttachmentInfo(f"analysis/{kind.name}/{name}", mime, len(payload),
                                hashlib.sha256(payload).hexdigest(), now), payload)
     t = record.data.get("t_s")
-    info = RunInfo(id=_run_id(started), procedure=kind.procedure, parameters=_json_safe(parameters),
+    info = RunInfo(id=_run_id(started), procedure=kind.procedure, parameters=json_safe(parameters),
                    station={"station_id": meta.labels.get("station_id"), "source": "import"},
                    unit_serial=meta.unit_serial, seed=None, code_version=code_version(), started_utc=started,
                    ended_utc=now, status="completed", reason=None,

@@ -50,6 +50,22 @@ TUMBLE_TERMS = {"k0": ("k0_g", "g", "bias K0"), "k1": ("k1_ma_per_g", "mA/g", "s
                 "kio": ("kio_g_per_g2", "g/g^2", "cross-coupling Kio")}
 
 
+
+def json_safe(value: Any) -> Any:
+    """``value`` with non-finite floats as None and numpy values as Python's: a result that is
+    valid JSON wherever it goes (``--json``, the run store)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        return json_safe(value.item())
+    if isinstance(value, np.ndarray):
+        return json_safe(value.tolist())
+    return value
+
 @dataclass
 class RecordAnalysis:
     """What the analysis of one record gives: measurements, the fit's JSON, a summary, figures."""

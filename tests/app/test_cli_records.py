@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 from bench.analysis.tumble import specific_force_iapo_g
 from bench.app.cli import main
 from bench.app.export import export_csv, export_hdf5, read_csv_export
+from bench.app.record_analysis import json_safe
 from bench.app.verdict import record_digest
 from bench.core.store import RunStore
 from bench.core.store.forward import package
@@ -92,13 +93,23 @@ GOOD = {
 }
 
 
+def _not_json(token: str) -> None:
+    raise AssertionError(f"{token} is not JSON")
+
+
+def test_json_safe_writes_non_finite_values_as_null():
+    doc = {"a": math.nan, "b": [np.float64(np.inf), 1.5, np.int64(3)], "c": np.array([1.0, -np.inf])}
+    assert json.loads(json.dumps(json_safe(doc), allow_nan=False)) == {"a": None, "b": [None, 1.5, 3],
+                                                                       "c": [1.0, None]}
+
+
 @pytest.mark.parametrize("kind", sorted(GOOD))
 def test_a_good_record_is_analysed(kind, tmp_path, capsys):
     header, rows = GOOD[kind]
     path = write(tmp_path / "r.csv", header, rows())
     code, out, err = cli(capsys, "analyze", kind, "--input", path, "--json", "--report", str(tmp_path / "rep"))
     assert code == 0, err
-    doc = json.loads(out)
+    doc = json.loads(out, parse_constant=_not_json)  # strict JSON: no NaN or Infinity tokens
     assert doc["kind"] == kind and doc["measurements"] and doc["sha256"]
     html = (tmp_path / "rep" / f"{kind.replace('-', '_')}_report.html").read_text()
     assert assert_self_contained(html) >= 1  # one file, figures inline

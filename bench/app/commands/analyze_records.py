@@ -15,7 +15,7 @@ import json
 import sys
 
 from bench.app.commands.record_options import OPTIONS, add_kind_option, add_record_options, meta_of, options_of
-from bench.app.record_analysis import ANALYSES, RecordAnalysis, analyze_record, write_report
+from bench.app.record_analysis import ANALYSES, RecordAnalysis, analyze_record, json_safe, write_report
 from bench.app.records import KINDS, read_record
 
 
@@ -58,7 +58,7 @@ def analyze_file(args: argparse.Namespace) -> int:
                "columns": record.conversions, "units": record.units}
         if report is not None:
             doc["report"] = str(report)
-        print(json.dumps(doc, indent=2, default=float))
+        print(json.dumps(json_safe(doc), indent=2, allow_nan=False))
     else:
         print_analysis(analysis)
         if report is not None:
