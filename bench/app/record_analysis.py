@@ -50,7 +50,6 @@ TUMBLE_TERMS = {"k0": ("k0_g", "g", "bias K0"), "k1": ("k1_ma_per_g", "mA/g", "s
                 "kio": ("kio_g_per_g2", "g/g^2", "cross-coupling Kio")}
 
 
-
 def json_safe(value: Any) -> Any:
     """``value`` with non-finite floats as None and numpy values as Python's: a result that is
     valid JSON wherever it goes (``--json``, the run store)."""
@@ -65,6 +64,7 @@ def json_safe(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return json_safe(value.tolist())
     return value
+
 
 @dataclass
 class RecordAnalysis:
