@@ -53,7 +53,7 @@ class AcceptanceTest(StationProcedure):
             value = convert(est.value, produced_unit, m.unit)
             unc = None if est.std is None else abs(convert(est.std, produced_unit, m.unit))
             ctx.measure(m.name, value, m.unit, Limit(m.low, m.high, m.marginal),
-                        m.description or description, unc)
+                        m.description or description, unc, est.bound)
 
 
 __all__ = ["AcceptanceTest"]

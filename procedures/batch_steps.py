@@ -144,7 +144,8 @@ class BatchTurnOn(BatchStep):
             r = turn_on_metrics(t[keep], g[keep], band=p.band_g, smooth_s=p.smooth_s,
                                 settled_window_s=p.settled_window_s)
             unit.run.set_result("startup.turn_on", r.to_dict())
-            return {"turn_on_time": Estimate(r.turn_on_time_s, None),
+            return {"turn_on_time": Estimate(r.turn_on_time_s, None,
+                                                   bound=None if r.resolved else "upper"),
                     "warmup_drift": Estimate(r.warmup_drift, r.warmup_drift_std)}
         results.update(_each(checked, reduce))
         return results

@@ -84,7 +84,7 @@ class TurnOnTest(Step[TurnOnParameters]):
         r = turn_on_metrics(t[keep], g[keep], band=self.p.band_g, smooth_s=self.p.smooth_s,
                             settled_window_s=self.p.settled_window_s)
         ctx.run.set_result("startup.turn_on", r.to_dict())
-        return {"turn_on_time": Estimate(r.turn_on_time_s, None),
+        return {"turn_on_time": Estimate(r.turn_on_time_s, None, bound=None if r.resolved else "upper"),
                 "warmup_drift": Estimate(r.warmup_drift, r.warmup_drift_std)}
 
 
@@ -177,5 +177,5 @@ class GyroTurnOnTest(Step[GyroTurnOnParameters]):
                             settled_window_s=p.settled_window_s)
         ctx.run.set_result("gyro_startup.turn_on", {**r.to_dict(),
                            "first_valid_s": float(t[ready][0])})
-        return {"turn_on_time": Estimate(r.turn_on_time_s, None),
+        return {"turn_on_time": Estimate(r.turn_on_time_s, None, bound=None if r.resolved else "upper"),
                 "warmup_drift": Estimate(r.warmup_drift, r.warmup_drift_std)}

@@ -102,12 +102,21 @@ def measurement_label(measurement: Mapping[str, Any], labels: Mapping[str, str])
     return labels[name] if name in labels else plain_name(name)
 
 
+#: how a value that only bounds its quantity is written before it
+BOUND_SIGN = {"upper": "≤ ", "lower": "≥ "}
+
+
+def bound_text(measurement: Mapping[str, Any]) -> str:
+    """``≤ `` before a value that is an upper bound of its quantity, ``≥ `` a lower, else nothing."""
+    return BOUND_SIGN.get(str(measurement.get("bound")), "")
+
+
 def measurement_row(measurement: Mapping[str, Any], labels: Mapping[str, str]) -> dict[str, Any]:
     """A judged measurement (``Measurement.to_dict``) with the text the page shows."""
     unit = measurement.get("unit")
     unc = measurement.get("uncertainty")
     return {**measurement, "label": measurement_label(measurement, labels),
-            "value_text": number_text(measurement.get("value"), unit, unc),
+            "value_text": bound_text(measurement) + number_text(measurement.get("value"), unit, unc),
             "unit_text": unit_text(unit),
             "uncertainty_text": "" if unc is None else f"± {number_text(unc, unit)} {unit_text(unit)}",
             "limits_text": limits_text(measurement.get("low"), measurement.get("high"))}

@@ -78,7 +78,7 @@ class Procedure(ABC):
         for name, (unit, description) in step.produces.items():
             if name in produced:
                 est = produced[name]
-                ctx.measure(name, est.value, unit, Limit(), description, est.std)
+                ctx.measure(name, est.value, unit, Limit(), description, est.std, est.bound)
 
     def prompt_before(self, step: Step[Any]) -> str | None:
         """What the operator is asked before ``step`` (None: nothing); a spec's prompts."""

@@ -71,6 +71,7 @@ class Measurement:
     limit: Limit = field(default_factory=Limit)
     description: str = ""
     uncertainty: float | None = None  # standard uncertainty, same unit (None: not known)
+    bound: str | None = None  # "upper"/"lower": the value only bounds the quantity (None: measured)
 
     @property
     def outcome(self) -> str:
@@ -81,7 +82,7 @@ class Measurement:
         return {"name": self.name, "value": value, "unit": self.unit,
                 "low": self.limit.low, "high": self.limit.high, "marginal": self.limit.marginal,
                 "outcome": self.outcome, "description": self.description,
-                "uncertainty": self.uncertainty}
+                "uncertainty": self.uncertainty, **({"bound": self.bound} if self.bound else {})}
 
 
 class Progress(Protocol):
@@ -118,9 +119,10 @@ class Context:
             raise OperatorAbort(f"aborted by the operator at the prompt: {text}")
 
     def measure(self, name: str, value: float, unit: str, limit: Limit | None = None,
-                description: str = "", uncertainty: float | None = None) -> Measurement:
+                description: str = "", uncertainty: float | None = None,
+                bound: str | None = None) -> Measurement:
         u = None if uncertainty is None or not math.isfinite(uncertainty) else float(uncertainty)
-        m = Measurement(name, float(value), unit, limit or Limit(), description, u)
+        m = Measurement(name, float(value), unit, limit or Limit(), description, u, bound)
         self.measurements.append(m)
         self.run.set_result(f"measurement.{name}", m.to_dict())
         return m

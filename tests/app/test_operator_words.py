@@ -252,3 +252,11 @@ def test_a_retest_starts_a_new_estimate_and_a_prompt_is_not_the_stations_pace():
     now[0] += 1.0  # one second of the station's own time after the answer
     live.progress(21.0, 100.0)
     assert answers == [True] and live.snapshot()["wall_left_s"] == pytest.approx(79.0)
+
+
+def test_a_bound_is_written_as_one():
+    row = measurement_row({"name": "turn_on_time", "value": 125.0, "unit": "s", "uncertainty": None,
+                           "low": None, "high": 600.0, "bound": "upper"}, {})
+    assert row["value_text"] == "≤ 125.0"
+    assert measurement_row({"name": "x", "value": 2.0, "unit": "s", "bound": "lower"}, {})["value_text"] == "≥ 2.000"
+    assert not measurement_row({"name": "x", "value": 2.0, "unit": "s"}, {})["value_text"].startswith(("≤", "≥"))

@@ -177,3 +177,10 @@ def test_a_prompt_before_a_step_is_asked_and_recorded_and_abort_leaves_the_stati
                          unit_serial="U3", seed=None)  # nobody to ask: continues, says so
     answer = [e for e in store.events(unattended.run_id) if e.kind == "operator_answer"]
     assert unattended.status == "passed" and answer[0].data == {"operator": "unattended"}
+
+
+def test_an_estimate_is_measured_or_a_bound_and_says_which():
+    assert Estimate(1.0, 0.1).to_dict() == {"value": 1.0, "std": 0.1}  # measured: no bound key
+    assert Estimate(125.0, None, bound="upper").to_dict()["bound"] == "upper"
+    with pytest.raises(ValueError, match="bound = 'sideways' must be one of"):
+        Estimate(1.0, None, bound="sideways")

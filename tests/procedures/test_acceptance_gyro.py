@@ -123,6 +123,32 @@ def test_gyro_start_up_turn_on_time_and_warm_up_drift(tmp_path):
     m = {x.name: x for x in outcome.measurements}
     expected = truth["boot_time_s"] + tau * math.log(amp / band)
     assert expected - 10 < m["turn_on_time"].value < expected + smooth, (m["turn_on_time"].value, expected)
+    assert m["turn_on_time"].bound is None  # measured: the average left the band first
     first = store.results(outcome.run_id)["gyro_startup.turn_on"]["first_valid_s"]
     drift = amp * (math.exp(-2400.0 / tau) - math.exp(-max(first, smooth) / tau))
     assert abs(m["warmup_drift"].value - drift) < 0.15 * abs(drift) + 4 * m["warmup_drift"].uncertainty
+
+
+def test_a_unit_in_the_band_from_the_first_average_has_an_upper_bound_for_its_turn_on_time(tmp_path, capsys):
+    """A warm-up smaller than the band: the output is inside it at the first full average, so
+    the turn-on time is only an upper bound (the first average's time) — stored as such and
+    printed "≤" by `bench runs show`."""
+    config = builtin_sim_config()
+    config.simulation = {"gyro": {"warmup_amplitude_dph": 0.5, "warmup_tau_s": 100.0,
+                                  "bias_instability_dph": 0.02, "rrw_dph_per_rh": 0.002,
+                                  "bias_tc_dph_per_c": 0.0}}
+    store = RunStore(tmp_path / "b.sqlite")
+    step = GyroTurnOnTest(duration_s=900.0, off_wait_s=30.0, band_dph=3.0, smooth_s=60.0,
+                          settled_window_s=300.0)
+    with Station(config, seed=5, unit_serial="FOG-SIM-0003", unit_kind="gyro") as station:
+        outcome = execute(alone(step), station, store, unit_serial="FOG-SIM-0003", seed=5)
+    assert outcome.status == "passed", outcome.reason
+    m = {x.name: x for x in outcome.measurements}
+    r = store.results(outcome.run_id)["gyro_startup.turn_on"]
+    assert r["resolved"] is False and m["turn_on_time"].bound == "upper"
+    assert m["turn_on_time"].value == pytest.approx(r["turn_on_time_s"])
+    assert store.results(outcome.run_id)["measurement.turn_on_time"]["bound"] == "upper"
+    store.close()
+    assert main(["--store", str(tmp_path / "b.sqlite"), "runs", "show", outcome.run_id]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.strip().startswith("turn_on_time"))
+    assert f"≤{m['turn_on_time'].value:.6g}" in line.replace(" ", ""), line

@@ -27,6 +27,7 @@ from bench.app.commands.common import (
     seed_of,
 )
 from bench.app.reports.acceptance_report import acceptance_document, write_acceptance_report
+from bench.app.wording import bound_text
 from procedures.acceptance import AcceptanceTest
 
 
@@ -138,7 +139,7 @@ def verdict_lines(doc: dict) -> list[str]:
         unc = "" if m.get("uncertainty") is None else f"{m['uncertainty']:.2g}"
         low = "" if m["low"] is None else f"{m['low']:g}"
         high = "" if m["high"] is None else f"{m['high']:g}"
-        value = "—" if m["value"] is None else f"{m['value']:.6g}"  # None: not produced
+        value = "—" if m["value"] is None else f"{bound_text(m)}{m['value']:.6g}"  # None: not produced
         lines.append(f"  {m['name']:<18} {value:>13} {unc:>9} {m['unit']:<8} {low:>9} {high:>9}  "
                      f"{m['outcome'].upper()}")
     lines.append(f"run {doc['run_id']} stored in {doc['store']} (bench runs show {doc['run_id']})")

@@ -19,6 +19,7 @@ from bench.app.commands.record_options import OPTIONS, add_kind_option, add_reco
 from bench.app.export import export_csv, export_hdf5
 from bench.app.records import KINDS, read_record
 from bench.app.verdict import measurements_of, record_digest, verdict_of
+from bench.app.wording import bound_text
 from bench.core.store.reader import is_central_url
 
 #: where ``bench runs export`` writes unless told (beside the default store)
@@ -136,7 +137,7 @@ def show_run(args) -> int:
             unc = "" if m.get("uncertainty") is None else f"{m['uncertainty']:.2g}"
             low = "" if m.get("low") is None else f"{m['low']:g}"
             high = "" if m.get("high") is None else f"{m['high']:g}"
-            value = "—" if m["value"] is None else f"{m['value']:.6g}"
+            value = "—" if m["value"] is None else f"{bound_text(m)}{m['value']:.6g}"
             print(f"  {m['name']:<22} {value:>14} {unc:>9} {m['unit']:<9} {low:>10} "
                   f"{high:>10}  {m['outcome']}")
     attachments = store.attachments(args.run_id)

@@ -20,7 +20,7 @@ from typing import Any
 from bench.app.reports.acceptance_plots import SECTIONS
 from bench.app.reports.layout import Header, run_identity, write_report
 from bench.app.verdict import measurements_of, record_digest, verdict_of
-from bench.app.wording import measurement_label, unit_text
+from bench.app.wording import bound_text, measurement_label, unit_text
 from bench.core.store.central import spec_identity
 
 _OUTCOMES = ("pass", "marginal", "fail")
@@ -66,8 +66,8 @@ def write_acceptance_report(store, run_id: str, directory: str | Path, *, pdf: b
               for e in (results.get("acceptance.spec") or {}).get("measurements", [])}
     rows, outcomes = [], []
     for m in doc["measurements"]:
-        value = ("not produced" if m["value"] is None else _num(m["value"])) + ("" if m.get("uncertainty") is None
-                                    else f" ± {m['uncertainty']:.2g}")
+        value = "not produced" if m["value"] is None else bound_text(m) + _num(m["value"])
+        value += "" if m.get("uncertainty") is None else f" ± {m['uncertainty']:.2g}"
         label = measurement_label(m, labels)
         described = m["description"] if label == m["name"] else f"{m['description']} [{m['name']}]"
         rows.append([label, described, value, unit_text(m["unit"]), _num(m["low"]), _num(m["high"]),
