@@ -337,8 +337,7 @@ def write_report(analysis: RecordAnalysis, record: Record, directory: str | Path
     rows = [[m["description"], m["name"], num(m["value"]), num(m["uncertainty"], True), m["unit"]]
             for m in analysis.measurements]
     header = layout.Header(title=f"{analysis.kind} analysis of {name}", subject=subject,
-                           identity=layout.Identity("Input SHA-256", f"{name}: {record.sha256}",
-                                                    "the analysed file's content; sha256sum prints it"),
+                           identity=layout.digest_identity([(name, record.sha256)]),
                            tested_by=meta.labels.get("operator", ""))
     path = layout.write_report(out / f"{stem}_report.html", "record.html.j2", header, pdf=pdf,
                                summary=analysis.summary, measurements=rows, figures=figures, notes=analysis.notes,

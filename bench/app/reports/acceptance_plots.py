@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bench.analysis.allan import AllanResult, overlapping_adev
-from bench.app.reports.allan_plot import model_segments, plot_allan
+from bench.app.reports.allan_plot import model_spans_text, plot_allan
 from bench.app.reports.common import save_figure as _save
 from bench.app.reports.thermal_plots import (
     gyro_thermal_ramp_section,
@@ -158,9 +158,8 @@ def _allan_section(title: str, png: str, record, rate_hz: float, unit: str,
     result = overlapping_adev(record, rate_hz, "octave", unit=unit)  # the same reduction as the step
     fig = Figure(figsize=(8, 5))
     plot_allan(fig.add_subplot(), result, title=title, fit_values=False)
-    spans = model_segments(result)
-    drawn = ("; the fitted model is drawn where it lies within the intervals ("
-             + ", ".join(f"τ {lo:.3g}–{hi:.3g} s" for lo, hi in spans) + ")" if spans
+    spans = model_spans_text(result)
+    drawn = (f"; the fitted model is drawn where it lies within the intervals ({spans})" if spans
              else "; the fitted model lies outside the intervals everywhere and is not drawn")
     caption = (f"{result.n_samples} samples at {rate_hz:g} Hz ({result.n_samples / rate_hz / 3600:.2f} h); "
                f"68 % confidence intervals{drawn}.")

@@ -21,7 +21,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from bench.analysis.allan import B_FACTOR, CHECK_CONFIDENCE, AllanResult, term_adev
-from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
+from bench.app.reports.layout import context_header, write_report
 
 _COLOURS = {"Q": "C4", "N": "C2", "B": "C1", "K": "C5", "R": "C6"}
 _SLOPE_TEXT = {"Q": "−1", "N": "−1/2", "B": "0", "K": "+1/2", "R": "+1"}
@@ -50,15 +50,14 @@ def model_segments(result: AllanResult) -> list[tuple[float, float]]:
     tau, ci = result.tau_s[ok], result.adev_ci[ok]
     model = result.model_adev(tau)
     inside = (model >= ci[:, 0]) & (model <= ci[:, 1]) & (model > 0)
-    segments, start = [], None
-    for i, flag in enumerate(np.append(inside, False)):
-        if flag and start is None:
-            start = i
-        elif not flag and start is not None:
-            if i - start >= 2:
-                segments.append((float(tau[start]), float(tau[i - 1])))
-            start = None
-    return segments
+    edges = np.flatnonzero(np.diff(np.r_[0, inside.astype(np.int8), 0]))  # each run's [start, stop)
+    return [(float(tau[a]), float(tau[b - 1])) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+
+
+def model_spans_text(result: AllanResult) -> str:
+    """The τ spans :func:`model_segments` draws the model over, as a caption names them
+    (``τ 0.1–51.2 s, …``); empty when there are none."""
+    return ", ".join(f"τ {lo:.3g}–{hi:.3g} s" for lo, hi in model_segments(result))
 
 
 def plot_allan(ax: Axes, result: AllanResult, title: str | None = None, *, fit_values: bool = True) -> Axes:
@@ -149,12 +148,10 @@ def write_allan_report(result: AllanResult, directory: str | Path, context: dict
     if screen is not None:
         robust_text += (f"; {screen.n_flagged} samples ({screen.fraction:.2%}) flagged at false-alarm probability "
                         f"{screen.false_alarm:g} per record")
-    spans = model_segments(result)
-    model_caption = ("The fitted model (red) is drawn where it lies within the intervals: "
-                     + ", ".join(f"τ {lo:.3g}–{hi:.3g} s" for lo, hi in spans) + "." if spans else
+    spans = model_spans_text(result)
+    model_caption = (f"The fitted model (red) is drawn where it lies within the intervals: {spans}." if spans else
                      "The fitted model lies outside the intervals everywhere; it is not drawn.")
-    header = Header(title=title or "Allan deviation (IEEE Std 952)", subject=subject_rows(context),
-                    identity=source_identity(context), numbers="allan_result.json")
+    header = context_header(title or "Allan deviation (IEEE Std 952)", context, numbers="allan_result.json")
     return write_report(out / "allan_report.html", "allan.html.j2", header, pdf=pdf, r=result,
                         duration=result.n_samples / result.sample_rate_hz, model_caption=model_caption,
                         coefficients=coef_rows, checks=check_rows, robust_text=robust_text,

@@ -33,7 +33,7 @@ from matplotlib.figure import Figure
 
 from bench.analysis.fusion import METHODS, SensorModel, excess_over_best
 from bench.app.reports.common import save_figure
-from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
+from bench.app.reports.layout import context_header, write_report
 
 #: plot style per method (colour, marker); every method of the registry has one
 STYLE = {"hf": ("C1", "v"), "lf": ("C4", "D"), "complementary": ("C2", "^"), "fused": ("C3", "o"),
@@ -335,7 +335,5 @@ def write_angular_report(results: dict, folder: Path, context: dict, aligned: di
         {k: results[k] for k in ("frf.points", "frf.fits", "fusion.tuning", "fusion.analysis", "fusion.alignment")
          if k in results},
         indent=1, allow_nan=False, default=float), encoding="utf-8")
-    header = Header(title="Angular rig — Document B", subject=subject_rows(context),
-                    identity=source_identity(context), tested_by=str(context.get("operator") or ""),
-                    numbers="angular_report.json")
+    header = context_header("Angular rig — Document B", context, numbers="angular_report.json")
     return write_report(folder / "angular_report.html", "angular.html.j2", header, pdf=pdf, frf=frf, fusion=fusion)

@@ -21,7 +21,7 @@ from scipy import signal
 
 from bench.analysis.allan import overlapping_adev
 from bench.app.reports.common import save_figure
-from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
+from bench.app.reports.layout import context_header, write_report
 
 
 def _fmt(x, digits: int = 4) -> str:
@@ -168,8 +168,7 @@ def write_discovery_report(result, rec, out_dir, label: str, context: dict | Non
     context = context or {}
     if "input" not in context:  # a file's name heads the page as its input
         context = {"record": label, **context}
-    header = Header(title="Discrepancy workflow: model against measurement", subject=subject_rows(context),
-                    identity=source_identity(context), tested_by=str(context.get("operator") or ""))
+    header = context_header("Discrepancy workflow: model against measurement", context)
     return write_report(
         out / "discovery_report.html", "discovery.html.j2", header, pdf=pdf, fmt=_fmt, rec=rec, m0=m0,
         result=result, logged=", ".join(rec.to_columns()), steps=steps,

@@ -78,17 +78,20 @@ def run_identity(digest: str, run_id: str) -> Identity:
                     f"SHA-256 of the stored run's acquired content; bench runs show {run_id} prints it")
 
 
+def digest_identity(digests: Iterable[tuple[str, str]]) -> Identity:
+    """The foot for an analysis of files whose SHA-256 is known: (file name, digest) pairs."""
+    return Identity("Input SHA-256", "; ".join(f"{name}: {digest}" for name, digest in digests) or "—",
+                    "the analysed file's content; sha256sum prints it")
+
+
 def file_identity(paths: Iterable[str | Path]) -> Identity:
     """The foot for an analysis of files: each file's SHA-256."""
-    parts = []
-    for p in paths:
-        path = Path(p)
+    def sha256(path: Path) -> str:
         try:
-            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+            return hashlib.sha256(path.read_bytes()).hexdigest()
         except OSError:
-            digest = "not readable"
-        parts.append(f"{path.name}: {digest}")
-    return Identity("Input SHA-256", "; ".join(parts) or "—", "the analysed file's content; sha256sum prints it")
+            return "not readable"
+    return digest_identity((Path(p).name, sha256(Path(p))) for p in paths)
 
 
 def source_identity(context: dict[str, Any] | None) -> Identity:
@@ -108,6 +111,14 @@ def source_identity(context: dict[str, Any] | None) -> Identity:
 def subject_rows(context: dict[str, Any] | None) -> list[tuple[str, Any]]:
     """``context`` as header rows (the digest goes to the foot, not the header)."""
     return [(k.replace("_", " "), v) for k, v in (context or {}).items() if k != "digest"]
+
+
+def context_header(title: str, context: dict[str, Any] | None, **fields: Any) -> Header:
+    """The header of an analysis described by ``context`` (where the data came from): its rows
+    (:func:`subject_rows`), its foot (:func:`source_identity`), and "tested by" its ``operator``."""
+    context = context or {}
+    fields.setdefault("tested_by", str(context.get("operator") or ""))
+    return Header(title=title, subject=subject_rows(context), identity=source_identity(context), **fields)
 
 
 def render(template: str, header: Header, **context: Any) -> str:

@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 from bench.analysis.startup import StartupAnalysis
 from bench.app.reports.common import save_figure as _save
 from bench.app.reports.common import thin as _thin
-from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
+from bench.app.reports.layout import context_header, write_report
 
 _SIM_SEED = 0
 
@@ -124,8 +124,7 @@ def write_startup_report(analysis: StartupAnalysis, directory: str | Path,
     (out / "startup_model.json").write_text(json.dumps(a.to_dict(), indent=2))
     dn, tr, sel = a.denoise, a.trend, a.order_selection
     best = sel.best_bic if a.criterion == "bic" else sel.best_aic
-    header = Header(title="Start-up model (Document A)", subject=subject_rows(context),
-                    identity=source_identity(context), numbers="startup_model.json")
+    header = context_header("Start-up model (Document A)", context, numbers="startup_model.json")
     return write_report(
         out / "startup_report.html", "startup.html.j2", header, pdf=pdf, a=a, m=m, tr=tr, sel=sel,
         lb=a.ljung_box, ident=a.identification, figs=figs, best=best,

@@ -32,7 +32,7 @@ from matplotlib.figure import Figure
 from bench.analysis.vibration import VibrationAnalysis
 from bench.app.reports.common import MAX_POINTS, save_figure
 from bench.app.reports.common import thin as _thin
-from bench.app.reports.layout import Header, source_identity, subject_rows, write_report
+from bench.app.reports.layout import context_header, write_report
 
 _ZOOM_SAMPLES = 400
 _KIND_COLOUR = {"random": "C0", "periodic": "C3", "trend": "C2"}
@@ -146,10 +146,7 @@ def write_vibration_report(analysis: VibrationAnalysis, directory: str | Path, c
         ["AR + Kalman fit", _g(a.error_ar_kalman.mean), _g(a.error_ar_kalman.std), DOCUMENT_C[1][1], DOCUMENT_C[1][2]],
         ["std ratio (Kalman / AR)", "", _g(a.std_ratio, 3), "", _g(DOCUMENT_C[1][2] / DOCUMENT_C[0][2], 3)],
     ]
-    context = context or {}
-    header = Header(title="Random-vibration error model (Document C)", subject=subject_rows(context),
-                    identity=source_identity(context), tested_by=str(context.get("operator") or ""),
-                    numbers="vibration_analysis.json")
+    header = context_header("Random-vibration error model (Document C)", context, numbers="vibration_analysis.json")
     return write_report(out / "vibration_report.html", "vibration.html.j2", header, pdf=pdf, a=a,
                         dec=a.decomposition, figs=figs, errors=err_rows, components=comp_rows, models=model_rows,
                         r_ratio=_g(a.settings["r_ratio"]))
