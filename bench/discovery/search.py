@@ -123,7 +123,9 @@ class Evaluator:
     def penalty(self, model: Model) -> float:
         return sum(penalty(e, p, self.rec, self.kind, self.n_candidates, self.alpha) for e, p in model.entries())
 
-    def _seen(self, model: Model) -> np.ndarray | None:
+    def seen_of(self, model: Model) -> np.ndarray | None:
+        """The samples the likelihood counts for ``model``: the record's (``seen``) less those its
+        output stage leaves without noise (``Model.partly_seen``: a clip); None: all."""
         part = model.partly_seen(self.rec)
         if part is None:
             return self.seen
@@ -134,7 +136,7 @@ class Evaluator:
         likelihood on its residual (each process in turn, the others at their values), and −2 ln L
         there (the constant left out)."""
         rec = self.rec
-        x = seen_only(rec.y - model.predict(rec), self._seen(model))
+        x = seen_only(rec.y - model.predict(rec), self.seen_of(model))
         procs = list(model.stochastic_effects())
         if not procs:
             var = float(np.nanvar(x)) or 1e-300

@@ -162,6 +162,131 @@ def _filter_diagonal(y, f, q, h, p0, r_var, out_e, out_s):  # pragma: no cover -
         steady = same and not missing
 
 
+@numba.njit(cache=True)
+def _smoothed_disturbances(y, f, q, h, p0, r_var, lo, hi, blo, bhi, out):  # pragma: no cover - compiled
+    """Fixed-interval smoothed state disturbances (de Jong's smoother; Durbin & Koopman, §4.5):
+    ``out[k, b]`` = h_b·Q_b·r_k, the disturbance e_k that moved block b's states into x_k given
+    the whole record, as seen in the output; r_k the smoothing cumulant of x_k after sample k
+    (r_k = hᵀ(v_k/S_k − K_kᵀr) + r, r = Fᵀr_{k+1}), K_k the update gain. A NaN in ``y`` is a sample
+    not observed (no term). Forward pass as :func:`_filter` (block-diagonal products, ``lo``/``hi``
+    each row's block) with the same steady-state shortcut; ``blo``/``bhi`` the blocks reported."""
+    m = h.size
+    n = y.size
+    x = np.zeros(m)
+    xn = np.zeros(m)
+    p = p0.copy()
+    fp = np.zeros((m, m))
+    hp = np.zeros(m)
+    v = np.zeros(n)
+    s_inv = np.zeros(n)
+    gain = np.zeros((n, m))
+    diagonal = True
+    for i in range(m):
+        for j in range(m):
+            if i != j and f[i, j] != 0.0:
+                diagonal = False
+    steady = False
+    s = r_var
+    for k in range(n):
+        e = _innovation(y[k], h, x)
+        missing = math.isnan(e)
+        if missing:
+            steady = False
+        if not steady:
+            s = _gain(p, h, r_var, hp)
+        if not missing:
+            v[k] = e
+            s_inv[k] = 1.0 / s
+            for i in range(m):
+                gain[k, i] = hp[i] / s
+                x[i] += hp[i] * e / s
+        for i in range(m):
+            acc = 0.0
+            for a in range(lo[i], hi[i]):
+                acc += f[i, a] * x[a]
+            xn[i] = acc
+        for i in range(m):
+            x[i] = xn[i]
+        if steady:
+            continue
+        same = not missing
+        for i in range(m):
+            for j in range(m):
+                if not missing:
+                    p[i, j] -= hp[i] * hp[j] / s
+        if diagonal:  # F diagonal: P ← f_i·P_ij·f_j + Q_ij (the block loops' other terms are zeros)
+            for i in range(m):
+                for j in range(m):
+                    acc = f[i, i] * p[i, j] * f[j, j] + q[i, j]
+                    if acc != p[i, j]:
+                        same = False
+                    p[i, j] = acc
+            steady = same
+            continue
+        for i in range(m):
+            for j in range(m):
+                acc = 0.0
+                for a in range(lo[i], hi[i]):
+                    acc += f[i, a] * p[a, j]
+                fp[i, j] = acc
+        for i in range(m):
+            for j in range(m):
+                acc = q[i, j]
+                for b in range(lo[j], hi[j]):
+                    acc += fp[i, b] * f[j, b]
+                if acc != p[i, j]:
+                    same = False
+                p[i, j] = acc
+        steady = same
+    r = np.zeros(m)
+    rk = np.zeros(m)
+    for k in range(n - 1, -1, -1):
+        kr = 0.0
+        for i in range(m):
+            kr += gain[k, i] * r[i]
+        for i in range(m):
+            rk[i] = h[i] * (v[k] * s_inv[k] - kr) + r[i]
+        for b in range(blo.size):
+            acc = 0.0
+            for i in range(blo[b], bhi[b]):
+                qi = 0.0
+                for j in range(blo[b], bhi[b]):
+                    qi += q[i, j] * rk[j]
+                acc += h[i] * qi
+            out[k, b] = acc
+        for i in range(m):
+            acc = 0.0
+            for a in range(lo[i], hi[i]):
+                acc += f[a, i] * rk[a]
+            r[i] = acc
+
+
+@numba.njit(cache=True)
+def _simulate(f, lq, lp0, h, z, out):  # pragma: no cover - compiled
+    """``out[k]`` = h·x_k with x_0 = L_P0·z_0, x_k = F·x_{k−1} + L_Q·z_k (L: square roots)."""
+    n, m = z.shape
+    x = np.zeros(m)
+    xn = np.zeros(m)
+    for i in range(m):
+        acc = 0.0
+        for j in range(m):
+            acc += lp0[i, j] * z[0, j]
+        x[i] = acc
+    for k in range(n):
+        if k > 0:
+            for i in range(m):
+                acc = 0.0
+                for a in range(m):
+                    acc += f[i, a] * x[a] + lq[i, a] * z[k, a]
+                xn[i] = acc
+            for i in range(m):
+                x[i] = xn[i]
+        acc = 0.0
+        for i in range(m):
+            acc += h[i] * x[i]
+        out[k] = acc
+
+
 @dataclass(frozen=True, eq=False)
 class StateSpace:
     """The model's noise states: block-diagonal ``f``, ``q``, ``p0``, the observation row ``h``
@@ -201,6 +326,33 @@ class StateSpace:
         else:
             _filter(y, self.f, self.q, self.h, self.p0, float(white_var), self.lo, self.hi, e, s)
         return e, s
+
+    def blocks(self) -> list[tuple[int, int]]:
+        """Each block's row range (lo, hi), in order: one per process of :func:`state_space`."""
+        return sorted(set(zip(self.lo.tolist(), self.hi.tolist())))
+
+    def smoothed_disturbances(self, y: np.ndarray, white_var: float) -> np.ndarray:
+        """(n, blocks): each block's disturbance given the whole of ``y`` as it moves the output
+        (h_b·E[e_{b,k} | y]; :func:`_smoothed_disturbances`). NaN in ``y``: not observed."""
+        y = np.ascontiguousarray(y, dtype=float)
+        b = np.array(self.blocks(), dtype=np.int64).reshape(-1, 2)
+        out = np.zeros((y.size, b.shape[0]))
+        _smoothed_disturbances(y, self.f, self.q, self.h, self.p0, float(white_var), self.lo, self.hi,
+                               np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]), out)
+        return out
+
+    def simulate(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """One realisation of the states' output h·x_k over ``n`` samples (x_0 from ``p0``)."""
+        z = rng.standard_normal((int(n), self.m))
+        out = np.empty(int(n))
+        _simulate(self.f, _root(self.q), _root(self.p0), self.h, z, out)
+        return out
+
+
+def _root(a: np.ndarray) -> np.ndarray:
+    """A square root L (L·Lᵀ = a) of a covariance, semi-definite allowed (a walk's Q, a P0 of 0)."""
+    w, v = np.linalg.eigh(a)
+    return np.ascontiguousarray(v * np.sqrt(np.clip(w, 0.0, None)))
 
 
 def state_space(rate_hz: float, n: int, effects: Processes) -> StateSpace:

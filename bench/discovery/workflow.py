@@ -15,7 +15,9 @@ gap shrink — one model, one criterion, one search.
    and the experiment that separates them; what the final model leaves is tested on its Kalman
    innovations against the model's own noise and reported as unexplained structure, with where
    it is (:func:`.localize.unexplained_structure`); a parameter at the edge of the range the
-   record allows is said so.
+   record allows is said so; a random process whose driving noise is not the model's (steps,
+   bursts, a periodic drive: :mod:`.adequacy`) stays in the model for its spectrum but is not
+   named (``Step.doubt``, :attr:`Discovery.named`).
 
 Each effect of the final model is told as a :class:`Step` of the search's path (the gap before
 and after it was added); effects added on the way and later dropped or swapped out are listed
@@ -28,12 +30,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import chi2
 
 from bench.discovery import stochastic as sto
+from bench.discovery.adequacy import N_STATISTICS, Doubt, process_doubts
 from bench.discovery.calibration import calibrate
 from bench.discovery.candidates import Candidate, Naming
 from bench.discovery.contamination import cleaned, find_outliers
@@ -87,6 +90,9 @@ class Step:
     scale: str = ""
     #: the model's noise rms on that record after the step (the plots' white floor)
     noise_floor: float = math.nan
+    #: a random process whose driving noise is not the model's (:mod:`.adequacy`): why it is not a
+    #: name ("" — named)
+    doubt: str = ""
 
     def to_dict(self) -> dict:
         return {"id": self.effect_id, "scale": self.scale or "record", "params": self.params,
@@ -96,7 +102,7 @@ class Step:
                 "gap_table": {"before": self.gap_before.to_dict(), "after": self.gap_after.to_dict()},
                 "competitors": list(self.naming.competitors),
                 "separating_experiments": list(self.naming.separating),
-                "localization": self.localization.descriptions()}
+                "localization": self.localization.descriptions(), "doubt": self.doubt or None}
 
 
 @dataclass(frozen=True)
@@ -126,8 +132,14 @@ class Discovery:
     withdrawn: tuple[str, ...] = ()
     set_aside: tuple[str, ...] = ()
 
+    @property
+    def named(self) -> tuple[str, ...]:
+        """The effects named: the steps less the random processes doubted (:mod:`.adequacy`)."""
+        return tuple(s.effect_id for s in self.steps if not s.doubt)
+
     def to_dict(self, model_file: str | None = None) -> dict:
-        return {"effects": [s.to_dict() for s in self.steps], "withdrawn": list(self.withdrawn),
+        return {"effects": [s.to_dict() for s in self.steps], "named": list(self.named),
+                "withdrawn": list(self.withdrawn),
                 "set_aside": list(self.set_aside),
                 "gap": {"initial": self.gap_initial.rms_ratio, "final": self.gap_final.rms_ratio,
                         "noise_floor": self.noise_floor, "rms_initial": self.rms_initial,
@@ -440,7 +452,12 @@ def discover(rec: Record, model: Model, *, max_effects: int = 4, alpha: float = 
                      "innovations by that density, and single samples are judged on its tail")
     g0, rms0, _, r0 = gap_of(start_model, work, seed)
     g1, rms1, floor, r1 = gap_of(final, work, seed)
-    unexplained = unexplained_structure(work, r1, final, alpha=alpha, nu=nu)
+    doubts = _doubts(stages, [s.effect_id for s in steps], decided, alpha, seed)
+    if doubts:
+        say(f"doubted: {', '.join(doubts)} (their driving noise is not the model's)")
+        steps = [replace(s, doubt=doubts[s.effect_id].describe()) if s.effect_id in doubts else s for s in steps]
+    unexplained = tuple(d.describe() for d in doubts.values()) + unexplained_structure(work, r1, final, alpha=alpha,
+                                                                                         nu=nu)
     if unexplained:
         say(f"unexplained structure: {len(unexplained)} finding(s)")
     say(f"done: {sum(st.result.evaluations for st in stages)} models weighed in "
@@ -575,6 +592,26 @@ def _unfolded(slow: Model, window: Record, block_rate_hz: float, rate_hz: float,
         slow = best
         folded.add(e.id)
     return slow, folded
+
+
+def _doubts(stages: list[_Stage], step_ids: list[str], decided: dict[str, _Stage], alpha: float,
+            seed: int) -> dict[str, Doubt]:
+    """The named random processes whose driving noise departs from the model's
+    (:func:`.adequacy.process_doubts`), each judged with the model and on the record of the
+    search that set it; all of them together at ``alpha``."""
+    tested = [i for i in step_ids if isinstance(CATALOGUE[i], StochasticEffect)]
+    if not tested:
+        return {}
+    level = alpha / (N_STATISTICS * len(tested))
+    out: dict[str, Doubt] = {}
+    for st in stages:
+        mine = tuple(i for i in tested if decided[i] is st)
+        if mine:
+            model = st.result.best.model
+            seen = st.ev.seen_of(model)
+            out.update(process_doubts(model, st.rec, seen, mine, level=level,
+                                      nu=heavy_tails(model, st.rec, seen, alpha), seed=seed))
+    return out
 
 
 def heavy_tails(model: Model, rec: Record, seen: np.ndarray | None, alpha: float) -> float:

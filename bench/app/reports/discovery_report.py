@@ -6,7 +6,8 @@ parameters ± std, look-alikes within the criterion's noise and the experiment t
 them, the gap table before/after and one figure: the residual against time before and after in two
 panels sharing the time axis (each with its mean over short runs), and below them the Welch
 PSD with the white floor and the Allan deviation with the white expectation, before in grey,
-after in colour. Then what remains: "unexplained structure" (where) or "nothing significant".
+after in colour; a random process whose driving noise is not the model's says so instead of
+"named". Then what remains: "unexplained structure" (where) or "nothing significant".
 The page is ``templates/discovery.html.j2`` on the shared layout, its PDF beside it.
 """
 
@@ -145,7 +146,7 @@ def _step(i: int, s, rec, result, out: Path) -> dict:
             "candidates": _candidates(s.naming), "p": _fmt(s.p_value, 3),
             "params": ", ".join(f"{k} = {_fmt(v)} ± {_fmt(s.params_std.get(k))}" for k, v in s.params.items()),
             "competitors": ", ".join(s.naming.competitors), "separating": list(s.naming.separating),
-            "gap": _gap_rows(s.gap_before, s.gap_after), "png": png}
+            "gap": _gap_rows(s.gap_before, s.gap_after), "png": png, "doubt": s.doubt}
 
 
 def write_discovery_report(result, rec, out_dir, label: str, context: dict | None = None, *,
