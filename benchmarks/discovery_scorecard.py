@@ -18,8 +18,11 @@ samples; the workflow starts from the bare base model):
 * **clean** — nothing hidden: nothing named (target ≥ 95 %), for both generators;
 * **out-of-catalogue** — shapes no effect has (:mod:`bench.testing.generators.discovery_shapes`:
   triangle and square waves, a chirp, bursts, noise bursts, a dependence on the supply column,
-  a tanh compression): nothing named and unexplained structure reported (target ≥ 95 %), and
-  found where it is;
+  a tanh compression, random telegraph noise, an amplitude-modulated line): nothing named — but
+  what names a true part of the shape (a line at the modulated line's carrier) — and unexplained
+  structure reported (target ≥ 95 %), and found where it is. A random process in the model for
+  its spectrum whose driving noise is not the model's (``Step.doubt``) is not a name here,
+  as it is not in ``bench discover``'s answer (``Discovery.named``);
 * the confusion matrix (hidden → first named).
 
 ``--power 0.5,1,2``: instead, the power curve of the naming near its minimum effect size — each
@@ -78,7 +81,7 @@ def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: flo
     rec, truth, snrs, redraws = case
     t0 = time.perf_counter()
     d = discover(rec, Model(base_model(kind)), max_effects=max(2, len(effects) + 1), seed=seed)
-    named = [s.effect_id for s in d.steps]
+    named = list(d.named)
     out = {"row": "single" if len(effects) == 1 else {0: "clean", 2: "pair", 3: "triple"}[len(effects)],
            "generator": generator, "kind": kind, "hidden": list(effects), "seed": seed, "named": named,
            "first": named[0] if named else None, "gap_final": d.gap_final.rms_ratio,
@@ -109,9 +112,11 @@ def run_open_case(kind: str, shape: str, seed: int, n: int) -> dict | None:
     rec = rec.replace(y=truth.simulate(rec, rng) + extra)
     t0 = time.perf_counter()
     d = discover(rec, Model(base_model(kind)), max_effects=3, seed=seed)
-    named = [s.effect_id for s in d.steps]
+    named = list(d.named)
     return {"row": "open", "generator": "shapes", "kind": kind, "shape": shape, "hidden": [], "seed": seed,
             "named": named, "first": named[0] if named else None, "unexplained": list(d.unexplained),
+            "allowed": list(where.get("allowed", ())),
+            "doubted": [s.effect_id for s in d.steps if s.doubt],
             "withdrawn": list(d.withdrawn), "found_where": found_where(where, list(d.unexplained)),
             "seconds": time.perf_counter() - t0}
 
@@ -333,6 +338,12 @@ def _singles_table(singles: list[dict], title: str) -> None:
               f"  {_pct(only, len(cs))}")
 
 
+def _open_ok(c: dict) -> bool:
+    """An out-of-catalogue record answered honestly: nothing named but what names a true part of
+    the shape (a line at an amplitude-modulated line's carrier), and unexplained structure reported."""
+    return set(c["named"]) <= set(c.get("allowed", ())) and bool(c["unexplained"])
+
+
 def report(cases: list[dict]) -> None:
     def rows(row: str, gen: str | None = None) -> list[dict]:
         return [c for c in cases if c["row"] == row and (gen is None or c["generator"] == gen)]
@@ -346,9 +357,10 @@ def report(cases: list[dict]) -> None:
     for c in opens:
         by[(c["kind"], c["shape"])].append(c)
     for (kind, shape), cs in by.items():
-        ok = sum(not c["named"] and bool(c["unexplained"]) for c in cs)
+        ok = sum(_open_ok(c) for c in cs)
         print(f"  {kind:13s} {shape:14s} {_pct(ok, len(cs))}  {_pct(sum(c['found_where'] for c in cs), len(cs))}"
-              f"  named: {dict(Counter(e for c in cs for e in c['named']))}")
+              f"  named: {dict(Counter(e for c in cs for e in c['named']))}"
+              f"  doubted: {dict(Counter(e for c in cs for e in c.get('doubted', ())))}")
 
     def first_rate(cs: list[dict]) -> tuple[int, int]:
         return sum(c["first"] == c["hidden"][0] for c in cs), len(cs)
@@ -362,7 +374,7 @@ def report(cases: list[dict]) -> None:
     only1 = sum(c["named"] == c["hidden"] for c in singles)
     rec1 = sum(bool(c["recovered"]) for c in singles)
     gap1 = sum(c["gap_final"] <= 1.1 for c in singles if c["first"] == c["hidden"][0])
-    open_ok = sum(not c["named"] and bool(c["unexplained"]) for c in opens)
+    open_ok = sum(_open_ok(c) for c in opens)
     open_where = sum(c["found_where"] for c in opens)
     clean_ok = sum(not c["named"] for c in clean)
     clean_ind_ok = sum(not c["named"] for c in clean_ind)
@@ -378,7 +390,8 @@ def report(cases: list[dict]) -> None:
         ("all three of a hidden triple named, nothing else", _pct(*all_named(triples)), "≥ 80 %"),
         ("clean record: nothing named (catalogue noise)", _pct(clean_ok, len(clean)), "≥ 95 %"),
         ("clean record: nothing named (independent generator)", _pct(clean_ind_ok, len(clean_ind)), "≥ 95 %"),
-        ("out of catalogue: nothing named, unexplained structure reported", _pct(open_ok, len(opens)), "≥ 95 %"),
+        ("out of catalogue: nothing named (but a true part), unexplained structure reported",
+         _pct(open_ok, len(opens)), "≥ 95 %"),
         ("… and found where it is", _pct(open_where, len(opens)), ""),
     ]
     print("\n| | measured | target |\n|---|---|---|")

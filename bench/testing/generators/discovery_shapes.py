@@ -18,11 +18,18 @@ noise_bursts   white noise 2-4 × the floor in two windows of 8 % of T (a varian
 supply         a gain on the logged supply voltage, stepped between 11-13 V levels 12-20 times
                (a supply-sensitivity test): a column no catalogue effect uses
 tanh           the input compressed through L·tanh(u/L) (kinds with an input)
+telegraph      random telegraph (popcorn) noise: the output steps between +A and −A at 10-100
+               instants drawn uniformly over T; A log-uniform in 1-4 × the white sd (a step
+               seen on the trace) — its spectrum is a Gauss–Markov's, its steps are not
+am_line        a line of 20-200 cycles over T whose amplitude is modulated 50-90 % by a slow
+               random envelope (three cosines of 1-3 cycles over T, random phases); a line
+               named at its carrier is a fair part of the answer (``allowed``)
 =============  ================================================================================
 
 ``hide(shape, kind, rec, rng, noise_sd)`` returns (the record with any new column, the
 structure to add to the output, where it is: a dict the scorecard checks the unexplained
-structure against).
+structure against; its ``allowed`` key, where present, the catalogue effects that name a true
+part of the shape).
 """
 
 from __future__ import annotations
@@ -35,7 +42,7 @@ import numpy as np
 from bench.discovery.data import Record
 from bench.discovery.effects_linalg import base_regressors, project_out
 
-SHAPES = ("triangle", "square", "chirp", "bursts", "noise_bursts", "supply", "tanh")
+SHAPES = ("triangle", "square", "chirp", "bursts", "noise_bursts", "supply", "tanh", "telegraph", "am_line")
 SNR_RANGE = (15.0, 150.0)
 
 
@@ -133,6 +140,20 @@ def hide(shape: str, kind: str, rec: Record, rng: np.random.Generator,
         amp = _size(unit, _poly_left(unit, rec), rng, noise_sd)
         # the compression's depth is set by lim; amp scales it onto the size rule
         return rec, amp * unit, {"column": "input"}
+    if shape == "telegraph":
+        at = np.sort(rng.choice(np.arange(1, rec.n), int(rng.integers(10, 101)), replace=False))
+        level = 1.0 - 2.0 * (np.searchsorted(at, np.arange(rec.n), side="right") % 2)
+        amp = noise_sd * math.exp(rng.uniform(0.0, math.log(4.0)))
+        return rec, amp * level * rng.choice([-1.0, 1.0]), {"levels": True}
+    if shape == "am_line":
+        f0 = rng.uniform(20, 200) / span
+        env = np.zeros(rec.n)
+        for _ in range(3):
+            env += np.cos(2 * np.pi * rng.uniform(1, 3) / span * t + rng.uniform(0, 2 * np.pi))
+        env /= float(np.max(np.abs(env)))
+        unit = (1.0 + rng.uniform(0.5, 0.9) * env) * np.sin(2 * np.pi * f0 * t + rng.uniform(0, 2 * np.pi))
+        amp = _size(unit, _best_sine_left(unit, rec), rng, noise_sd)
+        return rec, amp * unit, {"freq_hz": (0.8 * f0, 1.2 * f0), "allowed": ("sinusoidal_interference",)}
     raise ValueError(f"unknown shape {shape!r}; allowed: {list(SHAPES)}")
 
 
@@ -142,6 +163,8 @@ def found_where(where: dict, unexplained: list[str]) -> bool:
     its column."""
     if "column" in where:
         return any(f"correlation with {where['column']}" in u for u in unexplained)
+    if "levels" in where:  # steps between levels: a process doubted for its jumps, or the jumps themselves
+        return any("it jumps" in u or "jump at t" in u for u in unexplained)
     ok = False
     if "windows_s" in where:
         for u in unexplained:
