@@ -84,7 +84,8 @@ def run_case(kind: str, effects: tuple[str, ...], seed: int, n: int, at_snr: flo
     named = list(d.named)
     out = {"row": "single" if len(effects) == 1 else {0: "clean", 2: "pair", 3: "triple"}[len(effects)],
            "generator": generator, "kind": kind, "hidden": list(effects), "seed": seed, "named": named,
-           "first": named[0] if named else None, "gap_final": d.gap_final.rms_ratio,
+           "first": named[0] if named else None, "doubted": [s.effect_id for s in d.steps if s.doubt],
+           "gap_final": d.gap_final.rms_ratio,
            "unexplained": list(d.unexplained), "withdrawn": list(d.withdrawn),
            "seconds": time.perf_counter() - t0, "recovered": None, "snr_ratio": [x / MIN_SNR for x in snrs],
            "ratio": None if at_snr is None else at_snr / MIN_SNR, "redraws": redraws,
@@ -132,15 +133,15 @@ def _call(job: tuple) -> dict | None:
 
 def _mark(c: dict) -> str:
     if c["row"] == "open":
-        ok = not c["named"] and bool(c["unexplained"])
-        return f"{'ok ' if ok else 'MISS'} named {c['named']} where {c['found_where']} withdrawn " \
-               f"{[w.split(':')[0] for w in c['withdrawn']]}"
+        return f"{'ok ' if _open_ok(c) else 'MISS'} named {c['named']} doubted {c.get('doubted', [])} where " \
+               f"{c['found_where']} withdrawn {[w.split(':')[0] for w in c['withdrawn']]}"
     hid = c["hidden"]
     if not hid:
         return f"named {c['named']} unexplained {len(c['unexplained'])}"
     ok = set(c["named"]) == set(hid) and len(c["named"]) == len(hid)
     mark = "ok " if ok else "xtra" if c["first"] == hid[0] and set(hid) <= set(c["named"]) else "MISS"
-    return f"{mark} named {c['named']} gap {c['gap_final']:.3f} recovered {c['recovered']}"
+    return f"{mark} named {c['named']} doubted {c.get('doubted', [])} gap {c['gap_final']:.3f} " \
+           f"recovered {c['recovered']}"
 
 
 def run_jobs(jobs: list[tuple], n_jobs: int, json_path: str | None = None) -> list[dict]:

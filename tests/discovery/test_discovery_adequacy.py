@@ -19,6 +19,7 @@ probability ≤ 0.1 %) or a share the method is held to:
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 import pytest
@@ -30,6 +31,7 @@ from bench.discovery.criterion import FALSE_NAME_RATE
 from bench.discovery.data import Record
 from bench.discovery.effects import CATALOGUE
 from bench.discovery.effects_base import DEFAULT_NOISE_SD
+from bench.discovery.effects_noise import StochasticEffect
 from bench.discovery.experiments import make_experiment
 from bench.discovery.model import Model, base_model
 from bench.discovery.whiten import state_space
@@ -105,14 +107,16 @@ NULL_PROCESSES = ("gauss_markov", "flicker_noise", "rate_random_walk", "angle_qu
 NULL_RECORDS = 12
 
 
-def test_a_process_that_is_what_it_is_named_is_doubted_at_most_at_the_stated_rate():
+def doubted_nulls(records: int, first_seed: int = 0) -> tuple[list[tuple], int]:
+    """Records realised from each null case's process at its drawn values, ``records`` per case:
+    (the doubted ones as (effect, ν, seed, description), the records tested)."""
     doubted, total = [], 0
     cases = [(eid, None) for eid in NULL_PROCESSES] + [("gauss_markov", 4.0)]
     for i, (eid, nu) in enumerate(cases):
-        for seed in range(NULL_RECORDS):
+        for seed in range(first_seed, first_seed + records):
             rng = np.random.default_rng([36, 11, i, seed])
             rec = _record(rng)
-            eff = CATALOGUE[eid]
+            eff = cast(StochasticEffect, CATALOGUE[eid])
             p = eff.draw(rng, rec, kind=KIND, noise_sd=SD)
             model = _start().with_effect(eid, p)
             ss = state_space(rec.rate_hz, N, [(eff, p)])
@@ -123,6 +127,11 @@ def test_a_process_that_is_what_it_is_named_is_doubted_at_most_at_the_stated_rat
             total += 1
             if got:
                 doubted.append((eid, nu, seed, got[eid].describe()))
+    return doubted, total
+
+
+def test_a_process_that_is_what_it_is_named_is_doubted_at_most_at_the_stated_rate():
+    doubted, total = doubted_nulls(NULL_RECORDS)
     assert len(doubted) <= binomial_allowance(total, FALSE_NAME_RATE), doubted
 
 
@@ -156,17 +165,22 @@ def _bursts(rng: np.random.Generator, rec: Record) -> np.ndarray:
 POWER_RECORDS = 10
 
 
-@pytest.mark.parametrize("shape", ["telegraph", "bursts"])
-def test_structure_with_a_gauss_markov_spectrum_that_is_not_one_is_doubted(shape):
+def doubted_shapes(shape: str, records: int, first_seed: int = 0) -> int:
+    """Records of ``shape`` in white noise, each fitted by its best Gauss–Markov, that doubt it."""
     doubted = 0
-    for seed in range(POWER_RECORDS):
+    for seed in range(first_seed, first_seed + records):
         rng = np.random.default_rng([36, 12, seed])
         rec = _record(rng)
         extra = _telegraph(rng) if shape == "telegraph" else _bursts(rng, rec)
         model, y = _fitted_gm(rec, extra, rng)
         rec = rec.replace(y=model.predict(rec) - model.predict(rec).mean() + y)
         doubted += bool(process_doubts(model, rec, None, (GM.id,), level=LEVEL, seed=seed))
-    assert doubted >= RECOVERY_SHARE * POWER_RECORDS
+    return doubted
+
+
+@pytest.mark.parametrize("shape", ["telegraph", "bursts"])
+def test_structure_with_a_gauss_markov_spectrum_that_is_not_one_is_doubted(shape):
+    assert doubted_shapes(shape, POWER_RECORDS) >= RECOVERY_SHARE * POWER_RECORDS
 
 
 #: records of the workflow test: telegraph noise of 30 steps of ±3 white sd (doubted in ≥ 80 %)
@@ -196,3 +210,21 @@ def test_the_workflow_keeps_a_doubted_process_in_the_model_and_does_not_name_it(
         assert text.count("not named (doubted") == sum(bool(s.doubt) for s in d.steps)
         doubted += not d.named
     assert doubted >= 1
+
+
+if __name__ == "__main__":  # the figures: python -m tests.discovery.test_discovery_adequacy [RECORDS]
+    import sys
+    import time
+
+    records = int(sys.argv[1]) if len(sys.argv) > 1 else 100
+    t0 = time.perf_counter()
+    bad, total = doubted_nulls(records, first_seed=1000)
+    by = {f"{e}{'' if nu is None else f' (Student-t ν = {nu:g})'}": 0 for e, nu in
+          [(eid, None) for eid in NULL_PROCESSES] + [("gauss_markov", 4.0)]}
+    for e, nu, _, _ in bad:
+        by[f"{e}{'' if nu is None else f' (Student-t ν = {nu:g})'}"] += 1
+    print(f"size: {len(bad)}/{total} records of the model's own process doubted (stated ≤ {FALSE_NAME_RATE:g}); "
+          + ", ".join(f"{k} {v}/{records}" for k, v in by.items()))
+    for shape in ("telegraph", "bursts"):
+        print(f"power, {shape}: doubted {doubted_shapes(shape, records, first_seed=1000)}/{records}")
+    print(f"{time.perf_counter() - t0:.0f} s ({N} samples a record)")

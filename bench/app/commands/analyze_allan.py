@@ -157,7 +157,8 @@ def noise_model(t: np.ndarray, y: np.ndarray, rate: float, unit: str | None, res
         c = result.coefficients[name]
         terms[name] = {"label": c.label, "value": v * c.factor / to_base, "unit": c.unit,
                        "slope_fit": c.fit, "slope_fit_std": c.fit_std}
-    return {"effects": [{"id": s.effect_id, "params": s.params, "params_std": s.params_std} for s in d.steps],
+    return {"effects": [{"id": s.effect_id, "params": s.params, "params_std": s.params_std, "doubt": s.doubt or None}
+                        for s in d.steps],
             "terms": terms, "adev": adev.tolist(), "within": len(result.tau_s) - len(outside),
             "taus": len(result.tau_s), "outside": outside, "notes": list(d.notes)}
 
@@ -169,6 +170,7 @@ def _model_table(nm: dict) -> str:
     for name, tm in nm["terms"].items():
         fit = "not fitted" if tm["slope_fit"] is None else f"{tm['slope_fit']:.4g}"
         lines.append(f"  {name} {tm['label']:<26} {tm['value']:>12.4g} {tm['unit']:<14} (slope fit: {fit})")
+    lines += [f"  doubted — {e['doubt']}" for e in nm["effects"] if e.get("doubt")]
     where = "; ".join(f"{tau:.4g} s ({side})" for tau, side in nm["outside"])
     lines.append(f"  its Allan deviation lies within the data's interval at {nm['within']} of {nm['taus']} τ"
                  + (f"; outside at {where}" if where else ""))
