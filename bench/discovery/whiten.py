@@ -50,10 +50,11 @@ def _gain(p, h, r_var, hp):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - compiled
+def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s, out_g):  # pragma: no cover - compiled
     """Time-varying Kalman filter of y under the block-diagonal state space (f, q, h, p0);
     ``lo[i]``, ``hi[i]``: the range of columns of row i's block. Writes each innovation and its
-    variance into ``out_e`` and ``out_s``. Cost O(n·m²·b), b the largest block — until the
+    variance into ``out_e`` and ``out_s``, and — when ``out_g`` has a row per sample — the update
+    gain K_k = P hᵀ/S (0 where not observed) into ``out_g`` (for :func:`_smooth_back`). Cost O(n·m²·b), b the largest block — until the
     covariance reaches its steady state: F, Q and the white variance do not change, so once a
     whole update leaves P bit for bit as it was, every later one would too, and from there on
     only the state is propagated with the same gain (O(n·m·b); the same numbers). A NaN in ``y``
@@ -81,6 +82,9 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - 
         if missing:
             for i in range(m):
                 hp[i] = 0.0  # no gain: neither the state nor P is updated
+        if out_g.shape[0] == n:
+            for i in range(m):
+                out_g[k, i] = hp[i] / s
         for i in range(m):  # update with gain K = P hᵀ / S
             x[i] += hp[i] * e / s if not missing else 0.0
         # predict: x ← F x, P ← F P Fᵀ + Q, F block-diagonal (row i reads columns lo[i]..hi[i])
@@ -118,7 +122,7 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s):  # pragma: no cover - 
 
 
 @numba.njit(cache=True)
-def _filter_diagonal(y, f, q, h, p0, r_var, out_e, out_s):  # pragma: no cover - compiled
+def _filter_diagonal(y, f, q, h, p0, r_var, out_e, out_s, out_g):  # pragma: no cover - compiled
     """:func:`_filter` when F is diagonal (Gauss–Markov, random walk, flicker's 13 Gauss–Markov
     states in one block), the same products without the block loops — whose other terms are
     zeros: ``P ← (f_i·(P − P hᵀ h P / S)_ij)·f_j + Q_ij`` over the upper triangle. The same
@@ -145,6 +149,9 @@ def _filter_diagonal(y, f, q, h, p0, r_var, out_e, out_s):  # pragma: no cover -
         if missing:
             for i in range(m):
                 hp[i] = 0.0
+        if out_g.shape[0] == n:
+            for i in range(m):
+                out_g[k, i] = hp[i] / s
         for i in range(m):
             x[i] += hp[i] * e / s if not missing else 0.0
         for i in range(m):
@@ -163,89 +170,23 @@ def _filter_diagonal(y, f, q, h, p0, r_var, out_e, out_s):  # pragma: no cover -
 
 
 @numba.njit(cache=True)
-def _smoothed_disturbances(y, f, q, h, p0, r_var, lo, hi, blo, bhi, out):  # pragma: no cover - compiled
-    """Fixed-interval smoothed state disturbances (de Jong's smoother; Durbin & Koopman, §4.5):
-    ``out[k, b]`` = h_b·Q_b·r_k, the disturbance e_k that moved block b's states into x_k given
-    the whole record, as seen in the output; r_k the smoothing cumulant of x_k after sample k
-    (r_k = hᵀ(v_k/S_k − K_kᵀr) + r, r = Fᵀr_{k+1}), K_k the update gain. A NaN in ``y`` is a sample
-    not observed (no term). Forward pass as :func:`_filter` (block-diagonal products, ``lo``/``hi``
-    each row's block) with the same steady-state shortcut; ``blo``/``bhi`` the blocks reported."""
+def _smooth_back(e, s, g, f, q, h, lo, hi, blo, bhi, out):  # pragma: no cover - compiled
+    """Fixed-interval smoothed state disturbances (de Jong's smoother; Durbin & Koopman, §4.5)
+    from the filter's innovations ``e``, their variances ``s`` and update gains ``g``:
+    ``out[k, b]`` = h_b·Q_b·r_k, the disturbance e_k that moved block b's states into x_k given the
+    whole record, as seen in the output; r_k the smoothing cumulant of x_k after sample k,
+    r_k = hᵀ(e_k/S_k − g_kᵀr) + r with r = Fᵀr_{k+1} (a NaN innovation, a sample not observed,
+    adds no term). ``lo``/``hi`` each row's block, ``blo``/``bhi`` the blocks reported."""
     m = h.size
-    n = y.size
-    x = np.zeros(m)
-    xn = np.zeros(m)
-    p = p0.copy()
-    fp = np.zeros((m, m))
-    hp = np.zeros(m)
-    v = np.zeros(n)
-    s_inv = np.zeros(n)
-    gain = np.zeros((n, m))
-    diagonal = True
-    for i in range(m):
-        for j in range(m):
-            if i != j and f[i, j] != 0.0:
-                diagonal = False
-    steady = False
-    s = r_var
-    for k in range(n):
-        e = _innovation(y[k], h, x)
-        missing = math.isnan(e)
-        if missing:
-            steady = False
-        if not steady:
-            s = _gain(p, h, r_var, hp)
-        if not missing:
-            v[k] = e
-            s_inv[k] = 1.0 / s
-            for i in range(m):
-                gain[k, i] = hp[i] / s
-                x[i] += hp[i] * e / s
-        for i in range(m):
-            acc = 0.0
-            for a in range(lo[i], hi[i]):
-                acc += f[i, a] * x[a]
-            xn[i] = acc
-        for i in range(m):
-            x[i] = xn[i]
-        if steady:
-            continue
-        same = not missing
-        for i in range(m):
-            for j in range(m):
-                if not missing:
-                    p[i, j] -= hp[i] * hp[j] / s
-        if diagonal:  # F diagonal: P ← f_i·P_ij·f_j + Q_ij (the block loops' other terms are zeros)
-            for i in range(m):
-                for j in range(m):
-                    acc = f[i, i] * p[i, j] * f[j, j] + q[i, j]
-                    if acc != p[i, j]:
-                        same = False
-                    p[i, j] = acc
-            steady = same
-            continue
-        for i in range(m):
-            for j in range(m):
-                acc = 0.0
-                for a in range(lo[i], hi[i]):
-                    acc += f[i, a] * p[a, j]
-                fp[i, j] = acc
-        for i in range(m):
-            for j in range(m):
-                acc = q[i, j]
-                for b in range(lo[j], hi[j]):
-                    acc += fp[i, b] * f[j, b]
-                if acc != p[i, j]:
-                    same = False
-                p[i, j] = acc
-        steady = same
     r = np.zeros(m)
     rk = np.zeros(m)
-    for k in range(n - 1, -1, -1):
+    for k in range(e.size - 1, -1, -1):
+        seen = not math.isnan(e[k])
         kr = 0.0
         for i in range(m):
-            kr += gain[k, i] * r[i]
+            kr += g[k, i] * r[i]
         for i in range(m):
-            rk[i] = h[i] * (v[k] * s_inv[k] - kr) + r[i]
+            rk[i] = h[i] * (e[k] / s[k] - kr) + r[i] if seen else r[i]
         for b in range(blo.size):
             acc = 0.0
             for i in range(blo[b], bhi[b]):
@@ -319,13 +260,18 @@ class StateSpace:
 
     def filter(self, y: np.ndarray, white_var: float) -> tuple[np.ndarray, np.ndarray]:
         """(innovations, their variances) of ``y`` with white measurement noise ``white_var``."""
+        e, s, _ = self._run(y, white_var, gains=False)
+        return e, s
+
+    def _run(self, y: np.ndarray, white_var: float, *, gains: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         y = np.ascontiguousarray(y, dtype=float)
         e, s = np.empty_like(y), np.empty_like(y)
+        g = np.zeros((y.size if gains else 0, self.m))
         if not np.any(self.f - np.diag(np.diag(self.f))):  # F diagonal: no block loops needed
-            _filter_diagonal(y, self.f, self.q, self.h, self.p0, float(white_var), e, s)
+            _filter_diagonal(y, self.f, self.q, self.h, self.p0, float(white_var), e, s, g)
         else:
-            _filter(y, self.f, self.q, self.h, self.p0, float(white_var), self.lo, self.hi, e, s)
-        return e, s
+            _filter(y, self.f, self.q, self.h, self.p0, float(white_var), self.lo, self.hi, e, s, g)
+        return e, s, g
 
     def blocks(self) -> list[tuple[int, int]]:
         """Each block's row range (lo, hi), in order: one per process of :func:`state_space`."""
@@ -333,12 +279,12 @@ class StateSpace:
 
     def smoothed_disturbances(self, y: np.ndarray, white_var: float) -> np.ndarray:
         """(n, blocks): each block's disturbance given the whole of ``y`` as it moves the output
-        (h_b·E[e_{b,k} | y]; :func:`_smoothed_disturbances`). NaN in ``y``: not observed."""
-        y = np.ascontiguousarray(y, dtype=float)
+        (h_b·E[e_{b,k} | y]; the filter's gains, then :func:`_smooth_back`). NaN in ``y``: not observed."""
+        e, s, g = self._run(y, white_var, gains=True)
         b = np.array(self.blocks(), dtype=np.int64).reshape(-1, 2)
-        out = np.zeros((y.size, b.shape[0]))
-        _smoothed_disturbances(y, self.f, self.q, self.h, self.p0, float(white_var), self.lo, self.hi,
-                               np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1]), out)
+        out = np.zeros((e.size, b.shape[0]))
+        _smooth_back(e, s, g, self.f, self.q, self.h, self.lo, self.hi, np.ascontiguousarray(b[:, 0]),
+                     np.ascontiguousarray(b[:, 1]), out)
         return out
 
     def simulate(self, rng: np.random.Generator, n: int) -> np.ndarray:

@@ -57,7 +57,8 @@ def _start() -> Model:
 
 
 def _dense_disturbances(y: np.ndarray, f, q, h, p0, r_var) -> tuple[np.ndarray, np.ndarray]:
-    """The same smoother written with whole matrices: (h·Q·r_k, h·Q·N_k·Q·hᵀ) per sample."""
+    """The same smoother written with whole matrices: (h·Q·r_k, h·Q·N_k·Q·hᵀ) per sample; a NaN
+    reading is not observed."""
     n, m = y.size, h.size
     x, p = np.zeros(m), p0.copy()
     v, s, gain = np.zeros(n), np.ones(n), np.zeros((n, m))
@@ -65,6 +66,9 @@ def _dense_disturbances(y: np.ndarray, f, q, h, p0, r_var) -> tuple[np.ndarray, 
         if k:
             x, p = f @ x, f @ p @ f.T + q
         s[k] = h @ p @ h + r_var
+        if np.isnan(y[k]):  # not observed: no update, no term below
+            s[k] = np.inf
+            continue
         gain[k] = p @ h / s[k]
         v[k] = y[k] - h @ x
         x, p = x + gain[k] * v[k], p - np.outer(gain[k], h @ p)
@@ -86,6 +90,7 @@ def test_the_smoothed_disturbances_are_the_dense_recursions_and_have_unit_standa
     p = CATALOGUE[eid].draw(rng, rec, kind=KIND, noise_sd=SD)
     ss = state_space(rec.rate_hz, N, [(CATALOGUE[eid], p)])
     y = ss.simulate(rng, N) + SD * rng.standard_normal(N)
+    y[rng.choice(N, 15, replace=False)] = np.nan  # samples set aside: missing to the filter
     fast = ss.smoothed_disturbances(y, SD * SD)[:, 0]
     slow, var = _dense_disturbances(y, ss.f, ss.q, ss.h, ss.p0, SD * SD)
     assert np.allclose(fast, slow, rtol=1e-9, atol=1e-12 * float(np.max(np.abs(slow))))
