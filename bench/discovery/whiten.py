@@ -54,9 +54,10 @@ def _filter(y, f, q, h, p0, r_var, lo, hi, out_e, out_s, out_g):  # pragma: no c
     """Time-varying Kalman filter of y under the block-diagonal state space (f, q, h, p0);
     ``lo[i]``, ``hi[i]``: the range of columns of row i's block. Writes each innovation and its
     variance into ``out_e`` and ``out_s``, and — when ``out_g`` has a row per sample — the update
-    gain K_k = P hᵀ/S (0 where not observed) into ``out_g`` (for :func:`_smooth_back`). Cost O(n·m²·b), b the largest block — until the
-    covariance reaches its steady state: F, Q and the white variance do not change, so once a
-    whole update leaves P bit for bit as it was, every later one would too, and from there on
+    gain K_k = P hᵀ/S (0 where not observed) into ``out_g`` (for :func:`_smooth_back`).
+    Cost O(n·m²·b), b the largest block — until the covariance reaches its steady state: F, Q
+    and the white variance do not change, so once a whole update leaves P bit for bit as it
+    was, every later one would too, and from there on
     only the state is propagated with the same gain (O(n·m·b); the same numbers). A NaN in ``y``
     is a sample not observed: the state and P are only predicted through it (its innovation is
     NaN, its variance the prediction's), and the steady state is sought again after it."""
