@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 from bench.app.commands.discover import summary
+from bench.app.reports.discovery_report import write_discovery_report
 from bench.discovery import stochastic as sto
 from bench.discovery.adequacy import N_STATISTICS, process_doubts, reps_for
 from bench.discovery.criterion import FALSE_NAME_RATE
@@ -213,6 +214,9 @@ def test_the_workflow_keeps_a_doubted_process_in_the_model_and_does_not_name_it(
         text = summary(d, "telegraph", tmp_path / "m.toml", tmp_path / "r.html")
         assert ("nothing named" in text) == (not d.named)
         assert text.count("not named (doubted") == sum(bool(s.doubt) for s in d.steps)
+        page = write_discovery_report(d, rec, tmp_path / f"report{seed}", "telegraph", pdf=False).read_text("utf-8")
+        assert page.count("In the model for its spectrum, not named: ") == sum(bool(s.doubt) for s in d.steps)
+        assert page.count("<b>Named: ") == len(d.named)
         doubted += not d.named
     assert doubted >= 1
 

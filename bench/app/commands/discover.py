@@ -63,7 +63,8 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder [{DEFAULT_OUT}]")
     p.add_argument("--max-effects", type=int, default=4, help="most effects to add [4]")
     p.add_argument("--alpha", type=float, default=0.05,
-                   help="false-name rate: the chance of naming an effect on a record that holds none [0.05]")
+                   help="false-name rate: the chance of naming an effect on a record that holds none, and of "
+                        "doubting a random process that is what it is named [0.05]")
     p.add_argument("--seed", type=int, default=0, help="seed of the model-noise realisations of the gap table [0]")
     p.add_argument("--jobs", type=int, default=default_jobs(),
                    help=f"worker processes fitting the add moves side by side (same answer) [{default_jobs()}]")
