@@ -22,14 +22,14 @@ telegraph      random telegraph (popcorn) noise: the output steps between +A and
                instants drawn uniformly over T; A log-uniform in 1-4 × the white sd (a step
                seen on the trace) — its spectrum is a Gauss–Markov's, its steps are not
 am_line        a line of 20-200 cycles over T whose amplitude is modulated 50-90 % by a slow
-               random envelope (three cosines of 1-3 cycles over T, random phases); a line
-               named at its carrier is a fair part of the answer (``allowed``)
+               random envelope (three cosines of 1-3 cycles over T, random phases)
 =============  ================================================================================
 
 ``hide(shape, kind, rec, rng, noise_sd)`` returns (the record with any new column, the
 structure to add to the output, where it is: a dict the scorecard checks the unexplained
-structure against; its ``allowed`` key, where present, the catalogue effects that name a true
-part of the shape).
+structure against; its ``allowed`` key, where present, the look-alikes the shape's size is
+measured against — naming one states the part of the shape it is, so an honest answer may name
+it, and must report the rest as unexplained structure).
 """
 
 from __future__ import annotations
@@ -44,6 +44,10 @@ from bench.discovery.effects_linalg import base_regressors, project_out
 
 SHAPES = ("triangle", "square", "chirp", "bursts", "noise_bursts", "supply", "tanh", "telegraph", "am_line")
 SNR_RANGE = (15.0, 150.0)
+#: the look-alikes the size rule measures a shape against: a line (the best single sinusoid) and
+#: the input polynomial (K2 + K3 + asymmetry)
+LINE = "sinusoidal_interference"
+POLYNOMIAL = ("k2_nonlinearity", "k3_nonlinearity", "scale_factor_asymmetry")
 
 
 def _triangle(phase: np.ndarray) -> np.ndarray:
@@ -93,14 +97,14 @@ def hide(shape: str, kind: str, rec: Record, rng: np.random.Generator,
         ph = 2 * np.pi * f0 * t + rng.uniform(0, 2 * np.pi)
         unit = _triangle(ph) if shape == "triangle" else np.sign(np.sin(ph))
         amp = _size(unit, _best_sine_left(unit, rec), rng, noise_sd)
-        return rec, amp * unit, {"freq_hz": (f0, 7 * f0)}
+        return rec, amp * unit, {"freq_hz": (f0, 7 * f0), "allowed": (LINE,)}
     if shape == "chirp":
         f_lo, f_hi = 5 / span, rng.uniform(40, 80) / span
         tc = t if rng.random() < 0.5 else span - t  # sweeping up or down
         ph = 2 * np.pi * (f_lo * tc + 0.5 * (f_hi - f_lo) * tc * tc / span) + rng.uniform(0, 2 * np.pi)
         unit = np.sin(ph)
         amp = _size(unit, _best_sine_left(unit, rec), rng, noise_sd)
-        return rec, amp * unit, {"freq_hz": (f_lo, f_hi)}
+        return rec, amp * unit, {"freq_hz": (f_lo, f_hi), "allowed": (LINE,)}
     if shape == "bursts":
         f0 = rng.uniform(40, 100) / span
         width = 0.05 * span
@@ -111,7 +115,7 @@ def hide(shape: str, kind: str, rec: Record, rng: np.random.Generator,
         unit = env * np.sin(2 * np.pi * f0 * t + rng.uniform(0, 2 * np.pi))
         amp = _size(unit, _best_sine_left(unit, rec), rng, noise_sd)
         return rec, amp * unit, {"windows_s": [(rec.t_s[0] + s, rec.t_s[0] + s + width) for s in starts],
-                                 "freq_hz": (0.8 * f0, 1.2 * f0)}
+                                 "freq_hz": (0.8 * f0, 1.2 * f0), "allowed": (LINE,)}
     if shape == "noise_bursts":
         width = 0.08 * span
         starts = np.sort(rng.choice(np.linspace(0.05, 0.85, 17), 2, replace=False)) * span
@@ -139,7 +143,7 @@ def hide(shape: str, kind: str, rec: Record, rng: np.random.Generator,
         unit = lim * np.tanh(u / lim) - u
         amp = _size(unit, _poly_left(unit, rec), rng, noise_sd)
         # the compression's depth is set by lim; amp scales it onto the size rule
-        return rec, amp * unit, {"column": "input"}
+        return rec, amp * unit, {"column": "input", "allowed": POLYNOMIAL}
     if shape == "telegraph":
         at = np.sort(rng.choice(np.arange(1, rec.n), int(rng.integers(10, 101)), replace=False))
         level = 1.0 - 2.0 * (np.searchsorted(at, np.arange(rec.n), side="right") % 2)
@@ -153,7 +157,7 @@ def hide(shape: str, kind: str, rec: Record, rng: np.random.Generator,
         env /= float(np.max(np.abs(env)))
         unit = (1.0 + rng.uniform(0.5, 0.9) * env) * np.sin(2 * np.pi * f0 * t + rng.uniform(0, 2 * np.pi))
         amp = _size(unit, _best_sine_left(unit, rec), rng, noise_sd)
-        return rec, amp * unit, {"freq_hz": (0.8 * f0, 1.2 * f0), "allowed": ("sinusoidal_interference",)}
+        return rec, amp * unit, {"freq_hz": (0.8 * f0, 1.2 * f0), "allowed": (LINE,)}
     raise ValueError(f"unknown shape {shape!r}; allowed: {list(SHAPES)}")
 
 
