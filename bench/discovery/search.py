@@ -117,6 +117,11 @@ class Evaluator:
         #: effects estimated on the whole record (a long record's block means) that a search on
         #: a window of it keeps as they are: not refitted, not dropped or swapped
         self.fixed: frozenset[str] = frozenset()
+        #: effects the whole record named that a search on a window of it refits but neither drops
+        #: nor swaps: a window of a tenth of the record cannot say a slow effect is not there (a
+        #: temperature term where the temperature barely moves); the whole record decides
+        #: (``workflow._confirmed``)
+        self.kept: frozenset[str] = frozenset()
         self._hist_p: dict[str, float] = {}
 
     # ---- the criterion ------------------------------------------------------------------
@@ -345,7 +350,7 @@ def search(ev: Evaluator, start: Scored, *, max_effects: int, only: Sequence[str
                         ev.cache[a.key] = a
             children += adds
             for eid in s.model.effect_ids:
-                if eid in ev.fixed:
+                if eid in ev.fixed or eid in ev.kept:
                     continue
                 d = ev.dropped(s, eid)
                 if d is None:

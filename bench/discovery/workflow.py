@@ -314,12 +314,13 @@ class _Stage:
 
 def _search(rec: Record, model: Model, *, alpha: float, max_effects: int, only: tuple[str, ...] | None,
             seen: np.ndarray | None, fixed: frozenset[str], say: Callable[[str], None], map_fn: MapFn,
-            scale: str = "") -> _Stage:
+            scale: str = "", kept: frozenset[str] = frozenset()) -> _Stage:
     kind = model.base.kind
     cands = [e.id for e in applicable(model, rec) if only is None or e.id in only]
     ev = Evaluator(rec, kind, n_candidates=len(cands) or 1, alpha=alpha, seen=seen)
     ev.given = frozenset(model.effect_ids)
     ev.fixed = fixed
+    ev.kept = kept
     start = ev.score(model)
     if start is None:
         raise ValueError("the starting model cannot be calibrated on this record (bias or scale factor at the edge "
@@ -503,8 +504,10 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
     if need > float(slow.base.noise_sd) ** 2:
         released |= {e.id for e, p in procs if e.identifiable(p, window)}
     held = frozenset(slow.effect_ids) - released
+    # what the window refits it may not drop: whether a slow effect is there is the whole record's
+    # to say (the window's additions and refits are confirmed on it below)
     fast = _search(window, slow, alpha=alpha / 2, max_effects=max_effects, only=only, seen=seen[a:a + SEARCH_POINTS],
-                   fixed=held, say=say, map_fn=map_fn, scale="full-rate window")
+                   fixed=held, say=say, map_fn=map_fn, scale="full-rate window", kept=released & set(slow.effect_ids))
     got = fast.result.best.model
     # the whole record's bias and scale factor, the window's white level (per sample), and the
     # window's terms refined on the whole record (a line's frequency to the record's resolution)

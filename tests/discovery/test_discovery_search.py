@@ -381,3 +381,26 @@ def test_ties_on_a_gauss_markov_like_flicker():
         weights = [float(m.group(2))] + [float(w) for _, w in _ALT.findall(m.group(3))]
         assert all(0 <= w <= 1 for w in weights), note
         assert sum(weights) == pytest.approx(1.0, abs=0.005 * len(weights)), note
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_an_effect_the_search_must_keep_is_refitted_but_never_dropped_or_swapped(seed):
+    """``Evaluator.kept`` (a long record's slow effect on its window): on a record of white
+    noise a starting drift is dropped by a free search — and kept, refitted, when it is to be
+    kept; the other moves run as before."""
+    rng = np.random.default_rng([36, 21, seed])
+    rec = make_experiment("gyro", rng, n=N)
+    base = Model(base_model("gyro"))
+    rec = rec.replace(y=base.predict(rec) + DEFAULT_NOISE_SD["gyro"] * rng.standard_normal(N))
+    start_model = base.with_effect("linear_drift", {"slope_per_s": 1e-5})
+    outcomes = {}
+    for kept in (frozenset(), frozenset({"linear_drift"})):
+        ev = Evaluator(rec, "gyro", n_candidates=1, alpha=FALSE_NAME_RATE)
+        ev.kept = kept
+        start = ev.score(start_model)
+        assert start is not None
+        result = search(ev, start, max_effects=2, only=("linear_drift", "gauss_markov"))
+        outcomes[bool(kept)] = result.best.model
+    assert "linear_drift" not in outcomes[False].effect_ids
+    kept_drift = dict(outcomes[True].effects)["linear_drift"]["slope_per_s"]
+    assert "linear_drift" in outcomes[True].effect_ids and abs(kept_drift) < 1e-5  # refitted toward 0
