@@ -507,7 +507,8 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
     # what the window refits it may not drop: whether a slow effect is there is the whole record's
     # to say (the window's additions and refits are confirmed on it below)
     fast = _search(window, slow, alpha=alpha / 2, max_effects=max_effects, only=only, seen=seen[a:a + SEARCH_POINTS],
-                   fixed=held, say=say, map_fn=map_fn, scale="full-rate window", kept=released & set(slow.effect_ids))
+                   fixed=held, say=say, map_fn=map_fn, scale="full-rate window",
+                   kept=frozenset(released & set(slow.effect_ids)))
     got = fast.result.best.model
     # the whole record's bias and scale factor, the window's white level (per sample), and the
     # window's terms refined on the whole record (a line's frequency to the record's resolution)
