@@ -142,7 +142,9 @@ def process_doubts(model: Model, rec: Record, seen: np.ndarray | None, ids: tupl
     out: dict[str, Doubt] = {}
     for j, eid in enumerate(ids):
         kurt, seg, pg = observed[j]
-        mean_pg = np.maximum(null_p[j].mean(axis=0), np.finfo(float).tiny)
+        # the model's mean periodogram over all R + 1 series, the record's among them: each is then
+        # normalised alike, and the rank test stays exact
+        mean_pg = np.maximum((null_p[j].sum(axis=0) + pg) / (reps + 1), np.finfo(float).tiny)
         peaks = np.max(null_p[j] / mean_pg, axis=1)
         ratio = pg / mean_pg
         at = int(np.argmax(ratio))
