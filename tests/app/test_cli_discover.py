@@ -161,7 +161,7 @@ def test_candidates_fitted_in_worker_processes_give_the_same_discovery():
     # a warm-up and Gauss–Markov noise: the add moves of each round fitted in two worker
     # processes give the same search, the same messages and the same answer
     rng = np.random.default_rng(5)
-    rec = make_experiment("accelerometer", rng, n=3000)
+    rec = make_experiment("accelerometer", rng, n=1500)
     truth = (Model(base_model("accelerometer")).with_effect("warmup_exponential", {"amplitude": 6e-5, "tau_s": 300.0})
              .with_effect("gauss_markov", {"sigma": 6e-6, "tau_s": 40.0}))
     rec = rec.replace(y=truth.simulate(rec, rng))
