@@ -19,6 +19,7 @@ probability ≤ 0.1 %) or a share the method is held to:
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import cast
 
 import numpy as np
@@ -214,6 +215,9 @@ def test_the_workflow_keeps_a_doubted_process_in_the_model_and_does_not_name_it(
         text = summary(d, "telegraph", tmp_path / "m.toml", tmp_path / "r.html")
         assert ("nothing named" in text) == (not d.named)
         assert text.count("not named (doubted") == sum(bool(s.doubt) for s in d.steps)
+        # a p-value below a double's range is printed as the bound it is
+        floored = replace(d, steps=tuple(replace(s, p_value=0.0) for s in d.steps))
+        assert summary(floored, "t", tmp_path / "m.toml", tmp_path / "r.html").count("p < 1e-300") == len(d.steps)
         page = write_discovery_report(d, rec, tmp_path / f"report{seed}", "telegraph", pdf=False).read_text("utf-8")
         assert page.count("In the model for its spectrum, not named: ") == sum(bool(s.doubt) for s in d.steps)
         assert page.count("<b>Named: ") == len(d.named)

@@ -242,7 +242,7 @@ def summary(result, label: str, model_file: Path, report: Path) -> str:
         lines.append("nothing named: what lowers the criterion is not the process it looks like (below)")
     for i, s in enumerate(result.steps, 1):
         ps = ", ".join(f"{k} = {v:.4g} ± {s.params_std.get(k, float('nan')):.2g}" for k, v in s.params.items())
-        pv = f"p ≤ {s.p_value:.0e}" if s.p_value <= 1e-300 else f"p = {s.p_value:.3g}"  # floored, no underflow
+        pv = "p < 1e-300" if s.p_value < 1e-300 else f"p = {s.p_value:.3g}"  # below a double's range: a bound
         seen_on = f" [{s.scale}]" if s.scale else ""  # a long record: block means or the full-rate window
         doubted = " — in the model for its spectrum, not named (doubted: see unexplained structure)" if s.doubt else ""
         lines.append(f"{i}. {s.effect_id}{seen_on} ({ps}); {pv}; rms {s.rms_before:.4g} → {s.rms_after:.4g}"
