@@ -508,7 +508,7 @@ def _scales(work: Record, model: Model, seen: np.ndarray, *, alpha: float, max_e
     # to say (the window's additions and refits are confirmed on it below)
     fast = _search(window, slow, alpha=alpha / 2, max_effects=max_effects, only=only, seen=seen[a:a + SEARCH_POINTS],
                    fixed=held, say=say, map_fn=map_fn, scale="full-rate window",
-                   kept=frozenset(released & set(slow.effect_ids)))
+                   kept=frozenset(released))
     got = fast.result.best.model
     # the whole record's bias and scale factor, the window's white level (per sample), and the
     # window's terms refined on the whole record (a line's frequency to the record's resolution)

@@ -39,6 +39,7 @@ from bench.discovery.model import Model, base_model
 from bench.discovery.whiten import state_space
 from bench.discovery.workflow import discover
 from bench.testing.discovery_nulls import binomial_allowance
+from bench.testing.generators.discovery_shapes import telegraph_levels
 
 KIND = "gyro"
 SD = DEFAULT_NOISE_SD[KIND]
@@ -155,7 +156,7 @@ def _fitted_gm(rec: Record, extra: np.ndarray, rng: np.random.Generator) -> tupl
 def _telegraph(rng: np.random.Generator) -> np.ndarray:
     """Steps between ±A (A 2–4 white sd: seen on the trace) at 20–60 instants drawn uniformly."""
     at = np.sort(rng.choice(np.arange(1, N), int(rng.integers(20, 61)), replace=False))
-    level = 1.0 - 2.0 * (np.searchsorted(at, np.arange(N), side="right") % 2)
+    level = telegraph_levels(at, N)
     return SD * rng.uniform(2.0, 4.0) * level
 
 
@@ -200,7 +201,7 @@ def test_the_workflow_keeps_a_doubted_process_in_the_model_and_does_not_name_it(
         rng = np.random.default_rng([36, 13, seed])
         rec = _record(rng)
         at = np.sort(rng.choice(np.arange(1, N), 30, replace=False))
-        steps = 3 * SD * (1.0 - 2.0 * (np.searchsorted(at, np.arange(N), side="right") % 2))
+        steps = 3 * SD * telegraph_levels(at, N)
         rec = rec.replace(y=_start().predict(rec) + steps + SD * rng.standard_normal(N))
         d = discover(rec, _start(), max_effects=2, only=("gauss_markov", "flicker_noise", "rate_random_walk"))
         assert d.steps  # the structure lowers the criterion: some process stands for its spectrum

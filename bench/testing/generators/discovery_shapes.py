@@ -55,6 +55,12 @@ def _triangle(phase: np.ndarray) -> np.ndarray:
     return 4 * np.abs(x - 0.5) - 1.0
 
 
+def telegraph_levels(at: np.ndarray, n: int) -> np.ndarray:
+    """±1 over ``n`` samples, +1 at the first and changing sign at each sample index in ``at``
+    (sorted): random telegraph noise of unit amplitude, its steps where they were drawn."""
+    return 1.0 - 2.0 * (np.searchsorted(at, np.arange(n), side="right") % 2)
+
+
 def _best_sine_left(d: np.ndarray, rec: Record) -> np.ndarray:
     """What the best single sinusoid (FFT peak, refined on a fine grid around it) leaves of d."""
     d = project_out(d, base_regressors(rec))
@@ -146,7 +152,7 @@ def hide(shape: str, kind: str, rec: Record, rng: np.random.Generator,
         return rec, amp * unit, {"column": "input", "allowed": POLYNOMIAL}
     if shape == "telegraph":
         at = np.sort(rng.choice(np.arange(1, rec.n), int(rng.integers(10, 101)), replace=False))
-        level = 1.0 - 2.0 * (np.searchsorted(at, np.arange(rec.n), side="right") % 2)
+        level = telegraph_levels(at, rec.n)
         amp = noise_sd * math.exp(rng.uniform(0.0, math.log(4.0)))
         return rec, amp * level * rng.choice([-1.0, 1.0]), {"levels": True}
     if shape == "am_line":
